@@ -1,0 +1,36 @@
+"""scanalign: real-time eye-in-hand 3D reconstruction and CAD-based pose estimation.
+
+Submodules are imported on first use so ``import scanalign`` stays fast:
+
+- :mod:`scanalign.registration` -- ICP engine (point-to-plane LLS, box rejector),
+  stock PCL baselines.
+- :mod:`scanalign.features` -- surface normals.
+- :mod:`scanalign.reconstruction` -- voxel grid filter.
+- :mod:`scanalign.io` -- PCD / PLY / OFF / STL / OBJ readers and a PLY writer.
+- :mod:`scanalign.datasets` -- real test data from Debian packages, built-in objects.
+
+Units are metres and radians throughout.  A transform named ``T_a_b`` is a 4x4
+homogeneous matrix that maps coordinates expressed in frame ``b`` into frame ``a``
+(``p_a = T_a_b @ p_b``).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+__version__ = "0.1.0"
+
+_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "cli")
+
+__all__ = ["__version__", *_SUBMODULES]
+
+
+def __getattr__(name: str) -> Any:  # PEP 562: lazy submodules
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)
