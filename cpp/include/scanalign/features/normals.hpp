@@ -1,0 +1,37 @@
+// Surface normals by PCA over a radius neighbourhood (seed 000 §3.5, after Rusu 2009).
+#pragma once
+
+#include <Eigen/Core>
+
+#include "scanalign/common/cloud_view.hpp"
+#include "scanalign/registration/kdtree.hpp"
+
+namespace scanalign {
+
+struct NormalEstimationSettings {
+  /// Neighbourhood radius (m). Seed 000 §3.5: 5 mm.
+  double radius = 0.005;
+  /// Normals are flipped to point towards this point (m, in the cloud's frame), as
+  /// pcl::flipNormalTowardsViewpoint; the camera centre for a camera-frame cloud.
+  Eigen::Vector3d viewpoint = Eigen::Vector3d::Zero();
+  /// Fewer neighbours than this (the point itself included) give a NaN normal.
+  int min_neighbors = 3;
+  /// OpenMP threads; 0 = all cores.
+  int num_threads = 0;
+};
+
+/// Estimates a unit normal per point: the eigenvector of the smallest eigenvalue of the
+/// neighbourhood covariance, oriented towards the viewpoint. `normals` receives 3*N values
+/// (row-major); `curvature` (may be null) N values of the surface variation
+/// lambda_0 / (lambda_0 + lambda_1 + lambda_2) in [0, 1/3]. Points that are not finite
+/// or have too few neighbours get NaN. Throws std::invalid_argument on bad settings.
+template <typename Scalar>
+void estimateNormals(const CloudView<Scalar>& points, const NormalEstimationSettings& settings, Scalar* normals,
+                     Scalar* curvature = nullptr);
+
+/// The same over an existing tree built on `points` (e.g. the ICP target's).
+template <typename Scalar>
+void estimateNormals(const CloudView<Scalar>& points, const LeftBalancedKdTree<Scalar>& tree,
+                     const NormalEstimationSettings& settings, Scalar* normals, Scalar* curvature = nullptr);
+
+}  // namespace scanalign

@@ -1,0 +1,29 @@
+// Voxel-grid downsampling (seed 000 §3.6): one point per occupied voxel, the centroid of
+// the points inside it, with optional per-point attributes (normals, colours) averaged.
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "scanalign/common/cloud_view.hpp"
+
+namespace scanalign {
+
+struct VoxelGridResult {
+  std::vector<double> points;           ///< 3 per voxel (m): the centroid
+  std::vector<double> attributes;       ///< attribute_dim per voxel: the mean
+  std::vector<std::uint32_t> counts;    ///< input points per voxel
+  std::size_t size() const { return counts.size(); }
+};
+
+/// Voxel grid with cubic voxels of edge `leaf_size` (m), aligned to the cloud's minimum
+/// corner exactly as pcl::VoxelGrid (voxel index floor(p / leaf) - floor(min / leaf)),
+/// and output in PCL's order (z-major, then y, then x). Non-finite points are skipped.
+/// `attributes` (may be null) holds attribute_dim doubles per input point. Voxels with
+/// fewer than min_points_per_voxel points are dropped. Throws std::invalid_argument when
+/// the leaf is not positive or too small for the cloud's extent (over 2^21 voxels per axis).
+template <typename Scalar>
+VoxelGridResult voxelGrid(const CloudView<Scalar>& points, double leaf_size, const double* attributes = nullptr,
+                          std::size_t attribute_dim = 0, std::uint32_t min_points_per_voxel = 1);
+
+}  // namespace scanalign

@@ -1,0 +1,132 @@
+// The fast ICP engine: seed 000 Algorithm 1 written for CPU cores.
+//
+// One parallel pass per iteration transforms each source point, finds its nearest model
+// point in the left-balanced k-d tree, rejects it by box and distance, and adds its
+// terms to the estimator's normal equations. Points are processed in fixed blocks whose
+// partial sums are reduced by a pairwise tree in a fixed order, so the result does not
+// depend on the number of threads. All buffers are sized before the iteration loop.
+#pragma once
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "scanalign/common/cloud_view.hpp"
+#include "scanalign/registration/box.hpp"
+#include "scanalign/registration/kdtree.hpp"
+
+namespace scanalign {
+
+enum class IcpEstimator {
+  PointToPlane,  ///< Low (2004) linear least squares, seed 000 §3.2 (needs target normals)
+  PointToPoint,  ///< closed form (Horn / Umeyama), for comparison
+};
+
+/// Why the ICP loop stopped.
+enum class IcpStatus {
+  ConvergedTransform,        ///< the last increment was below the transformation epsilon
+  ConvergedAbsoluteMse,      ///< |MSE change| below absolute_mse_epsilon
+  ConvergedRelativeMse,      ///< |MSE change| / MSE below the fitness epsilon
+  MaxIterations,             ///< max_iterations reached first: not converged
+  NotEnoughCorrespondences,  ///< fewer than min_correspondences survived rejection
+};
+
+const char* toString(IcpStatus status);
+const char* toString(IcpEstimator estimator);
+
+/// ICP settings. Defaults are seed 000's (§3.3) where it gives one. PCL semantics.
+struct IcpSettings {
+  IcpEstimator estimator = IcpEstimator::PointToPlane;
+  /// Correspondences farther apart than this are rejected (m). Also bounds the search.
+  double max_correspondence_distance = 0.05;
+  /// Stop after this many iterations (status MaxIterations, not converged). Seed: 50.
+  int max_iterations = 50;
+  /// Converged when the increment's squared translation is <= this (m^2) and its rotation
+  /// satisfies cos(angle) >= 1 - this, as pcl::IterativeClosestPoint. Seed: 1e-8.
+  double transformation_epsilon = 1e-8;
+  /// If > 0, the rotation test uses cos(angle) >= this value instead (PCL's
+  /// setTransformationRotationEpsilon; a cosine, e.g. 0.99999).
+  double transformation_rotation_epsilon = 0.0;
+  /// Converged when |MSE_k - MSE_{k-1}| / MSE_{k-1} < this (PCL's Euclidean fitness
+  /// epsilon; MSE of correspondence distances, m^2). Seed: 1e-8.
+  double fitness_epsilon = 1e-8;
+  /// Converged when |MSE_k - MSE_{k-1}| < this (m^2). PCL's default 1e-12.
+  double absolute_mse_epsilon = 1e-12;
+  /// Optional box in the source camera frame (seed 000 §3.4).
+  std::optional<Box> box;
+  /// Depth of the fixed search stack (seed 000 §3.1: 20). Exact while the tree's height
+  /// is <= this, i.e. up to 2^21 - 1 model points at depth 20; deeper trees may
+  /// approximate, which IcpResult::exact_search reports.
+  int search_stack_depth = 20;
+  /// Start each search from last iteration's neighbour (exact; only prunes the search).
+  bool warm_start = true;
+  /// Fewer correspondences than this stop ICP (status NotEnoughCorrespondences).
+  /// 6 unknowns for point-to-plane; at least 3 is enforced for point-to-point.
+  int min_correspondences = 6;
+  /// lambda_min / lambda_max of the balanced normal matrix below which a direction
+  /// counts as unconstrained (see solvePointToPlane); such directions are not updated.
+  double degeneracy_threshold = 1e-6;
+  /// OpenMP threads; 0 = OpenMP's default (all cores).
+  int num_threads = 0;
+};
+
+/// ICP outcome. Quality figures are evaluated at the final transform.
+struct IcpResult {
+  /// Maps source-frame coordinates into the target frame: p_target = T * p_source.
+  Eigen::Matrix4d T_target_source = Eigen::Matrix4d::Identity();
+  bool converged = false;   ///< a convergence criterion (transform or MSE) was met
+  IcpStatus status = IcpStatus::MaxIterations;
+  int iterations = 0;       ///< iterations run (each: search + estimate + update)
+  double fitness = 0.0;     ///< inliers / usable source points (finite, inside the box)
+  double inlier_rmse = 0.0; ///< RMS point-to-point distance of the inliers (m)
+  std::size_t correspondence_count = 0;  ///< inlier correspondences at the final transform
+  std::size_t source_points_used = 0;    ///< finite source points inside the box
+  double mse = 0.0;         ///< mean squared correspondence distance of the last iteration (m^2)
+  bool degenerate = false;  ///< some iteration had an unconstrained direction (rank < 6)
+  int min_rank = 6;         ///< smallest rank seen over the iterations
+  bool exact_search = true; ///< every nearest-neighbour search was exact
+  double seconds = 0.0;     ///< wall time of align() (tree build excluded)
+};
+
+/// Reusable ICP: build the target's k-d tree once (setTarget), align many sources.
+/// Not thread-safe for concurrent align() on one object (it owns scratch buffers).
+template <typename Scalar>
+class Icp {
+ public:
+  explicit Icp(IcpSettings settings = {}) : settings_(std::move(settings)) {}
+
+  /// Sets the model: points (and unit normals, required for point-to-plane) in the target
+  /// frame. Non-finite points or normals, and zero normals, are left out of the tree.
+  /// Normals are re-normalised. Throws std::invalid_argument on size mismatch / no points.
+  void setTarget(const CloudView<Scalar>& points, const CloudView<Scalar>& normals = {});
+
+  /// Aligns `source` (points in the source camera frame) to the target starting from
+  /// T_target_source_init. Throws std::invalid_argument for an empty source, no target,
+  /// invalid settings or a non-rigid/non-finite initial transform.
+  IcpResult align(const CloudView<Scalar>& source,
+                  const Eigen::Matrix4d& T_target_source_init = Eigen::Matrix4d::Identity());
+
+  const IcpSettings& settings() const { return settings_; }
+  IcpSettings& settings() { return settings_; }
+  const LeftBalancedKdTree<Scalar>& tree() const { return tree_; }
+  bool hasNormals() const { return !normals_.empty(); }
+  double treeBuildSeconds() const { return tree_seconds_; }
+
+ private:
+  IcpSettings settings_;
+  LeftBalancedKdTree<Scalar> tree_;
+  std::vector<Scalar> normals_;           ///< 3 per node, in tree order
+  std::vector<std::uint32_t> neighbor_;   ///< last neighbour (node) per source point
+  double tree_seconds_ = 0.0;
+};
+
+/// Throws std::invalid_argument when the settings cannot be used.
+void validate(const IcpSettings& settings);
+
+extern template class Icp<float>;
+extern template class Icp<double>;
+
+}  // namespace scanalign

@@ -1,0 +1,65 @@
+// Closed-form point-to-point alignment (Horn 1987 / Umeyama 1991 without scale) from
+// running sums, so it reduces across threads like the point-to-plane system.
+#pragma once
+
+#include <array>
+
+#include <Eigen/Core>
+#include <Eigen/SVD>
+
+namespace scanalign {
+
+struct PointToPointSystem {
+  double count = 0.0;
+  std::array<double, 3> sum_s{}, sum_d{};
+  std::array<double, 9> sum_sd{};  ///< sum of s d^T, row-major
+
+  void add(const double s[3], const double d[3]) {
+    count += 1.0;
+    for (int r = 0; r < 3; ++r) {
+      sum_s[r] += s[r];
+      sum_d[r] += d[r];
+      for (int c = 0; c < 3; ++c) sum_sd[3 * r + c] += s[r] * d[c];
+    }
+  }
+  void merge(const PointToPointSystem& o) {
+    count += o.count;
+    for (int k = 0; k < 3; ++k) {
+      sum_s[k] += o.sum_s[k];
+      sum_d[k] += o.sum_d[k];
+    }
+    for (int k = 0; k < 9; ++k) sum_sd[k] += o.sum_sd[k];
+  }
+};
+
+struct PointToPointSolve {
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();  ///< maps source to target
+  int rank = 0;             ///< rank of the cross-covariance (>= 2 determines the rotation)
+  bool degenerate = true;   ///< collinear or coincident points: rotation not determined
+};
+
+/// Least-squares rigid transform T minimising sum |T s_i - d_i|^2 (Kabsch/Umeyama):
+/// H = sum (s - s_mean)(d - d_mean)^T = U S V^T, R = V diag(1, 1, det(V U^T)) U^T.
+inline PointToPointSolve solvePointToPoint(const PointToPointSystem& sys, double degeneracy_threshold = 1e-10) {
+  PointToPointSolve out;
+  if (sys.count < 1.0) return out;
+  const Eigen::Vector3d ms = Eigen::Map<const Eigen::Vector3d>(sys.sum_s.data()) / sys.count;
+  const Eigen::Vector3d md = Eigen::Map<const Eigen::Vector3d>(sys.sum_d.data()) / sys.count;
+  const Eigen::Matrix3d sum_sd = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(sys.sum_sd.data());
+  const Eigen::Matrix3d H = sum_sd - sys.count * ms * md.transpose();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  const Eigen::Vector3d sv = svd.singularValues();
+  out.rank = 0;
+  for (int k = 0; k < 3; ++k)
+    if (sv(k) > degeneracy_threshold * std::max(sv(0), 1e-300)) ++out.rank;
+  out.degenerate = out.rank < 2;
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
+  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  const Eigen::Matrix3d R =
+      out.degenerate ? Eigen::Matrix3d::Identity() : Eigen::Matrix3d(svd.matrixV() * D * svd.matrixU().transpose());
+  out.T.topLeftCorner<3, 3>() = R;
+  out.T.topRightCorner<3, 1>() = md - R * ms;
+  return out;
+}
+
+}  // namespace scanalign

@@ -1,0 +1,41 @@
+// NumPy <-> CloudView without copies. The Python layer (python/scanalign) validates
+// dtypes and shapes first and makes arrays contiguous only when their layout demands it;
+// these checks are the last line of defence and raise TypeError / ValueError.
+#pragma once
+
+#include <string>
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include "scanalign/common/cloud_view.hpp"
+
+namespace scanalign::python {
+
+namespace py = pybind11;
+
+/// View of an (N,3) array of Scalar whose rows may be strided (e.g. a[:, :3] of an (N,8)
+/// PCL-layout array) but whose 3 coordinates are contiguous.
+template <typename Scalar>
+CloudView<Scalar> cloudView(const py::array& a, const char* what) {
+  if (!a.dtype().is(py::dtype::of<Scalar>()))
+    throw py::type_error(std::string(what) + ": expected dtype " + std::string(py::str(py::dtype::of<Scalar>())) +
+                         ", got " + std::string(py::str(a.dtype())));
+  if (a.ndim() != 2 || a.shape(1) != 3)
+    throw py::value_error(std::string(what) + ": expected an (N, 3) array");
+  const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
+  if (a.shape(0) > 1 && (a.strides(0) <= 0 || a.strides(0) % item != 0 || a.strides(0) < 3 * item))
+    throw py::value_error(std::string(what) + ": unsupported row stride (make the array C-contiguous)");
+  if (a.strides(1) != item) throw py::value_error(std::string(what) + ": coordinates must be contiguous in each row");
+  const std::size_t stride = a.shape(0) > 1 ? static_cast<std::size_t>(a.strides(0) / item) : 3;
+  return CloudView<Scalar>(static_cast<const Scalar*>(a.data()), static_cast<std::size_t>(a.shape(0)), stride);
+}
+
+/// An empty view for None.
+template <typename Scalar>
+CloudView<Scalar> optionalCloudView(const py::object& o, const char* what) {
+  if (o.is_none()) return {};
+  return cloudView<Scalar>(py::cast<py::array>(o), what);
+}
+
+}  // namespace scanalign::python

@@ -1,0 +1,21 @@
+// scanalign._core: the compiled core. The public, documented API is the Python package
+// python/scanalign, which validates inputs and calls into these submodules.
+#include <pybind11/pybind11.h>
+
+namespace py = pybind11;
+
+namespace scanalign::python {
+void defineRegistration(py::module_& m);
+void defineFeatures(py::module_& m);
+void defineReconstruction(py::module_& m);
+}  // namespace scanalign::python
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "scanalign compiled core (use the scanalign package API)";
+  auto registration = m.def_submodule("registration", "ICP engine, k-d tree, PCL plug-ins and baselines");
+  auto features = m.def_submodule("features", "normal estimation");
+  auto reconstruction = m.def_submodule("reconstruction", "voxel grid");
+  scanalign::python::defineRegistration(registration);
+  scanalign::python::defineFeatures(features);
+  scanalign::python::defineReconstruction(reconstruction);
+}

@@ -1,0 +1,254 @@
+// ICP engine implementation (seed 000 Algorithm 1, §3.1-3.4), explicitly instantiated
+// for float and double clouds.
+#include "scanalign/registration/icp.hpp"
+
+#include "scanalign/common/block_reduce.hpp"
+
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <type_traits>
+
+#include "scanalign/registration/point_to_plane_lls.hpp"
+#include "scanalign/registration/point_to_point.hpp"
+
+namespace scanalign {
+
+const char* toString(IcpStatus status) {
+  switch (status) {
+    case IcpStatus::ConvergedTransform: return "converged_transform";
+    case IcpStatus::ConvergedAbsoluteMse: return "converged_absolute_mse";
+    case IcpStatus::ConvergedRelativeMse: return "converged_relative_mse";
+    case IcpStatus::MaxIterations: return "max_iterations";
+    case IcpStatus::NotEnoughCorrespondences: return "not_enough_correspondences";
+  }
+  return "unknown";
+}
+
+const char* toString(IcpEstimator estimator) {
+  return estimator == IcpEstimator::PointToPlane ? "point_to_plane" : "point_to_point";
+}
+
+void validate(const IcpSettings& s) {
+  auto fail = [](const std::string& what) { throw std::invalid_argument("ICP settings: " + what); };
+  if (!(s.max_correspondence_distance > 0.0) || !std::isfinite(s.max_correspondence_distance))
+    fail("max_correspondence_distance must be a finite positive distance in metres");
+  if (s.max_iterations < 0) fail("max_iterations must be >= 0");
+  if (!(s.transformation_epsilon >= 0.0)) fail("transformation_epsilon must be >= 0");
+  if (!(s.transformation_rotation_epsilon >= 0.0) || s.transformation_rotation_epsilon > 1.0)
+    fail("transformation_rotation_epsilon is a cosine in [0, 1] (0 = derive from transformation_epsilon)");
+  if (!(s.fitness_epsilon >= 0.0)) fail("fitness_epsilon must be >= 0");
+  if (!(s.absolute_mse_epsilon >= 0.0)) fail("absolute_mse_epsilon must be >= 0");
+  if (s.search_stack_depth < 1 || s.search_stack_depth > LeftBalancedKdTree<float>::kMaxStack)
+    fail("search_stack_depth must be in [1, 64]");
+  if (s.min_correspondences < 1) fail("min_correspondences must be >= 1");
+  if (!(s.degeneracy_threshold >= 0.0) || s.degeneracy_threshold >= 1.0)
+    fail("degeneracy_threshold must be in [0, 1)");
+  if (s.num_threads < 0) fail("num_threads must be >= 0 (0 = all cores)");
+  if (s.box && !s.box->valid()) fail("box bounds must be finite with min <= max on every axis");
+}
+
+namespace {
+
+/// One block's share of an iteration: the estimator's sums plus correspondence statistics.
+template <typename System>
+struct Partial {
+  System system;
+  std::size_t used = 0;     ///< finite source points inside the box
+  std::size_t inliers = 0;  ///< of those, with a neighbour within range
+  double sum_d2 = 0.0;      ///< sum of squared correspondence distances (m^2)
+  bool exact = true;
+
+  void merge(const Partial& o) {
+    system.merge(o.system);
+    used += o.used;
+    inliers += o.inliers;
+    sum_d2 += o.sum_d2;
+    exact = exact && o.exact;
+  }
+};
+
+void checkRigid(const Eigen::Matrix4d& T) {
+  if (!T.allFinite()) throw std::invalid_argument("initial transform has non-finite entries");
+  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  const double orth = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const bool last_row = T(3, 0) == 0.0 && T(3, 1) == 0.0 && T(3, 2) == 0.0 && T(3, 3) == 1.0;
+  if (orth > 1e-5 || R.determinant() < 0.0 || !last_row)
+    throw std::invalid_argument("initial transform is not a rigid transform (rotation must be orthonormal with "
+                                "det +1 and the last row 0 0 0 1)");
+}
+
+}  // namespace
+
+template <typename Scalar>
+void Icp<Scalar>::setTarget(const CloudView<Scalar>& points, const CloudView<Scalar>& normals) {
+  if (points.empty()) throw std::invalid_argument("ICP target: empty point cloud");
+  if (!normals.empty() && normals.size != points.size)
+    throw std::invalid_argument("ICP target: " + std::to_string(normals.size) + " normals for " +
+                                std::to_string(points.size) + " points");
+  const auto t0 = std::chrono::steady_clock::now();
+  const bool with_normals = !normals.empty();
+  tree_.build(points, [&](std::size_t i) {
+    if (!with_normals) return true;
+    const Scalar* n = normals.ptr(i);
+    if (!(std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]))) return false;
+    return double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2] > 1e-20;
+  });
+  if (tree_.empty())
+    throw std::invalid_argument(with_normals ? "ICP target: no point with finite coordinates and a valid normal"
+                                             : "ICP target: no finite point");
+  normals_.clear();
+  if (with_normals) {
+    normals_.resize(3 * tree_.size());
+    for (std::size_t k = 0; k < tree_.size(); ++k) {
+      const Scalar* n = normals.ptr(tree_.node(k).index());
+      const double len = std::sqrt(double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2]);
+      for (int c = 0; c < 3; ++c) normals_[3 * k + c] = static_cast<Scalar>(n[c] / len);
+    }
+  }
+  tree_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+template <typename Scalar>
+IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matrix4d& T_init) {
+  validate(settings_);
+  if (tree_.empty()) throw std::invalid_argument("ICP: no target set (call setTarget first)");
+  if (source.empty()) throw std::invalid_argument("ICP source: empty point cloud");
+  const bool plane = settings_.estimator == IcpEstimator::PointToPlane;
+  if (plane && normals_.empty())
+    throw std::invalid_argument("ICP: point-to-plane needs target normals (setTarget(points, normals))");
+  checkRigid(T_init);
+
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::size_t n = source.size;
+  const std::size_t nblocks = (n + kReduceBlock - 1) / kReduceBlock;
+  const Scalar max_d2 = static_cast<Scalar>(settings_.max_correspondence_distance * settings_.max_correspondence_distance);
+  const int depth = settings_.search_stack_depth;
+  const bool warm = settings_.warm_start;
+  const std::optional<Box> box = settings_.box;
+  const int threads = settings_.num_threads > 0 ? settings_.num_threads : omp_get_max_threads();
+  const std::size_t min_corr =
+      static_cast<std::size_t>(std::max(settings_.min_correspondences, plane ? 6 : 3));
+  neighbor_.assign(n, NearestNeighbor<Scalar>::kNone);
+
+  IcpResult result;
+  Eigen::Matrix4d T = T_init;
+  // Per-block partial sums, allocated once here: the iteration loop allocates nothing.
+  std::vector<Partial<PointToPlaneSystem>> plane_parts;
+  std::vector<Partial<PointToPointSystem>> point_parts(nblocks);
+  if (plane) plane_parts.resize(nblocks);
+
+  // One pass over the source at transform T. With System = void-like accumulation off
+  // (accumulate == false) it only evaluates correspondences (for the final fitness).
+  auto run = [&](auto system_tag, bool accumulate) {
+    using System = decltype(system_tag);
+    auto& parts = [&]() -> std::vector<Partial<System>>& {
+      if constexpr (std::is_same_v<System, PointToPlaneSystem>)
+        return plane_parts;
+      else
+        return point_parts;
+    }();
+    const Eigen::Matrix<Scalar, 3, 3> R = T.topLeftCorner<3, 3>().cast<Scalar>();
+    const Eigen::Matrix<Scalar, 3, 1> t = T.topRightCorner<3, 1>().cast<Scalar>();
+    return blockReduce(n, threads, parts, [&](std::size_t i, Partial<System>& part) {
+      const Scalar* s = source.ptr(i);
+      if (!(std::isfinite(s[0]) && std::isfinite(s[1]) && std::isfinite(s[2]))) return;
+      if (box && !box->contains(s)) return;
+      ++part.used;
+      const Eigen::Matrix<Scalar, 3, 1> q = R * Eigen::Map<const Eigen::Matrix<Scalar, 3, 1>>(s) + t;
+      const auto nn = tree_.nearest(q.data(), max_d2, depth, warm ? neighbor_[i] : NearestNeighbor<Scalar>::kNone);
+      part.exact = part.exact && nn.exact;
+      if (!nn.found()) return;
+      neighbor_[i] = nn.node;
+      ++part.inliers;
+      part.sum_d2 += nn.squared_distance;
+      if (!accumulate) return;
+      const double sq[3] = {double(q[0]), double(q[1]), double(q[2])};
+      const Scalar* dp = tree_.node(nn.node).p;
+      const double dq[3] = {double(dp[0]), double(dp[1]), double(dp[2])};
+      if constexpr (std::is_same_v<System, PointToPlaneSystem>) {
+        const Scalar* np = &normals_[3 * static_cast<std::size_t>(nn.node)];
+        const double nq[3] = {double(np[0]), double(np[1]), double(np[2])};
+        part.system.add(sq, dq, nq);
+      } else {
+        part.system.add(sq, dq);
+      }
+    });
+  };
+
+  auto iterate = [&](auto system_tag) {
+    double prev_mse = std::numeric_limits<double>::max();
+    const double rot_threshold = settings_.transformation_rotation_epsilon > 0.0
+                                     ? settings_.transformation_rotation_epsilon
+                                     : 1.0 - settings_.transformation_epsilon;
+    for (int it = 0; it < settings_.max_iterations; ++it) {
+      const auto total = run(system_tag, true);
+      result.exact_search = result.exact_search && total.exact;
+      if (total.inliers < min_corr) {
+        result.status = IcpStatus::NotEnoughCorrespondences;
+        return;
+      }
+      Eigen::Matrix4d delta;
+      if constexpr (std::is_same_v<decltype(system_tag), PointToPlaneSystem>) {
+        const PointToPlaneSolve sol =
+            solvePointToPlane(total.system.AtA(), total.system.Atb(), settings_.degeneracy_threshold);
+        result.min_rank = std::min(result.min_rank, sol.rank);
+        result.degenerate = result.degenerate || sol.degenerate;
+        delta = transformFromParameters(sol.x);
+      } else {
+        const PointToPointSolve sol = solvePointToPoint(total.system);
+        result.min_rank = std::min(result.min_rank, sol.rank == 3 ? 6 : sol.rank * 2);
+        result.degenerate = result.degenerate || sol.degenerate;
+        delta = sol.T;
+      }
+      T = delta * T;
+      ++result.iterations;
+      const double mse = total.sum_d2 / static_cast<double>(total.inliers);
+      result.mse = mse;
+      // Convergence as pcl::DefaultConvergenceCriteria, on the increment `delta`.
+      const double cos_angle = 0.5 * (delta(0, 0) + delta(1, 1) + delta(2, 2) - 1.0);
+      const double trans2 = delta.topRightCorner<3, 1>().squaredNorm();
+      if (cos_angle >= rot_threshold && trans2 <= settings_.transformation_epsilon) {
+        result.status = IcpStatus::ConvergedTransform;
+        result.converged = true;
+        return;
+      }
+      if (std::abs(mse - prev_mse) < settings_.absolute_mse_epsilon) {
+        result.status = IcpStatus::ConvergedAbsoluteMse;
+        result.converged = true;
+        return;
+      }
+      if (std::abs(mse - prev_mse) / prev_mse < settings_.fitness_epsilon) {
+        result.status = IcpStatus::ConvergedRelativeMse;
+        result.converged = true;
+        return;
+      }
+      prev_mse = mse;
+    }
+    result.status = IcpStatus::MaxIterations;
+  };
+
+  if (plane)
+    iterate(PointToPlaneSystem{});
+  else
+    iterate(PointToPointSystem{});
+
+  // Quality at the final transform (one more search, no estimation).
+  const auto final_pass = run(PointToPointSystem{}, false);
+  result.exact_search = result.exact_search && final_pass.exact;
+  result.T_target_source = T;
+  result.source_points_used = final_pass.used;
+  result.correspondence_count = final_pass.inliers;
+  result.fitness = final_pass.used ? double(final_pass.inliers) / double(final_pass.used) : 0.0;
+  result.inlier_rmse = final_pass.inliers ? std::sqrt(final_pass.sum_d2 / double(final_pass.inliers)) : 0.0;
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return result;
+}
+
+template class Icp<float>;
+template class Icp<double>;
+
+}  // namespace scanalign

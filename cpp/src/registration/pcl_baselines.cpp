@@ -1,0 +1,201 @@
+// Stock PCL ICP baselines (seed 000 §3.7, §4): the only other file that pays for PCL's
+// registration templates.
+#include "scanalign/registration/pcl/baselines.hpp"
+
+#include <chrono>
+#include <stdexcept>
+
+#include <pcl/point_types.h>
+#include <pcl/registration/icp.h>
+#include <pcl/registration/transformation_estimation_dual_quaternion.h>
+#include <pcl/registration/transformation_estimation_point_to_plane_lls.h>
+
+#include "scanalign/registration/pcl/box_rejector.hpp"
+#include "scanalign/registration/pcl/point_to_plane_lls.hpp"
+
+namespace scanalign {
+
+const char* toString(PclIcpVariant variant) {
+  switch (variant) {
+    case PclIcpVariant::Svd: return "svd";
+    case PclIcpVariant::DualQuaternion: return "dual_quaternion";
+    case PclIcpVariant::PointToPlaneLLS: return "point_to_plane_lls";
+    case PclIcpVariant::ScanalignPointToPlaneLLS: return "scanalign_point_to_plane_lls";
+  }
+  return "unknown";
+}
+
+namespace {
+
+/// Gives read access to the iteration count PCL keeps protected.
+template <class Registration>
+struct WithIterations : Registration {
+  int iterations() const { return this->nr_iterations_; }
+};
+
+template <typename PointT>
+typename pcl::PointCloud<PointT>::Ptr toCloud(const CloudView<float>& points, const CloudView<float>& normals) {
+  auto cloud = pcl::make_shared<pcl::PointCloud<PointT>>();
+  cloud->resize(points.size);
+  for (std::size_t i = 0; i < points.size; ++i) {
+    PointT& p = (*cloud)[i];
+    p.x = points.ptr(i)[0];
+    p.y = points.ptr(i)[1];
+    p.z = points.ptr(i)[2];
+    if constexpr (std::is_same_v<PointT, pcl::PointNormal>) {
+      p.normal_x = normals.empty() ? 0.f : normals.ptr(i)[0];
+      p.normal_y = normals.empty() ? 0.f : normals.ptr(i)[1];
+      p.normal_z = normals.empty() ? 0.f : normals.ptr(i)[2];
+      p.curvature = 0.f;
+    }
+  }
+  cloud->is_dense = false;
+  return cloud;
+}
+
+IcpStatus fromPcl(pcl::registration::DefaultConvergenceCriteria<float>::ConvergenceState state) {
+  using CC = pcl::registration::DefaultConvergenceCriteria<float>;
+  switch (state) {
+    case CC::CONVERGENCE_CRITERIA_TRANSFORM: return IcpStatus::ConvergedTransform;
+    case CC::CONVERGENCE_CRITERIA_ABS_MSE: return IcpStatus::ConvergedAbsoluteMse;
+    case CC::CONVERGENCE_CRITERIA_REL_MSE: return IcpStatus::ConvergedRelativeMse;
+    case CC::CONVERGENCE_CRITERIA_NO_CORRESPONDENCES: return IcpStatus::NotEnoughCorrespondences;
+    default: return IcpStatus::MaxIterations;
+  }
+}
+
+template <typename PointT, class Registration>
+IcpResult runPcl(Registration& icp, const CloudView<float>& source, const CloudView<float>& target,
+                 const CloudView<float>& target_normals, const Eigen::Matrix4d& init, const IcpSettings& settings) {
+  const auto src = toCloud<PointT>(source, {});
+  const auto tgt = toCloud<PointT>(target, target_normals);
+  icp.setMaxCorrespondenceDistance(settings.max_correspondence_distance);
+  icp.setMaximumIterations(settings.max_iterations);
+  icp.setTransformationEpsilon(settings.transformation_epsilon);
+  if (settings.transformation_rotation_epsilon > 0.0)
+    icp.setTransformationRotationEpsilon(settings.transformation_rotation_epsilon);
+  icp.setEuclideanFitnessEpsilon(settings.fitness_epsilon);
+  icp.getConvergeCriteria()->setAbsoluteMSE(settings.absolute_mse_epsilon);
+  if (settings.box) {
+    auto rejector = pcl::make_shared<BoxRejector>(*settings.box);
+    rejector->setInputSource<PointT>(src);
+    icp.addCorrespondenceRejector(rejector);
+  }
+  pcl::PointCloud<PointT> aligned;
+  const auto t0 = std::chrono::steady_clock::now();
+  icp.setInputSource(src);
+  icp.setInputTarget(tgt);
+  icp.align(aligned, init.cast<float>());
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+
+  // Quality at PCL's final transform, measured the same way as the engine's.
+  Icp<float> evaluator(settings);
+  evaluator.settings().estimator = IcpEstimator::PointToPoint;
+  evaluator.settings().max_iterations = 0;
+  evaluator.setTarget(target);
+  Eigen::Matrix4d T = icp.getFinalTransformation().template cast<double>();
+  // PCL composes in float; re-orthonormalise so the evaluator accepts it as rigid.
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(T.topLeftCorner<3, 3>(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+  T.topLeftCorner<3, 3>() = svd.matrixU() * svd.matrixV().transpose();
+  IcpResult result = evaluator.align(source, T);
+  result.iterations = icp.iterations();
+  result.status = fromPcl(icp.getConvergeCriteria()->getConvergenceState());
+  result.converged = icp.hasConverged() && result.status != IcpStatus::MaxIterations &&
+                     result.status != IcpStatus::NotEnoughCorrespondences;
+  result.mse = 0.0;
+  result.degenerate = false;
+  result.min_rank = 6;
+  result.seconds = seconds;
+  return result;
+}
+
+void checkInputs(const CloudView<float>& source, const CloudView<float>& target, const CloudView<float>& normals,
+                 bool need_normals) {
+  if (source.empty()) throw std::invalid_argument("PCL ICP: empty source cloud");
+  if (target.empty()) throw std::invalid_argument("PCL ICP: empty target cloud");
+  if (need_normals && normals.size != target.size)
+    throw std::invalid_argument("PCL ICP: point-to-plane needs one normal per target point");
+}
+
+}  // namespace
+
+IcpResult pclIcp(const CloudView<float>& source, const CloudView<float>& target, const CloudView<float>& target_normals,
+                 const Eigen::Matrix4d& T_target_source_init, const IcpSettings& settings, PclIcpVariant variant) {
+  validate(settings);
+  const bool plane = variant == PclIcpVariant::PointToPlaneLLS || variant == PclIcpVariant::ScanalignPointToPlaneLLS;
+  checkInputs(source, target, target_normals, plane);
+  if (!T_target_source_init.allFinite()) throw std::invalid_argument("PCL ICP: non-finite initial transform");
+  switch (variant) {
+    case PclIcpVariant::Svd: {
+      WithIterations<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>> icp;
+      return runPcl<pcl::PointXYZ>(icp, source, target, target_normals, T_target_source_init, settings);
+    }
+    case PclIcpVariant::DualQuaternion: {
+      WithIterations<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>> icp;
+      icp.setTransformationEstimation(
+          pcl::make_shared<pcl::registration::TransformationEstimationDualQuaternion<pcl::PointXYZ, pcl::PointXYZ>>());
+      return runPcl<pcl::PointXYZ>(icp, source, target, target_normals, T_target_source_init, settings);
+    }
+    case PclIcpVariant::PointToPlaneLLS: {
+      WithIterations<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>> icp;
+      return runPcl<pcl::PointNormal>(icp, source, target, target_normals, T_target_source_init, settings);
+    }
+    case PclIcpVariant::ScanalignPointToPlaneLLS: {
+      WithIterations<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>> icp;
+      icp.setTransformationEstimation(pcl::make_shared<PointToPlaneLLS<pcl::PointNormal, pcl::PointNormal>>(
+          settings.degeneracy_threshold, settings.num_threads));
+      return runPcl<pcl::PointNormal>(icp, source, target, target_normals, T_target_source_init, settings);
+    }
+  }
+  throw std::invalid_argument("PCL ICP: unknown variant");
+}
+
+namespace {
+void checkPaired(const CloudView<float>& source, const CloudView<float>& target, const CloudView<float>& normals) {
+  if (source.size != target.size || normals.size != target.size)
+    throw std::invalid_argument("point-to-plane LLS: source, target and normals must have the same number of rows");
+}
+}  // namespace
+
+Eigen::Matrix4d pclPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
+                                   const CloudView<float>& target_normals) {
+  checkPaired(source, target, target_normals);
+  const auto src = toCloud<pcl::PointNormal>(source, {});
+  const auto tgt = toCloud<pcl::PointNormal>(target, target_normals);
+  pcl::registration::TransformationEstimationPointToPlaneLLS<pcl::PointNormal, pcl::PointNormal, double> est;
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  est.estimateRigidTransformation(*src, *tgt, T);
+  return T;
+}
+
+Eigen::Matrix4d scanalignPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
+                                         const CloudView<float>& target_normals, PointToPlaneSolve* solve,
+                                         double degeneracy_threshold) {
+  checkPaired(source, target, target_normals);
+  const auto src = toCloud<pcl::PointNormal>(source, {});
+  const auto tgt = toCloud<pcl::PointNormal>(target, target_normals);
+  PointToPlaneLLS<pcl::PointNormal, pcl::PointNormal, double> est(degeneracy_threshold);
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  est.estimateRigidTransformation(*src, *tgt, T);
+  if (solve) *solve = est.lastSolve();
+  return T;
+}
+
+std::vector<int> boxRejectorKeep(const CloudView<float>& source, const std::vector<int>& query_indices,
+                                 const Box& box) {
+  const auto cloud = toCloud<pcl::PointXYZ>(source, {});
+  BoxRejector rejector(box);
+  rejector.setInputSource<pcl::PointXYZ>(cloud);
+  auto input = pcl::make_shared<pcl::Correspondences>();
+  for (std::size_t k = 0; k < query_indices.size(); ++k)
+    input->emplace_back(query_indices[k], static_cast<int>(k), 0.f);
+  rejector.setInputCorrespondences(input);
+  pcl::Correspondences kept;
+  rejector.getCorrespondences(kept);
+  std::vector<int> out;
+  out.reserve(kept.size());
+  for (const auto& c : kept) out.push_back(c.index_query);
+  return out;
+}
+
+}  // namespace scanalign

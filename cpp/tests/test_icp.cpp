@@ -1,0 +1,163 @@
+// The ICP engine against known rigid motions (PCL-free).
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "scanalign/registration/icp.hpp"
+#include "test_support.hpp"
+
+using scanalign::CloudView;
+using scanalign::Icp;
+using scanalign::IcpSettings;
+using scanalign::IcpStatus;
+using namespace scanalign::test;
+
+namespace {
+CloudView<float> view(const std::vector<float>& v) { return CloudView<float>(v.data(), v.size() / 3); }
+}  // namespace
+
+TEST(IcpEngine, RecoversKnownMotionNoiseFree) {
+  const Surface s = wavySurfaceWithSphere();
+  for (auto est : {scanalign::IcpEstimator::PointToPlane, scanalign::IcpEstimator::PointToPoint}) {
+    const Eigen::Matrix4d T_true = rigid(0.04, -0.03, 0.05, 0.008, -0.006, 0.01);
+    const auto src = transformed(s.points, T_true.inverse());
+    IcpSettings settings;
+    settings.estimator = est;
+    settings.max_iterations = est == scanalign::IcpEstimator::PointToPlane ? 50 : 300;
+    Icp<float> icp(settings);
+    icp.setTarget(view(s.points), view(s.normals));
+    const auto r = icp.align(view(src));
+    EXPECT_TRUE(r.converged) << scanalign::toString(r.status);
+    EXPECT_LT(rotationError(r.T_target_source, T_true), 1e-5) << scanalign::toString(est);
+    EXPECT_LT(translationError(r.T_target_source, T_true), 1e-5) << scanalign::toString(est);
+    EXPECT_DOUBLE_EQ(r.fitness, 1.0);
+    EXPECT_LT(r.inlier_rmse, 1e-5);
+    EXPECT_TRUE(r.exact_search);
+    EXPECT_FALSE(r.degenerate);
+  }
+}
+
+TEST(IcpEngine, DoublePrecisionCloudsAndInitialGuess) {
+  const Surface s = wavySurfaceWithSphere();
+  std::vector<double> tgt(s.points.begin(), s.points.end()), nrm(s.normals.begin(), s.normals.end());
+  const Eigen::Matrix4d T_true = rigid(0.3, -0.2, 0.5, 0.1, -0.05, 0.08);
+  const auto srcf = transformed(s.points, T_true.inverse());
+  std::vector<double> src(srcf.begin(), srcf.end());
+  Icp<double> icp;
+  icp.setTarget(CloudView<double>(tgt.data(), tgt.size() / 3), CloudView<double>(nrm.data(), nrm.size() / 3));
+  // A large motion, with an initial guess close to it (as frame-to-model uses the previous pose).
+  const Eigen::Matrix4d guess = T_true * rigid(0.01, 0.01, -0.01, 0.003, 0.002, -0.002);
+  const auto r = icp.align(CloudView<double>(src.data(), src.size() / 3), guess);
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT(rotationError(r.T_target_source, T_true), 1e-5);
+  EXPECT_LT(translationError(r.T_target_source, T_true), 1e-5);
+}
+
+TEST(IcpEngine, ResultDoesNotDependOnThreadsOrWarmStart) {
+  const Surface s = wavySurfaceWithSphere();
+  const auto src = transformed(s.points, rigid(0.02, 0.01, -0.02, 0.004, 0.002, 0.003));
+  Eigen::Matrix4d reference;
+  for (int threads : {1, 2, 3}) {
+    for (bool warm : {true, false}) {
+      IcpSettings settings;
+      settings.num_threads = threads;
+      settings.warm_start = warm;
+      Icp<float> icp(settings);
+      icp.setTarget(view(s.points), view(s.normals));
+      const auto r = icp.align(view(src));
+      if (threads == 1 && warm) reference = r.T_target_source;
+      // The summing tree has a fixed shape: bit-identical across thread counts.
+      EXPECT_EQ((r.T_target_source - reference).cwiseAbs().maxCoeff(), 0.0) << threads << " " << warm;
+    }
+  }
+}
+
+TEST(IcpEngine, PartialOverlapWithBoxAndDistanceRejection) {
+  const Surface s = wavySurfaceWithSphere(120, 0.2, 4);
+  const Eigen::Matrix4d T_true = rigid(0.02, -0.02, 0.03, 0.006, 0.004, -0.005);
+  // Source: only half of the model (x > -0.02 in the source frame) plus clutter far behind.
+  auto all = transformed(s.points, T_true.inverse());
+  std::vector<float> src;
+  for (std::size_t i = 0; i < all.size() / 3; ++i)
+    if (all[3 * i] > -0.02f) src.insert(src.end(), {all[3 * i], all[3 * i + 1], all[3 * i + 2]});
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-0.3f, 0.3f);
+  for (int i = 0; i < 5000; ++i) src.insert(src.end(), {u(rng), u(rng), 1.0f + 0.05f * u(rng)});
+  IcpSettings settings;
+  settings.max_correspondence_distance = 0.5;  // so large that only the box keeps the clutter out
+  settings.box = scanalign::Box(-0.3, 0.3, -0.3, 0.3, 1e-4, 0.8);
+  Icp<float> icp(settings);
+  icp.setTarget(view(s.points), view(s.normals));
+  auto r = icp.align(view(src));
+  EXPECT_TRUE(r.converged);
+  EXPECT_LT(rotationError(r.T_target_source, T_true), 1e-5);
+  EXPECT_LT(translationError(r.T_target_source, T_true), 1e-5);
+  EXPECT_EQ(r.source_points_used, src.size() / 3 - 5000);  // the clutter is outside the box
+  // Without the box the clutter wins; distance rejection alone (5 cm) also recovers.
+  settings.box.reset();
+  icp.settings() = settings;
+  r = icp.align(view(src));
+  EXPECT_GT(translationError(r.T_target_source, T_true), 1e-3);
+  icp.settings().max_correspondence_distance = 0.05;
+  r = icp.align(view(src));
+  EXPECT_LT(translationError(r.T_target_source, T_true), 1e-5);
+  EXPECT_LT(r.fitness, 0.9);  // the clutter has no partner within 5 cm
+}
+
+TEST(IcpEngine, StatusesForFailures) {
+  const Surface s = wavySurfaceWithSphere(40);
+  Icp<float> icp;
+  icp.setTarget(view(s.points), view(s.normals));
+  // Source far away: no correspondence within 5 cm.
+  const auto far = transformed(s.points, rigid(0, 0, 0, 5.0, 0, 0));
+  auto r = icp.align(view(far));
+  EXPECT_EQ(r.status, IcpStatus::NotEnoughCorrespondences);
+  EXPECT_FALSE(r.converged);
+  EXPECT_TRUE(r.T_target_source.isIdentity());
+  // Five points are fewer than the 6 unknowns.
+  std::vector<float> five(s.points.begin(), s.points.begin() + 15);
+  r = icp.align(view(five));
+  EXPECT_EQ(r.status, IcpStatus::NotEnoughCorrespondences);
+  // One iteration cap on a real motion: stopped, not converged.
+  icp.settings().max_iterations = 1;
+  r = icp.align(view(transformed(s.points, rigid(0.05, 0, 0, 0.01, 0, 0))));
+  EXPECT_EQ(r.status, IcpStatus::MaxIterations);
+  EXPECT_FALSE(r.converged);
+}
+
+TEST(IcpEngine, PlanarTargetIsFlaggedDegenerate) {
+  std::vector<float> plane, normals;
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<float> u(-0.1f, 0.1f);
+  for (int i = 0; i < 5000; ++i) {
+    plane.insert(plane.end(), {u(rng), u(rng), 0.5f});
+    normals.insert(normals.end(), {0.f, 0.f, -1.f});
+  }
+  Icp<float> icp;
+  icp.setTarget(view(plane), view(normals));
+  const auto r = icp.align(view(transformed(plane, rigid(0, 0, 0, 0.002, 0.001, 0.004))));
+  EXPECT_TRUE(r.degenerate);
+  EXPECT_EQ(r.min_rank, 3);
+  EXPECT_NEAR(r.T_target_source(2, 3), -0.004, 1e-6);  // the constrained motion is recovered
+  EXPECT_TRUE(r.T_target_source.allFinite());
+}
+
+TEST(IcpEngine, BadInputThrows) {
+  const Surface s = wavySurfaceWithSphere(20);
+  Icp<float> icp;
+  EXPECT_THROW(icp.align(view(s.points)), std::invalid_argument);  // no target
+  EXPECT_THROW(icp.setTarget(CloudView<float>()), std::invalid_argument);
+  std::vector<float> short_normals(s.normals.begin(), s.normals.end() - 3);
+  EXPECT_THROW(icp.setTarget(view(s.points), view(short_normals)), std::invalid_argument);
+  std::vector<float> nan(30, std::numeric_limits<float>::quiet_NaN());
+  EXPECT_THROW(icp.setTarget(view(nan)), std::invalid_argument);
+  icp.setTarget(view(s.points));  // no normals
+  EXPECT_THROW(icp.align(view(s.points)), std::invalid_argument);  // point-to-plane needs them
+  icp.setTarget(view(s.points), view(s.normals));
+  EXPECT_THROW(icp.align(CloudView<float>()), std::invalid_argument);
+  Eigen::Matrix4d scaled = Eigen::Matrix4d::Identity() * 2.0;
+  scaled(3, 3) = 1.0;
+  EXPECT_THROW(icp.align(view(s.points), scaled), std::invalid_argument);
+  icp.settings().max_correspondence_distance = -1;
+  EXPECT_THROW(icp.align(view(s.points)), std::invalid_argument);
+}
