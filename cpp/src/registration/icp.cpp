@@ -6,6 +6,7 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -61,6 +62,8 @@ struct Partial {
   std::size_t inliers = 0;  ///< of those, with a neighbour within range
   double sum_d2 = 0.0;      ///< sum of squared correspondence distances (m^2)
   bool exact = true;
+  /// Neighbour of the previous point of this block: a search hint, not a sum.
+  std::uint32_t last_node = NearestNeighbor<float>::kNone;
 
   void merge(const Partial& o) {
     system.merge(o.system);
@@ -70,6 +73,48 @@ struct Partial {
     exact = exact && o.exact;
   }
 };
+
+/// Spreads the low 21 bits of v to every third bit (for a 63-bit Morton code).
+std::uint64_t spreadBits(std::uint64_t v) {
+  v &= 0x1fffff;
+  v = (v | v << 32) & 0x1f00000000ffffULL;
+  v = (v | v << 16) & 0x1f0000ff0000ffULL;
+  v = (v | v << 8) & 0x100f00f00f00f00fULL;
+  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+  v = (v | v << 2) & 0x1249249249249249ULL;
+  return v;
+}
+
+/// Source indices in Morton (Z-curve) order, non-finite points last. Consecutive
+/// queries then touch the same part of the tree, and each one's neighbour is a good
+/// search hint for the next.
+template <typename Scalar>
+void mortonOrder(const CloudView<Scalar>& cloud, std::vector<std::uint32_t>& order,
+                 std::vector<std::pair<std::uint64_t, std::uint32_t>>& keyed) {
+  Eigen::Array3d lo = Eigen::Array3d::Constant(std::numeric_limits<double>::max());
+  Eigen::Array3d hi = Eigen::Array3d::Constant(std::numeric_limits<double>::lowest());
+  for (std::size_t i = 0; i < cloud.size; ++i)
+    if (cloud.isFinite(i)) {
+      const Eigen::Array3d p = cloud[i].template cast<double>().array();
+      lo = lo.min(p);
+      hi = hi.max(p);
+    }
+  const double extent = std::max((hi - lo).maxCoeff(), 1e-12);
+  const double scale = double((1 << 21) - 1) / extent;
+  keyed.resize(cloud.size);
+  for (std::size_t i = 0; i < cloud.size; ++i) {
+    std::uint64_t key = std::numeric_limits<std::uint64_t>::max();
+    if (cloud.isFinite(i)) {
+      const Eigen::Array3d c = (cloud[i].template cast<double>().array() - lo) * scale;
+      key = spreadBits(std::uint64_t(c[0])) | spreadBits(std::uint64_t(c[1])) << 1 |
+            spreadBits(std::uint64_t(c[2])) << 2;
+    }
+    keyed[i] = {key, static_cast<std::uint32_t>(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  order.resize(cloud.size);
+  for (std::size_t i = 0; i < cloud.size; ++i) order[i] = keyed[i].second;
+}
 
 void checkRigid(const Eigen::Matrix4d& T) {
   if (!T.allFinite()) throw std::invalid_argument("initial transform has non-finite entries");
@@ -133,6 +178,7 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
   const std::size_t min_corr =
       static_cast<std::size_t>(std::max(settings_.min_correspondences, plane ? 6 : 3));
   neighbor_.assign(n, NearestNeighbor<Scalar>::kNone);
+  mortonOrder(source, order_, keyed_);
 
   IcpResult result;
   Eigen::Matrix4d T = T_init;
@@ -153,16 +199,29 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
     }();
     const Eigen::Matrix<Scalar, 3, 3> R = T.topLeftCorner<3, 3>().cast<Scalar>();
     const Eigen::Matrix<Scalar, 3, 1> t = T.topRightCorner<3, 1>().cast<Scalar>();
-    return blockReduce(n, threads, parts, [&](std::size_t i, Partial<System>& part) {
+    return blockReduce(n, threads, parts, [&](std::size_t k, Partial<System>& part) {
+      const std::size_t i = order_[k];
       const Scalar* s = source.ptr(i);
       if (!(std::isfinite(s[0]) && std::isfinite(s[1]) && std::isfinite(s[2]))) return;
       if (box && !box->contains(s)) return;
       ++part.used;
       const Eigen::Matrix<Scalar, 3, 1> q = R * Eigen::Map<const Eigen::Matrix<Scalar, 3, 1>>(s) + t;
-      const auto nn = tree_.nearest(q.data(), max_d2, depth, warm ? neighbor_[i] : NearestNeighbor<Scalar>::kNone);
+      // Hints (exact: they only tighten the initial bound): this point's neighbour in the
+      // last iteration, and the previous point's neighbour in this pass.
+      std::uint32_t hint = NearestNeighbor<Scalar>::kNone;
+      if (warm) {
+        hint = neighbor_[i];
+        const std::uint32_t other = part.last_node;
+        if (other != NearestNeighbor<Scalar>::kNone &&
+            (hint == NearestNeighbor<Scalar>::kNone ||
+             detail::squaredDistance(q.data(), tree_.node(other).p) < detail::squaredDistance(q.data(), tree_.node(hint).p)))
+          hint = other;
+      }
+      const auto nn = tree_.nearest(q.data(), max_d2, depth, hint);
       part.exact = part.exact && nn.exact;
       if (!nn.found()) return;
       neighbor_[i] = nn.node;
+      part.last_node = nn.node;
       ++part.inliers;
       part.sum_d2 += nn.squared_distance;
       if (!accumulate) return;

@@ -10,6 +10,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -61,7 +62,8 @@ struct IcpSettings {
   /// is <= this, i.e. up to 2^21 - 1 model points at depth 20; deeper trees may
   /// approximate, which IcpResult::exact_search reports.
   int search_stack_depth = 20;
-  /// Start each search from last iteration's neighbour (exact; only prunes the search).
+  /// Seed each search with last iteration's neighbour and the previous query's (exact:
+  /// a hint only tightens the search bound, so results equal a cold search up to ties).
   bool warm_start = true;
   /// Fewer correspondences than this stop ICP (status NotEnoughCorrespondences).
   /// 6 unknowns for point-to-plane; at least 3 is enforced for point-to-point.
@@ -120,6 +122,8 @@ class Icp {
   LeftBalancedKdTree<Scalar> tree_;
   std::vector<Scalar> normals_;           ///< 3 per node, in tree order
   std::vector<std::uint32_t> neighbor_;   ///< last neighbour (node) per source point
+  std::vector<std::uint32_t> order_;      ///< processing order of the source (Morton)
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed_;  ///< scratch for the order
   double tree_seconds_ = 0.0;
 };
 

@@ -8,6 +8,11 @@
 // far branch per level is pending, so a stack as deep as the tree is high makes the
 // search exact; a shallower stack drops branches and the search reports whether a
 // dropped branch could have held a closer point.
+//
+// Beside the nodes, a second flat array keeps the tight bounding box of each node's
+// subtree. Scan data lie on surfaces, where k-d cells are long in the normal direction; a
+// query off the surface is then near many cells but near few tight boxes, so pruning by
+// box distance visits far fewer nodes. The bound is exact, so the search stays exact.
 #pragma once
 
 #include <algorithm>
@@ -66,6 +71,11 @@ class LeftBalancedKdTree {
   int height() const { return height_; }
   const Node& node(std::size_t i) const { return nodes_[i]; }
   const std::vector<Node>& nodes() const { return nodes_; }
+  /// Tight bounding box of node i's subtree: {min x, min y, min z, max x, max y, max z}.
+  struct Bounds {
+    Scalar lo[3], hi[3];
+  };
+  const std::vector<Bounds>& bounds() const { return bounds_; }
 
   /// Nearest neighbour of `q` strictly closer than sqrt(max_squared_distance).
   /// `hint` (a node position or kNone) seeds the bound with a known point, which only
@@ -83,7 +93,20 @@ class LeftBalancedKdTree {
  private:
   void buildRange(const CloudView<Scalar>& cloud, std::uint32_t* first, std::size_t n, std::size_t node, int depth);
 
+  /// Squared distance from q to node i's subtree box (0 inside).
+  Scalar boxDistance(const Scalar* q, std::size_t i) const {
+    const Bounds& b = bounds_[i];
+    Scalar d2 = 0;
+    for (int k = 0; k < 3; ++k) {
+      const Scalar below = b.lo[k] - q[k], above = q[k] - b.hi[k];
+      const Scalar e = below > 0 ? below : (above > 0 ? above : Scalar(0));
+      d2 += e * e;
+    }
+    return d2;
+  }
+
   std::vector<Node> nodes_;
+  std::vector<Bounds> bounds_;
   int height_ = 0;
 };
 
@@ -112,6 +135,7 @@ template <typename Scalar>
 template <typename Keep>
 void LeftBalancedKdTree<Scalar>::build(const CloudView<Scalar>& cloud, Keep&& keep) {
   nodes_.clear();
+  bounds_.clear();
   height_ = 0;
   if (cloud.size >= (std::size_t{1} << 30)) throw std::invalid_argument("k-d tree: at most 2^30 points");
   std::vector<std::uint32_t> order;
@@ -127,6 +151,18 @@ void LeftBalancedKdTree<Scalar>::build(const CloudView<Scalar>& cloud, Keep&& ke
 #pragma omp parallel
 #pragma omp single nowait
   buildRange(cloud, order.data(), n, 0, 0);
+  // Subtree boxes bottom-up: children come after their parent in the array.
+  bounds_.resize(n);
+  for (std::size_t i = n; i-- > 0;) {
+    Bounds& b = bounds_[i];
+    for (int k = 0; k < 3; ++k) b.lo[k] = b.hi[k] = nodes_[i].p[k];
+    for (std::size_t c : {2 * i + 1, 2 * i + 2})
+      if (c < n)
+        for (int k = 0; k < 3; ++k) {
+          b.lo[k] = std::min(b.lo[k], bounds_[c].lo[k]);
+          b.hi[k] = std::max(b.hi[k], bounds_[c].hi[k]);
+        }
+  }
 }
 
 template <typename Scalar>
@@ -191,12 +227,12 @@ NearestNeighbor<Scalar> LeftBalancedKdTree<Scalar>::nearest(const Scalar* q, Sca
   stack_depth = std::max(1, std::min(stack_depth, kMaxStack));
   struct Pending {
     std::uint32_t node;
-    Scalar plane_d2;
+    Scalar box_d2;  ///< squared distance from q to the branch's subtree box
   };
   std::array<Pending, kMaxStack> stack;
   int sp = 0;
   Scalar min_dropped = std::numeric_limits<Scalar>::infinity();
-  std::size_t cur = 0;
+  std::size_t cur = boxDistance(q, 0) < best.squared_distance ? 0 : n;
   for (;;) {
     while (cur < n) {
       const Node& nd = nodes_[cur];
@@ -205,20 +241,25 @@ NearestNeighbor<Scalar> LeftBalancedKdTree<Scalar>::nearest(const Scalar* q, Sca
         best.squared_distance = d2;
         best.node = static_cast<std::uint32_t>(cur);
       }
+      // Near side of the split first. The far child is kept only if both the split plane
+      // and its subtree box can still hold a closer point: the plane test is cheap and
+      // rejects most, the box test catches the cells that are long and empty.
       const int axis = nd.axis();
       const Scalar diff = q[axis] - nd.p[axis];
       const std::size_t near = diff < 0 ? 2 * cur + 1 : 2 * cur + 2;
       const std::size_t far = diff < 0 ? 2 * cur + 2 : 2 * cur + 1;
-      const Scalar plane_d2 = diff * diff;
-      if (far < n && plane_d2 < best.squared_distance) {
-        if (sp < stack_depth)
-          stack[sp++] = {static_cast<std::uint32_t>(far), plane_d2};
-        else
-          min_dropped = std::min(min_dropped, plane_d2);
+      if (far < n && diff * diff < best.squared_distance) {
+        const Scalar d_far = boxDistance(q, far);
+        if (d_far < best.squared_distance) {
+          if (sp < stack_depth)
+            stack[sp++] = {static_cast<std::uint32_t>(far), d_far};
+          else
+            min_dropped = std::min(min_dropped, d_far);
+        }
       }
       cur = near;
     }
-    // Pop the next far branch that can still hold a closer point.
+    // Pop the next branch whose box can still hold a closer point.
     for (;;) {
       if (sp == 0) {
         best.exact = !(min_dropped < best.squared_distance);
@@ -226,7 +267,7 @@ NearestNeighbor<Scalar> LeftBalancedKdTree<Scalar>::nearest(const Scalar* q, Sca
         return best;
       }
       --sp;
-      if (stack[sp].plane_d2 < best.squared_distance) break;
+      if (stack[sp].box_d2 < best.squared_distance) break;
     }
     cur = stack[sp].node;
   }
@@ -236,7 +277,7 @@ template <typename Scalar>
 template <typename F>
 void LeftBalancedKdTree<Scalar>::forEachInRadius(const Scalar* q, Scalar squared_radius, F&& f) const {
   const std::size_t n = nodes_.size();
-  if (n == 0) return;
+  if (n == 0 || boxDistance(q, 0) > squared_radius) return;
   std::array<std::uint32_t, kMaxStack> stack;
   int sp = 0;
   std::size_t cur = 0;
@@ -245,12 +286,11 @@ void LeftBalancedKdTree<Scalar>::forEachInRadius(const Scalar* q, Scalar squared
       const Node& nd = nodes_[cur];
       const Scalar d2 = detail::squaredDistance(q, nd.p);
       if (d2 <= squared_radius) f(static_cast<std::uint32_t>(cur), d2);
-      const int axis = nd.axis();
-      const Scalar diff = q[axis] - nd.p[axis];
-      const std::size_t near = diff < 0 ? 2 * cur + 1 : 2 * cur + 2;
-      const std::size_t far = diff < 0 ? 2 * cur + 2 : 2 * cur + 1;
-      if (far < n && diff * diff <= squared_radius) stack[sp++] = static_cast<std::uint32_t>(far);
-      cur = near;
+      const std::size_t l = 2 * cur + 1, r = 2 * cur + 2;
+      const bool go_l = l < n && boxDistance(q, l) <= squared_radius;
+      const bool go_r = r < n && boxDistance(q, r) <= squared_radius;
+      if (go_l && go_r) stack[sp++] = static_cast<std::uint32_t>(r);
+      cur = go_l ? l : (go_r ? r : n);
     }
     if (sp == 0) return;
     cur = stack[--sp];

@@ -1,0 +1,50 @@
+"""Input validation shared by the public API: clear exceptions before any C++ runs."""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+
+
+def as_points(array: object, name: str, dtype: Optional[np.dtype] = None) -> np.ndarray:
+    """Returns ``array`` as an (N, 3) float32/float64 array the C++ core can view.
+
+    No copy is made when the array already has a float dtype (and ``dtype`` is None or
+    equal), three contiguous coordinates per row and a positive row stride -- e.g. a
+    C-contiguous (N, 3) array, or ``a[:, :3]`` of a PCL-layout (N, 4) / (N, 8) array.
+
+    Raises:
+        TypeError: not a NumPy-convertible float array (integer, bool, object, complex ...).
+        ValueError: not of shape (N, 3).
+    """
+    a = np.asarray(array)
+    if a.dtype not in _FLOATS:
+        raise TypeError(f"{name}: expected a float32 or float64 array, got dtype {a.dtype}")
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"{name}: expected shape (N, 3), got {a.shape}")
+    if dtype is not None and a.dtype != dtype:
+        a = a.astype(dtype)
+    item = a.dtype.itemsize
+    if a.shape[0] > 1 and (a.strides[0] < 3 * item or a.strides[0] % item) or a.strides[1] != item:
+        a = np.ascontiguousarray(a)
+    return a
+
+
+def common_dtype(*arrays: Optional[np.ndarray]) -> np.dtype:
+    """float64 if any given array is float64, else float32."""
+    return np.dtype(np.float64) if any(a is not None and a.dtype == np.float64 for a in arrays) else np.dtype(
+        np.float32
+    )
+
+
+def as_transform(T: object, name: str = "init") -> np.ndarray:
+    """A 4x4 float64 rigid transform (checked for shape and finiteness here, rigidity in C++)."""
+    m = np.asarray(T, dtype=np.float64)
+    if m.shape != (4, 4):
+        raise ValueError(f"{name}: expected a 4x4 homogeneous transform, got shape {m.shape}")
+    if not np.all(np.isfinite(m)):
+        raise ValueError(f"{name}: transform has non-finite entries")
+    return m

@@ -1,0 +1,487 @@
+"""Test data: real scans and CAD meshes from Debian packages, and a built-in object.
+
+Real data comes from two Debian packages, fetched with ``apt-get download`` (no root
+needed, nothing is installed) and unpacked with ``dpkg-deb -x`` into a cache folder,
+``$SCANALIGN_DATA`` if set, else ``~/.cache/scanalign``::
+
+    <cache>/debs/<package>_<version>_<arch>.deb    downloaded once, reused
+    <cache>/packages/<package>/usr/...             the unpacked package
+    <cache>/cgal_meshes/<name>.<ext>               meshes taken from CGAL's data.tar.gz
+
+- ``libcgal-demo``: CGAL's example data, a tarball whose ``data/meshes/`` holds about
+  140 meshes (``fandisk``, ``bunny00``, ``rotor``, ``pinion``, ``anchor``, ``joint``,
+  ``couplingdown``, ``part``, ``spool``, ...).  A mesh is extracted from the tarball the
+  first time it is asked for.  The meshes are in arbitrary units (mostly normalised to
+  about 1 unit across).
+- ``python3-pcl``: PCL tutorial clouds (``table_scene_lms400``, ``milk``, ``bun0``, ...),
+  in metres.
+
+Run ``python -m scanalign.datasets fetch`` to download everything ahead of time.
+
+:func:`sample_mesh` turns a mesh into an oriented point cloud, and
+:func:`builtin_object` generates a procedural test part that needs no download.
+"""
+
+from __future__ import annotations
+
+import argparse
+import difflib
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+import tempfile
+from pathlib import Path
+from typing import Sequence, Union
+
+import numpy as np
+import numpy.typing as npt
+
+from scanalign import io
+
+__all__ = [
+    "CGAL_PACKAGE",
+    "PCL_PACKAGE",
+    "DatasetUnavailableError",
+    "builtin_object",
+    "cache_dir",
+    "cgal_mesh_names",
+    "cgal_mesh_path",
+    "fetch_all",
+    "load_cgal_mesh",
+    "load_pcl_cloud",
+    "pcl_cloud_names",
+    "pcl_cloud_path",
+    "sample_mesh",
+]
+
+CGAL_PACKAGE = "libcgal-demo"
+PCL_PACKAGE = "python3-pcl"
+
+_CGAL_TARBALL = "usr/share/doc/libcgal-dev/data.tar.gz"
+_CGAL_MESH_PREFIX = "data/meshes/"
+_MESH_EXTENSIONS = (".off", ".ply", ".stl", ".obj")  # preference order for bare names
+_PCL_EXAMPLES = "usr/share/doc/python3-pcl/examples"
+_COMPLETE_MARKER = ".complete"
+
+
+class DatasetUnavailableError(RuntimeError):
+    """The data could not be fetched (no ``apt-get``, no network, stale package lists)."""
+
+
+def cache_dir() -> Path:
+    """The data cache: ``$SCANALIGN_DATA`` if set, else ``~/.cache/scanalign``."""
+    env = os.environ.get("SCANALIGN_DATA")
+    return Path(env).expanduser() if env else Path.home() / ".cache" / "scanalign"
+
+
+# --------------------------------------------------------------------------- packages
+
+
+def _run(command: list[str], cwd: Path, package: str) -> None:
+    """Run a packaging command, turning every failure into DatasetUnavailableError."""
+    debs = cache_dir() / "debs"
+    manual = (
+        f"run `sudo apt-get update` first, then `python -m scanalign.datasets fetch` "
+        f"(or `apt-get download {package}` in {debs})"
+    )
+    if shutil.which(command[0]) is None:
+        raise DatasetUnavailableError(
+            f"`{command[0]}` is not available, so {package} cannot be fetched. "
+            f"On a Debian/Ubuntu machine, {manual}; elsewhere, copy {package}'s .deb "
+            f"file into {debs}."
+        )
+    try:
+        subprocess.run(command, cwd=cwd, check=True, capture_output=True, text=True)
+    except subprocess.CalledProcessError as exc:
+        detail = (exc.stderr or exc.stdout or "").strip().splitlines()[-3:]
+        raise DatasetUnavailableError(
+            f"`{' '.join(command)}` failed (exit {exc.returncode}): {' | '.join(detail)}. "
+            f"To fix, {manual}."
+        ) from exc
+
+
+def _deb_file(package: str) -> Path:
+    """The package's ``.deb`` in the cache, downloaded with ``apt-get download`` if absent."""
+    debs = cache_dir() / "debs"
+    debs.mkdir(parents=True, exist_ok=True)
+    existing = sorted(debs.glob(f"{package}_*.deb"))
+    if existing:
+        return existing[-1]
+    # Download into a scratch folder so an interrupted download leaves no partial .deb.
+    with tempfile.TemporaryDirectory(dir=debs) as scratch:
+        _run(["apt-get", "download", package], Path(scratch), package)
+        downloaded = sorted(Path(scratch).glob(f"{package}_*.deb"))
+        if not downloaded:
+            raise DatasetUnavailableError(
+                f"`apt-get download {package}` produced no {package}_*.deb; "
+                f"run `sudo apt-get update` first."
+            )
+        target = debs / downloaded[-1].name
+        os.replace(downloaded[-1], target)
+    return target
+
+
+def _package_root(package: str) -> Path:
+    """The unpacked package tree (``dpkg-deb -x``), fetching the ``.deb`` if needed."""
+    root = cache_dir() / "packages" / package
+    marker = root / _COMPLETE_MARKER
+    if marker.exists():
+        return root
+    deb = _deb_file(package)
+    root.parent.mkdir(parents=True, exist_ok=True)
+    # Unpack beside the target and rename, so a crash never leaves a half tree behind.
+    scratch = Path(tempfile.mkdtemp(prefix=f".{package}-", dir=root.parent))
+    try:
+        _run(["dpkg-deb", "-x", str(deb), str(scratch)], root.parent, package)
+        (scratch / _COMPLETE_MARKER).touch()
+        shutil.rmtree(root, ignore_errors=True)  # left by an interrupted older version
+        try:
+            os.replace(scratch, root)
+        except OSError:
+            if not marker.exists():  # else another process finished first
+                raise
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    return root
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    partial.write_bytes(data)
+    os.replace(partial, path)
+
+
+def fetch_all() -> list[Path]:
+    """Download and unpack both data packages (idempotent).
+
+    Returns:
+        The unpacked package folders (``libcgal-demo``, ``python3-pcl``).
+
+    Raises:
+        DatasetUnavailableError: ``apt-get``/``dpkg-deb`` missing or failing.
+    """
+    return [_package_root(CGAL_PACKAGE), _package_root(PCL_PACKAGE)]
+
+
+def _unknown(kind: str, name: str, known: Sequence[str], lister: str) -> ValueError:
+    close = difflib.get_close_matches(name, known, n=3)
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    return ValueError(f"unknown {kind} {name!r}{hint} (see {lister}())")
+
+
+# --------------------------------------------------------------------------- CGAL meshes
+
+
+def _cgal_tar_members() -> list[str]:
+    """File names (with extension) of the meshes in CGAL's data tarball."""
+    names_file = cache_dir() / "cgal_meshes" / "index.txt"
+    if names_file.exists():
+        return names_file.read_text().split("\n")
+    tarball = _package_root(CGAL_PACKAGE) / _CGAL_TARBALL
+    with tarfile.open(tarball, "r:gz") as tar:
+        names = sorted(
+            member.name[len(_CGAL_MESH_PREFIX) :]
+            for member in tar.getmembers()
+            if member.isfile()
+            and member.name.startswith(_CGAL_MESH_PREFIX)
+            and "/" not in member.name[len(_CGAL_MESH_PREFIX) :]
+            and Path(member.name).suffix.lower() in _MESH_EXTENSIONS
+        )
+    _write_atomic(names_file, "\n".join(names).encode())
+    return names
+
+
+def cgal_mesh_names() -> list[str]:
+    """Names of CGAL's example meshes, without extension (e.g. ``"fandisk"``).
+
+    A few meshes exist in several formats (``sphere`` as .off, .ply and .stl); the bare
+    name means the ``.off`` one, the others are reachable with their extension through
+    :func:`cgal_mesh_path`.  Downloads ``libcgal-demo`` on first use.
+    """
+    return sorted({Path(name).stem for name in _cgal_tar_members()})
+
+
+def cgal_mesh_path(name: str) -> Path:
+    """Path of a CGAL example mesh, extracted from the package on first use.
+
+    Args:
+        name: mesh name without extension (``"fandisk"``, ``"bunny00"``), or a file name
+            with extension to pick a format (``"pig.stl"``).
+
+    Returns:
+        The mesh file in the cache.
+
+    Raises:
+        ValueError: no such mesh.
+        DatasetUnavailableError: the package cannot be fetched.
+    """
+    members = _cgal_tar_members()
+    if name in members:
+        filename = name
+    else:
+        candidates = [name + ext for ext in _MESH_EXTENSIONS if name + ext in members]
+        if not candidates:
+            raise _unknown("CGAL mesh", name, cgal_mesh_names(), "cgal_mesh_names")
+        filename = candidates[0]
+    target = cache_dir() / "cgal_meshes" / filename
+    if target.exists():
+        return target
+    tarball = _package_root(CGAL_PACKAGE) / _CGAL_TARBALL
+    wanted = _CGAL_MESH_PREFIX + filename
+    with tarfile.open(tarball, "r|gz") as tar:  # stream: stop at the member we want
+        for member in tar:
+            if member.name == wanted:
+                source = tar.extractfile(member)
+                assert source is not None  # members were filtered to regular files
+                _write_atomic(target, source.read())
+                return target
+    raise DatasetUnavailableError(f"{tarball} has no member {wanted}; delete {cache_dir()}")
+
+
+def load_cgal_mesh(name: str) -> io.Mesh:
+    """Load a CGAL example mesh (see :func:`cgal_mesh_path` for ``name``).
+
+    Returns:
+        The triangulated :class:`scanalign.io.Mesh`, in the file's own unit (the CGAL
+        meshes are mostly scaled to about one unit across; they are not in metres).
+    """
+    return io.read_mesh(cgal_mesh_path(name))
+
+
+# --------------------------------------------------------------------------- PCL clouds
+
+
+def _pcl_clouds() -> dict[str, Path]:
+    root = _package_root(PCL_PACKAGE) / _PCL_EXAMPLES
+    return {path.stem: path for path in sorted(root.rglob("*.pcd"))}
+
+
+def pcl_cloud_names() -> list[str]:
+    """Names of the PCL tutorial clouds (e.g. ``"table_scene_lms400"``, ``"milk"``).
+
+    Downloads ``python3-pcl`` on first use.
+    """
+    return sorted(_pcl_clouds())
+
+
+def pcl_cloud_path(name: str) -> Path:
+    """Path of a PCL tutorial cloud (``.pcd``), fetching the package on first use.
+
+    Args:
+        name: cloud name without extension, e.g. ``"bun0"``, ``"table_scene_lms400"``,
+            ``"milk"``.
+
+    Raises:
+        ValueError: no such cloud.
+        DatasetUnavailableError: the package cannot be fetched.
+    """
+    clouds = _pcl_clouds()
+    if name not in clouds:
+        raise _unknown("PCL cloud", name, list(clouds), "pcl_cloud_names")
+    return clouds[name]
+
+
+def load_pcl_cloud(name: str) -> np.ndarray:
+    """Load the finite ``x y z`` points of a PCL tutorial cloud.
+
+    Note that PCL's file names are not always descriptive: in this package ``bun0`` is
+    an indoor lidar scan about 29 m across, not the Stanford bunny.
+
+    Returns:
+        ``(N, 3)`` float64 points in metres; NaN (invalid) points are removed.
+    """
+    return io.read_pcd_points(pcl_cloud_path(name), dtype=np.float64, remove_nan=True)
+
+
+# --------------------------------------------------------------------------- sampling
+
+MeshLike = Union[io.Mesh, tuple[npt.ArrayLike, npt.ArrayLike]]
+
+
+def sample_mesh(
+    mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Sample points uniformly (per unit area) on a triangle mesh surface.
+
+    Triangles are drawn with probability proportional to their area, and points are
+    uniform inside each triangle (``p = a + sqrt(u) (1 - v) (b - a) +
+    sqrt(u) v (c - a)`` with ``u, v`` uniform in ``[0, 1)``).  Zero-area triangles are never drawn.
+
+    Args:
+        mesh_or_vertices_faces: a :class:`scanalign.io.Mesh` or a ``(vertices (V, 3),
+            faces (F, 3))`` pair.
+        n_points: number of points to draw.
+        seed: seed of the random generator; equal seeds give equal samples.
+
+    Returns:
+        ``points (n_points, 3)`` float64, in the mesh's unit, and ``normals
+        (n_points, 3)`` float64 unit face normals (right-hand rule on the face winding:
+        outward for a counter-clockwise, outward-facing mesh).
+
+    Raises:
+        ValueError: bad shapes, negative ``n_points``, or a mesh of zero total area.
+    """
+    mesh = (
+        mesh_or_vertices_faces
+        if isinstance(mesh_or_vertices_faces, io.Mesh)
+        else io.Mesh(*mesh_or_vertices_faces)
+    )
+    if n_points < 0:
+        raise ValueError(f"n_points must be non-negative, got {n_points}")
+    corners = mesh.vertices[mesh.faces]  # (F, 3 corners, 3)
+    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    double_area = np.linalg.norm(cross, axis=1)
+    keep = double_area > 0
+    if not keep.any():
+        raise ValueError("mesh has zero total area; cannot sample its surface")
+    corners, cross, double_area = corners[keep], cross[keep], double_area[keep]
+
+    rng = np.random.default_rng(seed)
+    face = rng.choice(len(double_area), size=n_points, p=double_area / double_area.sum())
+    s = np.sqrt(rng.random(n_points))[:, None]
+    t = rng.random(n_points)[:, None]
+    a, b, c = corners[face, 0], corners[face, 1], corners[face, 2]
+    # Written relative to `a` so points on axis-aligned faces keep the exact coordinate.
+    points = a + s * (1.0 - t) * (b - a) + s * t * (c - a)
+    normals = cross[face] / double_area[face, None]
+    return points, normals
+
+
+# --------------------------------------------------------------------------- built-in object
+
+# Geometry of builtin_object(), in metres.
+_BOX_HALF = np.array([0.040, 0.025, 0.015])  # box centred at the origin
+_TOP = _BOX_HALF[2]
+_BOSS_CENTER = np.array([-0.015, 0.0])  # cylinder boss standing on the top face
+_BOSS_RADIUS = 0.012
+_BOSS_HEIGHT = 0.015
+_CAP_CENTER = np.array([0.020, 0.006, _TOP - 0.009])  # sphere whose cap pokes out
+_CAP_RADIUS = 0.015
+
+
+def builtin_object(n_points: int = 20000, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Sample a procedural machined part: a block with a cylindrical boss and a dome.
+
+    The part, in metres, in its own frame:
+
+    - a box ``[-0.040, 0.040] x [-0.025, 0.025] x [-0.015, 0.015]`` (80 x 50 x 30 mm);
+    - a cylinder boss of radius 0.012 standing on the top face (``z = 0.015``), axis
+      along z through ``(x, y) = (-0.015, 0)``, height 0.015 (top at ``z = 0.030``);
+    - a spherical cap: the part of the sphere of radius 0.015 centred at
+      ``(0.020, 0.006, 0.006)`` above the top face (cap height 0.006, base radius 0.012).
+
+    Only the exposed surface is sampled: the six box faces (the top one minus the
+    footprints of the boss and the cap; the bottom face too, the part rests on
+    nothing), the boss side and top disc, and the cap.  The density is uniform per unit
+    area, normals are outward and unit length, and the points are shuffled.  The planes
+    of the box make point-to-plane ICP well constrained in all six degrees of freedom,
+    and the off-centre boss and cap leave no rotational symmetry.
+
+    Args:
+        n_points: number of points.
+        seed: random seed; equal seeds give identical output.
+
+    Returns:
+        ``points (n_points, 3)`` and ``normals (n_points, 3)``, float64, metres.
+    """
+    if n_points < 0:
+        raise ValueError(f"n_points must be non-negative, got {n_points}")
+    rng = np.random.default_rng(seed)
+    hx, hy, hz = _BOX_HALF
+    cap_depth = _TOP - _CAP_CENTER[2]  # distance from the sphere centre to the top face
+    cap_base_radius = np.sqrt(_CAP_RADIUS**2 - cap_depth**2)
+    holes = [(_BOSS_CENTER, _BOSS_RADIUS), (_CAP_CENTER[:2], cap_base_radius)]
+
+    def box_face(n: int, axis: int, sign: float) -> tuple[np.ndarray, np.ndarray]:
+        points = rng.uniform(-_BOX_HALF, _BOX_HALF, size=(n, 3))
+        points[:, axis] = sign * _BOX_HALF[axis]
+        normals = np.zeros((n, 3))
+        normals[:, axis] = sign
+        return points, normals
+
+    def top_face(n: int) -> tuple[np.ndarray, np.ndarray]:
+        accepted = np.empty((0, 2))
+        while len(accepted) < n:  # rejection sampling of the rectangle minus the holes
+            xy = rng.uniform(-_BOX_HALF[:2], _BOX_HALF[:2], size=(2 * n, 2))
+            for center, radius in holes:
+                xy = xy[np.sum((xy - center) ** 2, axis=1) > radius**2]
+            accepted = np.concatenate([accepted, xy])
+        points = np.column_stack([accepted[:n], np.full(n, _TOP)])
+        return points, np.tile([0.0, 0.0, 1.0], (n, 1))
+
+    def boss_side(n: int) -> tuple[np.ndarray, np.ndarray]:
+        angle = rng.uniform(0.0, 2.0 * np.pi, n)
+        radial = np.column_stack([np.cos(angle), np.sin(angle), np.zeros(n)])
+        points = radial * _BOSS_RADIUS
+        points[:, :2] += _BOSS_CENTER
+        points[:, 2] = _TOP + rng.uniform(0.0, _BOSS_HEIGHT, n)
+        return points, radial
+
+    def boss_top(n: int) -> tuple[np.ndarray, np.ndarray]:
+        radius = _BOSS_RADIUS * np.sqrt(rng.random(n))
+        angle = rng.uniform(0.0, 2.0 * np.pi, n)
+        points = np.column_stack(
+            [
+                _BOSS_CENTER[0] + radius * np.cos(angle),
+                _BOSS_CENTER[1] + radius * np.sin(angle),
+                np.full(n, _TOP + _BOSS_HEIGHT),
+            ]
+        )
+        return points, np.tile([0.0, 0.0, 1.0], (n, 1))
+
+    def cap(n: int) -> tuple[np.ndarray, np.ndarray]:
+        # Archimedes: on a sphere, area is uniform in height.
+        height = rng.uniform(cap_depth, _CAP_RADIUS, n)
+        ring = np.sqrt(_CAP_RADIUS**2 - height**2)
+        angle = rng.uniform(0.0, 2.0 * np.pi, n)
+        normals = np.column_stack([ring * np.cos(angle), ring * np.sin(angle), height])
+        normals /= _CAP_RADIUS
+        return _CAP_CENTER + _CAP_RADIUS * normals, normals
+
+    area_x, area_y, area_z = 4 * hy * hz, 4 * hx * hz, 4 * hx * hy
+    parts = [
+        (area_x, lambda n: box_face(n, 0, -1.0)),
+        (area_x, lambda n: box_face(n, 0, +1.0)),
+        (area_y, lambda n: box_face(n, 1, -1.0)),
+        (area_y, lambda n: box_face(n, 1, +1.0)),
+        (area_z, lambda n: box_face(n, 2, -1.0)),
+        (area_z - sum(np.pi * r**2 for _, r in holes), top_face),
+        (2 * np.pi * _BOSS_RADIUS * _BOSS_HEIGHT, boss_side),
+        (np.pi * _BOSS_RADIUS**2, boss_top),
+        (2 * np.pi * _CAP_RADIUS * (_CAP_RADIUS - cap_depth), cap),
+    ]
+    areas = np.array([area for area, _ in parts])
+    counts = rng.multinomial(n_points, areas / areas.sum())
+    samples = [sampler(int(n)) for (_, sampler), n in zip(parts, counts)]
+    order = rng.permutation(n_points)
+    points = np.concatenate([p for p, _ in samples])[order]
+    normals = np.concatenate([n for _, n in samples])[order]
+    return points, normals
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m scanalign.datasets {fetch,list}``."""
+    parser = argparse.ArgumentParser(prog="python -m scanalign.datasets", description=__doc__)
+    parser.add_argument("command", choices=["fetch", "list"], help="download data / list names")
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "fetch":
+            for root in fetch_all():
+                print(f"ready: {root}")
+        else:
+            print("CGAL meshes:", " ".join(cgal_mesh_names()))
+            print("PCL clouds:", " ".join(pcl_cloud_names()))
+    except DatasetUnavailableError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,328 @@
+"""Tests for scanalign.datasets: sampling, the built-in object, the package cache."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from scanalign import datasets, io
+
+# Unit cube [0, 1]^3 as 12 outward-facing triangles.
+CUBE_VERTICES = np.array(
+    [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
+    dtype=np.float64,
+)
+CUBE_QUADS = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (2, 3, 7, 6), (0, 4, 7, 3), (1, 2, 6, 5)]
+CUBE_FACES = np.array([t for a, b, c, d in CUBE_QUADS for t in ((a, b, c), (a, c, d))])
+
+
+# --------------------------------------------------------------------------- sample_mesh
+
+
+def test_sample_mesh_cube_on_surface_with_axis_normals() -> None:
+    n = 60000
+    points, normals = datasets.sample_mesh((CUBE_VERTICES, CUBE_FACES), n, seed=3)
+    assert points.shape == (n, 3) and normals.shape == (n, 3)
+    assert points.min() >= 0.0 and points.max() <= 1.0
+    # Every normal is +-e_k and the point lies on the matching face.
+    axis = np.argmax(np.abs(normals), axis=1)
+    sign = normals[np.arange(n), axis]
+    np.testing.assert_array_equal(np.abs(sign), 1.0)
+    np.testing.assert_array_equal(np.count_nonzero(normals, axis=1), 1)
+    face_coord = np.where(sign > 0, 1.0, 0.0)
+    np.testing.assert_allclose(points[np.arange(n), axis], face_coord, atol=1e-12)
+
+    # Area-uniform: each of the 6 faces gets n/6 points (binomial, 5 sigma bound) ...
+    face_id = 2 * axis + (sign > 0)
+    counts = np.bincount(face_id, minlength=6)
+    sigma = np.sqrt(n * (1 / 6) * (5 / 6))
+    assert np.all(np.abs(counts - n / 6) < 5 * sigma), counts
+    # ... and within a face, a 4x4 grid is filled evenly (chi-square test, 15 dof;
+    # 45 is far beyond its 99.9% quantile of 37.7).  Sampling without the sqrt trick
+    # piles points up at the first corner of each triangle and fails this.
+    for f in range(6):
+        on_face = points[face_id == f]
+        in_plane = np.delete(on_face, f // 2, axis=1)
+        cells = np.minimum((in_plane * 4).astype(int), 3)
+        grid = np.bincount(cells[:, 0] * 4 + cells[:, 1], minlength=16)
+        expected = len(on_face) / 16
+        assert np.sum((grid - expected) ** 2 / expected) < 45.0, grid
+
+
+def test_sample_mesh_skips_degenerate_faces_and_is_deterministic() -> None:
+    vertices = np.vstack([CUBE_VERTICES, [[2.0, 2.0, 2.0], [3.0, 3.0, 3.0]]])
+    faces = np.vstack([CUBE_FACES, [[8, 8, 9], [0, 8, 9]]])  # zero-area: repeated, collinear
+    mesh = io.Mesh(vertices, faces)
+    points, normals = datasets.sample_mesh(mesh, 5000, seed=11)
+    assert np.isfinite(normals).all()
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
+    assert points.max() <= 1.0  # nothing on the degenerate faces out at (2..3)^3
+    again, _ = datasets.sample_mesh(mesh, 5000, seed=11)
+    other, _ = datasets.sample_mesh(mesh, 5000, seed=12)
+    np.testing.assert_array_equal(points, again)
+    assert not np.array_equal(points, other)
+
+
+def test_sample_mesh_triangle_normal_follows_winding() -> None:
+    triangle = (np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0]], float), np.array([[0, 2, 1]]))
+    points, normals = datasets.sample_mesh(triangle, 2000)
+    np.testing.assert_array_equal(normals, np.tile([0.0, 0.0, -1.0], (2000, 1)))
+    assert points[:, 2].max() == 0.0 and (points[:, 0] + points[:, 1]).max() <= 2.0 + 1e-12
+    # Uniform: the half of the area farther than x + y = sqrt(2) from the corner at the
+    # origin holds half the points (without the sqrt trick it would hold 29%).
+    upper = np.count_nonzero(points[:, 0] + points[:, 1] > np.sqrt(2))
+    assert abs(upper - 1000) < 5 * np.sqrt(500)
+
+
+def test_sample_mesh_zero_area_raises() -> None:
+    flat = (np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2]], float), np.array([[0, 1, 2]]))
+    with pytest.raises(ValueError, match="zero total area"):
+        datasets.sample_mesh(flat, 10)
+    with pytest.raises(ValueError, match="zero total area"):
+        datasets.sample_mesh((CUBE_VERTICES, np.empty((0, 3), int)), 10)
+
+
+# --------------------------------------------------------------------------- builtin_object
+
+# The geometry documented in builtin_object's docstring (metres).
+BOX_HALF = np.array([0.040, 0.025, 0.015])
+TOP = 0.015
+BOSS_XY, BOSS_R, BOSS_TOP = np.array([-0.015, 0.0]), 0.012, 0.030
+CAP_CENTER, CAP_R = np.array([0.020, 0.006, 0.006]), 0.015
+CAP_BASE_R = np.sqrt(CAP_R**2 - (TOP - CAP_CENTER[2]) ** 2)
+
+
+def classify_builtin(points: np.ndarray, normals: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Label each point with the surface part it lies on (normal must match); -1 = none.
+
+    Labels: 0..5 box faces (-x, +x, -y, +y, -z, +z), 6 boss side, 7 boss top, 8 cap.
+    """
+    labels = np.full(len(points), -1)
+    inside_box = np.all(np.abs(points) <= BOX_HALF + tol, axis=1)
+    for axis in range(3):
+        for side, sign in enumerate((-1.0, 1.0)):
+            normal = np.zeros(3)
+            normal[axis] = sign
+            on = (
+                inside_box
+                & (np.abs(points[:, axis] - sign * BOX_HALF[axis]) < tol)
+                & np.all(np.abs(normals - normal) < tol, axis=1)
+            )
+            if axis == 2 and sign > 0:  # top face: not under the boss or the cap
+                on &= np.linalg.norm(points[:, :2] - BOSS_XY, axis=1) >= BOSS_R - tol
+                on &= np.linalg.norm(points[:, :2] - CAP_CENTER[:2], axis=1) >= CAP_BASE_R - tol
+            labels[on] = 2 * axis + side
+    radial = points[:, :2] - BOSS_XY
+    rho = np.linalg.norm(radial, axis=1)
+    boss_side = (
+        (np.abs(rho - BOSS_R) < tol)
+        & (points[:, 2] >= TOP - tol)
+        & (points[:, 2] <= BOSS_TOP + tol)
+        & np.all(np.abs(normals[:, :2] - radial / BOSS_R) < 1e-6, axis=1)
+        & (np.abs(normals[:, 2]) < tol)
+    )
+    labels[boss_side] = 6
+    boss_top = (
+        (np.abs(points[:, 2] - BOSS_TOP) < tol)
+        & (rho <= BOSS_R + tol)
+        & np.all(np.abs(normals - [0, 0, 1]) < tol, axis=1)
+    )
+    labels[boss_top] = 7
+    offset = points - CAP_CENTER
+    cap = (
+        (np.abs(np.linalg.norm(offset, axis=1) - CAP_R) < tol)
+        & (points[:, 2] >= TOP - tol)
+        & np.all(np.abs(normals - offset / CAP_R) < 1e-6, axis=1)
+    )
+    labels[cap] = 8
+    return labels
+
+
+def test_builtin_object_lies_on_its_exposed_surface() -> None:
+    n = 20000
+    points, normals = datasets.builtin_object(n, seed=5)
+    assert points.shape == (n, 3) and normals.shape == (n, 3)
+    np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-12)
+    labels = classify_builtin(points, normals)
+    assert np.all(labels >= 0), points[labels < 0][:5]
+
+    # Uniform area density: each part gets its share of the points (5 sigma).
+    areas = np.array(
+        [4 * BOX_HALF[1] * BOX_HALF[2]] * 2
+        + [4 * BOX_HALF[0] * BOX_HALF[2]] * 2
+        + [4 * BOX_HALF[0] * BOX_HALF[1]]
+        + [4 * BOX_HALF[0] * BOX_HALF[1] - np.pi * (BOSS_R**2 + CAP_BASE_R**2)]
+        + [2 * np.pi * BOSS_R * (BOSS_TOP - TOP), np.pi * BOSS_R**2]
+        + [2 * np.pi * CAP_R * (CAP_R - (TOP - CAP_CENTER[2]))]
+    )
+    p = areas / areas.sum()
+    counts = np.bincount(labels, minlength=9)
+    assert np.all(np.abs(counts - n * p) < 5 * np.sqrt(n * p * (1 - p))), (counts, n * p)
+
+    # About 10 cm across: 80 x 50 x 45 mm bounding box.
+    np.testing.assert_allclose(points.min(axis=0), [-0.040, -0.025, -0.015], atol=1e-3)
+    np.testing.assert_allclose(points.max(axis=0), [0.040, 0.025, 0.030], atol=1e-3)
+
+
+def test_builtin_object_constrains_point_to_plane_icp() -> None:
+    points, normals = datasets.builtin_object(5000)
+    # Point-to-plane Jacobian rows [p x n, n]: full rank and well conditioned.
+    jacobian = np.hstack([np.cross(points - points.mean(axis=0), normals) / 0.05, normals])
+    singular = np.linalg.svd(jacobian, compute_uv=False)
+    assert singular[-1] / singular[0] > 0.05, singular
+
+
+def test_builtin_object_is_deterministic() -> None:
+    a = datasets.builtin_object(1000, seed=1)
+    b = datasets.builtin_object(1000, seed=1)
+    c = datasets.builtin_object(1000, seed=2)
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+    assert not np.array_equal(a[0], c[0])
+
+
+# --------------------------------------------------------------------------- cache / fetch
+
+
+def test_cache_dir_follows_environment(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path))
+    assert datasets.cache_dir() == tmp_path
+    monkeypatch.delenv("SCANALIGN_DATA")
+    assert datasets.cache_dir() == Path.home() / ".cache" / "scanalign"
+
+
+def fake_apt_get(bin_dir: Path, calls: Path) -> None:
+    """An ``apt-get`` that records its call and fails like one with stale package lists."""
+    script = bin_dir / "apt-get"
+    script.write_text(
+        f"#!/bin/sh\necho \"$@\" >> {calls}\n"
+        "echo 'E: Unable to locate package' >&2\nexit 100\n"
+    )
+    script.chmod(0o755)
+
+
+def test_missing_apt_get_raises(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache"))
+    monkeypatch.setenv("PATH", str(tmp_path))  # nothing on PATH
+    with pytest.raises(datasets.DatasetUnavailableError, match="apt-get update") as info:
+        datasets.pcl_cloud_names()
+    assert "not available" in str(info.value) and "python3-pcl" in str(info.value)
+
+
+def test_failing_apt_get_raises(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    calls = tmp_path / "calls.txt"
+    fake_apt_get(tmp_path, calls)
+    monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache"))
+    monkeypatch.setenv("PATH", f"{tmp_path}{os.pathsep}{os.environ['PATH']}")
+    with pytest.raises(datasets.DatasetUnavailableError, match="apt-get update") as info:
+        datasets.load_cgal_mesh("fandisk")
+    assert "Unable to locate package" in str(info.value)
+    assert calls.read_text().split() == ["download", "libcgal-demo"]
+    assert not list((tmp_path / "cache" / "debs").iterdir())  # no partial download left
+
+
+@pytest.mark.skipif(shutil.which("dpkg-deb") is None, reason="needs dpkg-deb")
+def test_cached_deb_is_reused(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    # Build a tiny stand-in for python3-pcl holding one cloud, and put it in the cache.
+    tree = tmp_path / "tree"
+    (tree / "DEBIAN").mkdir(parents=True)
+    (tree / "DEBIAN" / "control").write_text(
+        "Package: python3-pcl\nVersion: 1.0\nArchitecture: all\n"
+        "Maintainer: test <test@example.com>\nDescription: test package\n"
+    )
+    clouds = tree / "usr/share/doc/python3-pcl/examples/tutorials"
+    clouds.mkdir(parents=True)
+    (clouds / "tiny.pcd").write_text(
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+        "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n0 0 0\nnan nan nan\n0.1 0.2 0.3\n"
+    )
+    cache = tmp_path / "cache"
+    (cache / "debs").mkdir(parents=True)
+    subprocess.run(
+        ["dpkg-deb", "--root-owner-group", "--build", str(tree),
+         str(cache / "debs" / "python3-pcl_1.0_all.deb")],
+        check=True, capture_output=True,
+    )
+    calls = tmp_path / "calls.txt"
+    fake_apt_get(tmp_path, calls)
+    monkeypatch.setenv("SCANALIGN_DATA", str(cache))
+    monkeypatch.setenv("PATH", f"{tmp_path}{os.pathsep}{os.environ['PATH']}")
+
+    assert datasets.pcl_cloud_names() == ["tiny"]
+    path = datasets.pcl_cloud_path("tiny")
+    assert path.is_relative_to(cache / "packages" / "python3-pcl")
+    expected = np.array([[0, 0, 0], [0.1, 0.2, 0.3]], dtype=np.float32)
+    np.testing.assert_array_equal(datasets.load_pcl_cloud("tiny"), expected)
+    assert not calls.exists()  # apt-get was never needed
+    with pytest.raises(ValueError, match="did you mean tiny"):
+        datasets.pcl_cloud_path("tiyn")
+
+
+# --------------------------------------------------------------------------- real data
+
+
+def pcd_header_points(path: Path) -> int:
+    with open(path, "rb") as fh:
+        for line in fh:
+            if line.startswith(b"POINTS"):
+                return int(line.split()[1])
+    raise AssertionError(f"{path} has no POINTS line")
+
+
+@pytest.mark.data
+def test_pcl_bun0(dataset_cache: Path) -> None:
+    path = datasets.pcl_cloud_path("bun0")
+    assert path.is_relative_to(dataset_cache)
+    points = datasets.load_pcl_cloud("bun0")
+    assert points.dtype == np.float64 and points.shape == (pcd_header_points(path), 3)
+    assert points.shape[0] == 112586
+    # Despite its name, python3-pcl's bun0.pcd is not the Stanford bunny but an indoor
+    # lidar scan (scan rings around the sensor at the origin), roughly 29 x 14 x 3 m.
+    extent = np.ptp(points, axis=0)
+    assert np.all((extent > [20, 10, 2]) & (extent < [40, 20, 5])), extent
+
+
+@pytest.mark.data
+def test_pcl_milk(dataset_cache: Path) -> None:
+    path = datasets.pcl_cloud_path("milk")
+    fields = io.read_pcd(path)
+    assert set(fields) == {"x", "y", "z", "rgba"}
+    points = datasets.load_pcl_cloud("milk")
+    assert np.isfinite(points).all()
+    assert 0 < len(points) <= pcd_header_points(path) == 12575
+    # A milk carton: a 10-30 cm object about 0.6-0.9 m from the camera.
+    assert np.all((np.ptp(points, axis=0) > 0.1) & (np.ptp(points, axis=0) < 0.3))
+    assert 0.5 < np.linalg.norm(points.mean(axis=0)) < 1.0
+    assert sorted(datasets.pcl_cloud_names())[:3] == ["bun0", "lamppost", "milk"]
+
+
+@pytest.mark.data
+def test_cgal_fandisk(dataset_cache: Path) -> None:
+    names = datasets.cgal_mesh_names()
+    for expected in ("bunny00", "fandisk", "rotor", "pinion", "anchor", "joint",
+                     "couplingdown", "part", "spool"):
+        assert expected in names
+    path = datasets.cgal_mesh_path("fandisk")
+    header = [ln for ln in path.read_text().splitlines() if ln and not ln.startswith("#")][:2]
+    n_vertices, n_faces, _ = map(int, header[1].split())
+    mesh = datasets.load_cgal_mesh("fandisk")
+    assert mesh.vertices.shape == (n_vertices, 3) and mesh.faces.shape == (n_faces, 3)
+    assert mesh.faces.min() >= 0 and mesh.faces.max() < n_vertices
+    # A closed, consistently oriented surface: every directed edge appears once and its
+    # reverse appears too; the enclosed volume is positive (outward normals).
+    edges = mesh.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    directed = {tuple(e) for e in edges.tolist()}
+    assert len(directed) == len(edges)
+    assert all((b, a) in directed for a, b in directed)
+    a, b, c = (mesh.vertices[mesh.faces[:, k]] for k in range(3))
+    assert np.einsum("ij,ij->", a, np.cross(b, c)) / 6 > 0
+    # Sampling the CAD surface works end to end.
+    points, normals = datasets.sample_mesh(mesh, 1000)
+    assert points.shape == (1000, 3)
+    assert np.all(points >= mesh.vertices.min(axis=0) - 1e-12)
+    assert np.all(points <= mesh.vertices.max(axis=0) + 1e-12)
