@@ -193,18 +193,21 @@ void defineRegistration(py::module_& m) {
   m.def(
       "pcl_point_to_plane_lls",
       [](const py::array& source, const py::array& target, const py::array& normals) {
-        return pclPointToPlaneLLS(cloudView<float>(source, "source"), cloudView<float>(target, "target"),
-                                  cloudView<float>(normals, "target_normals"));
+        double seconds = 0.0;
+        const Eigen::Matrix4d T = pclPointToPlaneLLS(cloudView<float>(source, "source"), cloudView<float>(target, "target"),
+                                                     cloudView<float>(normals, "target_normals"), &seconds);
+        return py::make_tuple(T, seconds);
       },
       py::arg("source"), py::arg("target"), py::arg("target_normals"));
   m.def(
       "point_to_plane_lls",
       [](const py::array& source, const py::array& target, const py::array& normals, double threshold) {
         PointToPlaneSolve solve;
+        double seconds = 0.0;
         const Eigen::Matrix4d T =
             scanalignPointToPlaneLLS(cloudView<float>(source, "source"), cloudView<float>(target, "target"),
-                                     cloudView<float>(normals, "target_normals"), &solve, threshold);
-        return py::make_tuple(T, solve.rank, solve.conditioning, solve.degenerate);
+                                     cloudView<float>(normals, "target_normals"), &solve, threshold, &seconds);
+        return py::make_tuple(T, solve.rank, solve.conditioning, solve.degenerate, seconds);
       },
       py::arg("source"), py::arg("target"), py::arg("target_normals"), py::arg("degeneracy_threshold"));
   m.def(

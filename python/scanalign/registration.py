@@ -366,7 +366,7 @@ def point_to_plane_lls(
         are then kept at zero motion rather than solved from round-off).
     """
     s, t, n = _paired(source, target, target_normals)
-    T, rank, cond, degenerate = _core.registration.point_to_plane_lls(s, t, n, float(degeneracy_threshold))
+    T, rank, cond, degenerate, _seconds = _core.registration.point_to_plane_lls(s, t, n, float(degeneracy_threshold))
     return np.asarray(T), int(rank), float(cond), bool(degenerate)
 
 
@@ -374,7 +374,8 @@ def pcl_point_to_plane_lls(source: np.ndarray, target: np.ndarray, target_normal
     """PCL's ``TransformationEstimationPointToPlaneLLS`` (double) on the same pairing as
     :func:`point_to_plane_lls`; the oracle it is tested against. Returns a 4x4."""
     s, t, n = _paired(source, target, target_normals)
-    return np.asarray(_core.registration.pcl_point_to_plane_lls(s, t, n))
+    T, _seconds = _core.registration.pcl_point_to_plane_lls(s, t, n)
+    return np.asarray(T)
 
 
 def box_rejector_keep(source: np.ndarray, query_indices: Sequence[int], box: BoxLike) -> np.ndarray:

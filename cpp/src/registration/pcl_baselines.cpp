@@ -158,25 +158,29 @@ void checkPaired(const CloudView<float>& source, const CloudView<float>& target,
 }  // namespace
 
 Eigen::Matrix4d pclPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
-                                   const CloudView<float>& target_normals) {
+                                   const CloudView<float>& target_normals, double* seconds) {
   checkPaired(source, target, target_normals);
   const auto src = toCloud<pcl::PointNormal>(source, {});
   const auto tgt = toCloud<pcl::PointNormal>(target, target_normals);
   pcl::registration::TransformationEstimationPointToPlaneLLS<pcl::PointNormal, pcl::PointNormal, double> est;
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  const auto t0 = std::chrono::steady_clock::now();
   est.estimateRigidTransformation(*src, *tgt, T);
+  if (seconds) *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return T;
 }
 
 Eigen::Matrix4d scanalignPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
                                          const CloudView<float>& target_normals, PointToPlaneSolve* solve,
-                                         double degeneracy_threshold) {
+                                         double degeneracy_threshold, double* seconds) {
   checkPaired(source, target, target_normals);
   const auto src = toCloud<pcl::PointNormal>(source, {});
   const auto tgt = toCloud<pcl::PointNormal>(target, target_normals);
   PointToPlaneLLS<pcl::PointNormal, pcl::PointNormal, double> est(degeneracy_threshold);
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  const auto t0 = std::chrono::steady_clock::now();
   est.estimateRigidTransformation(*src, *tgt, T);
+  if (seconds) *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (solve) *solve = est.lastSolve();
   return T;
 }

@@ -35,15 +35,16 @@ IcpResult pclIcp(const CloudView<float>& source, const CloudView<float>& target,
                  const Eigen::Matrix4d& T_target_source_init, const IcpSettings& settings, PclIcpVariant variant);
 
 /// One estimate of PCL's TransformationEstimationPointToPlaneLLS (double precision) on
-/// paired points: source[i] <-> target[i] with target_normals[i].
+/// paired points: source[i] <-> target[i] with target_normals[i]. `seconds` (may be null)
+/// receives the time of the estimate alone, without the cloud conversion.
 Eigen::Matrix4d pclPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
-                                   const CloudView<float>& target_normals);
+                                   const CloudView<float>& target_normals, double* seconds = nullptr);
 
 /// The same correspondences through scanalign::PointToPlaneLLS (double precision);
 /// `solve` receives the rank / conditioning of the system.
 Eigen::Matrix4d scanalignPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
                                          const CloudView<float>& target_normals, PointToPlaneSolve* solve = nullptr,
-                                         double degeneracy_threshold = 1e-6);
+                                         double degeneracy_threshold = 1e-6, double* seconds = nullptr);
 
 /// Runs scanalign::BoxRejector (the PCL plug-in) on correspondences whose source indices
 /// are `query_indices` into `source`; returns the source indices it keeps, in order.
