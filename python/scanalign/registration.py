@@ -181,9 +181,10 @@ class Icp:
     ) -> None:
         s = make_settings(settings, **overrides)
         t = as_points(target, "target")
-        dtype = common_dtype(t, None if target_normals is None else as_points(target_normals, "target_normals"))
+        n = None if target_normals is None else as_points(target_normals, "target_normals")
+        dtype = common_dtype(t, n)
         self._target = as_points(t, "target", dtype)
-        self._normals = None if target_normals is None else as_points(target_normals, "target_normals", dtype)
+        self._normals = None if n is None else as_points(n, "target_normals", dtype)
         if self._normals is not None and self._normals.shape[0] != self._target.shape[0]:
             raise ValueError(
                 f"target_normals: {self._normals.shape[0]} normals for {self._target.shape[0]} target points"
