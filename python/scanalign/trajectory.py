@@ -1,0 +1,245 @@
+"""Camera trajectories: timestamped poses, the TUM text format, interpolation.
+
+A :class:`Trajectory` holds N poses ``T_world_camera`` (4x4, mapping camera coordinates
+into the trajectory's world frame; metres) with timestamps in seconds.  The TUM RGB-D
+text format has one pose per line, ``timestamp tx ty tz qx qy qz qw``, where (tx, ty, tz)
+is the camera centre in the world frame and (qx, qy, qz, qw) the unit quaternion of the
+camera's orientation in the world frame (Hamilton convention, scalar last).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Optional, Sequence, Union
+
+import numpy as np
+
+__all__ = [
+    "Trajectory",
+    "quaternion_from_matrix",
+    "matrix_from_quaternion",
+    "pose_from_tum",
+    "read_tum_trajectory",
+    "write_tum_trajectory",
+]
+
+
+def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (..., 4) as (qx, qy, qz, qw), qw >= 0, from rotation matrices (..., 3, 3).
+
+    Shepperd's method: picks the numerically largest of the four candidates per matrix.
+    """
+    R = np.asarray(R, dtype=np.float64)
+    if R.shape[-2:] != (3, 3):
+        raise ValueError(f"expected rotation matrices of shape (..., 3, 3), got {R.shape}")
+    m = R.reshape(-1, 3, 3)
+    t = np.trace(m, axis1=1, axis2=2)
+    d = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], t], axis=1)
+    k = np.argmax(d, axis=1)
+    q = np.empty((m.shape[0], 4))
+    # case w largest
+    for case in range(4):
+        sel = k == case
+        if not np.any(sel):
+            continue
+        a = m[sel]
+        if case == 3:
+            s = np.sqrt(1.0 + t[sel]) * 2.0
+            q[sel] = np.stack([(a[:, 2, 1] - a[:, 1, 2]) / s, (a[:, 0, 2] - a[:, 2, 0]) / s,
+                               (a[:, 1, 0] - a[:, 0, 1]) / s, 0.25 * s], axis=1)
+        else:
+            i, j, l = case, (case + 1) % 3, (case + 2) % 3
+            s = np.sqrt(1.0 + a[:, i, i] - a[:, j, j] - a[:, l, l]) * 2.0
+            v = np.empty((a.shape[0], 4))
+            v[:, i] = 0.25 * s
+            v[:, j] = (a[:, j, i] + a[:, i, j]) / s
+            v[:, l] = (a[:, l, i] + a[:, i, l]) / s
+            v[:, 3] = (a[:, l, j] - a[:, j, l]) / s
+            q[sel] = v
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    q[q[:, 3] < 0] *= -1.0
+    return q.reshape(R.shape[:-2] + (4,))
+
+
+def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
+    """Rotation matrices (..., 3, 3) from quaternions (..., 4) given as (qx, qy, qz, qw).
+
+    The quaternion is normalised first. Raises ValueError for a zero or non-finite one.
+    """
+    q = np.asarray(q, dtype=np.float64)
+    if q.shape[-1] != 4:
+        raise ValueError(f"expected quaternions of shape (..., 4), got {q.shape}")
+    n = np.linalg.norm(q, axis=-1, keepdims=True)
+    if not np.all(np.isfinite(q)) or np.any(n < 1e-12):
+        raise ValueError("quaternions must be finite and non-zero")
+    x, y, z, w = np.moveaxis(q / n, -1, 0)
+    R = np.stack([
+        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
+    ], axis=-1)
+    return R.reshape(q.shape[:-1] + (3, 3))
+
+
+def pose_from_tum(values: np.ndarray) -> np.ndarray:
+    """4x4 poses (..., 4, 4) from TUM rows (..., 7) = (tx, ty, tz, qx, qy, qz, qw)."""
+    v = np.asarray(values, dtype=np.float64)
+    if v.shape[-1] != 7:
+        raise ValueError(f"expected (..., 7) rows tx ty tz qx qy qz qw, got {v.shape}")
+    T = np.zeros(v.shape[:-1] + (4, 4))
+    T[..., :3, :3] = matrix_from_quaternion(v[..., 3:])
+    T[..., :3, 3] = v[..., :3]
+    T[..., 3, 3] = 1.0
+    return T
+
+
+@dataclass
+class Trajectory:
+    """Timestamped camera poses.
+
+    Attributes:
+        timestamps: (N,) float64 seconds, non-decreasing.
+        poses: (N, 4, 4) float64 ``T_world_camera`` (camera -> world, metres).
+    """
+
+    timestamps: np.ndarray
+    poses: np.ndarray
+
+    def __post_init__(self) -> None:
+        self.timestamps = np.asarray(self.timestamps, dtype=np.float64).reshape(-1)
+        self.poses = np.asarray(self.poses, dtype=np.float64)
+        if self.poses.ndim != 3 or self.poses.shape[1:] != (4, 4):
+            raise ValueError(f"poses: expected shape (N, 4, 4), got {self.poses.shape}")
+        if self.poses.shape[0] != self.timestamps.shape[0]:
+            raise ValueError(f"{self.timestamps.shape[0]} timestamps for {self.poses.shape[0]} poses")
+        if not (np.all(np.isfinite(self.poses)) and np.all(np.isfinite(self.timestamps))):
+            raise ValueError("trajectory has non-finite timestamps or poses")
+
+    def __len__(self) -> int:
+        return int(self.timestamps.shape[0])
+
+    def __getitem__(self, index: Union[int, slice, np.ndarray]) -> "Trajectory":
+        idx = np.atleast_1d(np.arange(len(self))[index])
+        return Trajectory(self.timestamps[idx], self.poses[idx])
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(N, 3) camera centres in the world frame (m)."""
+        return self.poses[:, :3, 3]
+
+    @property
+    def rotations(self) -> np.ndarray:
+        """(N, 3, 3) camera orientations in the world frame."""
+        return self.poses[:, :3, :3]
+
+    def path_length(self) -> float:
+        """Length of the polyline through the camera centres (m)."""
+        return float(np.linalg.norm(np.diff(self.positions, axis=0), axis=1).sum()) if len(self) > 1 else 0.0
+
+    def transformed(self, T_new_world: np.ndarray) -> "Trajectory":
+        """The same trajectory expressed in another world frame: poses ``T_new_world @ T``."""
+        T = np.asarray(T_new_world, dtype=np.float64)
+        if T.shape != (4, 4):
+            raise ValueError("T_new_world must be 4x4")
+        return Trajectory(self.timestamps.copy(), T @ self.poses)
+
+    def relative_to_first(self) -> "Trajectory":
+        """Expressed in the first camera's frame: the first pose becomes the identity."""
+        if len(self) == 0:
+            return Trajectory(self.timestamps.copy(), self.poses.copy())
+        return self.transformed(np.linalg.inv(self.poses[0]))
+
+    def to_tum_rows(self) -> np.ndarray:
+        """(N, 8) rows ``timestamp tx ty tz qx qy qz qw``."""
+        q = quaternion_from_matrix(self.rotations) if len(self) else np.zeros((0, 4))
+        return np.column_stack([self.timestamps, self.positions, q])
+
+    @classmethod
+    def from_tum_rows(cls, rows: np.ndarray) -> "Trajectory":
+        rows = np.asarray(rows, dtype=np.float64).reshape(-1, 8)
+        return cls(rows[:, 0], pose_from_tum(rows[:, 1:]))
+
+    @classmethod
+    def read_tum(cls, path: Union[str, os.PathLike]) -> "Trajectory":
+        return read_tum_trajectory(path)
+
+    def write_tum(self, path: Union[str, os.PathLike], header: Optional[str] = None) -> None:
+        write_tum_trajectory(path, self, header)
+
+    def interpolate(self, timestamps: Sequence[float], max_gap: float = np.inf) -> "Trajectory":
+        """Poses at the given times: linear in position, spherical-linear in rotation.
+
+        Args:
+            timestamps: query times (s); each must lie within the trajectory's time span.
+            max_gap: a query whose bracketing poses are farther apart in time than this
+                (s) raises, so a gap in a ground truth is not papered over.
+
+        Raises:
+            ValueError: a query outside the span or across a gap larger than ``max_gap``.
+        """
+        t = np.asarray(timestamps, dtype=np.float64).reshape(-1)
+        if len(self) == 0:
+            raise ValueError("cannot interpolate an empty trajectory")
+        ts = self.timestamps
+        if np.any(t < ts[0] - 1e-9) or np.any(t > ts[-1] + 1e-9):
+            raise ValueError(f"query times outside the trajectory's span [{ts[0]}, {ts[-1]}]")
+        hi = np.clip(np.searchsorted(ts, t, side="left"), 0, len(ts) - 1)
+        lo = np.clip(hi - 1, 0, len(ts) - 1)
+        exact = np.isclose(ts[hi], t, rtol=0, atol=1e-9)
+        lo = np.where(exact, hi, lo)
+        gap = ts[hi] - ts[lo]
+        if np.any(gap > max_gap):
+            raise ValueError(f"a query falls in a gap of {gap.max():.3f} s > max_gap {max_gap} s")
+        with np.errstate(invalid="ignore", divide="ignore"):
+            a = np.where(gap > 0, (t - ts[lo]) / gap, 0.0)
+        q0 = quaternion_from_matrix(self.rotations[lo])
+        q1 = quaternion_from_matrix(self.rotations[hi])
+        dot = np.sum(q0 * q1, axis=1)
+        q1[dot < 0] *= -1.0
+        dot = np.abs(dot)
+        theta = np.arccos(np.clip(dot, -1.0, 1.0))
+        s = np.sin(theta)
+        small = s < 1e-9
+        w0 = np.where(small, 1.0 - a, np.sin((1.0 - a) * theta) / np.where(small, 1.0, s))
+        w1 = np.where(small, a, np.sin(a * theta) / np.where(small, 1.0, s))
+        q = w0[:, None] * q0 + w1[:, None] * q1
+        T = np.zeros((t.shape[0], 4, 4))
+        T[:, :3, :3] = matrix_from_quaternion(q)
+        T[:, :3, 3] = (1.0 - a)[:, None] * self.positions[lo] + a[:, None] * self.positions[hi]
+        T[:, 3, 3] = 1.0
+        return Trajectory(t, T)
+
+
+def read_tum_trajectory(path: Union[str, os.PathLike]) -> Trajectory:
+    """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line; ``#``
+    comments and blank lines skipped; commas accepted as separators).
+
+    Raises:
+        ValueError: a line without 8 numbers (the line number is given).
+    """
+    rows = []
+    with open(path, "r", encoding="utf-8") as f:
+        for lineno, raw in enumerate(f, 1):
+            line = raw.split("#", 1)[0].strip()
+            if not line:
+                continue
+            parts = line.replace(",", " ").split()
+            if len(parts) != 8:
+                raise ValueError(f"{path}:{lineno}: expected 8 values (timestamp tx ty tz qx qy qz qw), got {len(parts)}")
+            try:
+                rows.append([float(p) for p in parts])
+            except ValueError:
+                raise ValueError(f"{path}:{lineno}: not a number in {raw.strip()!r}") from None
+    return Trajectory.from_tum_rows(np.array(rows).reshape(-1, 8))
+
+
+def write_tum_trajectory(path: Union[str, os.PathLike], trajectory: Trajectory, header: Optional[str] = None) -> None:
+    """Writes a trajectory in the TUM format (full double precision)."""
+    with open(path, "w", encoding="utf-8") as f:
+        if header:
+            for line in header.splitlines():
+                f.write(f"# {line}\n")
+        f.write("# timestamp tx ty tz qx qy qz qw\n")
+        for r in trajectory.to_tum_rows():
+            f.write(f"{r[0]:.6f} " + " ".join(f"{v:.17g}" for v in r[1:]) + "\n")
