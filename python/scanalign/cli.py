@@ -1,8 +1,12 @@
 """The ``scanalign`` command line.
 
-``scanalign demo`` registers a simulated camera frame of the built-in part to its model
-with scanalign's engine and with stock PCL, and writes the result for a viewer.
-``scanalign register SOURCE TARGET`` registers two point-cloud files (PCD or PLY).
+  scanalign demo               reconstruct a built-in synthetic eye-in-hand scan (no download)
+  scanalign reconstruct SRC    reconstruct a TUM RGB-D folder or a synthetic-scan config
+  scanalign synth CONFIG DIR   render a synthetic scan into a TUM RGB-D folder
+  scanalign register SRC TGT   ICP between two point-cloud files (PCD or PLY)
+  scanalign register-demo      one simulated frame registered by scanalign and stock PCL
+
+Units: metres, radians, seconds. Run ``scanalign COMMAND --help`` for every option.
 """
 
 from __future__ import annotations
@@ -36,8 +40,8 @@ def _rigid(axis: Sequence[float], angle: float, t: Sequence[float]) -> np.ndarra
     return T
 
 
-def demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
-    """Runs the registration demo; returns the report written to ``out/report.json``."""
+def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
+    """Runs the two-cloud registration demo; returns the report written to ``out/report.json``."""
     from . import datasets, io
     from .features import estimate_normals
     from .registration import icp, pcl_icp
@@ -126,14 +130,186 @@ def register(args: argparse.Namespace) -> int:
     return 0 if r.converged else 2
 
 
+def _load_source(source: str, args: argparse.Namespace) -> tuple:
+    """Frames and, for synthetic scans, the scan (for its mesh) from a SOURCE argument."""
+    from . import synthetic, tum
+
+    if source == "builtin":
+        scan = synthetic.builtin_scan(n_frames=args.frames or 36, noise=args.noise or "sr300",
+                                      seed=0 if args.seed is None else args.seed)
+        return scan.frames, scan, "built-in synthetic scan"
+    path = Path(source)
+    if path.is_dir():
+        if not tum.is_tum_folder(path):
+            raise ValueError(f"{path}: not a TUM RGB-D folder (no depth.txt)")
+        seq = tum.TumSequence(path, intrinsics=args.intrinsics, depth_scale=args.depth_scale, start=args.start,
+                              stride=args.frame_stride, limit=args.limit)
+        return seq, None, f"TUM RGB-D folder {path}"
+    if path.suffix.lower() in (".json", ".yaml", ".yml"):
+        config = synthetic.SyntheticConfig.from_file(path)
+        overrides = {k: v for k, v in (("n_frames", args.frames), ("noise", args.noise), ("seed", args.seed))
+                     if v is not None}
+        if overrides:
+            config = synthetic.SyntheticConfig(**{**config.to_dict(), **overrides})
+        scan = config.build()
+        return scan.frames, scan, f"synthetic scan from {path}"
+    if not path.exists():
+        raise FileNotFoundError(f"{source}: no such folder or file")
+    raise ValueError(f"{source}: expected a TUM RGB-D folder, a synthetic config (.json/.yaml) or 'builtin'")
+
+
+def _settings_from_args(args: argparse.Namespace) -> dict:
+    from .registration import Box
+
+    icp = dict(max_correspondence_distance=args.max_distance, max_iterations=args.max_iterations,
+               estimator=args.estimator)
+    if args.box:
+        icp["box"] = tuple(args.box)
+    elif args.box_preset:
+        icp["box"] = Box.free_hand_preset() if args.box_preset == "free_hand" else Box.banana_preset()
+    if args.threads:
+        icp["num_threads"] = args.threads
+    out = dict(icp=icp, normal_radius=args.normal_radius, model_voxel_size=args.voxel,
+               frame_voxel_size=args.frame_voxel, min_fitness=args.min_fitness,
+               require_convergence=not args.no_require_convergence)
+    if args.crop:
+        out["crop_box"] = tuple(args.crop)
+    if args.threads:
+        out["num_threads"] = args.threads
+    return out
+
+
+def _run_reconstruction(source: str, args: argparse.Namespace) -> dict:
+    from .pipeline import model_mesh_distance, reconstruct
+
+    t0 = time.perf_counter()
+    frames, scan, what = _load_source(source, args)
+    load_seconds = time.perf_counter() - t0
+    if not args.quiet:
+        n = len(frames) if hasattr(frames, "__len__") else "?"
+        print(f"scanalign: reconstructing {what}: {n} frames"
+              + (f" (rendered in {load_seconds:.2f} s)" if scan is not None else ""))
+    result = reconstruct(frames, registration=args.registration, model_frame=args.model_frame,
+                         initial_guess=args.initial_guess, min_depth=args.min_depth, max_depth=args.max_depth,
+                         pixel_stride=args.pixel_stride, progress=not (args.no_progress or args.quiet),
+                         **_settings_from_args(args))
+    if scan is not None:
+        result.metrics["model_to_mesh_m"] = model_mesh_distance(result, scan.vertices, scan.faces)
+        result.metrics["render_seconds"] = load_seconds
+    paths = result.save(args.out, plots=not args.no_plots)
+    summary = result.summary()
+    if not args.quiet:
+        _print_summary(summary, paths)
+    return summary
+
+
+def _print_summary(summary: dict, paths: dict) -> None:
+    def mm(v: Optional[float]) -> str:
+        return "n/a" if v is None else f"{v * 1000:.2f} mm"
+
+    print(f"  frames: {summary['frames']} given, {summary['merged']} merged"
+          + (f", skipped {summary['skipped']}" if summary["skipped"] else ""))
+    if summary.get("seconds_per_frame_median") is not None:
+        print(f"  time per frame: median {summary['seconds_per_frame_median'] * 1000:.0f} ms "
+              f"(max {summary['seconds_per_frame_max'] * 1000:.0f} ms), "
+              f"median {summary['iterations_median']:.0f} ICP iterations; total {summary['seconds_total']:.1f} s")
+    print(f"  model: {summary['model_points']} points")
+    if "ate_m" in summary:
+        print(f"  ATE: rmse {mm(summary['ate_m']['rmse'])}, max {mm(summary['ate_m']['max'])};  "
+              f"RPE (1 frame): rmse {mm(summary['rpe_translation_m']['rmse'])}, "
+              f"{summary['rpe_rotation_deg']['rmse']:.3f} deg")
+    if "model_to_mesh_m" in summary:
+        q = summary["model_to_mesh_m"]
+        print(f"  model to mesh: mean {mm(q['mean'])}, 95th percentile {mm(q['p95'])}")
+    print("  wrote " + ", ".join(str(p) for p in paths.values()))
+
+
+def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> None:
+    g = p.add_argument_group("output")
+    g.add_argument("--out", default=out_default, help=f"output folder (default: {out_default})")
+    g.add_argument("--no-plots", action="store_true", help="do not write trajectory.png / frames.png")
+    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    g.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    g = p.add_argument_group("synthetic scans (builtin or a config file)")
+    g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
+    g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
+    g.add_argument("--seed", type=int, help="random seed of the sensor noise (builtin: 0)")
+    g = p.add_argument_group("real sequences (TUM RGB-D folder)")
+    g.add_argument("--intrinsics", help="intrinsics preset (tum_fr1, tum_fr2, tum_fr3, tum_default, sr300, d435) or "
+                                        "a JSON/YAML file with width height fx fy cx cy (pixels); default: the "
+                                        "folder's camera.json/yaml")
+    g.add_argument("--depth-scale", type=float, help="metres per depth-PNG unit (TUM: 0.0002 = 1/5000)")
+    g.add_argument("--start", type=int, default=0, help="first frame to use (default 0)")
+    g.add_argument("--frame-stride", type=int, default=1, help="use every n-th frame (default 1)")
+    g.add_argument("--limit", type=int, help="use at most this many frames")
+    g = p.add_argument_group("depth images")
+    g.add_argument("--min-depth", type=float, default=0.1, help="nearest valid depth, m (default 0.1)")
+    g.add_argument("--max-depth", type=float, default=2.0, help="farthest valid depth, m (default 2.0)")
+    g.add_argument("--pixel-stride", type=int, default=1, help="use every n-th pixel (default 1: full resolution)")
+    g.add_argument("--crop", type=float, nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+                   help="keep only points inside this box in camera coordinates, m (x right, y down, z forward)")
+    g = p.add_argument_group("reconstruction (seed 000 defaults)")
+    g.add_argument("--normal-radius", type=float, default=0.005, help="PCA normal radius, m (default 0.005)")
+    g.add_argument("--voxel", type=float, default=0.001, help="model voxel grid edge, m (default 0.001)")
+    g.add_argument("--frame-voxel", type=float, default=0.001,
+                   help="frame voxel grid edge before registration, m; 0 = full resolution (default 0.001)")
+    g.add_argument("--min-fitness", type=float, default=0.3,
+                   help="skip frames whose inlier fraction is below this (default 0.3)")
+    g.add_argument("--no-require-convergence", action="store_true",
+                   help="accept registrations that hit the iteration cap")
+    g.add_argument("--model-frame", choices=["auto", "camera", "base"], default="auto",
+                   help="model in the first camera's frame or the robot base frame (auto: base when reference "
+                        "poses exist)")
+    g.add_argument("--initial-guess", choices=["previous", "reference"], default="previous",
+                   help="ICP starts from the previous registration (seed) or adds the robot's reference motion")
+    g = p.add_argument_group("registration")
+    g.add_argument("--registration", default="scanalign",
+                   choices=["scanalign", "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls"],
+                   help="scanalign's engine or a stock PCL ICP baseline (default scanalign)")
+    g.add_argument("--estimator", choices=["point_to_plane", "point_to_point"], default="point_to_plane",
+                   help="scanalign estimator (default point_to_plane: Low's LLS)")
+    g.add_argument("--max-distance", type=float, default=0.02, help="max correspondence distance, m (default 0.02)")
+    g.add_argument("--max-iterations", type=int, default=50, help="ICP iteration cap (default 50)")
+    g.add_argument("--box", type=float, nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+                   help="box correspondence rejector in camera coordinates, m (seed 000 §3.4)")
+    g.add_argument("--box-preset", choices=["free_hand", "banana"], help="the seed's box rejector values")
+    g.add_argument("--threads", type=int, default=0, help="CPU threads, 0 = all (default)")
+
+
+def synth(args: argparse.Namespace) -> int:
+    """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder."""
+    from . import synthetic, tum
+
+    scan = synthetic.SyntheticConfig.from_file(args.config).build() if args.config != "builtin" else \
+        synthetic.builtin_scan(n_frames=args.frames or 36, noise=args.noise or "sr300", seed=args.seed or 0)
+    folder = tum.write_tum_sequence(args.out, scan.frames, intrinsics=scan.intrinsics)
+    print(f"scanalign: wrote {len(scan.frames)} frames to {folder} (TUM RGB-D layout, ground truth included)")
+    return 0
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="scanalign", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("demo", help="register a simulated frame of the built-in part (no download needed)")
-    p.add_argument("--out", default="scanalign-demo", help="output folder (default: scanalign-demo)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--noise", type=float, default=0.0005, help="depth noise sigma in metres (default 0.0005)")
+    p = sub.add_parser("demo", help="reconstruct a built-in synthetic eye-in-hand scan (no download needed)",
+                       description="Renders a built-in synthetic scan (a camera on a robot's hand circling a part "
+                                   "on a table, SR300-like noise), reconstructs it frame-to-model and writes "
+                                   "model.ply, trajectory.txt, reference.txt, frames.csv, report.json, "
+                                   "trajectory.png and frames.png.")
+    _add_reconstruct_options(p, "scanalign-demo")
+    p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder or a synthetic scan",
+                       description="Frame-to-model reconstruction (seed 000 Algorithm 1) of SOURCE: a folder in the "
+                                   "TUM RGB-D layout (depth/, rgb/, depth.txt, rgb.txt, optional groundtruth.txt), "
+                                   "a synthetic-scan config (.json/.yaml), or 'builtin'. Writes the same outputs as "
+                                   "'scanalign demo'.")
+    p.add_argument("source", help="TUM RGB-D folder, synthetic config file, or 'builtin'")
+    _add_reconstruct_options(p, "scanalign-out")
+    p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder")
+    p.add_argument("config", help="synthetic config file (.json/.yaml) or 'builtin'")
+    p.add_argument("out", help="output folder")
+    p.add_argument("--frames", type=int, help="builtin: number of frames (36)")
+    p.add_argument("--noise", help="builtin: noise preset (sr300)")
+    p.add_argument("--seed", type=int, help="builtin: random seed (0)")
     p = sub.add_parser("register", help="ICP between two clouds (PCD or PLY, metres)")
     p.add_argument("source", help="source cloud (its camera frame)")
     p.add_argument("target", help="target cloud (the model frame); normals are estimated if absent")
@@ -145,11 +321,27 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--box", type=float, nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
                    help="box rejector in the source camera frame, m")
     p.add_argument("--out", help="write the aligned source cloud to this PLY file")
+    p = sub.add_parser("register-demo", help="register one simulated frame with scanalign and stock PCL")
+    p.add_argument("--out", default="scanalign-register-demo", help="output folder")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--noise", type=float, default=0.0005, help="depth noise sigma in metres (default 0.0005)")
     args = parser.parse_args(argv)
-    if args.command == "demo":
-        demo(Path(args.out), seed=args.seed, noise=args.noise)
-        return 0
-    return register(args)
+    try:
+        if args.command == "demo":
+            _run_reconstruction("builtin", args)
+            return 0
+        if args.command == "reconstruct":
+            _run_reconstruction(args.source, args)
+            return 0
+        if args.command == "synth":
+            return synth(args)
+        if args.command == "register-demo":
+            register_demo(Path(args.out), seed=args.seed, noise=args.noise)
+            return 0
+        return register(args)
+    except (ValueError, FileNotFoundError, TypeError) as e:
+        print(f"scanalign {args.command}: error: {e}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -1,16 +1,50 @@
-"""Model maintenance for reconstruction: the voxel grid filter (seed 000 §3.6)."""
+"""Eye-in-hand reconstruction: depth images to clouds, frame-to-model registration, and
+the voxel grid that keeps the model bounded (seed 000 §3, Algorithm 1).
+
+Frames: a frame's points are in its camera frame (x right, y down, z forward, metres).
+The model lives in the *model frame*: the first camera's frame by default, or any frame
+given as ``T_model_camera0`` (e.g. the robot base frame via the first frame's
+``T_base_camera``). Every estimated pose is ``T_model_camera`` (camera -> model).
+
+Example::
+
+    from scanalign.reconstruction import Reconstructor
+    rec = Reconstructor()                       # seed defaults: 5 mm normals, 1 mm grid
+    for frame in frames:                        # scanalign.camera.Frame objects
+        record = rec.integrate(frame)
+        if not record.merged:
+            print("skipped", record.index, record.status)
+    rec.model.write_ply("model.ply")
+    rec.trajectory.write_tum("trajectory.txt")
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Optional
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Union
 
 import numpy as np
 
 from . import _core
-from ._arrays import as_points
+from ._arrays import as_points, as_transform
+from .camera import Frame, Intrinsics
+from .registration import Box, BoxLike, IcpResult, IcpSettings, _as_box, make_settings, pcl_icp
+from .trajectory import Trajectory
 
-__all__ = ["VoxelGridResult", "voxel_grid"]
+__all__ = [
+    "VoxelGridResult",
+    "voxel_grid",
+    "depth_to_cloud",
+    "frame_to_cloud",
+    "FrameToModelSettings",
+    "make_reconstruction_settings",
+    "FrameRecord",
+    "Model",
+    "Reconstructor",
+    "REGISTRATION_METHODS",
+]
 
 
 @dataclass(frozen=True)
@@ -84,3 +118,419 @@ def voxel_grid(
         cdtype = np.asarray(colors).dtype
         out_colors = np.clip(np.rint(c), 0, 255).astype(cdtype) if np.issubdtype(cdtype, np.integer) else c.astype(cdtype)
     return VoxelGridResult(centroids.astype(p.dtype), out_normals, out_colors, counts)
+
+
+# ---------------------------------------------------------------------------------------
+# Depth images -> clouds
+# ---------------------------------------------------------------------------------------
+
+
+def depth_to_cloud(
+    depth: np.ndarray,
+    intrinsics: Intrinsics,
+    *,
+    rgb: Optional[np.ndarray] = None,
+    depth_scale: float = 0.001,
+    min_depth: float = 0.1,
+    max_depth: float = 2.0,
+    stride: int = 1,
+    return_pixels: bool = False,
+):
+    """Back-projects a depth image into a cloud in the camera frame.
+
+    ``p = (z (u - cx) / fx, z (v - cy) / fy, z)`` for every valid pixel ``(u, v)``
+    (column, row); invalid pixels (0, NaN, outside ``[min_depth, max_depth]``) are dropped.
+
+    Args:
+        depth: (H, W) uint16 in units of ``depth_scale`` metres, or float32/float64 in
+            metres. (H, W) must equal ``intrinsics.shape``.
+        intrinsics: pinhole intrinsics of the depth image.
+        rgb: optional (H, W, 3) uint8 colour image registered to the depth image.
+        depth_scale: metres per unit of an integer image (1e-3: millimetres; TUM: 1/5000).
+        min_depth, max_depth: valid depth range along z, metres.
+        stride: use every ``stride``-th pixel in both directions.
+        return_pixels: also return the flat pixel index ``row * W + column`` of each point.
+
+    Returns:
+        ``(points, colors)`` -- (N, 3) float32 metres and (N, 3) uint8 or None -- plus
+        ``pixels`` (N,) int32 when ``return_pixels``.
+
+    Raises:
+        TypeError: unsupported depth dtype. ValueError: image size not matching the
+        intrinsics, bad range, scale or stride.
+    """
+    if not isinstance(intrinsics, Intrinsics):
+        raise TypeError("intrinsics must be a scanalign.camera.Intrinsics")
+    d = np.asarray(depth)
+    if d.ndim != 2:
+        raise ValueError(f"depth: expected a 2-D image, got shape {d.shape}")
+    if d.shape != intrinsics.shape:
+        raise ValueError(f"depth image is {d.shape[1]}x{d.shape[0]} (WxH) but the intrinsics are "
+                         f"{intrinsics.width}x{intrinsics.height}")
+    if rgb is not None:
+        c = np.asarray(rgb)
+        if c.shape != intrinsics.shape + (3,):
+            raise ValueError(f"rgb: expected shape {intrinsics.shape + (3,)}, got {c.shape}")
+        if c.dtype != np.uint8:
+            raise TypeError(f"rgb: expected uint8, got {c.dtype}")
+        rgb = np.ascontiguousarray(c)
+    if not (math.isfinite(min_depth) and min_depth >= 0 and max_depth > min_depth):
+        raise ValueError("need 0 <= min_depth < max_depth (metres)")
+    if int(stride) != stride or stride < 1:
+        raise ValueError("stride must be a positive integer")
+    if not (math.isfinite(depth_scale) and depth_scale > 0):
+        raise ValueError("depth_scale must be a positive number of metres per unit")
+    K = _core.reconstruction.PinholeIntrinsics(intrinsics.width, intrinsics.height, intrinsics.fx, intrinsics.fy,
+                                               intrinsics.cx, intrinsics.cy)
+    s = _core.reconstruction.DepthToCloudSettings()
+    s.depth_scale, s.min_depth, s.max_depth, s.stride = float(depth_scale), float(min_depth), float(max_depth), int(stride)
+    if d.dtype == np.uint16:
+        fn = _core.reconstruction.depth_to_cloud_u16
+        d = np.ascontiguousarray(d)
+    elif np.issubdtype(d.dtype, np.floating):
+        fn = _core.reconstruction.depth_to_cloud_f32
+        d = np.ascontiguousarray(d, dtype=np.float32)
+    elif np.issubdtype(d.dtype, np.integer) and d.size and (d.min() < 0 or d.max() > 65535):
+        raise ValueError("integer depth must fit uint16")
+    elif np.issubdtype(d.dtype, np.integer):
+        fn = _core.reconstruction.depth_to_cloud_u16
+        d = np.ascontiguousarray(d, dtype=np.uint16)
+    else:
+        raise TypeError(f"depth: expected uint16 or float, got dtype {d.dtype}")
+    points, colors, pixels = fn(d, K, s, rgb)
+    return (points, colors, pixels) if return_pixels else (points, colors)
+
+
+def frame_to_cloud(frame: Frame, *, min_depth: float = 0.1, max_depth: float = 2.0, stride: int = 1):
+    """:func:`depth_to_cloud` of a :class:`scanalign.camera.Frame` (its depth scale and
+    colour image). Returns ``(points, colors)``."""
+    return depth_to_cloud(frame.depth, frame.intrinsics, rgb=frame.rgb, depth_scale=frame.depth_scale,
+                          min_depth=min_depth, max_depth=max_depth, stride=stride)
+
+
+# ---------------------------------------------------------------------------------------
+# Frame-to-model reconstruction
+# ---------------------------------------------------------------------------------------
+
+FrameToModelSettings = _core.reconstruction.FrameToModelSettings
+FrameToModelSettings.__doc__ = """Settings of the frame-to-model pipeline (seed 000 §3).
+
+Fields:
+    icp: :class:`scanalign.registration.IcpSettings` of the registration (seed §3.3
+        convergence defaults; ``max_correspondence_distance`` 0.02 m here, because
+        consecutive eye-in-hand frames move little; optional ``box`` rejector in the
+        frame's camera coordinates, seed §3.4).
+    normal_radius: PCA normal radius, metres (seed §3.5: 0.005).
+    model_voxel_size: voxel edge of the grid applied to the model after every merge,
+        metres (seed §3.6: 0.001).
+    frame_voxel_size: voxel edge applied to each frame before normals and registration,
+        metres; 0 keeps full resolution (default 0.001).
+    crop_box: optional :class:`scanalign.registration.Box` in the frame's camera
+        coordinates; points outside are dropped before anything, so they are neither
+        registered nor merged (bounds the model to the workspace).
+    min_frame_points: frames with fewer points (after crop and downsampling) are skipped
+        (default 200).
+    min_fitness: registrations whose inlier fraction is below this are rejected (0.3).
+    require_convergence: reject registrations that hit the iteration cap (default True;
+        False for fixed iteration budgets as in seed Figs. 6 and 9).
+    max_translation_change, max_rotation_change: largest accepted distance of the result
+        from the initial guess, metres (0.10) and radians (0.5); farther means failure.
+    num_threads: OpenMP threads for normals and ICP, 0 = all cores."""
+
+_RECON_FIELDS = (
+    "normal_radius",
+    "model_voxel_size",
+    "frame_voxel_size",
+    "crop_box",
+    "min_frame_points",
+    "min_fitness",
+    "require_convergence",
+    "max_translation_change",
+    "max_rotation_change",
+    "num_threads",
+)
+
+#: Registration methods of the pipeline: scanalign's engine (its estimator set in
+#: ``settings.icp.estimator``) and stock PCL ICP variants for comparison (seed §3.7).
+REGISTRATION_METHODS = ("scanalign", "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls")
+
+
+def make_reconstruction_settings(
+    settings: Optional[FrameToModelSettings] = None,
+    *,
+    icp: Union[IcpSettings, Dict[str, Any], None] = None,
+    **overrides: Any,
+) -> FrameToModelSettings:
+    """Copies ``settings`` (or the defaults) and applies overrides by field name.
+
+    ``icp`` is an :class:`IcpSettings` or a dict of ICP overrides applied to the current
+    ICP settings; ``crop_box`` accepts a :class:`Box` or a 6-sequence (metres).
+
+    Raises:
+        TypeError: unknown field. ValueError: invalid values.
+    """
+    s = FrameToModelSettings()
+    if settings is not None:
+        s.icp = make_settings(settings.icp)
+        for name in _RECON_FIELDS:
+            setattr(s, name, getattr(settings, name))
+    if isinstance(icp, IcpSettings):
+        s.icp = make_settings(icp)
+    elif isinstance(icp, dict):
+        s.icp = make_settings(s.icp, **icp)
+    elif icp is not None:
+        raise TypeError("icp must be an IcpSettings or a dict of ICP settings")
+    for name, value in overrides.items():
+        if name not in _RECON_FIELDS:
+            raise TypeError(f"unknown reconstruction setting {name!r}; valid: {', '.join(('icp',) + _RECON_FIELDS)}")
+        if name == "crop_box":
+            value = _as_box(value)
+        try:
+            setattr(s, name, value)
+        except TypeError as e:
+            raise TypeError(f"reconstruction setting {name}: {e}") from None
+    try:
+        s.validate()
+    except Exception as e:  # the C++ message names the field
+        raise ValueError(str(e)) from None
+    return s
+
+
+@dataclass
+class FrameRecord:
+    """What happened to one frame.
+
+    Attributes:
+        index: position in the stream of frames given to the reconstructor (0-based).
+        timestamp: the frame's time stamp, seconds.
+        status: ``"initialized"`` (first frame, defines the model), ``"registered"``, or
+            why it was skipped: ``"skipped_empty"``, ``"skipped_too_few_points"``,
+            ``"skipped_not_converged"``, ``"skipped_too_few_correspondences"``,
+            ``"skipped_low_fitness"``, ``"skipped_motion"``, ``"skipped_error"``.
+        merged: the frame was added to the model.
+        T_model_camera: 4x4 estimated camera pose (camera -> model); for a skipped frame
+            the initial guess it was tried from.
+        converged, icp_status, iterations, fitness, inlier_rmse (m), correspondences: of
+            the registration (defaults for the first frame).
+        input_points: points from the depth image; frame_points: after crop, downsampling
+            and normals; model_points: model size after this frame.
+        prepare_seconds, register_seconds, merge_seconds, total_seconds: wall times.
+        message: detail for a skipped frame.
+    """
+
+    index: int
+    timestamp: float
+    status: str
+    merged: bool
+    T_model_camera: np.ndarray
+    converged: bool = False
+    icp_status: str = ""
+    iterations: int = 0
+    fitness: float = float("nan")
+    inlier_rmse: float = float("nan")
+    correspondences: int = 0
+    input_points: int = 0
+    frame_points: int = 0
+    model_points: int = 0
+    prepare_seconds: float = 0.0
+    register_seconds: float = 0.0
+    merge_seconds: float = 0.0
+    total_seconds: float = 0.0
+    message: str = ""
+
+    def to_dict(self) -> Dict[str, Any]:
+        d = asdict(self)
+        d["T_model_camera"] = np.asarray(self.T_model_camera).tolist()
+        return d
+
+
+@dataclass
+class Model:
+    """The accumulated model: (M, 3) float32 points in the model frame (m), (M, 3) unit
+    normals (NaN where opposite normals cancelled), and (M, 3) uint8 colours or None."""
+
+    points: np.ndarray
+    normals: np.ndarray
+    colors: Optional[np.ndarray]
+
+    def __len__(self) -> int:
+        return int(self.points.shape[0])
+
+    def write_ply(self, path: Any, binary: bool = True) -> None:
+        """Writes the model as PLY with normals (NaN normals written as 0) and colours."""
+        from .io import write_ply
+
+        normals = np.nan_to_num(self.normals, nan=0.0)
+        write_ply(path, self.points, normals=normals, colors=self.colors, binary=binary)
+
+
+class Reconstructor:
+    """Frame-to-model reconstruction (seed 000 Algorithm 1), one frame at a time.
+
+    Each :meth:`integrate` call back-projects the frame, crops and downsamples it,
+    estimates normals (5 mm), registers it to the model starting from the previous
+    registration, checks the result, merges it and voxel-grids the model (1 mm). A frame
+    that fails is recorded with a ``skipped_*`` status and leaves the model untouched.
+
+    Args:
+        settings: :class:`FrameToModelSettings`; keyword overrides (any of its fields,
+            ``icp=dict(...)``) are applied on top.
+        T_model_camera0: pose of the first frame's camera in the model frame (4x4,
+            camera -> model). Identity (default): the model frame is the first camera's.
+        min_depth, max_depth: valid depth range of the images, metres (0.1, 2.0).
+        pixel_stride: use every n-th pixel of the depth images.
+        registration: ``"scanalign"`` (the engine) or a stock PCL ICP variant from
+            :data:`REGISTRATION_METHODS` for comparison.
+    """
+
+    def __init__(
+        self,
+        settings: Optional[FrameToModelSettings] = None,
+        *,
+        T_model_camera0: Optional[np.ndarray] = None,
+        min_depth: float = 0.1,
+        max_depth: float = 2.0,
+        pixel_stride: int = 1,
+        registration: str = "scanalign",
+        **overrides: Any,
+    ) -> None:
+        self.settings = make_reconstruction_settings(settings, **overrides)
+        if registration not in REGISTRATION_METHODS:
+            raise ValueError(f"registration must be one of {REGISTRATION_METHODS}, got {registration!r}")
+        if not (0 <= min_depth < max_depth):
+            raise ValueError("need 0 <= min_depth < max_depth (metres)")
+        if int(pixel_stride) != pixel_stride or pixel_stride < 1:
+            raise ValueError("pixel_stride must be a positive integer")
+        self.registration = registration
+        self.min_depth, self.max_depth, self.pixel_stride = float(min_depth), float(max_depth), int(pixel_stride)
+        self._core = _core.reconstruction.FrameToModel(self.settings)
+        self.records: List[FrameRecord] = []
+        self.reset(T_model_camera0)
+
+    def reset(self, T_model_camera0: Optional[np.ndarray] = None) -> None:
+        """Empties the model and the records; the next accepted frame is placed at
+        ``T_model_camera0`` (identity by default)."""
+        T0 = np.eye(4) if T_model_camera0 is None else as_transform(T_model_camera0, "T_model_camera0")
+        try:
+            self._core.reset(T0)
+        except ValueError as e:
+            raise ValueError(str(e)) from None
+        self.T_model_camera0 = T0
+        self.records = []
+
+    # -- per frame -----------------------------------------------------------------------
+    def integrate(self, frame: Frame, guess: Optional[np.ndarray] = None) -> FrameRecord:
+        """Back-projects and integrates one RGB-D frame.
+
+        Args:
+            frame: the capture; its depth image must match its intrinsics.
+            guess: optional initial pose ``T_model_camera`` (e.g. from the robot's
+                kinematics); default the last accepted pose (seed: previous registration).
+
+        Raises:
+            ValueError / TypeError: a malformed frame (wrong image size for the
+            intrinsics, bad dtype). Frames that are merely unusable (empty, all-invalid
+            depth, unregistrable) are returned as skipped records instead.
+        """
+        if not isinstance(frame, Frame):
+            raise TypeError("integrate() takes a scanalign.camera.Frame; use integrate_points() for clouds")
+        points, colors = depth_to_cloud(frame.depth, frame.intrinsics, rgb=frame.rgb, depth_scale=frame.depth_scale,
+                                        min_depth=self.min_depth, max_depth=self.max_depth, stride=self.pixel_stride)
+        return self.integrate_points(points, colors, guess=guess, timestamp=frame.timestamp)
+
+    def integrate_points(
+        self,
+        points: np.ndarray,
+        colors: Optional[np.ndarray] = None,
+        *,
+        guess: Optional[np.ndarray] = None,
+        timestamp: Optional[float] = None,
+    ) -> FrameRecord:
+        """Integrates a cloud given in the camera frame ((N, 3) metres; (N, 3) uint8
+        colours optional). See :meth:`integrate`."""
+        p = as_points(points, "points", np.dtype(np.float32))
+        c = None
+        if colors is not None:
+            c = np.asarray(colors)
+            if c.shape != (p.shape[0], 3):
+                raise ValueError(f"colors: expected shape ({p.shape[0]}, 3), got {c.shape}")
+            if c.dtype != np.uint8:
+                if np.issubdtype(c.dtype, np.floating) and c.size and c.max() <= 1.0:
+                    c = np.rint(c * 255.0)
+                c = np.clip(c, 0, 255).astype(np.uint8)
+            c = np.ascontiguousarray(c)
+        g = None if guess is None else as_transform(guess, "guess")
+        index = len(self.records)
+        ts = float(index) if timestamp is None else float(timestamp)
+        t0 = time.perf_counter()
+        if self.registration == "scanalign" or not self._core.model_size:
+            rep = self._core.integrate(p, c, g)
+            rec = self._record_from_report(rep, index, ts, p.shape[0])
+        else:
+            rec = self._integrate_external(p, c, g, index, ts)
+        rec.total_seconds = time.perf_counter() - t0
+        self.records.append(rec)
+        return rec
+
+    def _record_from_report(self, rep: Any, index: int, ts: float, n_input: int) -> FrameRecord:
+        icp = rep.icp
+        first = rep.status == "initialized"
+        return FrameRecord(
+            index=index, timestamp=ts, status=rep.status, merged=rep.merged, T_model_camera=rep.T_model_camera,
+            converged=bool(icp.converged) if not first else True, icp_status=icp.status if not first else "",
+            iterations=icp.iterations, fitness=icp.fitness if not first else 1.0,
+            inlier_rmse=icp.inlier_rmse if not first else 0.0, correspondences=icp.correspondence_count,
+            input_points=n_input, frame_points=rep.frame_points, model_points=rep.model_points,
+            prepare_seconds=rep.prepare_seconds, register_seconds=rep.register_seconds,
+            merge_seconds=rep.merge_seconds, total_seconds=rep.total_seconds)
+
+    def _integrate_external(self, p: np.ndarray, c: Optional[np.ndarray], g: Optional[np.ndarray], index: int,
+                            ts: float) -> FrameRecord:
+        guess = self._core.last_pose if g is None else g
+        prepared = self._core.prepare(p, c)
+        rec = FrameRecord(index=index, timestamp=ts, status="skipped_empty", merged=False, T_model_camera=guess,
+                          input_points=p.shape[0], frame_points=len(prepared), model_points=self._core.model_size,
+                          prepare_seconds=prepared.seconds)
+        if len(prepared) == 0:
+            return rec
+        if len(prepared) < self.settings.min_frame_points:
+            rec.status = "skipped_too_few_points"
+            return rec
+        variant = self.registration[len("pcl_"):]
+        t0 = time.perf_counter()
+        normals = self._core.model_normals() if "plane" in variant else None
+        result = pcl_icp(prepared.points, self._core.model_points(), normals, guess, variant=variant,
+                         settings=self.settings.icp)
+        rec.register_seconds = time.perf_counter() - t0
+        rec.converged, rec.icp_status, rec.iterations = bool(result.converged), result.status, result.iterations
+        rec.fitness, rec.inlier_rmse, rec.correspondences = result.fitness, result.inlier_rmse, result.correspondence_count
+        rec.status = self._core.check(result, guess)
+        if rec.status == "registered":
+            t1 = time.perf_counter()
+            rec.T_model_camera = result.T_target_source
+            rec.model_points = self._core.merge(prepared, result.T_target_source)
+            rec.merge_seconds = time.perf_counter() - t1
+            rec.merged = True
+        return rec
+
+    # -- results -------------------------------------------------------------------------
+    @property
+    def model(self) -> Model:
+        """The current model (a copy)."""
+        return Model(self._core.model_points(), self._core.model_normals(), self._core.model_colors())
+
+    @property
+    def model_size(self) -> int:
+        return int(self._core.model_size)
+
+    @property
+    def last_pose(self) -> np.ndarray:
+        """The last accepted ``T_model_camera`` (``T_model_camera0`` before any frame)."""
+        return np.array(self._core.last_pose)
+
+    @property
+    def trajectory(self) -> Trajectory:
+        """Estimated camera poses ``T_model_camera`` of the merged frames."""
+        merged = [r for r in self.records if r.merged]
+        return Trajectory(np.array([r.timestamp for r in merged], dtype=np.float64),
+                          np.array([r.T_model_camera for r in merged]).reshape(-1, 4, 4))

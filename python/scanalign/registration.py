@@ -79,7 +79,9 @@ Fields:
     min_correspondences: stop with ``"not_enough_correspondences"`` below this (at least
         6 for point-to-plane, 3 for point-to-point are enforced).
     degeneracy_threshold: eigenvalue ratio below which a motion direction counts as
-        unconstrained (planar scenes); such directions are not updated (default 1e-6).
+        unconstrained (planar scenes); such directions are not updated (default 1e-10:
+        only numerically exact rank loss, because a small object on a large table gives
+        ratios near 1e-7 that must still be solved).
     num_threads: OpenMP threads, 0 = all cores."""
 
 IcpResult.__doc__ = """Outcome of an ICP run; quality figures are measured at the final transform.
@@ -352,7 +354,7 @@ def _paired(source: np.ndarray, target: np.ndarray, normals: np.ndarray) -> tupl
 
 
 def point_to_plane_lls(
-    source: np.ndarray, target: np.ndarray, target_normals: np.ndarray, degeneracy_threshold: float = 1e-6
+    source: np.ndarray, target: np.ndarray, target_normals: np.ndarray, degeneracy_threshold: float = 1e-10
 ) -> tuple:
     """One point-to-plane LLS step (Low 2004, seed 000 §3.2) on given correspondences.
 

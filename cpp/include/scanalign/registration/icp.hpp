@@ -70,7 +70,10 @@ struct IcpSettings {
   int min_correspondences = 6;
   /// lambda_min / lambda_max of the balanced normal matrix below which a direction
   /// counts as unconstrained (see solvePointToPlane); such directions are not updated.
-  double degeneracy_threshold = 1e-6;
+  /// Kept low on purpose: a small object on a large table legitimately gives ratios near
+  /// 1e-7 (the table's points dominate lambda_max), and freezing those motions would be
+  /// a silent wrong answer; only (numerically) exact rank loss is treated as degenerate.
+  double degeneracy_threshold = 1e-10;
   /// OpenMP threads; 0 = OpenMP's default (all cores).
   int num_threads = 0;
 };

@@ -82,7 +82,7 @@ struct PointToPlaneSolve {
 /// restricted to the well-constrained eigen-directions: unconstrained motions stay zero
 /// instead of being driven by round-off or noise.
 inline PointToPlaneSolve solvePointToPlane(const Matrix6d& AtA, const Vector6d& Atb,
-                                           double degeneracy_threshold = 1e-6) {
+                                           double degeneracy_threshold = 1e-10) {
   PointToPlaneSolve out;
   const double trace_rot = AtA(0, 0) + AtA(1, 1) + AtA(2, 2);
   const double trace_trans = AtA(3, 3) + AtA(4, 4) + AtA(5, 5);

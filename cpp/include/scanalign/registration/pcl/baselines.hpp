@@ -44,7 +44,7 @@ Eigen::Matrix4d pclPointToPlaneLLS(const CloudView<float>& source, const CloudVi
 /// `solve` receives the rank / conditioning of the system.
 Eigen::Matrix4d scanalignPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
                                          const CloudView<float>& target_normals, PointToPlaneSolve* solve = nullptr,
-                                         double degeneracy_threshold = 1e-6, double* seconds = nullptr);
+                                         double degeneracy_threshold = 1e-10, double* seconds = nullptr);
 
 /// Runs scanalign::BoxRejector (the PCL plug-in) on correspondences whose source indices
 /// are `query_indices` into `source`; returns the source indices it keeps, in order.

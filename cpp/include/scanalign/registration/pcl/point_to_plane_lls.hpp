@@ -29,7 +29,7 @@ class PointToPlaneLLS : public pcl::registration::TransformationEstimation<Point
   using Ptr = pcl::shared_ptr<PointToPlaneLLS>;
   using ConstPtr = pcl::shared_ptr<const PointToPlaneLLS>;
 
-  explicit PointToPlaneLLS(double degeneracy_threshold = 1e-6, int num_threads = 0)
+  explicit PointToPlaneLLS(double degeneracy_threshold = 1e-10, int num_threads = 0)
       : degeneracy_threshold_(degeneracy_threshold), num_threads_(num_threads) {}
 
   /// Pairs cloud_src[i] with cloud_tgt[i]; the clouds must have equal sizes.

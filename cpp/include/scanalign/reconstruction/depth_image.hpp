@@ -1,0 +1,56 @@
+// Depth image -> point cloud in the camera frame (the first step of seed 000 Algorithm 1:
+// every RGB-D capture becomes a coloured cloud S).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+namespace scanalign {
+
+/// Pinhole intrinsics of a rectified depth image, OpenCV convention: the camera frame has
+/// x right, y down, z along the optical axis; the centre of pixel (u, v) = (column, row)
+/// sits at image coordinates (u, v); a camera point projects to u = fx x/z + cx,
+/// v = fy y/z + cy. Focal lengths and principal point in pixels.
+struct PinholeIntrinsics {
+  int width = 0;
+  int height = 0;
+  double fx = 0.0;
+  double fy = 0.0;
+  double cx = 0.0;
+  double cy = 0.0;
+
+  /// Throws std::invalid_argument unless the size is positive and fx, fy > 0, all finite.
+  void validate() const;
+};
+
+struct DepthToCloudSettings {
+  /// Metres per unit of an integer (uint16) depth image: 1e-3 for millimetres, 1/5000 for
+  /// the TUM RGB-D benchmark. Float images are in metres and ignore this.
+  double depth_scale = 0.001;
+  /// Pixels nearer than this (m, along z) are dropped: sensors report garbage below their
+  /// minimum range.
+  double min_depth = 0.1;
+  /// Pixels farther than this (m) are dropped.
+  double max_depth = 2.0;
+  /// Use every `stride`-th pixel in both directions (1 = full resolution).
+  int stride = 1;
+};
+
+/// A cloud from one depth image; only valid pixels (finite, in range) are kept.
+struct DepthCloud {
+  std::vector<float> points;         ///< 3 per point, metres, camera frame
+  std::vector<std::uint8_t> colors;  ///< 3 per point (RGB) when an image was given, else empty
+  std::vector<std::int32_t> pixels;  ///< the pixel each point came from: row * width + column
+  std::size_t size() const { return pixels.size(); }
+};
+
+/// Back-projects a row-major depth image of intrinsics.height x intrinsics.width pixels:
+/// p = (z (u - cx) / fx, z (v - cy) / fy, z). A zero, non-finite or out-of-range depth is
+/// an invalid pixel. `rgb` (may be null) holds 3 uint8 per pixel, row-major, registered to
+/// the depth image. Throws std::invalid_argument on bad intrinsics or settings.
+DepthCloud depthToCloud(const std::uint16_t* depth, const PinholeIntrinsics& intrinsics,
+                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr);
+DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics,
+                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr);
+
+}  // namespace scanalign
