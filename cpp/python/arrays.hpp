@@ -23,6 +23,7 @@ CloudView<Scalar> cloudView(const py::array& a, const char* what) {
                          ", got " + std::string(py::str(a.dtype())));
   if (a.ndim() != 2 || a.shape(1) != 3)
     throw py::value_error(std::string(what) + ": expected an (N, 3) array");
+  if (a.shape(0) == 0) return {};  // empty arrays may carry zero strides
   const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
   if (a.shape(0) > 1 && (a.strides(0) <= 0 || a.strides(0) % item != 0 || a.strides(0) < 3 * item))
     throw py::value_error(std::string(what) + ": unsupported row stride (make the array C-contiguous)");

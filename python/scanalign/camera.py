@@ -107,7 +107,8 @@ def read_camera_file(path: Union[str, os.PathLike]) -> Dict[str, Any]:
     """Reads a small camera description: JSON, or flat YAML (``key: value`` per line,
     ``#`` comments). Returns the mapping with numbers parsed. Raises ValueError on a
     malformed file."""
-    text = open(path, "r", encoding="utf-8").read()
+    with open(path, "r", encoding="utf-8") as f:
+        text = f.read()
     if str(path).lower().endswith(".json") or text.lstrip().startswith("{"):
         try:
             d = json.loads(text)
