@@ -471,17 +471,26 @@ class TumSequence:
 
     def _resolve_camera(self, intrinsics: Any, depth_scale: Optional[float]
                         ) -> Tuple[Intrinsics, float, Optional[Path]]:
-        folder_file = _find_camera_file(self._folder)
-        folder_intr, folder_scale = _read_camera(folder_file) if folder_file is not None else (None, None)
+        if depth_scale is not None and (not _is_number(depth_scale) or not depth_scale > 0):
+            raise ValueError(f"depth_scale must be a positive number of metres per unit, got {depth_scale!r}")
+        folder_cache: List[Tuple[Optional[Path], Optional[Intrinsics], Optional[float]]] = []
+
+        def folder_camera() -> Tuple[Optional[Path], Optional[Intrinsics], Optional[float]]:
+            # Read only when it matters, so a stray file does not block explicit settings.
+            if not folder_cache:
+                path = _find_camera_file(self._folder)
+                folder_cache.append((path, *_read_camera(path)) if path is not None else (None, None, None))
+            return folder_cache[0]
+
         arg_scale: Optional[float] = None
-        camera_file: Optional[Path] = folder_file
+        camera_file: Optional[Path] = None
         if intrinsics is None:
-            if folder_intr is None:
+            camera_file, intr, _ = folder_camera()
+            if intr is None:
                 raise TumFormatError(
                     "no intrinsics: the folder has no camera file (" + ", ".join(CAMERA_FILE_NAMES) +
                     f"); pass intrinsics (--intrinsics on the command line) as a preset name "
                     f"{sorted(INTRINSICS_PRESETS)} or a camera file" + _folder_hint(self._folder), self._folder)
-            intr = folder_intr
         elif isinstance(intrinsics, Intrinsics):
             intr = intrinsics
         elif isinstance(intrinsics, str) and intrinsics in INTRINSICS_PRESETS:
@@ -497,15 +506,12 @@ class TumSequence:
             raise TypeError(f"intrinsics must be an Intrinsics, a preset name, a camera file path or None, "
                             f"got {type(intrinsics).__name__}")
         if depth_scale is not None:
-            if not _is_number(depth_scale) or not depth_scale > 0:
-                raise ValueError(f"depth_scale must be a positive number of metres per unit, got {depth_scale!r}")
             scale = float(depth_scale)
         elif arg_scale is not None:
             scale = arg_scale
-        elif folder_scale is not None:
-            scale = folder_scale
         else:
-            scale = TUM_DEPTH_SCALE
+            folder_scale = folder_camera()[2]
+            scale = folder_scale if folder_scale is not None else TUM_DEPTH_SCALE
         return intr, scale, camera_file
 
     def _check_size(self, path: Path, size: Tuple[int, int], what: str) -> None:
@@ -630,13 +636,16 @@ class TumSequence:
 
 def _interpolate_where_covered(gt: Trajectory, t: np.ndarray, max_gap: float) -> List[Optional[np.ndarray]]:
     """Ground-truth poses at times ``t`` where the trajectory covers them (inside its span,
-    bracketing poses at most ``max_gap`` s apart), else None."""
+    bracketing poses at most ``max_gap`` s + 1 us apart), else None."""
     ts = gt.timestamps
     inside = (t >= ts[0]) & (t <= ts[-1])
     hi = np.clip(np.searchsorted(ts, t, side="left"), 0, len(ts) - 1)
     lo = np.clip(hi - 1, 0, len(ts) - 1)
     exact = np.abs(ts[hi] - t) <= 1e-9  # the same rule as Trajectory.interpolate
     gap = np.where(exact, 0.0, ts[hi] - ts[lo])
+    # Timestamps are microsecond-precision decimals: a gap that equals max_gap in the text
+    # may exceed it by a rounding error in binary, hence the 1 us slack.
+    max_gap = max_gap + 1e-6
     ok = inside & (gap <= max_gap)
     out: List[Optional[np.ndarray]] = [None] * len(t)
     if np.any(ok):
