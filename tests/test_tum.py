@@ -723,3 +723,21 @@ def test_sequence_can_be_rewritten(tmp_path):
         np.testing.assert_array_equal(b.rgb, a.rgb)
         assert abs(a.timestamp - b.timestamp) <= 1e-6
         np.testing.assert_allclose(b.T_base_camera, a.T_base_camera, rtol=0, atol=1e-9)
+
+
+def test_depth_decoded_as_32_bit_mode_by_older_pillow(tmp_path, monkeypatch):
+    """Pillow before 10.x decodes 16-bit greyscale PNGs in mode "I" (int32): same values."""
+    from PIL import Image
+
+    folder = make_folder(tmp_path, n=1)
+    expected = png_decode(sorted((folder / "depth").iterdir())[0])[2]
+    real_open = Image.open
+
+    def open_as_int32(path, *args, **kwargs):
+        with real_open(path, *args, **kwargs) as im:
+            return im.convert("I") if im.mode.startswith("I;16") else im.copy()
+
+    monkeypatch.setattr(Image, "open", open_as_int32)
+    frame = TumSequence(folder)[0]
+    assert frame.depth.dtype == np.uint16
+    np.testing.assert_array_equal(frame.depth, expected)

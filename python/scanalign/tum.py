@@ -355,7 +355,10 @@ class TumSequence:
         depth_scale: metres per depth unit.  Precedence: this argument, then the
             ``depth_scale`` of the camera file given as ``intrinsics``, then that of the
             folder's camera file (it describes the folder's data even when the intrinsics
-            come from elsewhere), then 1/5000 (TUM).
+            come from elsewhere), then 1/5000 (TUM).  The folder's camera file is read only
+            when it matters (no ``intrinsics``, or no depth_scale from the argument or the
+            explicit camera file); :attr:`camera_file` names the file the intrinsics came
+            from (None for a preset or an :class:`Intrinsics`).
         max_time_difference: largest |t_depth - t_rgb| (s) for a depth/colour pair
             (inclusive; the benchmark's default is 0.02 s).
         stride: keep every ``stride``-th associated frame (>= 1).
@@ -547,7 +550,7 @@ class TumSequence:
     @property
     def name(self) -> str:
         """The folder's name, e.g. ``rgbd_dataset_freiburg1_xyz``."""
-        return self._folder.resolve().name
+        return Path(os.path.abspath(self._folder)).name
 
     @property
     def intrinsics(self) -> Intrinsics:
@@ -701,7 +704,8 @@ def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Op
     of every frame that has one, at its timestamp (no file when none has one).  When only
     some frames have a pose, :class:`TumSequence` reads the others back with poses
     interpolated from their neighbours (or None outside the span).  Timestamps are
-    written with 6 decimals (microseconds) like the benchmark.
+    written with 6 decimals (microseconds) like the benchmark.  PNGs use zlib level 1
+    (several times faster than Pillow's default on noisy depth, files a little larger).
 
     Depth: integer images are converted from ``Frame.depth_scale`` to ``depth_scale``
     (copied bit for bit when both agree), float images are in metres; values are rounded
@@ -779,7 +783,7 @@ def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Op
                              f"intrinsics {intrinsics.width}x{intrinsics.height}")
         name = f"depth/{label}.png"
         # Little-endian uint16 -> Pillow mode "I;16" -> 16-bit greyscale PNG.
-        Image.fromarray(np.ascontiguousarray(units, dtype="<u2")).save(out / name, format="PNG")
+        Image.fromarray(np.ascontiguousarray(units, dtype="<u2")).save(out / name, format="PNG", compress_level=1)
         depth_lines.append(f"{label} {name}\n")
         if f.rgb is not None:
             rgb = np.asarray(f.rgb)
@@ -787,7 +791,7 @@ def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Op
                 raise ValueError(f"{where}: rgb must be a ({units.shape[0]}, {units.shape[1]}, 3) uint8 image, got "
                                  f"{rgb.dtype} {rgb.shape}")
             rname = f"rgb/{label}.png"
-            Image.fromarray(np.ascontiguousarray(rgb)).save(out / rname, format="PNG")
+            Image.fromarray(np.ascontiguousarray(rgb)).save(out / rname, format="PNG", compress_level=1)
             rgb_lines.append(f"{label} {rname}\n")
         if f.T_base_camera is not None:
             T = np.asarray(f.T_base_camera, dtype=np.float64)
