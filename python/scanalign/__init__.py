@@ -8,6 +8,8 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.reconstruction` -- voxel grid filter.
 - :mod:`scanalign.io` -- PCD / PLY / OFF / STL / OBJ readers and a PLY writer.
 - :mod:`scanalign.datasets` -- real test data from Debian packages, built-in objects.
+- :mod:`scanalign.evaluation` -- ATE / RPE (Sturm et al. 2012), exact cloud-to-mesh distance.
+- :mod:`scanalign.plots` -- trajectory, per-frame and benchmark figures (matplotlib, Agg).
 
 Units are metres and radians throughout.  A transform named ``T_a_b`` is a 4x4
 homogeneous matrix that maps coordinates expressed in frame ``b`` into frame ``a``
@@ -21,7 +23,7 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "cli")
+_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "cli", "evaluation", "plots")
 
 __all__ = ["__version__", *_SUBMODULES]
 
