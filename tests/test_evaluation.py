@@ -3,7 +3,6 @@ implementation of the TUM metrics), brute-force oracles and analytic cases."""
 
 from __future__ import annotations
 
-import copy
 import json
 
 import numpy as np
@@ -257,15 +256,25 @@ def test_association_nearest_matches_evo(seed):
     ref = random_trajectory(rng, 200, dt=0.01)  # 100 Hz reference
     ref.timestamps += rng.normal(0, 0.001, 200)
     ref.timestamps.sort()
-    idx = np.sort(rng.choice(200, 40, replace=False))
-    est = perturbed(rng, ref[idx], 0.01, 0.01)
-    est.timestamps = est.timestamps - 0.05 + rng.normal(0, 0.003, 40)  # clock offset + jitter
-    for offset in (0.0, 0.05):
-        e_est, e_ref = sync.associate_trajectories(_evo(est), _evo(ref), max_diff=0.004, offset_2=-offset)
-        a_est, a_ref = associate(est, ref, max_difference=0.004, offset=offset, method="nearest")
-        np.testing.assert_array_equal(a_est.timestamps, e_est.timestamps)
-        np.testing.assert_array_equal(a_ref.timestamps, e_ref.timestamps)
-        np.testing.assert_array_equal(a_est.poses, np.array(e_est.poses_se3))
+    for n_est in (40, 200, 200 + 10 * seed + 5):  # estimate shorter, as long, longer
+        idx = np.sort(rng.choice(200, min(n_est, 200), replace=False))
+        est = perturbed(rng, ref[idx], 0.01, 0.01)
+        if n_est > 200:  # extra poses interleaved
+            extra = perturbed(rng, ref[: n_est - 200], 0.01, 0.01)
+            extra.timestamps = extra.timestamps + 0.004
+            order = np.argsort(np.concatenate([est.timestamps, extra.timestamps]), kind="stable")
+            est = Trajectory(np.concatenate([est.timestamps, extra.timestamps])[order],
+                             np.concatenate([est.poses, extra.poses])[order])
+        est.timestamps = est.timestamps - 0.05 + rng.normal(0, 0.003, len(est))  # clock offset + jitter
+        est.timestamps.sort()
+        for offset in (0.0, 0.05):
+            e_ref, e_est = sync.associate_trajectories(_evo(ref), _evo(est), max_diff=0.004, offset_2=offset)
+            a_est, a_ref = associate(est, ref, max_difference=0.004, offset=offset, method="nearest")
+            assert len(a_est) == e_est.num_poses > 0
+            np.testing.assert_array_equal(a_est.timestamps, e_est.timestamps)
+            np.testing.assert_array_equal(a_ref.timestamps, e_ref.timestamps)
+            np.testing.assert_array_equal(a_est.poses, np.array(e_est.poses_se3))
+            np.testing.assert_array_equal(a_ref.poses, np.array(e_ref.poses_se3))
 
 
 # --------------------------------------------------------------------------------------

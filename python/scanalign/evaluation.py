@@ -23,7 +23,7 @@ Everything is vectorised NumPy; only NumPy is required.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any, Dict, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 
@@ -212,7 +212,8 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
             ``|t_ref - (t_est + offset)| < max_difference`` (strict) are ranked by that
             difference (ties: reference time, then estimate time) and taken greedily so that
             every pose is used at most once.
-        ``"nearest"``: ``evo.core.sync.associate_trajectories``: every pose of the
+        ``"nearest"``: ``evo.core.sync.associate_trajectories(reference, estimate,
+            max_diff=max_difference, offset_2=offset)`` (evo's command-line order): every pose of the
             trajectory with fewer poses (the estimate on a tie) is matched to the nearest
             pose of the other within ``<= max_difference`` (ties to the earlier one); a pose
             of the longer trajectory may be used more than once.
@@ -254,8 +255,10 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
         o = np.lexsort((te[ie], tr[ir]))
         ie, ir = ie[o], ir[o]
     elif method == "nearest":
+        # as evo's associate_trajectories(reference, estimate, offset_2=offset): the offset
+        # moves the longer trajectory's stamps (sign chosen so it always applies to the estimate)
         est_short = len(est) <= len(ref)
-        ts, tl = (te, tr) if est_short else (tr, te)
+        ts, tl = (est.timestamps, tr - float(offset)) if est_short else (tr, te)
         if np.any(np.diff(tl) < 0):
             raise ValueError("method='nearest' needs the longer trajectory's timestamps sorted")
         if tl.size == 0 or ts.size == 0:
@@ -320,7 +323,8 @@ class ErrorStats:
 
     def as_dict(self, include_errors: bool = False) -> Dict[str, Any]:
         """Plain floats (JSON-serialisable); the per-pose errors only on request."""
-        d: Dict[str, Any] = {k: getattr(self, k) for k in ("rmse", "mean", "median", "std", "min", "max", "sse", "count")}
+        keys = ("rmse", "mean", "median", "std", "min", "max", "sse", "count")
+        d: Dict[str, Any] = {k: getattr(self, k) for k in keys}
         if include_errors:
             d["errors"] = self.errors.tolist()
         return d
