@@ -5,10 +5,16 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.registration` -- ICP engine (point-to-plane LLS, box rejector),
   stock PCL baselines.
 - :mod:`scanalign.features` -- surface normals.
-- :mod:`scanalign.reconstruction` -- voxel grid filter.
+- :mod:`scanalign.reconstruction` -- depth to cloud, frame-to-model reconstruction, voxel grid.
 - :mod:`scanalign.io` -- PCD / PLY / OFF / STL / OBJ readers and a PLY writer.
 - :mod:`scanalign.datasets` -- real test data from Debian packages, built-in objects.
+- :mod:`scanalign.camera` -- pinhole intrinsics and RGB-D frames.
+- :mod:`scanalign.trajectory` -- timestamped camera poses, the TUM trajectory format.
 - :mod:`scanalign.tum` -- RGB-D sequences in the TUM RGB-D benchmark folder layout.
+- :mod:`scanalign.synthetic` -- the synthetic eye-in-hand RGB-D scanner (ground truth known).
+- :mod:`scanalign.pipeline` -- the reconstruction job: frames in, model, trajectory and report out.
+- :mod:`scanalign.evaluation` -- ATE / RPE (Sturm et al. 2012), exact cloud-to-mesh distance.
+- :mod:`scanalign.plots` -- trajectory, per-frame and benchmark figures (matplotlib, Agg).
 
 Units are metres and radians throughout.  A transform named ``T_a_b`` is a 4x4
 homogeneous matrix that maps coordinates expressed in frame ``b`` into frame ``a``
@@ -22,7 +28,8 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "tum", "cli")
+_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "camera", "trajectory", "tum",
+               "synthetic", "pipeline", "evaluation", "plots", "cli")
 
 __all__ = ["__version__", *_SUBMODULES]
 

@@ -1,0 +1,293 @@
+"""Figures for reports and benchmarks: trajectories, per-frame statistics, curves.
+
+matplotlib is imported on first use and only through its object-oriented API with the Agg
+canvas (no pyplot, no display, no global backend switch), so these functions work on
+headless machines and do not disturb an interactive session.  Every function writes a PNG
+and returns its path.
+
+Conventions: inputs in metres and seconds; ``T_world_camera`` poses.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from .trajectory import Trajectory
+
+__all__ = ["plot_trajectory_topdown", "plot_frame_stats", "plot_series"]
+
+PathLike = Union[str, os.PathLike]
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _figure(figsize: Tuple[float, float]):
+    """A matplotlib Figure attached to an Agg canvas (no pyplot state)."""
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "scanalign.plots needs matplotlib (pip install matplotlib); the rest of scanalign "
+            "works without it") from exc
+    fig = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path: PathLike, dpi: int) -> Path:
+    out = Path(path)
+    if out.parent and not out.parent.exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=dpi, format="png")
+    return out
+
+
+def _plane_axes(plane: Optional[str], positions: np.ndarray) -> Tuple[int, int]:
+    if plane is None:
+        ext = np.ptp(positions, axis=0) if positions.shape[0] else np.zeros(3)
+        i, j = sorted(np.argsort(-ext, kind="stable")[:2].tolist())
+        return i, j
+    if len(plane) != 2 or plane[0] not in _AXES or plane[1] not in _AXES or plane[0] == plane[1]:
+        raise ValueError(f"plane must be two different letters of 'xyz' such as 'xy' or 'xz', got {plane!r}")
+    return _AXES[plane[0]], _AXES[plane[1]]
+
+
+def _length_unit(units: str, extent: float) -> Tuple[str, float]:
+    if units == "auto":
+        units = "mm" if extent < 0.5 else "m"
+    if units == "m":
+        return "m", 1.0
+    if units == "mm":
+        return "mm", 1000.0
+    raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
+
+
+def plot_trajectory_topdown(estimate: Trajectory, reference: Trajectory, path: PathLike,
+                            title: Optional[str] = None, aligned: bool = True, plane: Optional[str] = None,
+                            units: str = "auto", with_scale: bool = False, associate: bool = False,
+                            max_difference: float = 0.02, dpi: int = 150) -> Path:
+    """Top-down view of estimated vs reference camera centres, like seed Fig. 4.
+
+    The reference is a black line, the estimate a coloured one, and thin grey segments join
+    corresponding poses (their lengths are the ATE errors when ``aligned``).  Circles mark
+    the start, squares the end.  Axes are equal, in metres or millimetres.
+
+    Args:
+        estimate, reference: ``T_world_camera`` trajectories, paired by index (equal length)
+            or by timestamps with ``associate`` (``max_difference`` s).
+        path: PNG file to write (parent folders are created).
+        aligned: align the estimate to the reference first (as the ATE does; the ATE RMSE
+            appears in the legend).  Otherwise both are drawn as given and the legend shows
+            the RMSE of the raw distances.
+        plane: two axes of the reference world frame, e.g. ``"xy"`` (x horizontal) or
+            ``"xz"``; default: the two axes along which the reference centres extend most.
+        units: ``"m"``, ``"mm"`` or ``"auto"`` (mm when the drawn extent is under 0.5 m).
+        with_scale: similarity alignment.
+
+    Returns:
+        The written path.
+    """
+    from .evaluation import absolute_trajectory_error
+
+    ate = absolute_trajectory_error(estimate, reference, align=aligned, with_scale=with_scale,
+                                    associate=associate, max_difference=max_difference)
+    est = ate.aligned.positions
+    ref = ate.reference.positions
+    i, j = _plane_axes(plane, ref)
+    both = np.concatenate([est, ref])
+    extent = float(np.ptp(both[:, [i, j]], axis=0).max()) if both.shape[0] else 0.0
+    unit, k = _length_unit(units, extent)
+    e2, r2 = est[:, [i, j]] * k, ref[:, [i, j]] * k
+    fig = _figure((6.4, 5.6))
+    ax = fig.add_subplot(1, 1, 1)
+    segs = np.stack([r2, e2], axis=1)
+    from matplotlib.collections import LineCollection
+
+    ax.add_collection(LineCollection(segs, colors="0.6", linewidths=0.6, label="error", zorder=1))
+    ax.plot(r2[:, 0], r2[:, 1], "-", color="black", lw=1.4, label="reference", zorder=2)
+    ax.plot(e2[:, 0], e2[:, 1], "-", color="tab:blue", lw=1.2, label="estimate" + (" (aligned)" if aligned else ""),
+            zorder=3)
+    for pts, color in ((r2, "black"), (e2, "tab:blue")):
+        ax.plot(pts[0, 0], pts[0, 1], "o", color=color, ms=6, mfc="white", zorder=4)
+        ax.plot(pts[-1, 0], pts[-1, 1], "s", color=color, ms=6, zorder=4)
+    ax.plot([], [], "o", color="0.3", mfc="white", label="start")
+    ax.plot([], [], "s", color="0.3", label="end")
+    names = "xyz"
+    ax.set_xlabel(f"{names[i]} ({unit})")
+    ax.set_ylabel(f"{names[j]} ({unit})")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.grid(True, lw=0.3, alpha=0.5)
+    rmse = ate.translation.rmse * k
+    label = "ATE" if aligned else "RMS distance (unaligned)"
+    ax.set_title(f"{title + chr(10) if title else ''}{label} RMSE {rmse:.3g} {unit}, "
+                 f"max {ate.translation.max * k:.3g} {unit}, {ate.translation.count} poses")
+    ax.legend(loc="best", fontsize=8)
+    return _save(fig, path, dpi)
+
+
+_ALIASES = {
+    "time": ("time", "seconds", "time_s", "registration_time", "registration_seconds"),
+    "iterations": ("iterations", "iters"),
+    "fitness": ("fitness",),
+    "model_size": ("model_size", "model_points", "model_size_points", "points"),
+    "skipped": ("skipped",),
+}
+
+
+def _columns(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]]) -> Dict[str, np.ndarray]:
+    """Normalises rows-of-dicts or dict-of-columns to float columns by canonical name."""
+    if isinstance(per_frame, Mapping):
+        raw = {k: list(v) for k, v in per_frame.items()}
+        n = len(next(iter(raw.values()))) if raw else 0
+        if any(len(v) != n for v in raw.values()):
+            raise ValueError("per_frame: columns have different lengths")
+    else:
+        rows = list(per_frame)
+        if not all(isinstance(r, Mapping) for r in rows):
+            raise TypeError("per_frame: expected a sequence of dicts or a dict of columns")
+        keys = set().union(*(r.keys() for r in rows)) if rows else set()
+        raw = {k: [r.get(k) for r in rows] for k in keys}
+        n = len(rows)
+    cols: Dict[str, np.ndarray] = {}
+    for name, aliases in _ALIASES.items():
+        for a in aliases:
+            if a in raw:
+                cols[name] = np.array([np.nan if x is None else float(x) for x in raw[a]], dtype=np.float64)
+                break
+    cols["_n"] = np.array(n)
+    return cols
+
+
+def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]], path: PathLike,
+                     title: Optional[str] = None, dpi: int = 150) -> Path:
+    """Per-frame registration cost and model growth, two panels sharing the frame axis.
+
+    Top: registration time (ms, bars) with ICP iterations on a twin axis.  Bottom: model
+    size (points) with the ICP fitness on a twin axis.  Skipped frames (``skipped`` true,
+    or a missing / NaN time) are shaded red with an ``x`` on the frame axis.
+
+    Args:
+        per_frame: one dict per frame, or a dict of equal-length columns.  Recognised keys
+            (first found wins): time in seconds ``time`` / ``seconds`` / ``time_s`` /
+            ``registration_time``; ``iterations``; ``fitness``; model size in points
+            ``model_size`` / ``model_points`` / ``points``; ``skipped`` (bool).  Only the
+            time is required.
+        path: PNG file to write.
+
+    Returns:
+        The written path.
+    """
+    cols = _columns(per_frame)
+    n = int(cols.pop("_n"))
+    if n == 0:
+        raise ValueError("per_frame: no frames")
+    if "time" not in cols:
+        raise ValueError(f"per_frame: no time column (one of {_ALIASES['time']})")
+    frames = np.arange(n)
+    t_ms = cols["time"] * 1000.0
+    skipped = ~np.isfinite(t_ms)
+    if "skipped" in cols:
+        skipped |= np.nan_to_num(cols["skipped"], nan=0.0) != 0
+    fig = _figure((7.5, 5.5))
+    ax1 = fig.add_subplot(2, 1, 1)
+    ax2 = fig.add_subplot(2, 1, 2, sharex=ax1)
+    ok = ~skipped
+    ax1.bar(frames[ok], t_ms[ok], width=0.8, color="tab:blue", label="registration time")
+    ax1.set_ylabel("time (ms)")
+    handles = [ax1.containers[0]] if ax1.containers else []
+    if "iterations" in cols:
+        ax1b = ax1.twinx()
+        (h,) = ax1b.plot(frames, cols["iterations"], ".-", color="tab:orange", lw=0.8, ms=3, label="iterations")
+        ax1b.set_ylabel("ICP iterations")
+        handles.append(h)
+    if "model_size" in cols:
+        (h2,) = ax2.plot(frames, cols["model_size"], "-", color="tab:green", lw=1.2, label="model size")
+        ax2.set_ylabel("model size (points)")
+        h2s = [h2]
+    else:
+        h2s = []
+        ax2.set_yticks([])
+    if "fitness" in cols:
+        ax2b = ax2.twinx()
+        (h,) = ax2b.plot(frames, cols["fitness"], ".", color="tab:purple", ms=3, label="fitness")
+        ax2b.set_ylabel("fitness")
+        h2s.append(h)
+    for ax in (ax1, ax2):
+        for f in frames[skipped]:
+            ax.axvspan(f - 0.5, f + 0.5, color="tab:red", alpha=0.15, lw=0)
+        ax.grid(True, lw=0.3, alpha=0.5)
+    if np.any(skipped):
+        ax1.plot(frames[skipped], np.zeros(int(skipped.sum())), "x", color="tab:red", ms=7, clip_on=False,
+                 label="skipped")
+        handles.append(ax1.lines[-1])
+    ax2.set_xlabel("frame")
+    if handles:
+        ax1.legend(handles=handles, loc="upper left", fontsize=8)
+    if h2s:
+        ax2.legend(handles=h2s, loc="upper left", fontsize=8)
+    total = np.nansum(cols["time"])
+    ax1.set_title(f"{title + chr(10) if title else ''}{n} frames, {int(skipped.sum())} skipped, "
+                  f"registration {total:.3g} s total")
+    return _save(fig, path, dpi)
+
+
+def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path: PathLike, *,
+                xlabel: str = "", ylabel: str = "", title: Optional[str] = None, logx: bool = False,
+                logy: bool = False, errors: Optional[Mapping[str, Sequence[float]]] = None,
+                markers: bool = True, dpi: int = 150) -> Path:
+    """Benchmark curves: one line per label over shared x values (seed Figs. 5, 6, 7, 9:
+    time or ATE vs number of images or iteration cap).
+
+    Args:
+        x: (M,) x values (e.g. number of images, iteration cap).
+        series: label -> (M,) y values; NaN leaves a gap (e.g. a method that failed).
+        path: PNG file to write.
+        xlabel, ylabel: axis labels, with units (e.g. ``"total time (s)"``).
+        logx, logy: logarithmic axes (non-positive values are not drawn).
+        errors: optional label -> (M,) symmetric error bars (e.g. standard deviations).
+
+    Returns:
+        The written path.
+
+    Raises:
+        ValueError: no series, or a series whose length differs from ``x``.
+    """
+    xv = np.asarray(x, dtype=np.float64).reshape(-1)
+    if not series:
+        raise ValueError("plot_series: no series given")
+    fig = _figure((6.4, 4.4))
+    ax = fig.add_subplot(1, 1, 1)
+    style = "o-" if markers else "-"
+    for label, y in series.items():
+        yv = np.asarray(y, dtype=np.float64).reshape(-1)
+        if yv.shape != xv.shape:
+            raise ValueError(f"plot_series: series {label!r} has {yv.size} values for {xv.size} x values")
+        err = None if errors is None or label not in errors else np.asarray(errors[label], dtype=np.float64)
+        if err is not None:
+            if err.shape != xv.shape:
+                raise ValueError(f"plot_series: errors for {label!r} have {err.size} values for {xv.size} x values")
+            ax.errorbar(xv, yv, yerr=err, fmt=style, ms=4, lw=1.2, capsize=3, label=str(label))
+        else:
+            ax.plot(xv, yv, style, ms=4, lw=1.2, label=str(label))
+    if logx:
+        ax.set_xscale("log")
+        finite_x = np.unique(xv[np.isfinite(xv) & (xv > 0)])
+        if 0 < finite_x.size <= 12:  # label the measured x values (image counts, caps) plainly
+            from matplotlib.ticker import NullFormatter
+
+            ax.set_xticks(finite_x, [f"{v:g}" for v in finite_x])
+            ax.xaxis.set_minor_formatter(NullFormatter())
+    if logy:
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.grid(True, which="both", lw=0.3, alpha=0.5)
+    ax.legend(loc="best", fontsize=8)
+    return _save(fig, path, dpi)
