@@ -144,15 +144,15 @@ class ReconstructionResult:
             from . import plots as _plots
 
             if self.reference is not None and len(self.reference) >= 3:
-                paths["trajectory_png"] = out / "trajectory.png"
-                _plots.plot_trajectory_topdown(self.estimate_at_reference(), self.reference,
-                                               paths["trajectory_png"], title="estimated vs reference camera path")
+                paths["trajectory_png"] = _plots.plot_trajectory_topdown(
+                    self.estimate_at_reference(), self.reference, out / "trajectory.png",
+                    title="estimated (aligned) vs reference camera path")
             elif len(self.estimate) >= 2:
-                paths["trajectory_png"] = out / "trajectory.png"
-                _plots.plot_trajectory_topdown(self.estimate, None, paths["trajectory_png"],
-                                               title="estimated camera path (no reference)")
-            paths["frames_png"] = out / "frames.png"
-            _plots.plot_frame_stats(self.records, paths["frames_png"])
+                paths["trajectory_png"] = _plot_estimate_only(self.estimate, out / "trajectory.png")
+            rows = [dict(time=r.total_seconds, iterations=r.iterations, fitness=r.fitness,
+                         model_points=r.model_points, skipped=not r.merged) for r in self.records]
+            paths["frames_png"] = _plots.plot_frame_stats(rows, out / "frames.png",
+                                                          title="per-frame time and model size")
         return paths
 
     def estimate_at_reference(self) -> Trajectory:
@@ -161,6 +161,26 @@ class ReconstructionResult:
             return self.estimate
         keep = np.isin(self.estimate.timestamps, self.reference.timestamps)
         return self.estimate[np.nonzero(keep)[0]]
+
+
+def _plot_estimate_only(estimate: Trajectory, path: Path) -> Path:
+    """Top-down view of an estimated camera path when no reference exists (real data)."""
+    from matplotlib.figure import Figure
+
+    p = estimate.positions
+    fig = Figure(figsize=(6.4, 5.6))
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot(p[:, 0], p[:, 1], "-", color="tab:blue", lw=1.2, label="estimate")
+    ax.plot(p[0, 0], p[0, 1], "o", color="tab:blue", mfc="white", label="start")
+    ax.plot(p[-1, 0], p[-1, 1], "s", color="tab:blue", label="end")
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.grid(True, lw=0.3, alpha=0.5)
+    ax.set_title(f"estimated camera path (model frame), {len(estimate)} poses, no reference")
+    ax.legend(loc="best", fontsize=8)
+    fig.savefig(path, dpi=150)
+    return Path(path)
 
 
 def _jsonable(v: Any) -> Any:
