@@ -8,6 +8,7 @@ namespace scanalign::python {
 void defineRegistration(py::module_& m);
 void defineFeatures(py::module_& m);
 void defineReconstruction(py::module_& m);
+void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
 }  // namespace scanalign::python
 
 PYBIND11_MODULE(_core, m) {
@@ -18,4 +19,5 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineRegistration(registration);
   scanalign::python::defineFeatures(features);
   scanalign::python::defineReconstruction(reconstruction);
+  scanalign::python::bindSynthetic(m);
 }
