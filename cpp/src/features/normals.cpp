@@ -91,11 +91,13 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
   }
   std::sort(keyed.begin(), keyed.end());
   const std::size_t m = keyed.size();
-  std::vector<float> xyz(3 * m);  // sorted copy, offsets from the cloud's first point for precision
+  // Sorted copy, as offsets from the cloud's first point for precision; float clouds are
+  // processed in float (vectorised), double clouds in double.
+  std::vector<Scalar> xyz(3 * m);
   const Scalar* origin = points.ptr(keyed[0].second);
   for (std::size_t j = 0; j < m; ++j) {
     const Scalar* p = points.ptr(keyed[j].second);
-    for (int k = 0; k < 3; ++k) xyz[3 * j + k] = static_cast<float>(double(p[k]) - double(origin[k]));
+    for (int k = 0; k < 3; ++k) xyz[3 * j + k] = static_cast<Scalar>(double(p[k]) - double(origin[k]));
   }
   std::vector<std::uint64_t> cell_keys;
   std::vector<std::uint32_t> cell_start;
@@ -107,7 +109,7 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
   cell_start.push_back(static_cast<std::uint32_t>(m));
   const std::size_t cells = cell_keys.size();
   const int threads = settings.num_threads > 0 ? settings.num_threads : omp_get_max_threads();
-  const float r2f = static_cast<float>(r2);
+  const Scalar r2s = static_cast<Scalar>(r2);
 #pragma omp parallel for schedule(dynamic, 16) num_threads(threads)
   for (std::ptrdiff_t cc = 0; cc < static_cast<std::ptrdiff_t>(cells); ++cc) {
     const std::uint64_t k0 = cell_keys[cc];
@@ -125,15 +127,15 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
         if (b > a) ranges[nr++] = {cell_start[a], cell_start[b]};
       }
     for (std::uint32_t j = cell_start[cc]; j < cell_start[cc + 1]; ++j) {
-      const float qx = xyz[3 * j], qy = xyz[3 * j + 1], qz = xyz[3 * j + 2];
-      // Moments of the offsets from the query in float: offsets are within the radius, so
-      // the sums of a few hundred terms keep ~6 significant digits, plenty for a normal;
-      // float lets the compiler vectorise the candidate loop.
-      float m[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};  // x y z xx xy xz yy yz zz count
+      const Scalar qx = xyz[3 * j], qy = xyz[3 * j + 1], qz = xyz[3 * j + 2];
+      // Moments of the offsets from the query in the cloud's precision: offsets are within
+      // the radius, so float sums of a few hundred terms keep ~6 significant digits, plenty
+      // for a normal of float data, and float lets the compiler vectorise this loop.
+      Scalar m[10] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0};  // x y z xx xy xz yy yz zz count
       for (int rr = 0; rr < nr; ++rr)
         for (std::uint32_t c = ranges[rr].first; c < ranges[rr].second; ++c) {
-          const float dx = xyz[3 * c] - qx, dy = xyz[3 * c + 1] - qy, dz = xyz[3 * c + 2] - qz;
-          const float w = dx * dx + dy * dy + dz * dz <= r2f ? 1.0f : 0.0f;
+          const Scalar dx = xyz[3 * c] - qx, dy = xyz[3 * c + 1] - qy, dz = xyz[3 * c + 2] - qz;
+          const Scalar w = dx * dx + dy * dy + dz * dz <= r2s ? Scalar(1) : Scalar(0);
           m[0] += w * dx;
           m[1] += w * dy;
           m[2] += w * dz;
@@ -148,7 +150,7 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
       const Eigen::Vector3d s1(m[0], m[1], m[2]);
       Eigen::Matrix3d s2;
       s2 << m[3], m[4], m[5], m[4], m[6], m[7], m[5], m[7], m[8];
-      const int k = static_cast<int>(m[9] + 0.5f);
+      const int k = static_cast<int>(m[9] + Scalar(0.5));
       const std::uint32_t i = keyed[j].second;
       finishNormal(points.ptr(i), s1, s2, k, settings, normals + 3 * i, curvature ? curvature + i : nullptr);
     }
