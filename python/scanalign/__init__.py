@@ -8,6 +8,7 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.reconstruction` -- voxel grid filter.
 - :mod:`scanalign.io` -- PCD / PLY / OFF / STL / OBJ readers and a PLY writer.
 - :mod:`scanalign.datasets` -- real test data from Debian packages, built-in objects.
+- :mod:`scanalign.synthetic` -- synthetic eye-in-hand RGB-D scans with exact ground truth.
 
 Units are metres and radians throughout.  A transform named ``T_a_b`` is a 4x4
 homogeneous matrix that maps coordinates expressed in frame ``b`` into frame ``a``
@@ -21,7 +22,7 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "cli")
+_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "synthetic", "cli")
 
 __all__ = ["__version__", *_SUBMODULES]
 
