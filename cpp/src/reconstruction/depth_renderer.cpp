@@ -19,9 +19,9 @@ namespace scanalign {
 
 namespace {
 
-constexpr int kBandRows = 8;  // rows per raster band: a band's z-buffer (8 x W doubles) stays in L1/L2
-constexpr std::size_t kPrefetch = 8;
-constexpr int kSpanColumns = 8;  // bounding boxes at least this wide are rasterised by row spans  // faces ahead whose vertices are prefetched in the setup pass
+constexpr int kBandRows = 8;          // rows per raster band: a band's buffers (8 x W) stay in L2
+constexpr std::size_t kPrefetch = 8;  // faces ahead whose vertices are prefetched in the setup pass
+constexpr int kSpanColumns = 8;       // bounding boxes wider than this are rasterised by row spans
 
 /// A vertex in the camera frame and its projection, computed once per vertex so that every
 /// triangle using it sees bit-identical screen coordinates. One struct per vertex: a face
