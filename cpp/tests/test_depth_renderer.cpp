@@ -165,6 +165,60 @@ TEST(DepthRenderer, SharedEdgesAreWatertightAndDrawnOnce) {
   }
 }
 
+// Random triangles from sub-pixel to wider than the image (both the per-pixel and the
+// row-span paths): a pixel centre clearly inside the projected triangle is drawn with the
+// exact plane depth, one clearly outside is not.
+TEST(DepthRenderer, CoverageMatchesPointInTriangle) {
+  const PinholeCamera cam{160, 120, 150.0, 150.0, 79.5, 59.5};
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  int inside_total = 0, sizes_small = 0, sizes_large = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    // Screen-space size from 0.5 to 400 pixels (log-uniform), depth 0.3 .. 2 m.
+    const double size = 0.5 * std::pow(800.0, unit(rng));
+    (size < 8 ? sizes_small : sizes_large)++;
+    const double cu = -20 + 200 * unit(rng), cv = -20 + 160 * unit(rng);
+    TestMesh m;
+    double px[3], py[3];
+    for (int k = 0; k < 3; ++k) {
+      px[k] = cu + size * (unit(rng) - 0.5);
+      py[k] = cv + size * (unit(rng) - 0.5);
+      const double z = 0.3 + 1.7 * unit(rng);
+      m.add({(px[k] - cam.cx) / cam.fx * z, (py[k] - cam.cy) / cam.fy * z, z});
+    }
+    m.faces = {0, 1, 2};
+    const DepthImage img = renderDepth(m.view(), m.faces, cam, Eigen::Matrix4d::Identity());
+    const Eigen::Vector3d A(m.vertices[0], m.vertices[1], m.vertices[2]);
+    const Eigen::Vector3d B(m.vertices[3], m.vertices[4], m.vertices[5]);
+    const Eigen::Vector3d C(m.vertices[6], m.vertices[7], m.vertices[8]);
+    const Eigen::Vector3d n = (B - A).cross(C - A);
+    const double area = (px[1] - px[0]) * (py[2] - py[0]) - (py[1] - py[0]) * (px[2] - px[0]);
+    if (std::abs(area) < 1e-6) continue;
+    for (int v = 0; v < cam.height; ++v)
+      for (int u = 0; u < cam.width; ++u) {
+        // Barycentric coordinates of the pixel centre in the projected triangle.
+        double b[3];
+        for (int k = 0; k < 3; ++k) {
+          const int i = (k + 1) % 3, j = (k + 2) % 3;
+          b[k] = ((px[j] - px[i]) * (v - py[i]) - (py[j] - py[i]) * (u - px[i])) / area;
+        }
+        const double margin = 1e-7 * std::max(1.0, size);
+        const double bmin = std::min({b[0], b[1], b[2]});
+        if (bmin > margin) {
+          ASSERT_EQ(img.faceAt(u, v), 0) << "trial " << trial << " pixel " << u << "," << v;
+          const Eigen::Vector3d r = ray(cam, u, v);
+          EXPECT_NEAR(img.at(u, v), n.dot(A) / n.dot(r), 1e-6);
+          ++inside_total;
+        } else if (bmin < -margin) {
+          ASSERT_EQ(img.faceAt(u, v), -1) << "trial " << trial << " pixel " << u << "," << v;
+        }
+      }
+  }
+  EXPECT_GT(sizes_small, 50);
+  EXPECT_GT(sizes_large, 50);
+  EXPECT_GT(inside_total, 100000);
+}
+
 // A tessellated sphere against the analytic ray-sphere intersection: the inscribed mesh is
 // never in front of the sphere, lies within the tessellation's sagitta behind it, and its
 // silhouette is inside the sphere's and covers it up to the polygon's inset.

@@ -194,7 +194,7 @@ def _run_reconstruction(source: str, args: argparse.Namespace) -> dict:
                          pixel_stride=args.pixel_stride, progress=not (args.no_progress or args.quiet),
                          **_settings_from_args(args))
     if scan is not None:
-        result.metrics["model_to_mesh_m"] = model_mesh_distance(result, scan.vertices, scan.faces)
+        result.metrics["model_to_mesh_m"] = model_mesh_distance(result, scan.mesh.vertices, scan.mesh.faces)
         result.metrics["render_seconds"] = load_seconds
     paths = result.save(args.out, plots=not args.no_plots)
     summary = result.summary()

@@ -19,9 +19,9 @@ namespace scanalign {
 
 namespace {
 
-constexpr int kBandRows = 8;  // rows per raster band: a band's z-buffer (8 x W doubles) stays in L1/L2
-constexpr std::size_t kPrefetch = 8;
-constexpr int kSpanColumns = 8;  // bounding boxes at least this wide are rasterised by row spans  // faces ahead whose vertices are prefetched in the setup pass
+constexpr int kBandRows = 8;          // rows per raster band: a band's buffers (8 x W) stay in L2
+constexpr std::size_t kPrefetch = 8;  // faces ahead whose vertices are prefetched in the setup pass
+constexpr int kSpanColumns = 8;       // bounding boxes wider than this are rasterised by row spans
 
 /// A vertex in the camera frame and its projection, computed once per vertex so that every
 /// triangle using it sees bit-identical screen coordinates. One struct per vertex: a face
@@ -386,18 +386,18 @@ void renderDepth(const CloudView<Scalar>& vertices, const std::int32_t* faces, s
                     settings.far_clip, 1.0 / settings.far_clip, settings.cull_backfaces};
   const int n_bands = (height + kBandRows - 1) / kBandRows;
 
-  // 2. Set up every face that can cover a pixel centre, and bin the setups into row bands:
-  //    count per (chunk, band), prefix sums, fill. Chunks are contiguous face ranges, so each
-  //    band lists its faces in increasing order. The setups are kept so that the raster pass
-  //    reads them sequentially instead of fetching the vertices again.
+  // 2. Set up every face that can cover a pixel centre (in parallel over contiguous face
+  //    ranges, "chunks") and list it in each band of rows it spans. Each band reads the lists
+  //    of chunks 0, 1, ... in turn, so it sees its faces in increasing order. The setups are
+  //    kept so that the raster pass reads them instead of fetching the vertices again.
   const int chunks = std::max(1, std::min<int>(threads, static_cast<int>(n_faces / 1024) + 1));
   std::vector<std::vector<FaceSetup>> setups(chunks);
-  std::vector<std::size_t> counts(static_cast<std::size_t>(chunks) * n_bands, 0);
+  std::vector<std::vector<std::uint32_t>> lists(static_cast<std::size_t>(chunks) * n_bands);  // [chunk][band]
   auto chunkBegin = [&](int k) { return n_faces * static_cast<std::size_t>(k) / static_cast<std::size_t>(chunks); };
 #pragma omp parallel for schedule(static, 1) num_threads(threads)
   for (int k = 0; k < chunks; ++k) {
-    std::size_t* count = counts.data() + static_cast<std::size_t>(k) * n_bands;
     std::vector<FaceSetup>& mine = setups[k];
+    std::vector<std::uint32_t>* band_list = lists.data() + static_cast<std::size_t>(k) * n_bands;
     mine.reserve(chunkBegin(k + 1) - chunkBegin(k));  // untouched capacity costs no page faults
     FaceSetup s;
     const std::size_t f_end = chunkBegin(k + 1);
@@ -413,27 +413,10 @@ void renderDepth(const CloudView<Scalar>& vertices, const std::int32_t* faces, s
       }
 #endif
       if (!faceSetup(ctx, f, s)) continue;
+      const auto index = static_cast<std::uint32_t>(mine.size());
       mine.push_back(s);
-      for (int b = s.v0 / kBandRows; b <= s.v1 / kBandRows; ++b) ++count[b];
+      for (int b = s.v0 / kBandRows; b <= s.v1 / kBandRows; ++b) band_list[b].push_back(index);
     }
-  }
-  std::vector<std::size_t> offset(counts.size() + 1, 0);  // band-major, then chunk
-  {
-    std::size_t running = 0;
-    for (int b = 0; b < n_bands; ++b)
-      for (int k = 0; k < chunks; ++k) {
-        offset[static_cast<std::size_t>(b) * chunks + k] = running;
-        running += counts[static_cast<std::size_t>(k) * n_bands + b];
-      }
-    offset.back() = running;
-  }
-  std::vector<const FaceSetup*> binned(offset.back());
-#pragma omp parallel for schedule(static, 1) num_threads(threads)
-  for (int k = 0; k < chunks; ++k) {
-    std::vector<std::size_t> pos(n_bands);
-    for (int b = 0; b < n_bands; ++b) pos[b] = offset[static_cast<std::size_t>(b) * chunks + k];
-    for (const FaceSetup& s : setups[k])
-      for (int b = s.v0 / kBandRows; b <= s.v1 / kBandRows; ++b) binned[pos[b]++] = &s;
   }
 
   // 3. Rasterise each band on its own (no two threads touch the same pixel).
@@ -448,18 +431,17 @@ void renderDepth(const CloudView<Scalar>& vertices, const std::int32_t* faces, s
       const int row0 = b * kBandRows, row1 = std::min(height - 1, row0 + kBandRows - 1);
       std::fill(band.w.begin(), band.w.end(), 0.0);
       std::fill(band.id.begin(), band.id.end(), -1);
-      const std::size_t begin = offset[static_cast<std::size_t>(b) * chunks];
-      const std::size_t end = offset[static_cast<std::size_t>(b + 1) * chunks];
-      for (std::size_t e = begin; e < end; ++e) {
-        const FaceSetup& setup = *binned[e];
-        // Fan from vertex 0; the diagonal (0, 2) of a clipped quad is shared by its two
-        // halves and follows the same watertight rule.
-        for (int k = 1; k + 1 < setup.n; ++k) {
-          const double X[3] = {setup.x[0], setup.x[k], setup.x[k + 1]};
-          const double Y[3] = {setup.y[0], setup.y[k], setup.y[k + 1]};
-          rasterTriangle(ctx, setup, X, Y, row0, row1, band);
+      for (int chunk = 0; chunk < chunks; ++chunk)
+        for (const std::uint32_t index : lists[static_cast<std::size_t>(chunk) * n_bands + b]) {
+          const FaceSetup& setup = setups[chunk][index];
+          // Fan from vertex 0; the diagonal (0, 2) of a clipped quad is shared by its two
+          // halves and follows the same watertight rule.
+          for (int k = 1; k + 1 < setup.n; ++k) {
+            const double X[3] = {setup.x[0], setup.x[k], setup.x[k + 1]};
+            const double Y[3] = {setup.y[0], setup.y[k], setup.y[k + 1]};
+            rasterTriangle(ctx, setup, X, Y, row0, row1, band);
+          }
         }
-      }
       // Depth and cosine of the visible surface: one division and one square root per
       // covered pixel, none per tested one.
       const float nanf = std::numeric_limits<float>::quiet_NaN();

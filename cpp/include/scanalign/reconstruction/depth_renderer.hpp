@@ -24,7 +24,7 @@
 //
 // Parallelisation (OpenMP): (1) vertices are transformed and projected once each; (2) faces
 // are set up (cull, clip, bounding box, plane) in parallel over contiguous face ranges and
-// binned into bands of 8 image rows by counting sort; (3) bands are rasterised in parallel,
+// listed in every band of 8 image rows they span; (3) bands are rasterised in parallel,
 // one thread per band with a private z-buffer, so no locks and no image merges. Triangles
 // wider than a few pixels are filled by row spans whose ends are settled with the same edge
 // test as single pixels, so both paths make identical decisions.
