@@ -37,18 +37,13 @@
 #include <Eigen/Core>
 
 #include "scanalign/common/cloud_view.hpp"
+#include "scanalign/reconstruction/depth_image.hpp"
 
 namespace scanalign {
 
-/// Pinhole intrinsics of the rendered image (no distortion), OpenCV convention.
-struct PinholeCamera {
-  int width = 0;     ///< pixels, > 0
-  int height = 0;    ///< pixels, > 0
-  double fx = 0.0;   ///< focal length along x, pixels, > 0
-  double fy = 0.0;   ///< focal length along y, pixels, > 0
-  double cx = 0.0;   ///< principal point column, pixels
-  double cy = 0.0;   ///< principal point row, pixels
-};
+/// Pinhole intrinsics of the rendered image (no distortion), OpenCV convention: the same
+/// type depthToCloud() back-projects with, so a rendered image round-trips.
+using PinholeCamera = PinholeIntrinsics;
 
 struct DepthRenderSettings {
   /// Near clipping plane z = near (m, > 0) in the camera frame: geometry closer than this
