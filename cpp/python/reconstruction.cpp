@@ -99,6 +99,21 @@ void defineReconstruction(py::module_& m) {
       .def_readwrite("min_depth", &DepthToCloudSettings::min_depth)
       .def_readwrite("max_depth", &DepthToCloudSettings::max_depth)
       .def_readwrite("stride", &DepthToCloudSettings::stride);
+  m.def(
+      "bilateral_filter_depth",
+      [](const py::array_t<float, py::array::c_style | py::array::forcecast>& depth, int radius, double sigma_space,
+         double sigma_depth, int num_threads) {
+        if (depth.ndim() != 2) throw py::value_error("depth: expected a 2-D float image in metres");
+        const int h = static_cast<int>(depth.shape(0)), w = static_cast<int>(depth.shape(1));
+        py::array_t<float> out({depth.shape(0), depth.shape(1)});
+        float* o = out.mutable_data();
+        {
+          py::gil_scoped_release release;
+          bilateralFilterDepth(depth.data(), w, h, o, radius, sigma_space, sigma_depth, num_threads);
+        }
+        return out;
+      },
+      py::arg("depth"), py::arg("radius"), py::arg("sigma_space"), py::arg("sigma_depth"), py::arg("num_threads"));
   m.def("depth_to_cloud_u16", &depthToCloudPy<std::uint16_t>, py::arg("depth"), py::arg("intrinsics"),
         py::arg("settings"), py::arg("rgb"));
   m.def("depth_to_cloud_f32", &depthToCloudPy<float>, py::arg("depth"), py::arg("intrinsics"), py::arg("settings"),

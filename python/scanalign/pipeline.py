@@ -234,6 +234,7 @@ def reconstruct(
     min_depth: float = 0.1,
     max_depth: float = 2.0,
     pixel_stride: int = 1,
+    depth_filter: Optional[Any] = "default",
     progress: Union[bool, Callable[[FrameRecord], None]] = True,
     evaluate: bool = True,
     **overrides: Any,
@@ -253,6 +254,8 @@ def reconstruct(
             ``"reference"`` (the robot's reference motion since the last merged frame
             applied to its estimate: odometry-aided tracking; needs reference poses).
         min_depth, max_depth: valid depth range, metres; pixel_stride: image subsampling.
+        depth_filter: a :class:`scanalign.reconstruction.DepthFilter`, ``"default"`` (the
+            default bilateral filter) or None (raw depth, as the seed).
         progress: show a progress bar (True), none (False), or a callable per record.
         evaluate: compute ATE/RPE against the reference poses when available.
 
@@ -282,8 +285,11 @@ def reconstruct(
                 if model_frame == "base" and frame.T_base_camera is None:
                     raise ValueError("model_frame='base' needs a reference pose (T_base_camera) on the first frame")
                 T0 = np.asarray(frame.T_base_camera, dtype=np.float64) if base else np.eye(4)
+                from .reconstruction import DepthFilter
+
+                filt = DepthFilter() if isinstance(depth_filter, str) and depth_filter == "default" else depth_filter
                 rec = Reconstructor(settings, T_model_camera0=T0, registration=registration, min_depth=min_depth,
-                                    max_depth=max_depth, pixel_stride=pixel_stride, **overrides)
+                                    max_depth=max_depth, pixel_stride=pixel_stride, depth_filter=filt, **overrides)
             guess = None
             if initial_guess == "reference":
                 if frame.T_base_camera is None:

@@ -38,6 +38,8 @@ __all__ = [
     "voxel_grid",
     "depth_to_cloud",
     "frame_to_cloud",
+    "DepthFilter",
+    "bilateral_filter_depth",
     "FrameToModelSettings",
     "make_reconstruction_settings",
     "FrameRecord",
@@ -199,6 +201,54 @@ def depth_to_cloud(
         raise TypeError(f"depth: expected uint16 or float, got dtype {d.dtype}")
     points, colors, pixels = fn(d, K, s, rgb)
     return (points, colors, pixels) if return_pixels else (points, colors)
+
+
+@dataclass(frozen=True)
+class DepthFilter:
+    """Bilateral smoothing of depth images before back-projection (KinectFusion-style).
+
+    Why it is on by default: axial sensor noise (about 1 mm at 0.4 m for an SR300) tilts
+    5 mm PCA normals by several degrees, and since each normal's error is correlated with
+    the noise of the points it was fitted to, point-to-plane ICP drifts (measured on the
+    synthetic SR300 scan). Smoothing within ``radius`` pixels, with weights falling off
+    with pixel distance (``sigma_space``, pixels) and depth difference (``sigma_depth``,
+    metres), removes most of that noise while keeping depth edges.
+    """
+
+    radius: int = 2
+    sigma_space: float = 1.5
+    sigma_depth: float = 0.003
+
+    def __post_init__(self) -> None:
+        if int(self.radius) != self.radius or not 0 <= self.radius <= 32:
+            raise ValueError("DepthFilter.radius must be an integer number of pixels in [0, 32]")
+        if not (self.sigma_space > 0 and self.sigma_depth > 0):
+            raise ValueError("DepthFilter: sigma_space (pixels) and sigma_depth (m) must be positive")
+
+
+def bilateral_filter_depth(depth: np.ndarray, depth_filter: DepthFilter = DepthFilter(), *,
+                           depth_scale: float = 0.001, num_threads: int = 0) -> np.ndarray:
+    """Bilateral-filters a depth image (see :class:`DepthFilter`).
+
+    Args:
+        depth: (H, W) uint16 in units of ``depth_scale`` metres (0 = invalid) or float
+            metres (0 / NaN = invalid).
+    Returns:
+        (H, W) float32 metres, NaN where the input was invalid.
+    """
+    d = np.asarray(depth)
+    if d.ndim != 2:
+        raise ValueError(f"depth: expected a 2-D image, got shape {d.shape}")
+    if np.issubdtype(d.dtype, np.integer):
+        m = d.astype(np.float32) * np.float32(depth_scale)
+        m[d == 0] = np.nan
+    elif np.issubdtype(d.dtype, np.floating):
+        m = d.astype(np.float32)
+    else:
+        raise TypeError(f"depth: expected uint16 or float, got dtype {d.dtype}")
+    return _core.reconstruction.bilateral_filter_depth(np.ascontiguousarray(m), int(depth_filter.radius),
+                                                       float(depth_filter.sigma_space),
+                                                       float(depth_filter.sigma_depth), int(num_threads))
 
 
 def frame_to_cloud(frame: Frame, *, min_depth: float = 0.1, max_depth: float = 2.0, stride: int = 1):
@@ -381,6 +431,8 @@ class Reconstructor:
         pixel_stride: use every n-th pixel of the depth images.
         registration: ``"scanalign"`` (the engine) or a stock PCL ICP variant from
             :data:`REGISTRATION_METHODS` for comparison.
+        depth_filter: :class:`DepthFilter` applied to every depth image before
+            back-projection (default on), or None for raw depth (the seed's pipeline).
     """
 
     def __init__(
@@ -392,8 +444,12 @@ class Reconstructor:
         max_depth: float = 2.0,
         pixel_stride: int = 1,
         registration: str = "scanalign",
+        depth_filter: Optional[DepthFilter] = DepthFilter(),
         **overrides: Any,
     ) -> None:
+        if depth_filter is not None and not isinstance(depth_filter, DepthFilter):
+            raise TypeError("depth_filter must be a DepthFilter or None")
+        self.depth_filter = depth_filter
         self.settings = make_reconstruction_settings(settings, **overrides)
         if registration not in REGISTRATION_METHODS:
             raise ValueError(f"registration must be one of {REGISTRATION_METHODS}, got {registration!r}")
@@ -434,7 +490,15 @@ class Reconstructor:
         """
         if not isinstance(frame, Frame):
             raise TypeError("integrate() takes a scanalign.camera.Frame; use integrate_points() for clouds")
-        points, colors = depth_to_cloud(frame.depth, frame.intrinsics, rgb=frame.rgb, depth_scale=frame.depth_scale,
+        depth = frame.depth
+        if self.depth_filter is not None:
+            d = np.asarray(depth)
+            if d.shape != frame.intrinsics.shape:
+                raise ValueError(f"depth image is {d.shape[1] if d.ndim > 1 else '?'}x{d.shape[0]} (WxH) but the "
+                                 f"intrinsics are {frame.intrinsics.width}x{frame.intrinsics.height}")
+            depth = bilateral_filter_depth(d, self.depth_filter, depth_scale=frame.depth_scale,
+                                           num_threads=self.settings.num_threads)
+        points, colors = depth_to_cloud(depth, frame.intrinsics, rgb=frame.rgb, depth_scale=frame.depth_scale,
                                         min_depth=self.min_depth, max_depth=self.max_depth, stride=self.pixel_stride)
         return self.integrate_points(points, colors, guess=guess, timestamp=frame.timestamp)
 

@@ -1,6 +1,12 @@
 #include "scanalign/reconstruction/depth_image.hpp"
 
+#include <omp.h>
+
+#include <vector>
+
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -72,6 +78,48 @@ DepthCloud depthToCloud(const std::uint16_t* depth, const PinholeIntrinsics& int
 DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics, const DepthToCloudSettings& settings,
                         const std::uint8_t* rgb) {
   return backProject(depth, intrinsics, settings, rgb);
+}
+
+void bilateralFilterDepth(const float* depth, int width, int height, float* out, int radius, double sigma_space,
+                          double sigma_depth, int num_threads) {
+  if (width <= 0 || height <= 0) throw std::invalid_argument("bilateral filter: width and height must be positive");
+  if (depth == nullptr || out == nullptr) throw std::invalid_argument("bilateral filter: null image");
+  if (radius < 0 || radius > 32) throw std::invalid_argument("bilateral filter: radius must be in [0, 32] pixels");
+  if (!(sigma_space > 0.0 && std::isfinite(sigma_space)) || !(sigma_depth > 0.0 && std::isfinite(sigma_depth)))
+    throw std::invalid_argument("bilateral filter: sigma_space (pixels) and sigma_depth (m) must be positive");
+  const int k = 2 * radius + 1;
+  std::vector<float> spatial(static_cast<std::size_t>(k) * k);
+  for (int dy = -radius; dy <= radius; ++dy)
+    for (int dx = -radius; dx <= radius; ++dx)
+      spatial[static_cast<std::size_t>(dy + radius) * k + dx + radius] =
+          static_cast<float>(std::exp(-(dx * dx + dy * dy) / (2.0 * sigma_space * sigma_space)));
+  const float inv2sd = static_cast<float>(1.0 / (2.0 * sigma_depth * sigma_depth));
+  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
+#pragma omp parallel for schedule(static) num_threads(threads)
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const float z = depth[static_cast<std::size_t>(v) * width + u];
+      float& o = out[static_cast<std::size_t>(v) * width + u];
+      if (!(z > 0.0f) || !std::isfinite(z)) {
+        o = std::numeric_limits<float>::quiet_NaN();
+        continue;
+      }
+      float num = 0.0f, den = 0.0f;
+      for (int dy = std::max(-radius, -v); dy <= std::min(radius, height - 1 - v); ++dy) {
+        const float* row = depth + static_cast<std::size_t>(v + dy) * width;
+        const float* w_row = &spatial[static_cast<std::size_t>(dy + radius) * k + radius];
+        for (int dx = std::max(-radius, -u); dx <= std::min(radius, width - 1 - u); ++dx) {
+          const float n = row[u + dx];
+          if (!(n > 0.0f) || !std::isfinite(n)) continue;
+          const float d = n - z;
+          const float w = w_row[dx] * std::exp(-d * d * inv2sd);
+          num += w * n;
+          den += w;
+        }
+      }
+      o = num / den;  // den >= 1 (the pixel itself)
+    }
+  }
 }
 
 }  // namespace scanalign
