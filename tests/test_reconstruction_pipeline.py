@@ -271,3 +271,31 @@ def test_frame_to_cloud_uses_the_frames_scale():
     d = np.full(K.shape, 2000, np.uint16)  # 0.4 m at the TUM scale
     pts, cols = frame_to_cloud(Frame(d, K, depth_scale=1 / 5000))
     assert np.allclose(pts[:, 2], 0.4) and cols is None and len(pts) == K.width * K.height
+
+
+def test_bilateral_filter_smooths_noise_and_keeps_edges():
+    from scanalign.reconstruction import DepthFilter, bilateral_filter_depth
+
+    rng = np.random.default_rng(5)
+    v, u = np.mgrid[0:60, 0:80]
+    ramp = 0.4 + 0.001 * u + 0.0005 * v  # a tilted plane: linear depth is reproduced exactly
+    step = np.where(u < 40, ramp, ramp + 0.05)  # a 5 cm depth edge
+    out = bilateral_filter_depth(step.astype(np.float32))
+    interior = (u >= 2) & (u < 38) & (v >= 2) & (v < 58)
+    np.testing.assert_allclose(out[interior], step[interior], atol=2e-6)
+    far = (u >= 40) & (u < 78) & (v >= 2) & (v < 58)  # the far side is not pulled across the edge
+    np.testing.assert_allclose(out[far], step[far], atol=2e-6)
+    noisy = step + rng.normal(0, 0.001, step.shape)
+    noisy[10, 10] = np.nan
+    f = bilateral_filter_depth(noisy.astype(np.float32), DepthFilter(radius=2, sigma_space=1.5, sigma_depth=0.003))
+    assert np.isnan(f[10, 10]) and np.isfinite(f[10, 11])
+    assert np.nanstd((f - step)[interior]) < 0.5 * np.nanstd((noisy - step)[interior])
+    # uint16 input is scaled like the frame's depth; zero stays invalid.
+    mm = np.full((4, 4), 500, np.uint16)
+    mm[0, 0] = 0
+    g = bilateral_filter_depth(mm, depth_scale=0.001)
+    assert np.isnan(g[0, 0]) and np.allclose(g[1:, 1:], 0.5)
+    with pytest.raises(ValueError):
+        DepthFilter(radius=-1)
+    with pytest.raises(ValueError):
+        bilateral_filter_depth(np.zeros((4, 4, 2), np.float32))

@@ -192,7 +192,7 @@ def _run_reconstruction(source: str, args: argparse.Namespace) -> dict:
     result = reconstruct(frames, registration=args.registration, model_frame=args.model_frame,
                          initial_guess=args.initial_guess, min_depth=args.min_depth, max_depth=args.max_depth,
                          pixel_stride=args.pixel_stride, progress=not (args.no_progress or args.quiet),
-                         depth_filter=None if args.no_depth_filter else "default",
+                         depth_filter="default" if args.depth_filter else None,
                          **_settings_from_args(args))
     if scan is not None:
         result.metrics["model_to_mesh_m"] = model_mesh_distance(result, scan.mesh.vertices, scan.mesh.faces)
@@ -253,8 +253,9 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
     g = p.add_argument_group("reconstruction (seed 000 defaults)")
     g.add_argument("--normal-radius", type=float, default=0.005,
                    help="PCA normal radius, m (default 0.005, the seed's; the demo uses 0.01)")
-    g.add_argument("--no-depth-filter", action="store_true",
-                   help="no bilateral smoothing of the depth images (radius 2 px, sigma 1.5 px / 3 mm)")
+    g.add_argument("--depth-filter", action=argparse.BooleanOptionalAction, default=False,
+                   help="bilateral smoothing of the depth images (radius 2 px, sigma 1.5 px / 3 mm) for noisy "
+                        "consumer sensors (default off; on in the demo)")
     g.add_argument("--voxel", type=float, default=0.001, help="model voxel grid edge, m (default 0.001)")
     g.add_argument("--frame-voxel", type=float, default=0.001,
                    help="frame voxel grid edge before registration, m; 0 = full resolution (default 0.001)")
@@ -305,7 +306,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     _add_reconstruct_options(p, "scanalign-demo")
     # The demo keeps the workspace around the part (20 x 20 cm in the camera's view) and uses
     # 10 mm normals: with SR300-like noise, 5 mm normals measured 12 mm ATE against 4 mm.
-    p.set_defaults(crop=[-0.1, 0.1, -0.1, 0.1, 0.1, 1.0], normal_radius=0.01)
+    # Its simulated SR300 noise also calls for the bilateral depth filter (ATE 12.6 -> 4.1 mm).
+    p.set_defaults(crop=[-0.1, 0.1, -0.1, 0.1, 0.1, 1.0], normal_radius=0.01, depth_filter=True)
     p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder or a synthetic scan",
                        description="Frame-to-model reconstruction (seed 000 Algorithm 1) of SOURCE: a folder in the "
                                    "TUM RGB-D layout (depth/, rgb/, depth.txt, rgb.txt, optional groundtruth.txt), "

@@ -234,7 +234,7 @@ def reconstruct(
     min_depth: float = 0.1,
     max_depth: float = 2.0,
     pixel_stride: int = 1,
-    depth_filter: Optional[Any] = "default",
+    depth_filter: Optional[Any] = None,
     progress: Union[bool, Callable[[FrameRecord], None]] = True,
     evaluate: bool = True,
     **overrides: Any,
@@ -255,7 +255,7 @@ def reconstruct(
             applied to its estimate: odometry-aided tracking; needs reference poses).
         min_depth, max_depth: valid depth range, metres; pixel_stride: image subsampling.
         depth_filter: a :class:`scanalign.reconstruction.DepthFilter`, ``"default"`` (the
-            default bilateral filter) or None (raw depth, as the seed).
+            default bilateral filter) or None (raw depth, as the seed; the default).
         progress: show a progress bar (True), none (False), or a callable per record.
         evaluate: compute ATE/RPE against the reference poses when available.
 

@@ -207,12 +207,17 @@ def depth_to_cloud(
 class DepthFilter:
     """Bilateral smoothing of depth images before back-projection (KinectFusion-style).
 
-    Why it is on by default: axial sensor noise (about 1 mm at 0.4 m for an SR300) tilts
-    5 mm PCA normals by several degrees, and since each normal's error is correlated with
-    the noise of the points it was fitted to, point-to-plane ICP drifts (measured on the
-    synthetic SR300 scan). Smoothing within ``radius`` pixels, with weights falling off
-    with pixel distance (``sigma_space``, pixels) and depth difference (``sigma_depth``,
-    metres), removes most of that noise while keeping depth edges.
+    When to use it: axial sensor noise (about 1 mm at 0.4 m for an SR300) tilts 5 mm PCA
+    normals by several degrees, and since each normal's error is correlated with the noise
+    of the points it was fitted to, point-to-plane ICP drifts. Smoothing within ``radius``
+    pixels, with weights falling off with pixel distance (``sigma_space``, pixels) and
+    depth difference (``sigma_depth``, metres), removes most of that noise while keeping
+    depth edges. It also rounds small curved features slightly (the smoothing is along
+    each camera's rays, so differently from each view), which costs accuracy on
+    low-noise data. Measured on the synthetic scans (36-frame loops): SR300 noise, 10 mm
+    normals: ATE 12.6 mm without, 4.1 mm with; 0.3 mm noise at 320x240 on small spheres:
+    worst pose error 0.23 mm without, 2.0 mm with. Off by default (the seed's pipeline);
+    on in ``scanalign demo``.
     """
 
     radius: int = 2
@@ -431,8 +436,9 @@ class Reconstructor:
         pixel_stride: use every n-th pixel of the depth images.
         registration: ``"scanalign"`` (the engine) or a stock PCL ICP variant from
             :data:`REGISTRATION_METHODS` for comparison.
-        depth_filter: :class:`DepthFilter` applied to every depth image before
-            back-projection (default on), or None for raw depth (the seed's pipeline).
+        depth_filter: a :class:`DepthFilter` applied to every depth image before
+            back-projection (for noisy consumer sensors), or None (default): raw depth, as
+            the seed.
     """
 
     def __init__(
@@ -444,7 +450,7 @@ class Reconstructor:
         max_depth: float = 2.0,
         pixel_stride: int = 1,
         registration: str = "scanalign",
-        depth_filter: Optional[DepthFilter] = DepthFilter(),
+        depth_filter: Optional[DepthFilter] = None,
         **overrides: Any,
     ) -> None:
         if depth_filter is not None and not isinstance(depth_filter, DepthFilter):
