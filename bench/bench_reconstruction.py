@@ -129,12 +129,13 @@ def main() -> int:
     print(table("Fig. 6: total registration time vs iteration cap (18 images)", "cap", caps, by_caps,
                 "register_seconds", secs) + "\n")
     print(table("Fig. 9: ATE vs iteration cap (18 images)", "cap", caps, by_caps, "ate_m", mm) + "\n")
-    if "scanalign LLS" in args.methods:
-        base = by_images["scanalign LLS"]
-        for m in args.methods:
-            if m.startswith("PCL"):
-                ratio = [by_images[m][n]["register_seconds"] / base[n]["register_seconds"] for n in images]
-                print(f"{m} / scanalign LLS time: " + ", ".join(f"{n} img {r:.1f}x" for n, r in zip(images, ratio)))
+    # Like for like: PCL's LLS against scanalign's LLS, PCL's SVD / dual quaternion (both
+    # point-to-point) against scanalign's point-to-point.
+    for pcl, ours in (("PCL LLS", "scanalign LLS"), ("PCL SVD", "scanalign point-to-point"),
+                      ("PCL dual quaternion", "scanalign point-to-point")):
+        if pcl in args.methods and ours in args.methods:
+            ratio = [by_images[pcl][n]["register_seconds"] / by_images[ours][n]["register_seconds"] for n in images]
+            print(f"{pcl} / {ours} time: " + ", ".join(f"{n} img {r:.1f}x" for n, r in zip(images, ratio)))
 
     from scanalign.plots import plot_series
 
