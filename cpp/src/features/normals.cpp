@@ -163,11 +163,7 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
 template <typename Scalar>
 void estimateNormals(const CloudView<Scalar>& points, const LeftBalancedKdTree<Scalar>& tree,
                      const NormalEstimationSettings& settings, Scalar* normals, Scalar* curvature) {
-  if (!(settings.radius > 0.0) || !std::isfinite(settings.radius))
-    throw std::invalid_argument("normal estimation: radius must be a finite positive distance in metres");
-  if (!settings.viewpoint.allFinite()) throw std::invalid_argument("normal estimation: viewpoint must be finite");
-  if (settings.min_neighbors < 3) throw std::invalid_argument("normal estimation: min_neighbors must be >= 3");
-  if (settings.num_threads < 0) throw std::invalid_argument("normal estimation: num_threads must be >= 0");
+  validateSettings(settings);
   if (points.size > 0 && normals == nullptr) throw std::invalid_argument("normal estimation: null output");
   const Scalar r2 = static_cast<Scalar>(settings.radius * settings.radius);
   const Scalar nan = std::numeric_limits<Scalar>::quiet_NaN();
@@ -191,23 +187,7 @@ void estimateNormals(const CloudView<Scalar>& points, const LeftBalancedKdTree<S
       s2.noalias() += d * d.transpose();
       ++k;
     });
-    if (k < settings.min_neighbors) continue;
-    const Eigen::Vector3d mean = s1 / k;
-    const Eigen::Matrix3d cov = s2 / k - mean * mean.transpose();
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-    eig.computeDirect(cov);
-    Eigen::Vector3d n = eig.eigenvectors().col(0);
-    const Eigen::Vector3d to_view = settings.viewpoint - Eigen::Vector3d(q[0], q[1], q[2]);
-    if (n.dot(to_view) < 0.0) n = -n;
-    n.normalize();
-    out[0] = static_cast<Scalar>(n.x());
-    out[1] = static_cast<Scalar>(n.y());
-    out[2] = static_cast<Scalar>(n.z());
-    if (curvature) {
-      const Eigen::Vector3d lambda = eig.eigenvalues().cwiseMax(0.0);
-      const double sum = lambda.sum();
-      curvature[i] = static_cast<Scalar>(sum > 0.0 ? lambda(0) / sum : 0.0);
-    }
+    finishNormal(q, s1, s2, k, settings, out, curvature ? curvature + i : nullptr);
   }
 }
 
