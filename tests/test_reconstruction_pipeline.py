@@ -299,3 +299,24 @@ def test_bilateral_filter_smooths_noise_and_keeps_edges():
         DepthFilter(radius=-1)
     with pytest.raises(ValueError):
         bilateral_filter_depth(np.zeros((4, 4, 2), np.float32))
+
+
+def test_reference_guided_guess_tracks_steps_that_previous_pose_cannot(loop36):
+    from scanalign.pipeline import reconstruct
+
+    big_steps = loop36[::4]  # 40 degrees per frame: beyond ICP's reach from the last pose
+    seed_like = reconstruct(big_steps, progress=False)
+    guided = reconstruct(big_steps, progress=False, initial_guess="reference")
+    assert seed_like.summary()["merged"] < len(big_steps) or seed_like.summary()["ate_m"]["rmse"] > 0.01
+    assert guided.summary()["merged"] == len(big_steps)
+    assert guided.summary()["ate_m"]["rmse"] < 0.002
+    # The model frame is the base frame (the first frame's reference pose), so the
+    # estimates are directly the robot's poses.
+    np.testing.assert_allclose(guided.estimate.poses[0], big_steps[0].T_base_camera, atol=1e-12)
+    no_ref = [Frame(f.depth, K) for f in big_steps]
+    with pytest.raises(ValueError, match="reference"):
+        reconstruct(no_ref, progress=False, model_frame="base")
+    with pytest.raises(ValueError, match="T_base_camera"):
+        reconstruct(no_ref, progress=False, initial_guess="reference")
+    with pytest.raises(ValueError, match="no frames"):
+        reconstruct([], progress=False)
