@@ -25,7 +25,7 @@ import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Dict, Iterable, List, Optional, Sequence, Union
+from typing import Any, Callable, Dict, Iterable, List, Optional, Union
 
 import numpy as np
 
@@ -276,7 +276,6 @@ def reconstruct(
     bar = _Progress(total, progress is True, "reconstruct")
     callback = progress if callable(progress) else None
     ref_of: Dict[int, np.ndarray] = {}
-    times: Dict[int, float] = {}
     last_ref: Optional[np.ndarray] = None
     try:
         for frame in frames:
@@ -303,7 +302,6 @@ def reconstruct(
                 ref_of[record.index] = np.asarray(frame.T_base_camera, dtype=np.float64)
                 if record.merged:
                     last_ref = ref_of[record.index]
-            times[record.index] = record.timestamp
             bar.update(record)
             if callback is not None:
                 callback(record)

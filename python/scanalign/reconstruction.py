@@ -22,15 +22,15 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass, field
-from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Union
+from dataclasses import asdict, dataclass
+from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
 
 from . import _core
 from ._arrays import as_points, as_transform
 from .camera import Frame, Intrinsics
-from .registration import Box, BoxLike, IcpResult, IcpSettings, _as_box, make_settings, pcl_icp
+from .registration import IcpSettings, _as_box, make_settings, pcl_icp
 from .trajectory import Trajectory
 
 __all__ = [
