@@ -279,7 +279,7 @@ RansacLoopStats ransacLoop(std::size_t n, int sample_size, Build&& build, Error&
 #endif
   // The batch size only changes how much work past the adaptive stop is wasted, never
   // the result: hypotheses are accepted in order below.
-  const int batch = std::max(4, 2 * threads);
+  const int batch = std::max(16, 8 * threads);  // few parallel regions: cheap on busy machines
   std::vector<Model> models(batch);
   std::vector<char> valid(batch);
   std::vector<std::size_t> counts(batch);
