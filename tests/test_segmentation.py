@@ -213,30 +213,51 @@ def test_viewpoint_on_the_other_side_keeps_the_clutter():
 
 @pytest.mark.data
 def test_pcl_table_scene(dataset_cache):
+    """PCL's table_scene_lms400 (460k points, scanner at the origin). Its dominant plane is
+    the floor (about 60 % of the points); the table top lies about 0.7 m above it. As in
+    paper 3, step (1) crops to the table's bounds (y >= -0.2 m drops the floor), after
+    which the table is the dominant plane and the objects on it are separated."""
     from scanalign import datasets
 
+    spatial = pytest.importorskip("scipy.spatial")
     pts = datasets.load_pcl_cloud("table_scene_lms400")
-    plane, objects = seg.segment_table(pts, threshold=0.01, cluster_tolerance=0.02, min_cluster_size=100, seed=0)
-    assert plane.success
-    inl = pts[plane.inliers]
-    # most points are on the table, the scanner (origin) is above it
-    assert len(plane.inliers) > 0.3 * len(pts)
-    assert plane.distance < 0  # origin on the normal's side: n.0 - d > 0
+    # Without a crop: the floor, oriented towards the scanner.
+    floor, _ = seg.segment_table(pts, threshold=0.01, min_cluster_size=100, seed=0)
+    assert floor.success and len(floor.inliers) > 0.5 * len(pts)
+    # With the pass-through crop: the table.
+    crop = dict(crop_min=(-np.inf, -0.2, -np.inf), crop_max=None)
+    r = seg.segment_table_full(pts, threshold=0.01, cluster_tolerance=0.02, min_cluster_size=100, seed=0, **crop)
+    plane, objects = r.plane, r.objects
+    assert plane.success and r.cropped_points < len(pts)
+    assert len(plane.inliers) > 0.5 * r.cropped_points  # most cropped points are on the table
+    assert plane.distance < 0  # the scanner (origin) is on the normal's side
+    assert plane.normal @ floor.normal > np.cos(np.radians(3))  # parallel to the floor
+    table_height = np.median(pts[plane.inliers] @ floor.normal - floor.distance)
+    assert 0.6 < table_height < 0.8  # metres above the floor
     # independent check: numpy PCA of the inliers gives the same plane, and they are flat
+    inl = pts[plane.inliers]
     w, V = np.linalg.eigh(np.cov((inl - inl.mean(0)).T))
     assert abs(abs(V[:, 0] @ plane.normal) - 1) < 1e-6
     assert np.sqrt(w[0]) < 0.005
-    assert np.all(np.abs(inl @ plane.normal - plane.distance) < 0.01)
-    # several objects, all above the table and disjoint
-    assert len(objects) >= 3
+    # objects: at least two clusters above the table, disjoint, each one connected and
+    # farther than the tolerance from every other point above the table
+    assert len(objects) >= 2 and len(objects[0]) > 1000
+    above = np.flatnonzero((pts @ plane.normal - plane.distance >= 0.01) & (pts[:, 1] >= -0.2))
     allidx = np.concatenate(objects)
-    assert len(np.unique(allidx)) == len(allidx)
-    assert np.all(pts[allidx] @ plane.normal - plane.distance >= 0.01)
-    # seeded: the same again
+    assert len(np.unique(allidx)) == len(allidx) and np.all(np.isin(allidx, above))
+    tree = spatial.cKDTree(pts[above])
+    label = np.full(len(pts), -1)
+    for k, o in enumerate(objects):
+        label[o] = k
+        assert np.median(pts[o] @ plane.normal - plane.distance) > 0.02
+    for k, o in enumerate(objects):
+        neighbours = above[np.unique(np.concatenate(tree.query_ball_point(pts[o], 0.0199)))]
+        assert np.all(label[neighbours] == k)  # no link to another cluster or to a dropped point
+    # seeded: the same again with one thread
     plane2, objects2 = seg.segment_table(pts, threshold=0.01, cluster_tolerance=0.02, min_cluster_size=100, seed=0,
-                                         num_threads=1)
+                                         num_threads=1, **crop)
     np.testing.assert_array_equal(plane2.inliers, plane.inliers)
-    assert len(objects2) == len(objects)
+    assert [len(o) for o in objects2] == [len(o) for o in objects]
 
 
 # ------------------------------------------------------------------------- bad input
