@@ -188,6 +188,11 @@ def test_segment_table_separates_the_objects():
     # every object point, nothing else: removing the inliers and the points below the
     # table leaves only object points (spec §10 claim 29)
     np.testing.assert_array_equal(np.sort(np.concatenate(objects)), np.flatnonzero((labels == 1) | (labels == 2)))
+    # float32 input: the same objects
+    plane32, objects32 = seg.segment_table(pts.astype(np.float32), threshold=0.005, cluster_tolerance=0.01,
+                                           min_cluster_size=50)
+    assert plane32.success and plane32.normal @ n_true > 1 - 1e-5
+    assert [o.tolist() for o in objects32] == [o.tolist() for o in objects]
     # the same with "up" given instead of the viewpoint, and with a crop that cuts the box
     full = seg.segment_table_full(pts, threshold=0.005, cluster_tolerance=0.01, min_cluster_size=50,
                                   up=n_true * 3, viewpoint=(0, 0, 5))
