@@ -5,6 +5,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <map>
 #include <numeric>
 #include <random>
 #include <set>
@@ -280,6 +281,37 @@ TEST(Ransac, FailureStatuses) {
   const auto sp = ransacSphere(view(xyz), rs);
   EXPECT_EQ(sp.status, RansacStatus::kDegenerate);
   EXPECT_THROW(ransacPlane(view(xyz), RansacSettings{-1.0}), std::invalid_argument);
+}
+
+TEST(Segmentation, EuclideanClustersMatchBruteForceComponents) {
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<double> xyz;
+  for (int i = 0; i < 600; ++i) push(xyz, V3(u(rng), u(rng), 0.2 * u(rng)));
+  const auto v = view(xyz);
+  std::vector<std::uint32_t> sel;
+  for (std::uint32_t i = 0; i < 600; ++i)
+    if (i % 5 != 0) sel.push_back(i);  // a subset: the others must be ignored
+  const double tol = 0.07;
+  // Brute-force connected components (union-find) over the subset.
+  std::vector<std::uint32_t> parent(600);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](std::uint32_t x) {
+    while (parent[x] != x) x = parent[x] = parent[parent[x]];
+    return x;
+  };
+  for (auto i : sel)
+    for (auto j : sel)
+      if (i < j && (v[i] - v[j]).norm() <= tol) parent[find(i)] = find(j);
+  std::map<std::uint32_t, std::vector<std::uint32_t>> comps;
+  for (auto i : sel) comps[find(i)].push_back(i);
+  std::set<std::vector<std::uint32_t>> expect;
+  for (auto& [root, c] : comps)
+    if (c.size() >= 3 && c.size() <= 400) expect.insert(c);
+  const auto got = euclideanClusters(v, sel, tol, 3, 400);
+  EXPECT_EQ(std::set<std::vector<std::uint32_t>>(got.begin(), got.end()), expect);
+  EXPECT_GT(expect.size(), 1u);
+  for (std::size_t k = 1; k < got.size(); ++k) EXPECT_GE(got[k - 1].size(), got[k].size());
 }
 
 TEST(Segmentation, TableSceneObjectsSeparated) {
