@@ -303,6 +303,9 @@ def test_bad_input():
     r = seg.ransac_plane(line, 0.01, max_iterations=40)
     assert not r.success and r.status == "degenerate" and r.degenerate_samples == 40
     assert len(r.inliers) == 0
+    # a crop that leaves nothing: a status, no objects
+    plane, objects = seg.segment_table(pts, crop_min=(10, 10, 10), crop_max=(11, 11, 11))
+    assert plane.status == "too_few_points" and not plane.success and objects == []
     # a sphere requested on planar data: every sample is degenerate
     rng = np.random.default_rng(0)
     flat = np.c_[rng.uniform(-0.2, 0.2, (500, 2)), 0.8 + rng.uniform(-0.001, 0.001, 500)]
