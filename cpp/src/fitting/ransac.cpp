@@ -1,0 +1,407 @@
+// RANSAC models (CGA plane and sphere), least-squares refits, Euclidean clustering and
+// the table segmentation pipeline. See ransac.hpp for the equations.
+#include "scanalign/fitting/ransac.hpp"
+
+#include <algorithm>
+#include <array>
+#include <numeric>
+#include <stdexcept>
+
+#include <Eigen/Dense>
+
+#include "scanalign/registration/kdtree.hpp"
+
+namespace scanalign {
+
+namespace cga5 {
+
+Vec5 dualOfOuter4(const Vec5& a, const Vec5& b, const Vec5& c, const Vec5& d) {
+  // cof_j = det[a; b; c; d; e_j] = (-1)^(4+j) * minor_j (drop column j).
+  Eigen::Matrix<double, 4, 5> A;
+  A.row(0) = a.transpose();
+  A.row(1) = b.transpose();
+  A.row(2) = c.transpose();
+  A.row(3) = d.transpose();
+  Vec5 cof;
+  for (int j = 0; j < 5; ++j) {
+    Eigen::Matrix4d minor;
+    for (int col = 0, k = 0; col < 5; ++col)
+      if (col != j) minor.col(k++) = A.col(col);
+    cof[j] = ((4 + j) % 2 == 0 ? 1.0 : -1.0) * minor.determinant();
+  }
+  // v = M cof: v . x = [v]^T M [x] = cof^T [x] = det[a; b; c; d; x].
+  Vec5 v;
+  v << cof.head<3>(), -cof[4], -cof[3];
+  return v;
+}
+
+}  // namespace cga5
+
+const char* toString(RansacStatus s) {
+  switch (s) {
+    case RansacStatus::kSuccess: return "success";
+    case RansacStatus::kTooFewPoints: return "too_few_points";
+    case RansacStatus::kDegenerate: return "degenerate";
+  }
+  return "unknown";
+}
+
+// ---------------------------------------------------------------------------
+// Minimal-sample models
+// ---------------------------------------------------------------------------
+
+bool planeFromPoints(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, PlaneModel& out) {
+  // Built relative to a (translation covariance of the construction) so that ½p² stays
+  // small: the plane through a+x_i is the plane through x_i shifted by a.
+  const Eigen::Vector3d o = Eigen::Vector3d::Zero(), bb = b - a, cc = c - a;
+  const cga5::Vec5 pi = cga5::dualOfOuter4(cga5::up(o), cga5::up(bb), cga5::up(cc), cga5::eInf());  // (5.35)
+  // Pi* = n + delta e_inf with no e0 part; Pi*^2 = |n|^2 (normalisation of (5.36)).
+  const double n2 = cga5::inner(pi, pi);
+  const double scale = std::max({bb.squaredNorm(), cc.squaredNorm(), (cc - bb).squaredNorm()});
+  if (!(scale > 0) || !(n2 > 1e-24 * scale * scale) || !std::isfinite(n2)) return false;  // collinear: Pi = 0
+  const double inv = 1.0 / std::sqrt(n2);
+  out.normal = pi.head<3>() * inv;
+  out.distance = pi[3] * inv + out.normal.dot(a);  // shift back by a: n.(p - a) = delta'
+  return true;
+}
+
+bool sphereFromPoints(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                      const Eigen::Vector3d& d, SphereModel& out) {
+  const Eigen::Vector3d bb = b - a, cc = c - a, dd = d - a;
+  const cga5::Vec5 s =
+      cga5::dualOfOuter4(cga5::up(Eigen::Vector3d::Zero()), cga5::up(bb), cga5::up(cc), cga5::up(dd));  // (4.58)
+  // The e0 coefficient is -det[bb; cc; dd] (the 4x4 minor of the rows [x, 1]).
+  const double L = std::max({bb.norm(), cc.norm(), dd.norm()});
+  if (!(L > 0) || !(std::abs(s[4]) > 1e-12 * L * L * L) || !std::isfinite(s[4])) return false;  // coplanar
+  const cga5::Vec5 v = s / s[4];  // (4.60): e0 coefficient 1
+  const double r2 = v.head<3>().squaredNorm() - 2.0 * v[3];
+  if (!(r2 > 0) || !std::isfinite(r2)) return false;
+  out.center = v.head<3>() + a;
+  out.radius = std::sqrt(r2);
+  return true;
+}
+
+// ---------------------------------------------------------------------------
+// Least-squares refits
+// ---------------------------------------------------------------------------
+
+template <typename Scalar>
+bool fitPlaneLeastSquares(const CloudView<Scalar>& points, const std::vector<std::uint32_t>& indices,
+                          PlaneModel& out) {
+  if (indices.size() < 3) return false;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (std::uint32_t i : indices) mean += points[i].template cast<double>();
+  mean /= double(indices.size());
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  for (std::uint32_t i : indices) {
+    const Eigen::Vector3d d = points[i].template cast<double>() - mean;
+    C.noalias() += d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+  if (es.info() != Eigen::Success) return false;
+  const Eigen::Vector3d ev = es.eigenvalues();
+  if (!(ev[1] > 1e-12 * ev[2])) return false;  // collinear inliers: no unique plane
+  out.normal = es.eigenvectors().col(0).normalized();
+  out.distance = out.normal.dot(mean);
+  return true;
+}
+
+template <typename Scalar>
+bool fitSphereLeastSquares(const CloudView<Scalar>& points, const std::vector<std::uint32_t>& indices,
+                           SphereModel& out) {
+  const std::size_t n = indices.size();
+  if (n < 4) return false;
+  // Centre and scale (similarity equivariance) for conditioning.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (std::uint32_t i : indices) mean += points[i].template cast<double>();
+  mean /= double(n);
+  double rms = 0;
+  for (std::uint32_t i : indices) rms += (points[i].template cast<double>() - mean).squaredNorm();
+  rms = std::sqrt(rms / double(n));
+  if (!(rms > 0)) return false;
+  // D = (1/n) sum [P][P]^T, Q = D M (5.31).
+  Eigen::Matrix<double, 5, 5> D = Eigen::Matrix<double, 5, 5>::Zero();
+  for (std::uint32_t i : indices) {
+    const cga5::Vec5 P = cga5::up((points[i].template cast<double>() - mean) / rms);
+    D.noalias() += P * P.transpose();
+  }
+  D /= double(n);
+  Eigen::Matrix<double, 5, 5> M = Eigen::Matrix<double, 5, 5>::Zero();
+  M.topLeftCorner<3, 3>().setIdentity();
+  M(3, 4) = M(4, 3) = -1.0;
+  const Eigen::Matrix<double, 5, 5> Q = D * M;
+  Eigen::EigenSolver<Eigen::Matrix<double, 5, 5>> es(Q);
+  if (es.info() != Eigen::Success) return false;
+  // Smallest positive eigenvalue = the second smallest (exactly one is negative, spec §2.2;
+  // for an exact fit it is ~0 and may carry either sign).
+  std::array<int, 5> order{0, 1, 2, 3, 4};
+  std::sort(order.begin(), order.end(),
+            [&](int x, int y) { return es.eigenvalues()[x].real() < es.eigenvalues()[y].real(); });
+  const int pick = order[1];
+  cga5::Vec5 s = es.eigenvectors().col(pick).real();
+  if (!(std::abs(s[4]) > 1e-9 * s.norm())) return false;  // a plane (spec §2.2, guard the division)
+  s /= s[4];
+  const double r2 = s.head<3>().squaredNorm() - 2.0 * s[3];
+  if (!(r2 > 0) || !std::isfinite(r2)) return false;
+  out.center = s.head<3>() * rms + mean;
+  out.radius = std::sqrt(r2) * rms;
+  return true;
+}
+
+// ---------------------------------------------------------------------------
+// Generic RANSAC helpers
+// ---------------------------------------------------------------------------
+
+namespace {
+inline std::uint64_t splitmix64(std::uint64_t& x) {
+  std::uint64_t z = (x += 0x9E3779B97F4A7C15ull);
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  return z ^ (z >> 31);
+}
+}  // namespace
+
+void ransacSample(std::uint64_t seed, std::uint64_t k, std::uint32_t n, int s, std::uint32_t* out) {
+  std::uint64_t state = seed * 0xD1B54A32D192ED03ull ^ (k + 1) * 0x9E3779B97F4A7C15ull;
+  splitmix64(state);
+  for (int j = 0; j < s; ++j) {
+    for (;;) {
+      // Multiply-shift maps 32 random bits to [0, n) (bias < n / 2^32, irrelevant here).
+      const std::uint32_t r = static_cast<std::uint32_t>(splitmix64(state) >> 32);
+      const std::uint32_t v = static_cast<std::uint32_t>((std::uint64_t(r) * n) >> 32);
+      bool dup = false;
+      for (int q = 0; q < j; ++q) dup |= out[q] == v;
+      if (!dup) {
+        out[j] = v;
+        break;
+      }
+    }
+  }
+}
+
+double ransacRequiredIterations(double w, int s, double confidence) {
+  if (!(confidence > 0 && confidence < 1)) return std::numeric_limits<double>::infinity();
+  const double ws = std::pow(std::clamp(w, 0.0, 1.0), s);
+  if (ws >= 1.0) return 1.0;
+  if (ws <= 0.0) return std::numeric_limits<double>::infinity();
+  const double denom = std::log1p(-ws);
+  if (!(denom < 0)) return std::numeric_limits<double>::infinity();
+  return std::ceil(std::log(1.0 - confidence) / denom);
+}
+
+// ---------------------------------------------------------------------------
+// Plane and sphere RANSAC
+// ---------------------------------------------------------------------------
+
+namespace {
+
+/// Finite points copied to double (RANSAC touches every point once per hypothesis; a
+/// packed double array keeps that loop simple and exact).
+template <typename Scalar>
+std::vector<std::uint32_t> finiteIndices(const CloudView<Scalar>& points, std::vector<Eigen::Vector3d>& xyz) {
+  std::vector<std::uint32_t> idx;
+  idx.reserve(points.size);
+  xyz.clear();
+  xyz.reserve(points.size);
+  for (std::size_t i = 0; i < points.size; ++i)
+    if (points.isFinite(i)) {
+      idx.push_back(static_cast<std::uint32_t>(i));
+      xyz.push_back(points[i].template cast<double>());
+    }
+  return idx;
+}
+
+template <typename Model, typename Err>
+std::vector<std::uint32_t> selectInliers(const std::vector<Eigen::Vector3d>& xyz, const std::vector<std::uint32_t>& idx,
+                                         const Model& m, double threshold, Err&& err) {
+  std::vector<std::uint32_t> out;
+  for (std::size_t i = 0; i < xyz.size(); ++i)
+    if (err(m, xyz[i]) < threshold) out.push_back(idx[i]);
+  return out;
+}
+
+}  // namespace
+
+template <typename Scalar>
+RansacResult<PlaneModel> ransacPlane(const CloudView<Scalar>& points, const RansacSettings& settings) {
+  if (!(settings.threshold > 0) || !std::isfinite(settings.threshold))
+    throw std::invalid_argument("ransacPlane: threshold must be a positive distance");
+  RansacResult<PlaneModel> r;
+  std::vector<Eigen::Vector3d> xyz;
+  const std::vector<std::uint32_t> idx = finiteIndices(points, xyz);
+  auto build = [&](const std::uint32_t* s, PlaneModel& m) { return planeFromPoints(xyz[s[0]], xyz[s[1]], xyz[s[2]], m); };
+  // (5.36): |P . Pi*| with |n| = 1 is the Euclidean distance to the plane.
+  auto err = [](const PlaneModel& m, const Eigen::Vector3d& p) { return std::abs(m.signedDistance(p)); };
+  auto error = [&](const PlaneModel& m, std::size_t i) { return err(m, xyz[i]); };
+  const RansacLoopStats st = ransacLoop(xyz.size(), 3, build, error, settings, r.hypothesis);
+  r.status = st.status;
+  r.iterations = st.iterations;
+  r.degenerate_samples = st.degenerate_samples;
+  r.hypothesis_inliers = st.best_inliers;
+  if (!r.success()) return r;
+  r.model = r.hypothesis;
+  r.inliers = selectInliers(xyz, idx, r.model, settings.threshold, err);
+  if (settings.refine) {
+    PlaneModel refit;
+    if (fitPlaneLeastSquares(points, r.inliers, refit)) {
+      if (refit.normal.dot(r.hypothesis.normal) < 0) {  // keep the hypothesis' orientation
+        refit.normal = -refit.normal;
+        refit.distance = -refit.distance;
+      }
+      r.model = refit;
+      r.refined = true;
+      r.inliers = selectInliers(xyz, idx, r.model, settings.threshold, err);
+    }
+  }
+  return r;
+}
+
+template <typename Scalar>
+RansacResult<SphereModel> ransacSphere(const CloudView<Scalar>& points, const RansacSettings& settings,
+                                       const SphereLimits& limits) {
+  if (!(settings.threshold > 0) || !std::isfinite(settings.threshold))
+    throw std::invalid_argument("ransacSphere: threshold must be a positive distance");
+  if (!(limits.min_radius >= 0) || !(limits.max_radius > limits.min_radius))
+    throw std::invalid_argument("ransacSphere: need 0 <= min_radius < max_radius");
+  RansacResult<SphereModel> r;
+  std::vector<Eigen::Vector3d> xyz;
+  const std::vector<std::uint32_t> idx = finiteIndices(points, xyz);
+  const double thr = settings.threshold;
+  auto inLimits = [&](const SphereModel& m) { return m.radius >= limits.min_radius && m.radius <= limits.max_radius; };
+  auto build = [&](const std::uint32_t* s, SphereModel& m) {
+    const Eigen::Vector3d p[4] = {xyz[s[0]], xyz[s[1]], xyz[s[2]], xyz[s[3]]};
+    // Degenerate when the four points lie within the threshold of one plane (their
+    // least-squares plane): such a sample cannot tell a sphere from a plane.
+    const Eigen::Vector3d mean = 0.25 * (p[0] + p[1] + p[2] + p[3]);
+    Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+    for (const auto& q : p) C.noalias() += (q - mean) * (q - mean).transpose();
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(C);
+    const Eigen::Vector3d nrm = es.eigenvectors().col(0);
+    double off = 0;
+    for (const auto& q : p) off = std::max(off, std::abs(nrm.dot(q - mean)));
+    if (off < thr) return false;
+    return sphereFromPoints(p[0], p[1], p[2], p[3], m) && inLimits(m);
+  };
+  auto err = [](const SphereModel& m, const Eigen::Vector3d& p) { return m.surfaceDistance(p); };
+  auto error = [&](const SphereModel& m, std::size_t i) { return err(m, xyz[i]); };
+  const RansacLoopStats st = ransacLoop(xyz.size(), 4, build, error, settings, r.hypothesis);
+  r.status = st.status;
+  r.iterations = st.iterations;
+  r.degenerate_samples = st.degenerate_samples;
+  r.hypothesis_inliers = st.best_inliers;
+  if (!r.success()) return r;
+  r.model = r.hypothesis;
+  r.inliers = selectInliers(xyz, idx, r.model, thr, err);
+  if (settings.refine) {
+    SphereModel refit;
+    if (fitSphereLeastSquares(points, r.inliers, refit) && inLimits(refit)) {
+      r.model = refit;
+      r.refined = true;
+      r.inliers = selectInliers(xyz, idx, r.model, thr, err);
+    }
+  }
+  return r;
+}
+
+// ---------------------------------------------------------------------------
+// Euclidean clustering and table segmentation
+// ---------------------------------------------------------------------------
+
+template <typename Scalar>
+std::vector<std::vector<std::uint32_t>> euclideanClusters(const CloudView<Scalar>& points,
+                                                          const std::vector<std::uint32_t>& indices,
+                                                          double tolerance, std::size_t min_size,
+                                                          std::size_t max_size) {
+  std::vector<std::vector<std::uint32_t>> clusters;
+  if (indices.empty()) return clusters;
+  if (!(tolerance > 0)) throw std::invalid_argument("euclideanClusters: tolerance must be positive");
+  // Tree over the selected points only (keep(i) marks them).
+  std::vector<char> selected(points.size, 0);
+  for (std::uint32_t i : indices) selected[i] = 1;
+  LeftBalancedKdTree<Scalar> tree;
+  tree.build(points, [&](std::size_t i) { return selected[i] != 0; });
+  std::vector<char> visited(points.size, 0);
+  std::vector<std::uint32_t> order(indices);
+  std::sort(order.begin(), order.end());
+  const Scalar r2 = static_cast<Scalar>(tolerance * tolerance);
+  std::vector<std::uint32_t> frontier;
+  for (std::uint32_t seed : order) {
+    if (visited[seed] || !points.isFinite(seed)) continue;
+    std::vector<std::uint32_t> cluster{seed};
+    visited[seed] = 1;
+    for (std::size_t head = 0; head < cluster.size(); ++head) {
+      const std::uint32_t q = cluster[head];
+      tree.forEachInRadius(points.ptr(q), r2, [&](std::uint32_t node, Scalar) {
+        const std::uint32_t j = tree.node(node).index();
+        if (!visited[j]) {
+          visited[j] = 1;
+          cluster.push_back(j);
+        }
+      });
+    }
+    if (cluster.size() >= min_size && cluster.size() <= max_size) {
+      std::sort(cluster.begin(), cluster.end());
+      clusters.push_back(std::move(cluster));
+    }
+  }
+  std::stable_sort(clusters.begin(), clusters.end(),
+                   [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  return clusters;
+}
+
+template <typename Scalar>
+TableSegmentation segmentTable(const CloudView<Scalar>& points, const TableSegmentationSettings& s) {
+  TableSegmentation out;
+  // (1) pass-through crop.
+  std::vector<std::uint32_t> kept;
+  std::vector<Scalar> packed;
+  for (std::size_t i = 0; i < points.size; ++i) {
+    if (!points.isFinite(i)) continue;
+    const Eigen::Vector3d p = points[i].template cast<double>();
+    if (s.crop && ((p.array() < s.crop_min.array()).any() || (p.array() > s.crop_max.array()).any())) continue;
+    kept.push_back(static_cast<std::uint32_t>(i));
+    packed.insert(packed.end(), {points.ptr(i)[0], points.ptr(i)[1], points.ptr(i)[2]});
+  }
+  out.cropped_points = kept.size();
+  const CloudView<Scalar> view(packed.empty() ? nullptr : packed.data(), kept.size(), 3);
+  // (2) dominant plane.
+  out.plane = ransacPlane(view, s.plane);
+  out.status = out.plane.status;
+  if (!out.success()) return out;
+  PlaneModel& pl = out.plane.model;
+  // Orient the normal up, or towards the viewpoint (P3: "orient v toward the camera").
+  const bool flip = s.up.squaredNorm() > 0 ? pl.normal.dot(s.up) < 0 : pl.signedDistance(s.viewpoint) < 0;
+  if (flip) {
+    pl.normal = -pl.normal;
+    pl.distance = -pl.distance;
+    out.plane.hypothesis.normal = -out.plane.hypothesis.normal;
+    out.plane.hypothesis.distance = -out.plane.hypothesis.distance;
+  }
+  // (3) remove the inliers and everything below: keep signed distance >= threshold.
+  std::vector<std::uint32_t> above;
+  for (std::size_t i = 0; i < kept.size(); ++i)
+    if (pl.signedDistance(view[i].template cast<double>()) >= s.plane.threshold)
+      above.push_back(static_cast<std::uint32_t>(i));
+  out.above_points = above.size();
+  // (4)-(5) Euclidean clustering, small/large clusters dropped.
+  out.objects = euclideanClusters(view, above, s.cluster_tolerance, s.min_cluster_size, s.max_cluster_size);
+  for (auto& c : out.objects)
+    for (auto& i : c) i = kept[i];  // back to input indices (kept is ascending: order preserved)
+  for (auto& i : out.plane.inliers) i = kept[i];
+  return out;
+}
+
+#define SCANALIGN_INSTANTIATE(S)                                                                                   \
+  template bool fitPlaneLeastSquares<S>(const CloudView<S>&, const std::vector<std::uint32_t>&, PlaneModel&);      \
+  template bool fitSphereLeastSquares<S>(const CloudView<S>&, const std::vector<std::uint32_t>&, SphereModel&);    \
+  template RansacResult<PlaneModel> ransacPlane<S>(const CloudView<S>&, const RansacSettings&);                    \
+  template RansacResult<SphereModel> ransacSphere<S>(const CloudView<S>&, const RansacSettings&,                   \
+                                                     const SphereLimits&);                                         \
+  template std::vector<std::vector<std::uint32_t>> euclideanClusters<S>(                                           \
+      const CloudView<S>&, const std::vector<std::uint32_t>&, double, std::size_t, std::size_t);                   \
+  template TableSegmentation segmentTable<S>(const CloudView<S>&, const TableSegmentationSettings&);
+SCANALIGN_INSTANTIATE(float)
+SCANALIGN_INSTANTIATE(double)
+#undef SCANALIGN_INSTANTIATE
+
+}  // namespace scanalign
