@@ -8,6 +8,7 @@ namespace scanalign::python {
 void defineRegistration(py::module_& m);
 void defineFeatures(py::module_& m);
 void defineReconstruction(py::module_& m);
+void defineFitting(py::module_& m);
 void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
 }  // namespace scanalign::python
 
@@ -19,5 +20,7 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineRegistration(registration);
   scanalign::python::defineFeatures(features);
   scanalign::python::defineReconstruction(reconstruction);
+  auto fitting = m.def_submodule("fitting", "CGA sphere fit, Pratt circle fit");
+  scanalign::python::defineFitting(fitting);
   scanalign::python::bindSynthetic(m);
 }
