@@ -232,3 +232,36 @@ def test_pratt_bad_input():
                    (np.array([[0, 0], [1, 0], [0, 1]]), TypeError)]:
         with pytest.raises(exc):
             fit_circle_2d(p)
+
+
+def test_far_from_origin_and_tiny_scale():
+    """Centring and scaling inside the fit keep it exact for data far from the origin or in
+    a small patch (a naive Q of raw coordinates loses ~|p|^4 / r^4 to rounding)."""
+    rng = np.random.default_rng(12)
+    for c, r in [(np.array([1000.0, -2000.0, 500.0]), 0.05), (np.array([0.3, 0.2, 0.9]), 1e-4)]:
+        p = sphere_points(rng, c, r, 100, max_polar=0.8)
+        f = fit_sphere(p)
+        assert np.linalg.norm(f.center - c) < 1e-6 * r + 1e-9
+        assert abs(f.radius - r) < 1e-6 * r + 1e-9
+
+
+def test_noisy_plane_is_plane_or_huge_sphere_no_worse_than_plane_fit():
+    """Noisy planar data: spheres include planes as a limit, so the fit is never worse than the
+    least-squares plane (SVD oracle) and, when a sphere, it is far larger than the patch."""
+    rng = np.random.default_rng(13)
+    n = np.array([0.0, 0.6, 0.8])
+    a, b = np.array([1.0, 0, 0]), np.cross(n, [1.0, 0, 0])
+    sigma = 1e-4
+    p = 0.5 * n + rng.uniform(-0.05, 0.05, (400, 1)) * a + rng.uniform(-0.05, 0.05, (400, 1)) * b
+    p += sigma * rng.standard_normal((400, 1)) * n
+    m = p.mean(axis=0)
+    n_svd = np.linalg.svd(p - m)[2][-1]
+    rms_plane = np.sqrt(np.mean(((p - m) @ n_svd) ** 2))
+    f = fit_sphere(p)
+    assert f.rms <= rms_plane * (1 + 1e-6)
+    if f.is_plane:
+        assert abs(abs(f.normal @ n) - 1) < 1e-3
+    else:
+        assert f.radius > 1.0  # 20x the 5 cm patch
+    g = fit_sphere(p, plane_tolerance=1.0)  # everything flatter than the patch counts as a plane
+    assert g.is_plane and abs(abs(g.normal @ n) - 1) < 1e-3 and abs(g.rms - sigma) < 0.2 * sigma
