@@ -70,6 +70,7 @@ def test_noisy_cap_within_noise_and_matches_oracle():
     assert rms_o <= f.rms + 1e-12 and f.rms < rms_o * (1 + 1e-4)
 
 
+@pytest.mark.data
 def test_bunny_patches_match_geometric_oracle(bunny):
     """Real-mesh data: neighbourhoods of the Stanford bunny (15 cm). The surface is not a
     sphere, so the truth is the geometric least-squares sphere of each patch."""
