@@ -9,6 +9,7 @@ void defineRegistration(py::module_& m);
 void defineFeatures(py::module_& m);
 void defineReconstruction(py::module_& m);
 void defineSegmentation(py::module_& m);
+void defineFitting(py::module_& m);
 void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
 }  // namespace scanalign::python
 
@@ -22,5 +23,7 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineReconstruction(reconstruction);
   auto segmentation = m.def_submodule("segmentation", "RANSAC plane / sphere, table segmentation");
   scanalign::python::defineSegmentation(segmentation);
+  auto fitting = m.def_submodule("fitting", "CGA sphere fit, Pratt circle fit");
+  scanalign::python::defineFitting(fitting);
   scanalign::python::bindSynthetic(m);
 }

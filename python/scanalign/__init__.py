@@ -7,6 +7,7 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.features` -- surface normals.
 - :mod:`scanalign.reconstruction` -- depth to cloud, frame-to-model reconstruction, voxel grid.
 - :mod:`scanalign.segmentation` -- RANSAC planes and spheres (CGA models), table segmentation.
+- :mod:`scanalign.fitting` -- CGA sphere / plane fit (weighted), Pratt circle fit.
 - :mod:`scanalign.io` -- PCD / PLY / OFF / STL / OBJ readers and a PLY writer.
 - :mod:`scanalign.datasets` -- real test data from Debian packages, built-in objects.
 - :mod:`scanalign.camera` -- pinhole intrinsics and RGB-D frames.
@@ -30,7 +31,7 @@ from typing import Any
 __version__ = "0.1.0"
 
 _SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "camera", "trajectory", "tum",
-               "synthetic", "segmentation", "pipeline", "evaluation", "plots", "cli")
+               "synthetic", "segmentation", "fitting", "pipeline", "evaluation", "plots", "cli")
 
 __all__ = ["__version__", *_SUBMODULES]
 

@@ -1,0 +1,95 @@
+// Sphere and circle fitting (thesis spec §2; Dorst's CGA sphere fit, Pratt's circle fit).
+//
+// This header does not depend on a multivector library: conformal objects are handled as
+// 5-vectors of coefficients on (e1, e2, e3, e∞, e0) together with the 5x5 metric M of
+// spec §1.3, so that X·Y = [X]ᵀ M [Y] (5.32):
+//
+//   point        [p; ½p²; 1]          (4.55)
+//   dual sphere  [c; ½(c² − r²); 1]   (4.60)
+//   dual plane   [n; δ; 0]            (4.66), the plane n·p = δ
+//
+// Units are metres throughout.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "scanalign/common/cloud_view.hpp"
+
+namespace scanalign {
+
+using Vector5d = Eigen::Matrix<double, 5, 1>;
+using Matrix5d = Eigen::Matrix<double, 5, 5>;
+
+/// The 5x5 metric M of (5.32): X·Y = [X]ᵀ M [Y] for 5-vectors on (e1, e2, e3, e∞, e0).
+Matrix5d conformalMetric();
+
+/// [up(p)] = [p; ½p²; 1] (4.55).
+Vector5d conformalPoint(const Eigen::Vector3d& p);
+
+struct SphereFitOptions {
+  /// The result is a plane when |e0 coefficient| <= plane_tolerance * |Euclidean part| of the
+  /// dual vector computed for the points centred at their centroid and scaled to unit RMS
+  /// spread; i.e. when the fitted radius exceeds about 1/plane_tolerance times the extent of
+  /// the data. Exactly coplanar data always gives a plane.
+  double plane_tolerance = 1e-6;
+};
+
+struct SphereFit {
+  /// The fitted dual object as a 5-vector on (e1, e2, e3, e∞, e0), normalized: a sphere as
+  /// [c; ½(c² − r²); 1] (4.60), a plane as [n; δ; 0] with |n| = 1 (4.66).
+  Vector5d dual = Vector5d::Zero();
+  bool is_plane = false;          ///< the e0 coefficient vanished (relative to scale): a plane
+  Eigen::Vector3d center = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());  ///< m (sphere only)
+  double radius = std::numeric_limits<double>::quiet_NaN();  ///< m (sphere only; |r| when imaginary)
+  bool imaginary = false;         ///< S*² < 0 (r² < 0): an imaginary sphere (not expected in practice, see 5.31)
+  Eigen::Vector3d normal = Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN());  ///< unit (plane only)
+  double distance = std::numeric_limits<double>::quiet_NaN();  ///< δ in n·p = δ, m, δ >= 0 (plane only)
+  double rms = std::numeric_limits<double>::quiet_NaN();  ///< weighted RMS geometric residual, m
+  double objective = std::numeric_limits<double>::quiet_NaN();  ///< λ = weighted mean (S*·P)²/S*² at the optimum, m² (5.27, 5.31)
+  std::size_t count = 0;          ///< points used (those with positive weight)
+};
+
+/// CGA sphere fit (spec §2.2, thesis 5.26–5.34; weighted: §2.3, 6.5–6.11).
+///
+/// Minimises Σ w_i (S*·P_i)²/S*² / Σ w_i; the minimiser is the eigenvector of the smallest
+/// positive eigenvalue of Q = (1/Σw) Σ w_i [P_i][P_i]ᵀ M (5.31/6.6). Points with weight 0 are
+/// removed (not even checked for finiteness); integer weights act like duplicated points.
+///
+/// Requires at least 5 points with positive weight (the contract; 4 points in general
+/// position determine a sphere exactly, but 5 are needed for a fit).
+///
+/// Throws std::invalid_argument for: fewer than 5 used points, a non-finite used point, a
+/// negative or non-finite weight, all weights zero, and degenerate data that does not
+/// determine a sphere or plane (coincident or collinear points, points on one circle).
+template <typename Scalar>
+SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights = nullptr,
+                    const SphereFitOptions& options = {});
+
+/// Many independent fits: group g uses points[offsets[g] .. offsets[g+1]) (offsets has
+/// n_groups + 1 non-decreasing entries, the last <= points.size). Runs in parallel (OpenMP,
+/// num_threads <= 0: all). A group that cannot be fitted (any reason fitSphere throws) gets
+/// count = 0 and NaN fields instead of an exception.
+template <typename Scalar>
+std::vector<SphereFit> fitSpheres(const CloudView<Scalar>& points, const std::int64_t* offsets, std::size_t n_groups,
+                                  const SphereFitOptions& options = {}, int num_threads = 0);
+
+struct CircleFit {
+  Eigen::Vector2d center = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());  ///< m
+  double radius = std::numeric_limits<double>::quiet_NaN();  ///< m
+  double rms = std::numeric_limits<double>::quiet_NaN();     ///< RMS geometric residual |‖p − c‖ − r|, m
+  /// a(x²+y²) + dx + ey + f = 0, normalized so that d² + e² − 4af = 1 (Pratt's constraint, 5.21).
+  Eigen::Vector4d coefficients = Eigen::Vector4d::Zero();
+  std::size_t count = 0;
+};
+
+/// Pratt's algebraic circle fit (spec §2.1, thesis 5.21–5.25) of 2-D points given as n
+/// (x, y) pairs, row-major. Requires at least 3 finite points not on one line; throws
+/// std::invalid_argument otherwise (fewer than 3, non-finite, collinear or coincident).
+CircleFit fitCirclePratt(const double* xy, std::size_t n);
+
+}  // namespace scanalign
