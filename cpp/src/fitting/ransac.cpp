@@ -1,6 +1,7 @@
 // RANSAC models (CGA plane and sphere), least-squares refits, Euclidean clustering and
 // the table segmentation pipeline. See ransac.hpp for the equations.
 #include "scanalign/fitting/ransac.hpp"
+#include "scanalign/fitting/sphere_fit.hpp"
 
 #include <algorithm>
 #include <array>
@@ -109,43 +110,21 @@ bool fitPlaneLeastSquares(const CloudView<Scalar>& points, const std::vector<std
 template <typename Scalar>
 bool fitSphereLeastSquares(const CloudView<Scalar>& points, const std::vector<std::uint32_t>& indices,
                            SphereModel& out) {
-  const std::size_t n = indices.size();
-  if (n < 4) return false;
-  // Centre and scale (similarity equivariance) for conditioning.
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  for (std::uint32_t i : indices) mean += points[i].template cast<double>();
-  mean /= double(n);
-  double rms = 0;
-  for (std::uint32_t i : indices) rms += (points[i].template cast<double>() - mean).squaredNorm();
-  rms = std::sqrt(rms / double(n));
-  if (!(rms > 0)) return false;
-  // D = (1/n) sum [P][P]^T, Q = D M (5.31).
-  Eigen::Matrix<double, 5, 5> D = Eigen::Matrix<double, 5, 5>::Zero();
-  for (std::uint32_t i : indices) {
-    const cga5::Vec5 P = cga5::up((points[i].template cast<double>() - mean) / rms);
-    D.noalias() += P * P.transpose();
+  // The CGA least-squares sphere of thesis (5.26)-(5.34), as fitSphere() computes it, over
+  // the inliers; a plane, an imaginary sphere or degenerate data is a failed refit.
+  if (indices.size() < 5) return false;
+  std::vector<Scalar> xyz;
+  xyz.reserve(3 * indices.size());
+  for (std::uint32_t i : indices) xyz.insert(xyz.end(), points.ptr(i), points.ptr(i) + 3);
+  try {
+    const SphereFit f = fitSphere(CloudView<Scalar>(xyz.data(), indices.size()));
+    if (f.is_plane || f.imaginary || !(f.radius > 0.0) || !std::isfinite(f.radius)) return false;
+    out.center = f.center;
+    out.radius = f.radius;
+    return true;
+  } catch (const std::invalid_argument&) {
+    return false;
   }
-  D /= double(n);
-  Eigen::Matrix<double, 5, 5> M = Eigen::Matrix<double, 5, 5>::Zero();
-  M.topLeftCorner<3, 3>().setIdentity();
-  M(3, 4) = M(4, 3) = -1.0;
-  const Eigen::Matrix<double, 5, 5> Q = D * M;
-  Eigen::EigenSolver<Eigen::Matrix<double, 5, 5>> es(Q);
-  if (es.info() != Eigen::Success) return false;
-  // Smallest positive eigenvalue = the second smallest (exactly one is negative, spec §2.2;
-  // for an exact fit it is ~0 and may carry either sign).
-  std::array<int, 5> order{0, 1, 2, 3, 4};
-  std::sort(order.begin(), order.end(),
-            [&](int x, int y) { return es.eigenvalues()[x].real() < es.eigenvalues()[y].real(); });
-  const int pick = order[1];
-  cga5::Vec5 s = es.eigenvectors().col(pick).real();
-  if (!(std::abs(s[4]) > 1e-9 * s.norm())) return false;  // a plane (spec §2.2, guard the division)
-  s /= s[4];
-  const double r2 = s.head<3>().squaredNorm() - 2.0 * s[3];
-  if (!(r2 > 0) || !std::isfinite(r2)) return false;
-  out.center = s.head<3>() * rms + mean;
-  out.radius = std::sqrt(r2) * rms;
-  return true;
 }
 
 // ---------------------------------------------------------------------------
