@@ -9,6 +9,7 @@ void defineRegistration(py::module_& m);
 void defineFeatures(py::module_& m);
 void defineReconstruction(py::module_& m);
 void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
+void defineCga(py::module_& m);
 }  // namespace scanalign::python
 
 PYBIND11_MODULE(_core, m) {
@@ -20,4 +21,6 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineFeatures(features);
   scanalign::python::defineReconstruction(reconstruction);
   scanalign::python::bindSynthetic(m);
+  auto cga = m.def_submodule("cga", "conformal geometric algebra G(4,1)");
+  scanalign::python::defineCga(cga);
 }
