@@ -172,7 +172,12 @@ void defineCga(py::module_& m) {
   });
 
   // ----- typed objects -----
-  py::class_<cga::Sphere>(m, "Sphere")
+  py::class_<cga::Sphere>(m, "Sphere", R"(Dual (IPNS) sphere S* = up(c) - 1/2 r^2 einf (4.59).
+
+center: metres, in the caller's frame; radius: metres (radius2 < 0: imaginary sphere,
+S*^2 < 0 (4.61)). from_dual / from_direct accept any scale (r^2 = S*^2/(einf.S*)^2);
+through_points(a, b, c, d) uses S = PA^PB^PC^PD (4.58). A dual vector with e0
+coefficient 0 is a plane and raises ValueError.)")
       .def(py::init<const Eigen::Vector3d&, double>(), py::arg("center"), py::arg("radius"))
       .def_static("with_radius2", &cga::Sphere::withRadius2, py::arg("center"), py::arg("radius2"))
       .def_static("from_dual", &cga::Sphere::fromDual)
@@ -187,7 +192,12 @@ void defineCga(py::module_& m) {
         return "Sphere(center=" + fmt(s.center) +
                (s.isReal() ? ", radius=" + fmt(s.radius()) : ", radius2=" + fmt(s.radius2) + " (imaginary)") + ")";
       });
-  py::class_<cga::Plane>(m, "Plane")
+  py::class_<cga::Plane>(m, "Plane", R"(Dual plane Pi* = n + delta einf (4.65), |n| = 1.
+
+normal: unit vector (normalised on construction; zero raises ValueError); distance: signed
+distance of the plane from the origin along the normal, metres. point_plane_distance(x, p) =
+x.n - delta (4.67), positive on the side the normal points to. through_points(a, b, c) uses
+the direct plane PA^PB^PC^einf (4.64), whose orientation follows the dual convention.)")
       .def(py::init<const Eigen::Vector3d&, double>(), py::arg("normal"), py::arg("distance"))
       .def_static("through_point", &cga::Plane::throughPoint, py::arg("normal"), py::arg("point"))
       .def_static("through_points", &cga::Plane::throughPoints)
@@ -200,7 +210,8 @@ void defineCga(py::module_& m) {
       .def("__repr__", [](const cga::Plane& p) {
         return "Plane(normal=" + fmt(p.normal) + ", distance=" + fmt(p.distance) + ")";
       });
-  py::class_<cga::Line>(m, "Line")
+  py::class_<cga::Line>(m, "Line", R"(Line through `point` (the closest point to the origin, metres) along the unit
+`direction`. direct() = (p + e0)^d^einf = PA^PB^einf (4.68); dual() = A + b einf.)")
       .def(py::init<const Eigen::Vector3d&, const Eigen::Vector3d&>(), py::arg("point"), py::arg("direction"))
       .def_static("through_points", &cga::Line::throughPoints)
       .def_static("from_direct", &cga::Line::fromDirect)
@@ -212,7 +223,11 @@ void defineCga(py::module_& m) {
       .def("__repr__", [](const cga::Line& l) {
         return "Line(point=" + fmt(l.point) + ", direction=" + fmt(l.direction) + ")";
       });
-  py::class_<cga::Motor>(m, "Motor")
+  py::class_<cga::Motor>(m, "Motor", R"(Rigid motion M = T R (spec §1.9): T = 1 - 1/2 t einf, R = w - (x e23 + y e31 + z e12)
+for the unit quaternion (w, x, y, z). Acts by X -> M X ~M; on a point it gives R x + t
+(metres), so from_matrix(T_a_b) maps frame-b coordinates into frame a. a * b applies b
+first. interpolate(a, b, s) slerps the rotation and lerps the translation (not a screw
+motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
       .def(py::init<>())
       .def_static("from_matrix", &cga::Motor::fromMatrix)
       .def_static("from_quaternion",
