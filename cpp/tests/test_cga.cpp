@@ -222,3 +222,36 @@ TEST(CgaMotor, AppliesRigidTransform) {
   EXPECT_THROW(Motor::fromMatrix(bad), std::invalid_argument);
   EXPECT_THROW(Motor::fromMultivector(Multivector(2.0)), std::invalid_argument);
 }
+
+TEST(CgaObjects, DirectionFormulasAndHorizon) {
+  std::mt19937 g(6);
+  const Multivector e0 = Multivector::e0(), ei = Multivector::eInf();
+  for (int k = 0; k < 10; ++k) {
+    const Vector3 a = randomVec(g), b = randomVec(g);
+    // P1 (18): (L.e0).einf = a - b for L = A^B^einf.
+    const Multivector L = up(a).outer(up(b)).outer(ei);
+    expectMvNear(L.inner(e0).inner(ei), Multivector::vector(a - b), 1e-12);
+    // P1 (19): -(Pi*^einf).e0 = n for Pi* = n + delta einf.
+    const Plane p(randomVec(g), 0.7);
+    expectMvNear(-(p.dual().outer(ei)).inner(e0), Multivector::vector(p.normal), 1e-12);
+    // claim 2: S*.up(x) > 0 inside, < 0 outside
+    const Sphere s(a, 0.5);
+    EXPECT_GT(spherePointInner(s, a + Vector3(0.3, 0, 0)), 0);
+    EXPECT_LT(spherePointInner(s, a + Vector3(0.6, 0, 0)), 0);
+    // Horizon (spec §1.7, claim 8): S* = P1 - 1/2 d^2 einf, K* = P2 + (P2.S*) einf.
+    const Vector3 p1 = a, p2 = a + 2.0 * randomVec(g).normalized();
+    const double d = 0.8;
+    const Multivector S = up(p1) - ei * (0.5 * d * d);
+    const Multivector K = up(p2) + ei * up(p2).inner(S).scalar();
+    EXPECT_NEAR(Sphere::fromDual(K).radius2, (p2 - p1).squaredNorm() - d * d, 1e-12);
+    const Plane pl = Plane::throughPoints(p1, p2, p1 + randomVec(g));
+    const Multivector Q = pl.dual().outer(K.outer(S)).undual();
+    ASSERT_EQ(pointPairReality(Q), Reality::Real);
+    const auto [x1, x2] = pointPairPoints(Q);
+    for (const Vector3& x : {x1, x2}) {
+      EXPECT_NEAR((x - p1).dot(x - p2), 0.0, 1e-9);
+      EXPECT_NEAR((x - p1).norm(), d, 1e-9);
+      EXPECT_NEAR(pointPlaneDistance(x, pl), 0.0, 1e-9);
+    }
+  }
+}
