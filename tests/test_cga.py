@@ -335,3 +335,34 @@ def test_geometric_product_many(rng):
         np.testing.assert_allclose(
             out[i], (cga.Multivector.from_orthonormal(a[i]) * cga.Multivector.from_orthonormal(b[i])).orthonormal_coefficients(),
             atol=1e-12)
+
+
+def test_circle_from_sphere_plane_meet(rng):
+    for _ in range(10):
+        c, r = rng.uniform(-1, 1, 3), rng.uniform(0.5, 1.0)
+        p = cga.Plane.through_point(rng.standard_normal(3), c + 0.3 * rng.standard_normal(3) * 0.5)
+        h = cga.point_plane_distance(c, p)
+        if abs(h) >= r:
+            continue
+        circ = cga.Circle.from_dual(cga.meet_sphere_plane(cga.Sphere(c, r), p))
+        np.testing.assert_allclose(circ.center, c - h * p.normal, atol=1e-9)      # foot of the centre
+        assert circ.radius == pytest.approx(np.sqrt(r * r - h * h), abs=1e-9)
+        assert abs(circ.normal @ p.normal) == pytest.approx(1.0, abs=1e-9)
+        again = cga.Circle.from_direct(circ.direct())
+        np.testing.assert_allclose(again.center, circ.center, atol=1e-9)
+        assert again.radius == pytest.approx(circ.radius, abs=1e-9)
+        # the same circle built in clifford from three of its points
+        a, b, d = (cl_up(x) for x in (c - h * p.normal + circ.radius * u for u in _orthonormal_in_plane(circ.normal)))
+        np.testing.assert_allclose(cga.round_center(from_cl(a ^ b ^ d)), circ.center, atol=1e-9)
+    with pytest.raises(ValueError):
+        cga.Circle.from_dual(cga.meet_sphere_plane(cga.Sphere([0, 0, 0], 1.0), cga.Plane([0, 0, 1], 2.0)))
+    assert repr(cga.Circle([0, 0, 0], [0, 0, 2], 0.5)) == "Circle(center=[0., 0., 0.], normal=[0., 0., 1.], radius=0.5)"
+
+
+def _orthonormal_in_plane(n):
+    u = np.cross(n, [1.0, 0, 0])
+    if np.linalg.norm(u) < 0.5:
+        u = np.cross(n, [0, 1.0, 0])
+    u /= np.linalg.norm(u)
+    v = np.cross(n, u)
+    return (u, v, -u)

@@ -40,7 +40,7 @@ import numpy as np
 from ._core import cga as _c
 
 __all__ = [
-    "Multivector", "Sphere", "Plane", "Line", "Motor", "Point", "Reality",
+    "Multivector", "Sphere", "Plane", "Line", "Motor", "Point", "Circle", "Reality",
     "e0", "e1", "e2", "e3", "einf", "Ic", "I3", "blade_names",
     "up", "down", "to_vector5", "from_vector5", "inner_product_matrix",
     "point_pair", "point_pair_points", "point_pair_reality", "flat_point", "flat_point_location",
@@ -209,3 +209,59 @@ class Point:
 
     def __repr__(self) -> str:
         return "Point(" + np.array2string(self.position, separator=", ", precision=6) + ")"
+
+
+class Circle:
+    """A circle: ``center`` (metres), unit ``normal`` of its carrier plane, ``radius`` (metres).
+
+    ``direct()`` is ``up(a) ^ up(b) ^ up(c)`` for three points on it (4.57), built from the
+    centre, normal and radius; :meth:`from_direct` reads any direct circle (centre
+    ``C einf C``, radius from ``<C C^> / <(einf _| C)^2>``, normal from the plane ``C ^ einf``
+    (4.64)); :meth:`from_dual` reads a meet result such as ``meet_sphere_plane`` (the dual
+    ``C*``; its undual ``C* Ic`` is the direct circle). Raises ``ValueError`` for an
+    imaginary circle (radius^2 < 0) or a line (a circle through infinity)."""
+
+    __slots__ = ("center", "normal", "radius")
+
+    def __init__(self, center, normal, radius: float) -> None:
+        self.center = _vec3(center, "circle centre")
+        n = _vec3(normal, "circle normal")
+        ln = float(np.linalg.norm(n))
+        if not ln > 1e-12:
+            raise ValueError("circle normal is zero")
+        self.normal = n / ln
+        if not (np.isfinite(radius) and radius >= 0):
+            raise ValueError("circle radius must be finite and >= 0")
+        self.radius = float(radius)
+
+    @classmethod
+    def through_points(cls, a, b, c) -> "Circle":
+        return cls.from_direct(circle(a, b, c))
+
+    @classmethod
+    def from_direct(cls, C: Multivector) -> "Circle":
+        r2 = _c.round_radius2(C)
+        if r2 < 0:
+            raise ValueError(f"imaginary circle (radius^2 = {r2:g})")
+        plane = Plane.from_direct(C ^ einf)
+        return cls(_c.round_center(C), plane.normal, float(np.sqrt(r2)))
+
+    @classmethod
+    def from_dual(cls, Cs: Multivector) -> "Circle":
+        return cls.from_direct(Cs.undual())
+
+    def direct(self) -> Multivector:
+        u = np.cross(self.normal, [1.0, 0.0, 0.0])
+        if np.linalg.norm(u) < 0.5:
+            u = np.cross(self.normal, [0.0, 1.0, 0.0])
+        u /= np.linalg.norm(u)
+        v = np.cross(self.normal, u)
+        c, r = self.center, self.radius
+        return circle(c + r * u, c + r * v, c - r * u)
+
+    def dual(self) -> Multivector:
+        return self.direct().dual()
+
+    def __repr__(self) -> str:
+        f = lambda v: np.array2string(np.asarray(v), separator=", ", precision=6)  # noqa: E731
+        return f"Circle(center={f(self.center)}, normal={f(self.normal)}, radius={self.radius:.6g})"
