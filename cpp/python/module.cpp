@@ -11,6 +11,7 @@ void defineReconstruction(py::module_& m);
 void defineSegmentation(py::module_& m);
 void defineFitting(py::module_& m);
 void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
+void defineCga(py::module_& m);
 }  // namespace scanalign::python
 
 PYBIND11_MODULE(_core, m) {
@@ -26,4 +27,6 @@ PYBIND11_MODULE(_core, m) {
   auto fitting = m.def_submodule("fitting", "CGA sphere fit, Pratt circle fit");
   scanalign::python::defineFitting(fitting);
   scanalign::python::bindSynthetic(m);
+  auto cga = m.def_submodule("cga", "conformal geometric algebra G(4,1)");
+  scanalign::python::defineCga(cga);
 }

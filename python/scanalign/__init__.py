@@ -16,6 +16,7 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.synthetic` -- the synthetic eye-in-hand RGB-D scanner (ground truth known).
 - :mod:`scanalign.pipeline` -- the reconstruction job: frames in, model, trajectory and report out.
 - :mod:`scanalign.evaluation` -- ATE / RPE (Sturm et al. 2012), exact cloud-to-mesh distance.
+- :mod:`scanalign.cga` -- conformal geometric algebra G(4,1): points, spheres, planes, lines, motors.
 - :mod:`scanalign.plots` -- trajectory, per-frame and benchmark figures (matplotlib, Agg).
 
 Units are metres and radians throughout.  A transform named ``T_a_b`` is a 4x4
@@ -31,7 +32,7 @@ from typing import Any
 __version__ = "0.1.0"
 
 _SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "camera", "trajectory", "tum",
-               "synthetic", "segmentation", "fitting", "pipeline", "evaluation", "plots", "cli")
+               "synthetic", "cga", "fitting", "segmentation", "pipeline", "evaluation", "plots", "cli")
 
 __all__ = ["__version__", *_SUBMODULES]
 

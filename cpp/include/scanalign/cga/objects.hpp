@@ -1,0 +1,448 @@
+// Typed CGA objects (thesis spec §1.3-1.9): points, dual spheres and planes, lines,
+// point pairs, flat points, rotors, translators, motors; meets, distances and the 5x5
+// matrix form of the inner product. Units: metres and radians.
+#pragma once
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "scanalign/cga/multivector.hpp"
+
+namespace scanalign::cga {
+
+using Vector3 = Eigen::Vector3d;
+using Vector5 = Eigen::Matrix<double, 5, 1>;
+using Matrix5 = Eigen::Matrix<double, 5, 5>;
+
+namespace detail {
+inline void requireFinite(const Vector3& v, const char* what) {
+  if (!v.allFinite()) throw std::invalid_argument(std::string("cga: ") + what + " is not finite");
+}
+inline void requireFinite(double v, const char* what) {
+  if (!std::isfinite(v)) throw std::invalid_argument(std::string("cga: ") + what + " is not finite");
+}
+inline void requireFinite(const Multivector& m, const char* what) {
+  if (!m.allFinite()) throw std::invalid_argument(std::string("cga: ") + what + " is not finite");
+}
+inline Vector3 euclidean(const Multivector& m) {
+  const auto& c = m.orthonormal();
+  return {c[1], c[2], c[4]};
+}
+}  // namespace detail
+
+// ---------------------------------------------------------------------------
+// Vector (grade-1) coefficients and the matrix form (4.55), (4.60), (4.66), (5.32)
+// ---------------------------------------------------------------------------
+
+/// Coefficients of a conformal vector in the order (e1, e2, e3, einf, e0) (spec §1.3 table).
+inline Vector5 toVector5(const Multivector& v) {
+  const auto n = v.nullCoefficients();
+  return {n[2], n[4], n[8], n[16], n[1]};
+}
+inline Multivector fromVector5(const Vector5& x) {
+  Multivector::Coeffs n = Multivector::Coeffs::Zero();
+  n[2] = x[0];
+  n[4] = x[1];
+  n[8] = x[2];
+  n[16] = x[3];
+  n[1] = x[4];
+  return Multivector::fromNull(n);
+}
+/// M with X . Y = [X]^T M [Y] for vectors in (e1, e2, e3, einf, e0) coefficients (5.32).
+inline Matrix5 innerProductMatrix() {
+  Matrix5 M = Matrix5::Zero();
+  M(0, 0) = M(1, 1) = M(2, 2) = 1;
+  M(3, 4) = M(4, 3) = -1;
+  return M;
+}
+
+// ---------------------------------------------------------------------------
+// Points (4.54)
+// ---------------------------------------------------------------------------
+
+/// up(x) = x + 1/2 x^2 einf + e0 (4.54).
+inline Multivector up(const Vector3& x) {
+  detail::requireFinite(x, "point");
+  return fromVector5((Vector5() << x, 0.5 * x.squaredNorm(), 1.0).finished());
+}
+/// Euclidean point of a (possibly scaled) conformal point: x = P / (-einf . P), Euclidean part.
+/// Throws when -einf . P is 0 (a point at infinity / not a point).
+inline Vector3 down(const Multivector& P) {
+  detail::requireFinite(P, "point");
+  const Vector5 v = toVector5(P);
+  const double w = v[4];
+  if (!(std::abs(w) > 1e-12 * std::max(1.0, v.head<3>().norm())))
+    throw std::domain_error("cga: down() of a multivector with zero e0 coefficient (not a finite point)");
+  return v.head<3>() / w;
+}
+/// P scaled so that -einf . P = 1 (e0 coefficient 1).
+inline Multivector normalisePoint(const Multivector& P) { return up(down(P)); }
+
+// ---------------------------------------------------------------------------
+// Dual sphere S* = up(c) - 1/2 r^2 einf (4.59), dual plane Pi* = n + delta einf (4.65)
+// ---------------------------------------------------------------------------
+
+struct Sphere {
+  Vector3 center = Vector3::Zero();
+  /// Squared radius, m^2; negative for an imaginary sphere (S*^2 < 0, (4.61)).
+  double radius2 = 0;
+
+  Sphere() = default;
+  Sphere(const Vector3& c, double radius) : center(c), radius2(radius * radius) {
+    detail::requireFinite(c, "sphere centre");
+    detail::requireFinite(radius, "sphere radius");
+    if (radius < 0) throw std::invalid_argument("cga: sphere radius must be >= 0");
+  }
+  static Sphere withRadius2(const Vector3& c, double r2) {
+    Sphere s;
+    detail::requireFinite(c, "sphere centre");
+    detail::requireFinite(r2, "sphere radius^2");
+    s.center = c;
+    s.radius2 = r2;
+    return s;
+  }
+  bool isReal() const { return radius2 >= 0; }
+  /// Radius, m; throws for an imaginary sphere.
+  double radius() const {
+    if (radius2 < 0) throw std::domain_error("cga: imaginary sphere has no real radius");
+    return std::sqrt(radius2);
+  }
+  /// The dual (IPNS) sphere S* (4.59), e0-normalised.
+  Multivector dual() const { return up(center) - Multivector::eInf() * (0.5 * radius2); }
+  /// From any scaled dual sphere; r^2 = S*^2/(einf.S*)^2 (spec §1.3). Throws for a plane
+  /// (e0 coefficient ~ 0) or a multivector that is not a vector.
+  static Sphere fromDual(const Multivector& S) {
+    detail::requireFinite(S, "sphere");
+    if ((S - S.grade(1)).maxAbs() > 1e-9 * std::max(1.0, S.maxAbs()))
+      throw std::invalid_argument("cga: a dual sphere must be a vector (grade 1)");
+    const Vector5 v = toVector5(S);
+    if (!(std::abs(v[4]) > 1e-12 * std::max(1.0, v.norm())))
+      throw std::domain_error("cga: e0 coefficient is 0: this is a plane, not a sphere");
+    const Vector5 u = v / v[4];
+    return withRadius2(u.head<3>(), u.head<3>().squaredNorm() - 2 * u[3]);
+  }
+  /// From the direct sphere S = PA^PB^PC^PD (4.58) (any orientation).
+  static Sphere fromDirect(const Multivector& S) { return fromDual(S.dual()); }
+  static Sphere throughPoints(const Vector3& a, const Vector3& b, const Vector3& c, const Vector3& d) {
+    return fromDirect(up(a).outer(up(b)).outer(up(c)).outer(up(d)));
+  }
+};
+
+struct Plane {
+  Vector3 normal = Vector3::UnitZ();  ///< unit normal
+  double distance = 0;                ///< signed distance from the origin along the normal, m
+
+  Plane() = default;
+  /// n need not be unit (it is normalised); throws for a zero normal.
+  Plane(const Vector3& n, double delta) {
+    detail::requireFinite(n, "plane normal");
+    detail::requireFinite(delta, "plane distance");
+    const double l = n.norm();
+    if (!(l > 1e-12)) throw std::invalid_argument("cga: plane normal is zero");
+    normal = n / l;
+    distance = delta / l;
+  }
+  static Plane throughPoint(const Vector3& n, const Vector3& p) {
+    detail::requireFinite(p, "plane point");
+    const Plane q(n, 0.0);
+    return Plane(q.normal, q.normal.dot(p));
+  }
+  /// Pi* = n + delta einf (4.65).
+  Multivector dual() const { return Multivector::vector(normal) + Multivector::eInf() * distance; }
+  /// Direct plane Pi = Pi* Ic (undual, (4.51)).
+  Multivector direct() const { return dual().undual(); }
+  /// From a scaled dual plane (normalised so |n| = 1; the orientation kept).
+  static Plane fromDual(const Multivector& P) {
+    detail::requireFinite(P, "plane");
+    if ((P - P.grade(1)).maxAbs() > 1e-9 * std::max(1.0, P.maxAbs()))
+      throw std::invalid_argument("cga: a dual plane must be a vector (grade 1)");
+    const Vector5 v = toVector5(P);
+    const double l = v.head<3>().norm();
+    if (!(l > 1e-12) || std::abs(v[4]) > 1e-9 * l)
+      throw std::domain_error("cga: not a plane (e0 coefficient must be 0 and the normal non-zero)");
+    return Plane(v.head<3>(), v[3]);
+  }
+  /// From the direct plane PA^PB^PC^einf (4.64). The orientation follows the dual
+  /// convention (spec §1.3: the plane through (0,0,1),(1,0,1),(0,1,1) gives -(e3 + einf)).
+  static Plane fromDirect(const Multivector& P) { return fromDual(P.dual()); }
+  static Plane throughPoints(const Vector3& a, const Vector3& b, const Vector3& c) {
+    return fromDirect(up(a).outer(up(b)).outer(up(c)).outer(Multivector::eInf()));
+  }
+};
+
+// ---------------------------------------------------------------------------
+// Lines (4.68): L = PA^PB^einf = (p + e0)^d^einf (P4)
+// ---------------------------------------------------------------------------
+
+struct Line {
+  Vector3 point = Vector3::Zero();          ///< closest point to the origin, m
+  Vector3 direction = Vector3::UnitZ();     ///< unit direction
+
+  Line() = default;
+  Line(const Vector3& p, const Vector3& d) {
+    detail::requireFinite(p, "line point");
+    detail::requireFinite(d, "line direction");
+    const double l = d.norm();
+    if (!(l > 1e-12)) throw std::invalid_argument("cga: line direction is zero");
+    direction = d / l;
+    point = p - direction * direction.dot(p);
+  }
+  static Line throughPoints(const Vector3& a, const Vector3& b) { return Line(a, b - a); }
+  /// Direct line (p + e0)^d^einf (P4), = up(a)^up(a+d)^einf (4.68).
+  Multivector direct() const {
+    return (Multivector::vector(point) + Multivector::e0()).outer(Multivector::vector(direction)).outer(Multivector::eInf());
+  }
+  /// Dual line l* = A + b einf (spec §1.3).
+  Multivector dual() const { return direct().dual(); }
+  /// From a direct line (any scale). The direction is the e0^ei^einf part (= -(L.e0).einf
+  /// of (4.68)'s spec §1.8 formula (18)); the moment p^d is the ei^ej^einf part.
+  static Line fromDirect(const Multivector& L) {
+    detail::requireFinite(L, "line");
+    const auto n = L.nullCoefficients();
+    // e0^ei^einf: bits 1|2^i|16 ; ei^ej^einf: bits 2^i|2^j|16
+    const Vector3 d(n[1 | 2 | 16], n[1 | 4 | 16], n[1 | 8 | 16]);
+    const Vector3 m(n[4 | 8 | 16], -n[2 | 8 | 16], n[2 | 4 | 16]);  // (p^d) as p x d: (e23, e31, e12)
+    const double l2 = d.squaredNorm();
+    if (!(l2 > 1e-24)) throw std::domain_error("cga: not a line (zero direction)");
+    return Line(d.cross(m) / l2, d);
+  }
+  static Line fromDual(const Multivector& Ls) { return fromDirect(Ls.undual()); }
+};
+
+// ---------------------------------------------------------------------------
+// Point pairs Q = PA^PB (4.62), (4.63), spec §1.4-1.5
+// ---------------------------------------------------------------------------
+
+enum class Reality { Real, Tangent, Imaginary };
+
+/// Q^2 = Q.Q sign test (spec §1.4): >0 real, =0 tangent, <0 imaginary. `tol` is relative to
+/// the squared magnitude of Q.
+inline Reality pointPairReality(const Multivector& Q, double tol = 1e-10) {
+  detail::requireFinite(Q, "point pair");
+  const double q2 = (Q * Q).scalar();
+  const double s = Q.orthonormal().squaredNorm();
+  if (q2 > tol * s) return Reality::Real;
+  if (q2 < -tol * s) return Reality::Imaginary;
+  return Reality::Tangent;
+}
+
+/// The two points of a direct point pair: P+- = (Q +- sqrt(Q^2)) / (-einf . Q) (4.63);
+/// for Q = up(a)^up(b), first = a ("-"), second = b ("+"). Throws for an imaginary pair
+/// or a pair with a point at infinity; a tangent pair returns the touching point twice.
+inline std::pair<Vector3, Vector3> pointPairPoints(const Multivector& Q) {
+  const Reality r = pointPairReality(Q);
+  if (r == Reality::Imaginary) throw std::domain_error("cga: imaginary point pair (Q^2 < 0): no real points");
+  const double q2 = std::max(0.0, (Q * Q).scalar());
+  const double s = r == Reality::Tangent ? 0.0 : std::sqrt(q2);
+  const Multivector d = -(Multivector::eInf().inner(Q));
+  const Multivector dinv = d.inverse();
+  const Multivector Pm = (Q - Multivector(s)) * dinv;
+  const Multivector Pp = (Q + Multivector(s)) * dinv;
+  return {down(Pm), down(Pp)};
+}
+
+/// Direct point pair through two points.
+inline Multivector pointPair(const Vector3& a, const Vector3& b) { return up(a).outer(up(b)); }
+
+/// Flat point P^einf (4.69); its location from any scaled flat point.
+inline Multivector flatPoint(const Vector3& p) { return up(p).outer(Multivector::eInf()); }
+inline Vector3 flatPointLocation(const Multivector& F) {
+  detail::requireFinite(F, "flat point");
+  const auto n = F.nullCoefficients();
+  // up(p)^einf = p^einf + e0^einf: coefficients ei^einf = p_i, e0^einf = 1.
+  const double w = n[1 | 16];
+  if (!(std::abs(w) > 1e-12 * std::max(1.0, F.maxAbs()))) throw std::domain_error("cga: not a flat point");
+  return Vector3(n[2 | 16], n[4 | 16], n[8 | 16]) / w;
+}
+
+// ---------------------------------------------------------------------------
+// Rounds (circles from three points); centre and radius of direct rounds
+// ---------------------------------------------------------------------------
+
+/// Direct circle through three points (4.57).
+inline Multivector circle(const Vector3& a, const Vector3& b, const Vector3& c) {
+  return up(a).outer(up(b)).outer(up(c));
+}
+/// Centre of a direct round (point pair, circle, sphere): X einf X (normalised).
+inline Vector3 roundCenter(const Multivector& X) { return down(X * Multivector::eInf() * X); }
+/// Squared radius of a direct round (point pair, circle, sphere):
+/// rho^2 = <X X^>_0 / <D D>_0 with D = einf _| X and ^ the grade involution (Dorst et al.
+/// 2007, §14.2; checked against circles and point pairs through known points).
+inline double roundRadius2(const Multivector& X) {
+  detail::requireFinite(X, "round");
+  const Multivector d = Multivector::eInf().leftContraction(X);
+  const double den = (d * d).scalar();
+  if (!(std::abs(den) > 1e-12 * std::max(1e-300, X.orthonormal().squaredNorm())))
+    throw std::domain_error("cga: not a finite round");
+  return (X * X.involute()).scalar() / den;
+}
+
+// ---------------------------------------------------------------------------
+// Meets (4.70)-(4.73): dual results M* = A*^B*
+// ---------------------------------------------------------------------------
+
+/// Dual circle C* = Pi* ^ S* (sphere meet plane).
+inline Multivector meetSpherePlane(const Sphere& s, const Plane& p) { return p.dual().outer(s.dual()); }
+/// Dual line L* = Pi1* ^ Pi2*.
+inline Multivector meetPlanes(const Plane& a, const Plane& b) { return a.dual().outer(b.dual()); }
+/// Dual circle C* = S1* ^ S2*.
+inline Multivector meetSpheres(const Sphere& a, const Sphere& b) { return a.dual().outer(b.dual()); }
+/// Dual point pair Q* = Pi* ^ C* for a dual circle C*; the direct pair is Q*.undual().
+inline Multivector meetPlaneCircle(const Plane& p, const Multivector& dualCircle) { return p.dual().outer(dualCircle); }
+/// Flat point Pi* . L (4.73) for a direct line L.
+inline Multivector meetLinePlane(const Line& l, const Plane& p) { return p.dual().inner(l.direct()); }
+
+// ---------------------------------------------------------------------------
+// Distances (4.56), (4.67), P5(10)
+// ---------------------------------------------------------------------------
+
+/// |a - b| from d^2 = -2 PA.PB (4.56).
+inline double pointDistance(const Vector3& a, const Vector3& b) {
+  return std::sqrt(std::max(0.0, -2.0 * up(a).inner(up(b)).scalar()));
+}
+/// Signed distance P.Pi* = p.n - delta (4.67): positive on the side the normal points to.
+inline double pointPlaneDistance(const Vector3& x, const Plane& p) { return up(x).inner(p.dual()).scalar(); }
+/// S*.P = 1/2 (r^2 - |p-c|^2) (spec §1.6): > 0 inside, 0 on, < 0 outside.
+inline double spherePointInner(const Sphere& s, const Vector3& x) { return s.dual().inner(up(x)).scalar(); }
+/// Distance from the sphere's centre, d_c^2 = S.S - 2 S.P (P5(10)).
+inline double pointSphereCenterDistance(const Vector3& x, const Sphere& s) {
+  const Multivector S = s.dual();
+  return std::sqrt(std::max(0.0, S.inner(S).scalar() - 2 * S.inner(up(x)).scalar()));
+}
+/// Signed distance to the surface of a real sphere: |x - c| - r (> 0 outside).
+inline double pointSphereDistance(const Vector3& x, const Sphere& s) {
+  return pointSphereCenterDistance(x, s) - s.radius();
+}
+
+// ---------------------------------------------------------------------------
+// Rotors, translators, motors (spec §1.9, P4 §3.5, P5 (33)-(35))
+// ---------------------------------------------------------------------------
+
+/// Rotor of a unit quaternion (w, x, y, z): R = w - (x e23 + y e31 + z e12) (spec §1.9).
+inline Multivector rotorFromQuaternion(const Eigen::Quaterniond& q) {
+  const Eigen::Quaterniond u = q.normalized();
+  Multivector R(u.w());
+  R.orthonormal()[6] = -u.x();   // e23
+  R.orthonormal()[5] = u.y();    // e13 = -e31
+  R.orthonormal()[3] = -u.z();   // e12
+  return R;
+}
+/// R = cos(theta/2) - sin(theta/2) B, B = axis* (unit bivector), right-handed about axis.
+inline Multivector rotor(const Vector3& axis, double angle) {
+  detail::requireFinite(axis, "rotation axis");
+  detail::requireFinite(angle, "rotation angle");
+  if (!(axis.norm() > 1e-12)) throw std::invalid_argument("cga: rotation axis is zero");
+  return rotorFromQuaternion(Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis.normalized())));
+}
+/// T = 1 - 1/2 t einf (spec §1.9).
+inline Multivector translator(const Vector3& t) {
+  detail::requireFinite(t, "translation");
+  return Multivector(1.0) - Multivector::vector(t).outer(Multivector::eInf()) * 0.5;
+}
+
+/// A rigid motion M = T R (spec §1.9) acting by X -> M X ~M; applied to a point it gives
+/// R x + t (claim 10). Stored as the 32-coefficient multivector (8 non-zero, P5(34)).
+class Motor {
+ public:
+  Motor() : m_(1.0) {}
+  static Motor fromRotationTranslation(const Eigen::Matrix3d& R, const Vector3& t) {
+    if (!R.allFinite()) throw std::invalid_argument("cga: rotation is not finite");
+    if (!(R.transpose() * R - Eigen::Matrix3d::Identity()).isZero(1e-6) || R.determinant() < 0)
+      throw std::invalid_argument("cga: matrix is not a rotation");
+    return fromQuaternion(Eigen::Quaterniond(R), t);
+  }
+  static Motor fromMatrix(const Eigen::Matrix4d& T) {
+    if (!T.allFinite()) throw std::invalid_argument("cga: transform is not finite");
+    if (!T.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1), 1e-12))
+      throw std::invalid_argument("cga: last row of a rigid transform must be (0, 0, 0, 1)");
+    return fromRotationTranslation(T.topLeftCorner<3, 3>(), T.topRightCorner<3, 1>());
+  }
+  static Motor fromQuaternion(const Eigen::Quaterniond& q, const Vector3& t) {
+    if (!q.coeffs().allFinite() || !(q.norm() > 1e-12)) throw std::invalid_argument("cga: bad quaternion");
+    Motor m;
+    m.m_ = translator(t) * rotorFromQuaternion(q);
+    return m;
+  }
+  /// From a motor multivector; checks M in the motor space and M~M = 1 (P5 (34)-(35)).
+  static Motor fromMultivector(const Multivector& M, double tol = 1e-8) {
+    detail::requireFinite(M, "motor");
+    const auto& c = M.orthonormal();
+    // Motor space span{1, e23, e31, e12, e1inf, e2inf, e3inf, e123inf}: the even grades
+    // without e0 components. Check evenness and M~M = 1, and that M einf ~M = einf.
+    Multivector odd = M - M.grade(0) - M.grade(2) - M.grade(4);
+    if (odd.maxAbs() > tol) throw std::invalid_argument("cga: a motor has even grade only");
+    const Multivector mm = M * M.reverse();
+    if ((mm - Multivector(1.0)).maxAbs() > tol) throw std::invalid_argument("cga: not a unit motor (M~M != 1)");
+    const Multivector ei = M * Multivector::eInf() * M.reverse();
+    if ((ei - Multivector::eInf()).maxAbs() > tol * std::max(1.0, c.norm() * c.norm()))
+      throw std::invalid_argument("cga: not a rigid motor (einf not preserved)");
+    Motor m;
+    m.m_ = M;
+    return m;
+  }
+  const Multivector& multivector() const { return m_; }
+
+  /// Rotation part R (a rotor): the grade-0 and Euclidean bivector parts of M.
+  Multivector rotor() const {
+    const auto& c = m_.orthonormal();
+    Multivector R(c[0]);
+    R.orthonormal()[3] = c[3];
+    R.orthonormal()[5] = c[5];
+    R.orthonormal()[6] = c[6];
+    return R;
+  }
+  Eigen::Quaterniond quaternion() const {
+    const auto& c = m_.orthonormal();
+    Eigen::Quaterniond q(c[0], -c[6], c[5], -c[3]);
+    return q.normalized();
+  }
+  /// t from T = M ~R = 1 - 1/2 t einf.
+  Vector3 translation() const {
+    const Multivector T = m_ * rotor().reverse();
+    return Vector3(-2 * T.get("e1inf"), -2 * T.get("e2inf"), -2 * T.get("e3inf"));
+  }
+  Eigen::Matrix3d rotationMatrix() const { return quaternion().toRotationMatrix(); }
+  Eigen::Matrix4d matrix() const {
+    Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+    T.topLeftCorner<3, 3>() = rotationMatrix();
+    T.topRightCorner<3, 1>() = translation();
+    return T;
+  }
+  /// Composition: (a * b) applies b first, then a.
+  Motor operator*(const Motor& o) const {
+    Motor m;
+    m.m_ = m_ * o.m_;
+    return m;
+  }
+  Motor inverse() const {
+    Motor m;
+    m.m_ = m_.reverse();
+    return m;
+  }
+  /// M X ~M for any multivector (points, dual planes/spheres, lines, ...).
+  Multivector apply(const Multivector& X) const { return m_ * X * m_.reverse(); }
+  Vector3 apply(const Vector3& x) const { return down(apply(up(x))); }
+  Plane apply(const Plane& p) const { return Plane::fromDual(apply(p.dual())); }
+  Sphere apply(const Sphere& s) const { return Sphere::fromDual(apply(s.dual())); }
+  Line apply(const Line& l) const { return Line::fromDirect(apply(l.direct())); }
+
+  /// Interpolation at s in [0, 1]: rotation by quaternion slerp, translation by linear
+  /// interpolation (not a screw motion; the endpoints are exact).
+  static Motor interpolate(const Motor& a, const Motor& b, double s) {
+    detail::requireFinite(s, "interpolation parameter");
+    const Eigen::Quaterniond q = a.quaternion().slerp(s, b.quaternion());
+    const Vector3 t = (1 - s) * a.translation() + s * b.translation();
+    return fromQuaternion(q, t);
+  }
+
+ private:
+  Multivector m_;
+};
+
+}  // namespace scanalign::cga
