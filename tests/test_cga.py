@@ -366,3 +366,147 @@ def _orthonormal_in_plane(n):
     u /= np.linalg.norm(u)
     v = np.cross(n, u)
     return (u, v, -u)
+
+
+# --- spec §1.8: signed angle (17), rotation planes (20), (21); claim 9 ----------------------
+
+
+def _cl_vec(x):
+    return x[0] * B["e1"] + x[1] * B["e2"] + x[2] * B["e3"]
+
+
+def test_signed_angle_claim9_numpy_and_clifford():
+    rng = np.random.default_rng(91)
+    I3c = B["e1"] ^ B["e2"] ^ B["e3"]
+    for _ in range(100):
+        n = rng.normal(size=3)
+        n /= np.linalg.norm(n)
+        a, b = rng.normal(size=3) * 2, rng.normal(size=3) * 2
+        a -= n * (n @ a)
+        b -= n * (n @ b)
+        N = cga.rotation_plane_from_axis(n)
+        # clifford: N = n I3, unit, and its Euclidean dual is n
+        Nc = _cl_vec(n) * I3c
+        np.testing.assert_allclose(to_cl(N).value, Nc.value, atol=1e-12)
+        np.testing.assert_allclose(cga.rotation_axis(N), n, atol=1e-12)
+        # (a^b) N^{-1} and a.b from clifford, then (17)
+        s_cl = float(((_cl_vec(a) ^ _cl_vec(b)) * Nc.inv())[()])
+        c_cl = float((_cl_vec(a) | _cl_vec(b))[()])
+        truth = np.arctan2(np.cross(a, b) @ n, a @ b)  # numpy oracle (claim 9)
+        th = cga.signed_angle(a, b, N)
+        assert th == pytest.approx(truth, abs=1e-10)
+        assert np.arctan2(s_cl, c_cl) == pytest.approx(truth, abs=1e-10)
+        assert cga.signed_angle(a, b, -2.0 * N) == pytest.approx(-truth, abs=1e-10)
+        assert cga.signed_angle(cga.Multivector.vector(a), b, N) == pytest.approx(truth, abs=1e-10)
+    assert cga.signed_angle([1, 0, 0], [0, 1, 0], cga.e1 ^ cga.e2) == pytest.approx(np.pi / 2)
+    with pytest.raises(ValueError):
+        cga.signed_angle([1, 0, 0], [0, 1, 0], cga.Multivector())
+    with pytest.raises(ValueError):
+        cga.rotation_plane_from_axis([0, 0, 0])
+
+
+def test_rotation_planes_line_and_plane_vs_clifford():
+    rng = np.random.default_rng(92)
+    for _ in range(30):
+        a, b = rng.uniform(-3, 3, 3), rng.uniform(-3, 3, 3)
+        L = cga.up(a) ^ cga.up(b) ^ cga.einf
+        N = cga.rotation_plane_perpendicular_to_line(L.dual())
+        # (20) in clifford: (L* ^ einf) . e0, normalised
+        Lc = cl_up(a) ^ cl_up(b) ^ C_EINF
+        Nc = (Lc * C_IC.inv()) ^ C_EINF
+        Nc = Nc | C_E0
+        Nc = Nc / np.sqrt(abs(float((Nc * ~Nc)[()])))
+        np.testing.assert_allclose(to_cl(N).value, Nc.value, atol=1e-10)
+        np.testing.assert_allclose(cga.rotation_axis(N), (b - a) / np.linalg.norm(b - a), atol=1e-9)
+        line = cga.Line(a, b - a)
+        np.testing.assert_allclose(
+            cga.rotation_axis(cga.rotation_plane_perpendicular_to_line(line)), (b - a) / np.linalg.norm(b - a), atol=1e-9
+        )
+        # (21): (Pi . e0) . einf, normalised, with Pi = PA^PB^PC^einf (4.64)
+        p, q, r = rng.uniform(-2, 2, (3, 3))
+        Pi = cga.up(p) ^ cga.up(q) ^ cga.up(r) ^ cga.einf
+        N2 = cga.rotation_plane_parallel_to_plane(Pi)
+        Pic = cl_up(p) ^ cl_up(q) ^ cl_up(r) ^ C_EINF
+        N2c = (Pic | C_E0) | C_EINF
+        N2c = N2c / np.sqrt(abs(float((N2c * ~N2c)[()])))
+        np.testing.assert_allclose(to_cl(N2).value, N2c.value, atol=1e-10)
+        normal = np.cross(q - p, r - p)
+        normal /= np.linalg.norm(normal)
+        np.testing.assert_allclose(cga.rotation_axis(N2), normal, atol=1e-9)  # right-hand normal
+        # the typed Plane is oriented explicitly: axis = its normal
+        pl = cga.Plane(-normal, float(-normal @ p))
+        np.testing.assert_allclose(cga.rotation_axis(cga.rotation_plane_parallel_to_plane(pl)), -normal, atol=1e-9)
+
+
+# --- typed PointPair / FlatPoint (spec §1.3-1.5, claim 5) -----------------------------------
+
+
+def test_point_pair_claim5_vs_clifford():
+    rng = np.random.default_rng(93)
+    for _ in range(30):
+        a, b = rng.uniform(-2, 2, 3), rng.uniform(-2, 2, 3)
+        Q = cga.PointPair.from_points(a, b)
+        Qc = cl_up(a) ^ cl_up(b)
+        np.testing.assert_allclose(to_cl(Q.direct).value, Qc.value, atol=1e-12)
+        h = 0.5 * float((a - b) @ (a - b))
+        q2_cl = float((Qc * Qc)[()])
+        assert Q.square() == pytest.approx(h * h, rel=1e-10)
+        assert q2_cl == pytest.approx(h * h, rel=1e-10)
+        assert Q.reality() == cga.Reality.real
+        # (4.63) in clifford: (Q +- sqrt(Q^2)) / (-einf . Q) -> up(b), up(a), normalised
+        d = -(C_EINF | Qc)
+        Pp = (Qc + np.sqrt(q2_cl)) * d.inv()
+        Pm = (Qc - np.sqrt(q2_cl)) * d.inv()
+        np.testing.assert_allclose(Pp.value, cl_up(b).value, atol=1e-9)
+        np.testing.assert_allclose(Pm.value, cl_up(a).value, atol=1e-9)
+        pm, pp = Q.points()
+        np.testing.assert_allclose(pm, a, atol=1e-9)
+        np.testing.assert_allclose(pp, b, atol=1e-9)
+        # free functions still agree
+        pm2, pp2 = cga.point_pair_points(cga.point_pair(a, b))
+        np.testing.assert_allclose(pm2, a, atol=1e-9)
+        assert "PointPair(real" in repr(Q)
+        np.testing.assert_allclose(to_cl(cga.PointPair.from_dual(Q.dual()).direct).value, Qc.value, atol=1e-12)
+    with pytest.raises(ValueError):
+        cga.PointPair.from_direct(cga.e1)
+
+
+def test_point_pair_from_meet_real_tangent_imaginary():
+    C = cga.meet_sphere_plane(cga.Sphere([0, 0, 0], 1.0), cga.Plane([0, 0, 1], 0.0))  # unit circle
+    Q = cga.meet_plane_circle_pair(cga.Plane([1, 0, 0], 0.6), C)
+    assert Q.reality() == cga.Reality.real
+    pts = sorted(Q.points(), key=lambda p: p[1])
+    np.testing.assert_allclose(pts[0], [0.6, -0.8, 0], atol=1e-9)
+    np.testing.assert_allclose(pts[1], [0.6, 0.8, 0], atol=1e-9)
+    # same pair built from the dual meet by hand
+    Q2 = cga.PointPair.from_dual(cga.meet_plane_circle(cga.Plane([1, 0, 0], 0.6), C))
+    np.testing.assert_allclose(Q2.direct.orthonormal_coefficients(), Q.direct.orthonormal_coefficients())
+    T = cga.meet_plane_circle_pair(cga.Plane([1, 0, 0], 1.0), C)
+    assert T.reality() == cga.Reality.tangent
+    for p in T.points():
+        np.testing.assert_allclose(p, [1, 0, 0], atol=1e-6)
+    assert "tangent" in repr(T)
+    Im = cga.meet_plane_circle_pair(cga.Plane([1, 0, 0], 1.5), C)
+    assert Im.reality() == cga.Reality.imaginary
+    assert Im.square() < 0
+    assert "imaginary" in repr(Im)
+    with pytest.raises(ValueError):
+        Im.points()
+
+
+def test_flat_point_location_and_meet():
+    rng = np.random.default_rng(94)
+    for _ in range(20):
+        p = rng.uniform(-3, 3, 3)
+        np.testing.assert_allclose(cga.FlatPoint.at(p).location(), p, atol=1e-12)
+        F = cga.FlatPoint.from_multivector(cga.flat_point(p) * -4.0)
+        np.testing.assert_allclose(F.location(), p, atol=1e-12)
+        np.testing.assert_allclose(cga.flat_point_location(F.direct), p, atol=1e-12)
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        n = d + 0.3 * rng.normal(size=3)
+        f = cga.meet_line_plane_flat(cga.Line(p - 2 * d, d), cga.Plane(n, float(n @ p)))
+        np.testing.assert_allclose(f.location(), p, atol=1e-9)
+    assert repr(cga.FlatPoint.at([1, 2, 3])) == "FlatPoint([1, 2, 3])"
+    with pytest.raises(ValueError):
+        cga.FlatPoint.from_multivector(cga.e1 ^ cga.e2)

@@ -86,3 +86,54 @@ def test_voxel_grid_min_points_and_nan():
     r = voxel_grid(pts, 0.001, min_points_per_voxel=2)
     assert len(r.points) == 1 and r.counts.tolist() == [2]
     assert voxel_grid(np.full((3, 3), np.nan), 0.001).points.shape == (0, 3)
+
+
+# --- shape factors (thesis (6.1)-(6.3), spec §7.2, claim 15) -------------------------------
+
+
+def test_shape_factors_sum_and_ideal_shapes():
+    from scanalign.features import shape_factors
+
+    rng = np.random.default_rng(3)
+    lam = rng.uniform(0, 2, size=(500, 3))
+    f = shape_factors(lam)
+    assert f.shape == (500, 3)
+    np.testing.assert_allclose(f.sum(axis=1), 1.0, atol=1e-12)
+    assert np.all(f >= 0)
+    # (6.1)-(6.3) by hand, per row, independent of the vectorised path
+    for row, fr in zip(lam[:20], f[:20]):
+        l1, l2, l3 = sorted(row, reverse=True)
+        s = l1 + l2 + l3
+        np.testing.assert_allclose(fr, [(l1 - l2) / s, 2 * (l2 - l3) / s, 3 * l3 / s], atol=1e-14)
+    np.testing.assert_allclose(shape_factors([2.5, 0, 0]), [1, 0, 0])
+    np.testing.assert_allclose(shape_factors([1.5, 1.5, 0]), [0, 1, 0])
+    np.testing.assert_allclose(shape_factors([0.3, 0.3, 0.3]), [0, 0, 1])
+    np.testing.assert_allclose(shape_factors([1, 3, 2]), [1 / 6, 2 / 6, 3 / 6])
+
+
+@pytest.mark.parametrize("bad", [[1, -0.1, 0], [1, np.nan, 0], [0, 0, 0], [[1, 1, 1], [0, 0, 0]], [1, 2]])
+def test_shape_factors_rejects_invalid(bad):
+    from scanalign.features import shape_factors
+
+    with pytest.raises(ValueError):
+        shape_factors(bad)
+
+
+def test_shape_factors_pca_of_sampled_shapes():
+    from scanalign.features import shape_factors
+
+    rng = np.random.default_rng(5)
+    n = 3000
+    d = np.array([1.0, 2.0, -0.5]) / np.linalg.norm([1.0, 2.0, -0.5])
+    line = rng.uniform(-1, 1, (n, 1)) * d + 1e-3 * rng.uniform(-1, 1, (n, 3))
+    plane = np.c_[rng.uniform(-1, 1, (n, 2)), 1e-3 * rng.uniform(-1, 1, n)]
+    ball = rng.uniform(-1, 1, (3 * n, 3))
+    ball = ball[np.linalg.norm(ball, axis=1) <= 1]
+
+    def eig(p):
+        q = p - p.mean(axis=0)
+        return np.linalg.eigvalsh(q.T @ q)  # P5(11), ascending; shape_factors sorts
+
+    f = shape_factors(np.stack([eig(line), eig(plane), eig(ball)]))
+    assert f[0, 0] > 0.95 and f[1, 1] > 0.95 and f[2, 2] > 0.85
+    assert list(np.argmax(f, axis=1)) == [0, 1, 2]

@@ -274,6 +274,50 @@ motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
       .value("tangent", cga::Reality::Tangent)
       .value("imaginary", cga::Reality::Imaginary);
   m.def("point_pair_reality", &cga::pointPairReality, py::arg("Q"), py::arg("tol") = 1e-10);
+
+  py::class_<cga::PointPair>(m, "PointPair", R"(Point pair, held as the direct 2-blade Q = PA^PB (4.62).
+
+Build with from_points(a, b) (metres), from_direct(Q) or from_dual(Q*) (a meet result such as
+meet_plane_circle). reality() is the sign of Q^2 (spec §1.4); points() gives (P-, P+) of (4.63),
+i.e. (a, b) for from_points(a, b), and raises ValueError for an imaginary pair.)")
+      .def_static("from_points", &cga::PointPair::fromPoints, py::arg("a"), py::arg("b"))
+      .def_static("from_direct", &cga::PointPair::fromDirect, py::arg("Q"))
+      .def_static("from_dual", &cga::PointPair::fromDual, py::arg("Q_dual"))
+      .def_readonly("direct", &cga::PointPair::direct)
+      .def("dual", &cga::PointPair::dual)
+      .def("square", &cga::PointPair::square)
+      .def("reality", &cga::PointPair::reality, py::arg("tol") = 1e-10)
+      .def("points", &cga::PointPair::points)
+      .def("__repr__", [](const cga::PointPair& q) {
+        const cga::Reality r = q.reality();
+        std::string s = "PointPair(" + std::string(r == cga::Reality::Real ? "real" : r == cga::Reality::Tangent ? "tangent" : "imaginary");
+        if (r != cga::Reality::Imaginary) {
+          const auto pts = q.points();
+          s += ", points=(" + fmt(pts.first) + ", " + fmt(pts.second) + ")";
+        } else {
+          s += ", Q^2=" + fmt(q.square());
+        }
+        return s + ")";
+      });
+  py::class_<cga::FlatPoint>(m, "FlatPoint", R"(Flat point P^einf (4.69), e.g. the line-plane meet (4.73); location() in metres.)")
+      .def_static("at", &cga::FlatPoint::at, py::arg("p"))
+      .def_static("from_multivector", &cga::FlatPoint::fromMultivector, py::arg("F"))
+      .def_readonly("direct", &cga::FlatPoint::direct)
+      .def("location", &cga::FlatPoint::location)
+      .def("__repr__", [](const cga::FlatPoint& f) { return "FlatPoint(" + fmt(f.location()) + ")"; });
+  m.def("meet_line_plane_flat", &cga::meetLinePlaneFlat);
+  m.def("meet_plane_circle_pair", &cga::meetPlaneCirclePair);
+
+  m.def("normalise_blade", &cga::normaliseBlade);
+  m.def("euclidean_dual", &cga::euclideanDual);
+  m.def("rotation_plane_from_axis", &cga::rotationPlaneFromAxis);
+  m.def("rotation_axis", &cga::rotationAxis);
+  m.def("signed_angle", py::overload_cast<const Eigen::Vector3d&, const Eigen::Vector3d&, const Multivector&>(&cga::signedAngle));
+  m.def("signed_angle_mv", py::overload_cast<const Multivector&, const Multivector&, const Multivector&>(&cga::signedAngle));
+  m.def("rotation_plane_perpendicular_to_line", py::overload_cast<const Multivector&>(&cga::rotationPlanePerpendicularToLine));
+  m.def("rotation_plane_perpendicular_to_line_typed", py::overload_cast<const cga::Line&>(&cga::rotationPlanePerpendicularToLine));
+  m.def("rotation_plane_parallel_to_plane", py::overload_cast<const Multivector&>(&cga::rotationPlaneParallelToPlane));
+  m.def("rotation_plane_parallel_to_plane_typed", py::overload_cast<const cga::Plane&>(&cga::rotationPlaneParallelToPlane));
   m.def("point_pair_points", &cga::pointPairPoints);
   m.def("flat_point_location", &cga::flatPointLocation);
   m.def("round_center", &cga::roundCenter);

@@ -255,3 +255,125 @@ TEST(CgaObjects, DirectionFormulasAndHorizon) {
     }
   }
 }
+
+// ---------------------------------------------------------------------------
+// Spec §1.8: signed angle (17), rotation planes (20), (21); claim 9
+// ---------------------------------------------------------------------------
+
+TEST(CgaAngle, SignedAngleMatchesCrossProductOracle) {
+  std::mt19937 g(91);
+  for (int i = 0; i < 200; ++i) {
+    const Vector3 n = randomVec(g).normalized();
+    // a, b perpendicular to N* = n, random lengths
+    Vector3 a = randomVec(g, 2.0), b = randomVec(g, 2.0);
+    a -= n * n.dot(a);
+    b -= n * n.dot(b);
+    const Multivector N = rotationPlaneFromAxis(n);
+    EXPECT_NEAR(rotationAxis(N).dot(n), 1.0, 1e-12);          // N* = N I3^{-1} = n
+    const double truth = std::atan2(a.cross(b).dot(n), a.dot(b));  // independent oracle
+    EXPECT_NEAR(signedAngle(a, b, N), truth, 1e-10);
+    EXPECT_NEAR(signedAngle(a, b, N * 3.5), truth, 1e-10);     // N normalised (spec §1.8)
+    EXPECT_NEAR(signedAngle(a, b, -N), -truth, 1e-10);          // opposite plane orientation
+    // rotating a by theta about n (rotor, spec §1.9) lands on b's direction
+    const Motor M = Motor::fromQuaternion(Eigen::Quaterniond(Eigen::AngleAxisd(truth, n)), Vector3::Zero());
+    EXPECT_LE((M.apply(a).normalized() - b.normalized()).norm(), 1e-9);
+  }
+  const Multivector e12 = Multivector::e1().outer(Multivector::e2());
+  expectMvNear(rotationPlaneFromAxis(Vector3::UnitZ()), e12, 1e-15);  // e3 I3 = e12
+  EXPECT_NEAR(signedAngle(Vector3::UnitX(), Vector3::UnitY(), e12), EIGEN_PI / 2, 1e-15);
+  EXPECT_NEAR(std::abs(signedAngle(Vector3::UnitX(), -Vector3::UnitX(), e12)), EIGEN_PI, 1e-15);
+  EXPECT_THROW(rotationPlaneFromAxis(Vector3::Zero()), std::invalid_argument);
+  EXPECT_THROW(signedAngle(Vector3::UnitX(), Vector3::UnitY(), Multivector()), std::domain_error);
+  EXPECT_THROW(rotationAxis(Multivector::e1()), std::domain_error);
+  EXPECT_THROW(rotationAxis(e12 + Multivector::e1()), std::invalid_argument);
+}
+
+TEST(CgaAngle, RotationPlanesOfLinesAndPlanes) {
+  std::mt19937 g(92);
+  for (int i = 0; i < 50; ++i) {
+    const Vector3 a = randomVec(g, 3.0), b = randomVec(g, 3.0);
+    // (20) with L = up(a)^up(b)^einf: N* = (b - a)/|b - a| (spec §1.8 VERIFIED)
+    const Multivector L = up(a).outer(up(b)).outer(Multivector::eInf());
+    const Multivector N = rotationPlanePerpendicularToLine(L.dual());
+    EXPECT_NEAR(N.scalarProduct(N.reverse()), 1.0, 1e-12);
+    EXPECT_LE((rotationAxis(N) - (b - a).normalized()).norm(), 1e-9);
+    // the typed Line (direct (p + e0)^d^einf) gives N* = d
+    const Line l = Line::throughPoints(a, b);
+    EXPECT_LE((rotationAxis(rotationPlanePerpendicularToLine(l)) - l.direction).norm(), 1e-9);
+    // (21): typed plane oriented so that N* = normal; the raw formula on the direct plane
+    // gives -n of the dual, i.e. the right-hand normal of PA^PB^PC^einf
+    const Plane p(randomVec(g), randomVec(g)[0]);
+    EXPECT_LE((rotationAxis(rotationPlaneParallelToPlane(p)) - p.normal).norm(), 1e-12);
+    EXPECT_LE((rotationAxis(rotationPlaneParallelToPlane(p.direct() * 2.0)) + p.normal).norm(), 1e-12);
+    const Vector3 c = randomVec(g, 3.0);
+    const Multivector Pi = up(a).outer(up(b)).outer(up(c)).outer(Multivector::eInf());
+    EXPECT_LE((rotationAxis(rotationPlaneParallelToPlane(Pi)) - (b - a).cross(c - a).normalized()).norm(), 1e-9);
+  }
+}
+
+// ---------------------------------------------------------------------------
+// Typed PointPair / FlatPoint (spec §1.3-1.5, claim 5)
+// ---------------------------------------------------------------------------
+
+TEST(CgaPointPair, RealPairSquareAndPoints) {
+  std::mt19937 g(93);
+  for (int i = 0; i < 50; ++i) {
+    const Vector3 a = randomVec(g, 2.0), b = randomVec(g, 2.0);
+    const PointPair Q = PointPair::fromPoints(a, b);
+    const double h = 0.5 * (a - b).squaredNorm();
+    EXPECT_NEAR(Q.square(), h * h, 1e-10 * std::max(1.0, h * h));  // claim 5
+    EXPECT_EQ(Q.reality(), Reality::Real);
+    const auto [pm, pp] = Q.points();
+    EXPECT_LE((pm - a).norm(), 1e-9);   // "-" -> A
+    EXPECT_LE((pp - b).norm(), 1e-9);   // "+" -> B
+    const auto [qm, qp] = PointPair::fromDirect(Q.direct * -2.0).points();  // negative scale swaps
+    EXPECT_LE((qm - b).norm(), 1e-9);
+    EXPECT_LE((qp - a).norm(), 1e-9);
+    // dual round trip
+    expectMvNear(PointPair::fromDual(Q.dual()).direct, Q.direct, 1e-12);
+  }
+  EXPECT_THROW(PointPair::fromDirect(Multivector::e1()), std::invalid_argument);
+  EXPECT_THROW(PointPair::fromDirect(Multivector()), std::invalid_argument);
+}
+
+TEST(CgaPointPair, MeetRealTangentImaginary) {
+  // Unit sphere at the origin met with the plane z = 0 gives the unit circle; a plane x = d
+  // cuts it at (d, +-sqrt(1 - d^2), 0): real for |d| < 1, tangent at 1, imaginary beyond.
+  const Multivector C = meetSpherePlane(Sphere(Vector3::Zero(), 1.0), Plane(Vector3::UnitZ(), 0.0));
+  {
+    const PointPair Q = meetPlaneCirclePair(Plane(Vector3::UnitX(), 0.6), C);
+    ASSERT_EQ(Q.reality(), Reality::Real);
+    auto [p, q] = Q.points();
+    if (p.y() > q.y()) std::swap(p, q);
+    EXPECT_LE((p - Vector3(0.6, -0.8, 0)).norm(), 1e-9);
+    EXPECT_LE((q - Vector3(0.6, 0.8, 0)).norm(), 1e-9);
+  }
+  {
+    const PointPair Q = meetPlaneCirclePair(Plane(Vector3::UnitX(), 1.0), C);
+    EXPECT_EQ(Q.reality(), Reality::Tangent);
+    const auto [p, q] = Q.points();
+    EXPECT_LE((p - Vector3(1, 0, 0)).norm(), 1e-6);
+    EXPECT_LE((q - Vector3(1, 0, 0)).norm(), 1e-6);
+  }
+  {
+    const PointPair Q = meetPlaneCirclePair(Plane(Vector3::UnitX(), 1.5), C);
+    EXPECT_EQ(Q.reality(), Reality::Imaginary);
+    EXPECT_LT(Q.square(), 0);
+    EXPECT_THROW(Q.points(), std::domain_error);
+  }
+}
+
+TEST(CgaFlatPoint, LocationAndLinePlaneMeet) {
+  std::mt19937 g(94);
+  for (int i = 0; i < 20; ++i) {
+    const Vector3 p = randomVec(g, 3.0);
+    EXPECT_LE((FlatPoint::at(p).location() - p).norm(), 1e-12);
+    EXPECT_LE((FlatPoint::fromMultivector(flatPoint(p) * -4.0).location() - p).norm(), 1e-12);
+    // line through p along d meets the plane through p with normal n at p (4.73)
+    const Vector3 d = randomVec(g).normalized(), n = (d + 0.3 * randomVec(g)).normalized();
+    const FlatPoint f = meetLinePlaneFlat(Line(p - 2.0 * d, d), Plane::throughPoint(n, p));
+    EXPECT_LE((f.location() - p).norm(), 1e-9);
+  }
+  EXPECT_THROW(FlatPoint::fromMultivector(Multivector::e1()), std::invalid_argument);
+  EXPECT_THROW(FlatPoint::fromMultivector(Multivector::e1().outer(Multivector::e2())), std::domain_error);
+}

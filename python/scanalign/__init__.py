@@ -4,7 +4,7 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 
 - :mod:`scanalign.registration` -- ICP engine (point-to-plane LLS, box rejector),
   stock PCL baselines.
-- :mod:`scanalign.features` -- surface normals.
+- :mod:`scanalign.features` -- surface normals, PCA shape factors.
 - :mod:`scanalign.reconstruction` -- depth to cloud, frame-to-model reconstruction, voxel grid.
 - :mod:`scanalign.segmentation` -- RANSAC planes and spheres (CGA models), table segmentation.
 - :mod:`scanalign.fitting` -- CGA sphere / plane fit (weighted), Pratt circle fit.

@@ -26,6 +26,12 @@ Objects (all coordinates in metres, in the frame the caller works in):
   :meth:`Motor.interpolate` slerps the rotation and lerps the translation (not a screw).
 - meets (4.70)-(4.73) return dual objects ``A* ^ B*`` (the line-plane meet returns the
   flat point ``Pi* . L``); distances (4.56), (4.67), P5(10).
+- :class:`PointPair` (direct ``Q = PA^PB``; ``reality()`` is the sign of ``Q^2``, spec §1.4;
+  ``points()`` by (4.63)) and :class:`FlatPoint` (``P^einf``, ``location()``), also from meets.
+- angles (spec §1.8): :func:`signed_angle` ``atan2((a^b) N^{-1}, a.b)`` (17) about a rotation
+  plane ``N`` (unit Euclidean bivector whose Euclidean dual ``N* = N I3^{-1}`` is the rotation
+  axis); :func:`rotation_plane_perpendicular_to_line` (20) and
+  :func:`rotation_plane_parallel_to_plane` (21).
 
 Invalid input (NaN/Inf, zero normals or directions, a point at infinity passed to
 :func:`down`, an imaginary point pair asked for its points) raises ``ValueError``.
@@ -48,6 +54,9 @@ __all__ = [
     "meet_sphere_plane", "meet_planes", "meet_spheres", "meet_plane_circle", "meet_line_plane",
     "point_distance", "point_plane_distance", "sphere_point_inner", "point_sphere_distance",
     "geometric_product_many",
+    "PointPair", "FlatPoint", "meet_plane_circle_pair", "meet_line_plane_flat",
+    "signed_angle", "rotation_plane_from_axis", "rotation_axis", "normalise_blade", "euclidean_dual",
+    "rotation_plane_perpendicular_to_line", "rotation_plane_parallel_to_plane",
 ]
 
 Multivector = _c.Multivector
@@ -56,6 +65,8 @@ Plane = _c.Plane
 Line = _c.Line
 Motor = _c.Motor
 Reality = _c.Reality
+PointPair = _c.PointPair
+FlatPoint = _c.FlatPoint
 
 e0 = Multivector.e0()
 e1 = Multivector.e1()
@@ -80,6 +91,11 @@ meet_line_plane = _c.meet_line_plane
 point_plane_distance = _c.point_plane_distance
 sphere_point_inner = _c.sphere_point_inner
 point_sphere_distance = _c.point_sphere_distance
+meet_plane_circle_pair = _c.meet_plane_circle_pair
+meet_line_plane_flat = _c.meet_line_plane_flat
+normalise_blade = _c.normalise_blade
+euclidean_dual = _c.euclidean_dual
+rotation_axis = _c.rotation_axis
 
 
 def blade_names() -> list:
@@ -138,6 +154,45 @@ def point_pair_points(Q: Multivector) -> Tuple[np.ndarray, np.ndarray]:
     made direct with ``.undual()``. Raises ``ValueError`` when ``Q^2 < 0`` (no real points,
     spec §1.4)."""
     return _c.point_pair_points(Q)
+
+
+def rotation_plane_from_axis(axis) -> Multivector:
+    """Unit rotation plane ``N = n I3`` whose Euclidean dual ``N* = N I3^{-1}`` is the unit
+    ``axis`` (e.g. ``e3 -> e12``); :func:`rotation_axis` is the inverse (spec §1.8)."""
+    return _c.rotation_plane_from_axis(_vec3(axis, "axis"))
+
+
+def signed_angle(a, b, N: Multivector) -> float:
+    """Signed angle (radians, in (-pi, pi]) from direction ``a`` to ``b`` in the rotation plane
+    ``N``: ``theta = atan2((a^b) N^{-1}, a.b)`` (17), spec §1.8.
+
+    ``a``, ``b``: 3-vectors (any length, in one frame) or grade-1 :class:`Multivector`;
+    ``N``: a Euclidean bivector (normalised here). For ``a, b`` perpendicular to the axis
+    ``N*`` this is the right-handed angle about ``N*`` (claim 9)."""
+    if isinstance(a, Multivector) or isinstance(b, Multivector):
+        A = a if isinstance(a, Multivector) else _c.Multivector.vector(_vec3(a, "a"))
+        Bv = b if isinstance(b, Multivector) else _c.Multivector.vector(_vec3(b, "b"))
+        return _c.signed_angle_mv(A, Bv, N)
+    return _c.signed_angle(_vec3(a, "a"), _vec3(b, "b"), N)
+
+
+def rotation_plane_perpendicular_to_line(line) -> Multivector:
+    """Unit rotation plane ``N = (L* ^ einf) . e0 / |.|`` (20) perpendicular to a line: a
+    :class:`Line` or a dual line ``L*`` (:class:`Multivector`). For ``L = up(a)^up(b)^einf``,
+    ``rotation_axis(N) = (b - a)/|b - a|``."""
+    if isinstance(line, Line):
+        return _c.rotation_plane_perpendicular_to_line_typed(line)
+    return _c.rotation_plane_perpendicular_to_line(line)
+
+
+def rotation_plane_parallel_to_plane(plane) -> Multivector:
+    """Unit rotation plane ``N = (Pi . e0) . einf / |.|`` (21) parallel to a plane: a
+    :class:`Plane` or a direct plane ``Pi`` (:class:`Multivector`, (4.64)). Its axis
+    ``rotation_axis(N)`` is ``(b - a) x (c - a)`` normalised for ``Pi = up(a)^up(b)^up(c)^einf``
+    (minus the normal of the dual ``Pi*``); for a :class:`Plane` it is oriented to ``plane.normal``."""
+    if isinstance(plane, Plane):
+        return _c.rotation_plane_parallel_to_plane_typed(plane)
+    return _c.rotation_plane_parallel_to_plane(plane)
 
 
 def flat_point(p) -> Multivector:

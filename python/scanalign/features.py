@@ -1,4 +1,4 @@
-"""Point features: surface normals (seed 000 §3.5)."""
+"""Point features: surface normals (seed 000 §3.5) and PCA shape factors (thesis (6.1)-(6.3))."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 from . import _core
 from ._arrays import as_points
 
-__all__ = ["estimate_normals"]
+__all__ = ["estimate_normals", "shape_factors"]
 
 
 def estimate_normals(
@@ -50,3 +50,36 @@ def estimate_normals(
     fn = _core.features.estimate_normals_f64 if p.dtype == np.float64 else _core.features.estimate_normals_f32
     normals, curvature = fn(p, float(radius), vp, int(min_neighbors), int(num_threads))
     return (normals, curvature) if return_curvature else normals
+
+
+def shape_factors(eigenvalues) -> np.ndarray:
+    """Shape factors (C_l, C_p, C_s) of PCA eigenvalues (thesis (6.1)-(6.3), spec §7.2).
+
+    With l1 >= l2 >= l3 >= 0 and S = l1 + l2 + l3:
+    ``C_l = (l1 - l2)/S``, ``C_p = 2 (l2 - l3)/S``, ``C_s = 3 l3/S``; they sum to 1
+    (1, 0, 0 for a line, 0, 1, 0 for a plane, 0, 0, 1 for an isotropic cloud).
+
+    Args:
+        eigenvalues: (3,) or (N, 3) covariance eigenvalues (m^2, any common scale; any
+            order -- each row is sorted descending here).
+
+    Returns:
+        float64 array of the same shape: (C_l, C_p, C_s) per row.
+
+    Raises:
+        ValueError: wrong shape, NaN/Inf or negative eigenvalues, or a zero sum.
+    """
+    a = np.asarray(eigenvalues, dtype=np.float64)
+    if a.shape[-1:] != (3,) or a.ndim not in (1, 2):
+        raise ValueError(f"eigenvalues: expected shape (3,) or (N, 3), got {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise ValueError("eigenvalues: contains NaN or Inf")
+    if np.any(a < 0):
+        raise ValueError("eigenvalues: must be >= 0")
+    lam = -np.sort(-a, axis=-1)  # descending
+    s = lam.sum(axis=-1, keepdims=True)
+    if np.any(s <= 0):
+        raise ValueError("eigenvalues: zero sum (no spread), shape factors undefined")
+    l1, l2, l3 = lam[..., 0:1], lam[..., 1:2], lam[..., 2:3]
+    out = np.concatenate([(l1 - l2), 2.0 * (l2 - l3), 3.0 * l3], axis=-1) / s
+    return out

@@ -216,6 +216,76 @@ struct Line {
 };
 
 // ---------------------------------------------------------------------------
+// Angles and rotation planes (spec §1.8, P1 §3.7, eqs. (12)-(21))
+// ---------------------------------------------------------------------------
+
+/// A / sqrt(|<A ~A>_0|) (spec §1.8 normalisation). Throws for a (near) null blade.
+inline Multivector normaliseBlade(const Multivector& A) {
+  detail::requireFinite(A, "blade");
+  const double n2 = std::abs(A.scalarProduct(A.reverse()));
+  if (!(n2 > 1e-24 * std::max(1e-300, A.orthonormal().squaredNorm())) || !(n2 > 0))
+    throw std::domain_error("cga: cannot normalise a null or zero blade");
+  return A / std::sqrt(n2);
+}
+/// Euclidean dual A I3^{-1} (spec §1.2, (4.39)); I3^{-1} = -I3.
+inline Multivector euclideanDual(const Multivector& A) { return -(A * Multivector::pseudoscalar3()); }
+/// Unit rotation plane N (a Euclidean unit bivector) whose Euclidean dual N* = N I3^{-1} is the
+/// unit `axis`: N = n I3 (e.g. axis e3 -> N = e12). A rotation by +theta about the axis
+/// (right-handed) turns a vector in N by +theta in the sense of (17).
+inline Multivector rotationPlaneFromAxis(const Vector3& axis) {
+  detail::requireFinite(axis, "rotation axis");
+  if (!(axis.norm() > 1e-12)) throw std::invalid_argument("cga: rotation axis is zero");
+  return Multivector::vector(axis.normalized()) * Multivector::pseudoscalar3();
+}
+/// The unit rotation axis N* = N I3^{-1} of a Euclidean bivector N (normalised). Throws when N
+/// has components outside e12, e13, e23 or is zero.
+inline Vector3 rotationAxis(const Multivector& N) {
+  detail::requireFinite(N, "rotation plane");
+  const auto& c = N.orthonormal();
+  const double e = Eigen::Vector3d(c[3], c[5], c[6]).norm();
+  if (!(e > 1e-12)) throw std::domain_error("cga: rotation plane is zero");
+  Multivector rest = N;
+  rest.orthonormal()[3] = rest.orthonormal()[5] = rest.orthonormal()[6] = 0;
+  if (rest.maxAbs() > 1e-9 * e) throw std::invalid_argument("cga: a rotation plane is a Euclidean bivector (e12, e13, e23 only)");
+  return detail::euclidean(euclideanDual(N)).normalized();
+}
+
+/// Signed angle (rad, in (-pi, pi]) from direction a to direction b in the rotation plane N,
+/// theta = atan2((a^b) N^{-1}, a.b) (17) (scalar part; N^{-1} = ~N = -N for a unit bivector).
+/// Any scale of a, b and N > 0 is allowed (N is normalised, spec §1.8). For a, b perpendicular
+/// to N* this is the right-handed angle about the axis N* (claim 9); components along N* do
+/// not enter (a^b is projected onto N by the scalar part).
+inline double signedAngle(const Multivector& a, const Multivector& b, const Multivector& N) {
+  detail::requireFinite(a, "direction a");
+  detail::requireFinite(b, "direction b");
+  const Multivector Nu = normaliseBlade(N);
+  const double s = (a.outer(b) * Nu.inverse()).scalar();  // (a^b) N^{-1}, (13)-(17)
+  const double c = a.inner(b).scalar();                   // a.b = |a||b| cos(theta) (12)
+  return std::atan2(s, c);
+}
+inline double signedAngle(const Vector3& a, const Vector3& b, const Multivector& N) {
+  return signedAngle(Multivector::vector(a), Multivector::vector(b), N);
+}
+
+/// Rotation plane perpendicular to a line, N = (L* ^ einf) . e0 / |.| (20), from the dual
+/// line L*. For L = up(a)^up(b)^einf (4.68) its Euclidean dual N* is (b - a)/|b - a|
+/// (spec §1.8, VERIFIED in the tests).
+inline Multivector rotationPlanePerpendicularToLine(const Multivector& dualLine) {
+  detail::requireFinite(dualLine, "dual line");
+  return normaliseBlade(dualLine.outer(Multivector::eInf()).inner(Multivector::e0()));
+}
+inline Multivector rotationPlanePerpendicularToLine(const Line& l) { return rotationPlanePerpendicularToLine(l.dual()); }
+/// Rotation plane parallel to a plane, N = (Pi . e0) . einf / |.| (21), from the direct plane
+/// Pi (4.64). For Pi = up(a)^up(b)^up(c)^einf the axis N* is (b - a) x (c - a)/|.|, which is
+/// MINUS the normal n of the dual Pi* = Pi Ic^{-1} = n + delta einf (tested).
+inline Multivector rotationPlaneParallelToPlane(const Multivector& directPlane) {
+  detail::requireFinite(directPlane, "direct plane");
+  return normaliseBlade(directPlane.inner(Multivector::e0()).inner(Multivector::eInf()));
+}
+/// (21) for a typed plane, oriented explicitly (spec §1.3) so that the axis N* = p.normal.
+inline Multivector rotationPlaneParallelToPlane(const Plane& p) { return -rotationPlaneParallelToPlane(p.direct()); }
+
+// ---------------------------------------------------------------------------
 // Point pairs Q = PA^PB (4.62), (4.63), spec §1.4-1.5
 // ---------------------------------------------------------------------------
 
@@ -261,6 +331,56 @@ inline Vector3 flatPointLocation(const Multivector& F) {
   return Vector3(n[2 | 16], n[4 | 16], n[8 | 16]) / w;
 }
 
+/// Typed point pair (spec §1.3-1.5): holds the direct 2-blade Q = PA^PB (4.62); its dual
+/// Q* = Q Ic^{-1} is what meets such as Pi* ^ C* return (4.70).
+struct PointPair {
+  Multivector direct;  ///< Q, a grade-2 blade
+
+  PointPair() = default;
+  /// Q = up(a) ^ up(b) (4.62); points() returns (a, b) (spec §1.5, claim 5).
+  static PointPair fromPoints(const Vector3& a, const Vector3& b) { return fromDirect(pointPair(a, b)); }
+  /// From a direct pair (any scale; a negative scale swaps the two points). Throws unless Q
+  /// is a non-zero grade-2 multivector.
+  static PointPair fromDirect(const Multivector& Q) {
+    detail::requireFinite(Q, "point pair");
+    const double m = Q.maxAbs();
+    if (!(m > 0)) throw std::invalid_argument("cga: point pair is zero");
+    if ((Q - Q.grade(2)).maxAbs() > 1e-9 * m) throw std::invalid_argument("cga: a direct point pair has grade 2 only");
+    PointPair q;
+    q.direct = Q;
+    return q;
+  }
+  /// From a dual pair Q* (grade 3), e.g. meetPlaneCircle: Q = Q* Ic (undual, (4.51)).
+  static PointPair fromDual(const Multivector& Qs) { return fromDirect(Qs.undual()); }
+  Multivector dual() const { return direct.dual(); }
+  /// Q^2 = Q.Q (a scalar for a 2-blade): (1/2 |a - b|^2)^2 for Q = up(a)^up(b) (claim 5).
+  double square() const { return (direct * direct).scalar(); }
+  /// Sign of Q^2 (spec §1.4): real (> 0), tangent (= 0, within tol relative to |Q|^2), imaginary.
+  Reality reality(double tol = 1e-10) const { return pointPairReality(direct, tol); }
+  /// (P-, P+) of (4.63) as Euclidean points, m; throws std::domain_error for an imaginary pair.
+  std::pair<Vector3, Vector3> points() const { return pointPairPoints(direct); }
+};
+
+/// Typed flat point P ^ einf (4.69), e.g. the line-plane meet Pi* . L (4.73).
+struct FlatPoint {
+  Multivector direct;  ///< up(p) ^ einf, any non-zero scale
+
+  FlatPoint() : direct(flatPoint(Vector3::Zero())) {}
+  static FlatPoint at(const Vector3& p) { return fromMultivector(flatPoint(p)); }
+  /// Checks the grade (2) and that a finite location exists (e0^einf coefficient non-zero).
+  static FlatPoint fromMultivector(const Multivector& F) {
+    detail::requireFinite(F, "flat point");
+    if ((F - F.grade(2)).maxAbs() > 1e-9 * std::max(1.0, F.maxAbs()))
+      throw std::invalid_argument("cga: a flat point has grade 2 only");
+    flatPointLocation(F);  // throws when there is no finite location
+    FlatPoint f;
+    f.direct = F;
+    return f;
+  }
+  /// Location, m.
+  Vector3 location() const { return flatPointLocation(direct); }
+};
+
 // ---------------------------------------------------------------------------
 // Rounds (circles from three points); centre and radius of direct rounds
 // ---------------------------------------------------------------------------
@@ -297,6 +417,12 @@ inline Multivector meetSpheres(const Sphere& a, const Sphere& b) { return a.dual
 inline Multivector meetPlaneCircle(const Plane& p, const Multivector& dualCircle) { return p.dual().outer(dualCircle); }
 /// Flat point Pi* . L (4.73) for a direct line L.
 inline Multivector meetLinePlane(const Line& l, const Plane& p) { return p.dual().inner(l.direct()); }
+/// Typed line-plane meet (4.73).
+inline FlatPoint meetLinePlaneFlat(const Line& l, const Plane& p) { return FlatPoint::fromMultivector(meetLinePlane(l, p)); }
+/// Typed plane-circle meet: the point pair of the dual circle C* and the plane (4.70).
+inline PointPair meetPlaneCirclePair(const Plane& p, const Multivector& dualCircle) {
+  return PointPair::fromDual(meetPlaneCircle(p, dualCircle));
+}
 
 // ---------------------------------------------------------------------------
 // Distances (4.56), (4.67), P5(10)
