@@ -201,6 +201,17 @@ std::vector<std::uint32_t> selectInliers(const std::vector<Eigen::Vector3d>& xyz
 
 }  // namespace
 
+namespace {
+/// The loop's outcome into a model's result (shared by every model).
+template <typename Model>
+void copyLoopStats(const RansacLoopStats& st, RansacResult<Model>& r) {
+  r.status = st.status;
+  r.iterations = st.iterations;
+  r.degenerate_samples = st.degenerate_samples;
+  r.hypothesis_inliers = st.best_inliers;
+}
+}  // namespace
+
 template <typename Scalar>
 RansacResult<PlaneModel> ransacPlane(const CloudView<Scalar>& points, const RansacSettings& settings) {
   if (!(settings.threshold > 0) || !std::isfinite(settings.threshold))
@@ -213,10 +224,7 @@ RansacResult<PlaneModel> ransacPlane(const CloudView<Scalar>& points, const Rans
   auto err = [](const PlaneModel& m, const Eigen::Vector3d& p) { return std::abs(m.signedDistance(p)); };
   auto error = [&](const PlaneModel& m, std::size_t i) { return err(m, xyz[i]); };
   const RansacLoopStats st = ransacLoop(xyz.size(), 3, build, error, settings, r.hypothesis);
-  r.status = st.status;
-  r.iterations = st.iterations;
-  r.degenerate_samples = st.degenerate_samples;
-  r.hypothesis_inliers = st.best_inliers;
+  copyLoopStats(st, r);
   if (!r.success()) return r;
   r.model = r.hypothesis;
   r.inliers = selectInliers(xyz, idx, r.model, settings.threshold, err);
@@ -264,10 +272,7 @@ RansacResult<SphereModel> ransacSphere(const CloudView<Scalar>& points, const Ra
   auto err = [](const SphereModel& m, const Eigen::Vector3d& p) { return m.surfaceDistance(p); };
   auto error = [&](const SphereModel& m, std::size_t i) { return err(m, xyz[i]); };
   const RansacLoopStats st = ransacLoop(xyz.size(), 4, build, error, settings, r.hypothesis);
-  r.status = st.status;
-  r.iterations = st.iterations;
-  r.degenerate_samples = st.degenerate_samples;
-  r.hypothesis_inliers = st.best_inliers;
+  copyLoopStats(st, r);
   if (!r.success()) return r;
   r.model = r.hypothesis;
   r.inliers = selectInliers(xyz, idx, r.model, thr, err);
