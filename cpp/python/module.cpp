@@ -12,6 +12,7 @@ void defineSegmentation(py::module_& m);
 void defineFitting(py::module_& m);
 void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
 void defineCga(py::module_& m);
+void defineKinematics(py::module_& m);
 }  // namespace scanalign::python
 
 PYBIND11_MODULE(_core, m) {
@@ -29,4 +30,6 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::bindSynthetic(m);
   auto cga = m.def_submodule("cga", "conformal geometric algebra G(4,1)");
   scanalign::python::defineCga(cga);
+  auto kinematics = m.def_submodule("kinematics", "DH robots, forward kinematics, CGA inverse kinematics");
+  scanalign::python::defineKinematics(kinematics);
 }
