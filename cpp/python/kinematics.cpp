@@ -74,6 +74,9 @@ py::dict solutionToDict(const IKSolution& s) {
 }  // namespace
 
 void defineKinematics(py::module_& m) {
+  // The C++ defaults, so that the Python layer has one source of truth.
+  m.attr("DEFAULT_REACH_TOLERANCE") = IKOptions{}.reach_tolerance;
+  m.attr("DEFAULT_SINGULAR_TOLERANCE") = IKOptions{}.singular_tolerance;
   py::enum_<ArmGeometry>(m, "ArmGeometry")
       .value("Unsupported", ArmGeometry::Unsupported)
       .value("SphericalWrist", ArmGeometry::SphericalWrist)
@@ -116,7 +119,11 @@ void defineKinematics(py::module_& m) {
           "T_flange_tool", [](const Robot& r) { return Eigen::Matrix4d(r.T_flange_tool.matrix()); },
           [](Robot& r, const Eigen::Matrix4d& m) { r.T_flange_tool = toIsometry(m); })
       .def("geometry", &Robot::geometry)
-      .def("forward", [](const Robot& r, const Vector6d& q) { return Eigen::Matrix4d(r.forward(q).matrix()); })
+      .def("forward",
+           [](const Robot& r, const Vector6d& q) {
+             if (!q.allFinite()) throw py::value_error("q: non-finite joint values");
+             return Eigen::Matrix4d(r.forward(q).matrix());
+           })
       .def("forward_flange",
            [](const Robot& r, const Vector6d& q) { return Eigen::Matrix4d(r.forwardFlange(q).matrix()); })
       .def("joint_frames",
@@ -158,6 +165,28 @@ void defineKinematics(py::module_& m) {
       },
       py::arg("robot"), py::arg("T"), py::arg("q_free"), py::arg("reach_tolerance"), py::arg("singular_tolerance"),
       py::arg("respect_limits"));
+
+  // Single-pose IK for the Python hot path: a tuple (q (8, 6), codes (8, 3) uint8 with
+  // status, singular bits, unreachable step; overall status). The configurations are fixed
+  // by index (CONFIGS), so they are not returned.
+  m.def(
+      "ik_tuple",
+      [](const Robot& robot, const Eigen::Matrix4d& T, const Vector6d& q_free, double reach_tolerance,
+         double singular_tolerance, bool respect_limits) {
+        const IKResult r = ik(robot, toIsometry(T), makeOptions(q_free, reach_tolerance, singular_tolerance, respect_limits));
+        py::array_t<double> q({py::ssize_t{8}, py::ssize_t{6}});
+        py::array_t<std::uint8_t> codes({py::ssize_t{8}, py::ssize_t{3}});
+        double* qa = q.mutable_data();
+        std::uint8_t* ca = codes.mutable_data();
+        for (int k = 0; k < 8; ++k) {
+          const IKSolution& s = r.solutions[static_cast<std::size_t>(k)];
+          for (int j = 0; j < 6; ++j) qa[6 * k + j] = s.q[j];
+          ca[3 * k] = static_cast<std::uint8_t>(s.status);
+          ca[3 * k + 1] = s.singular;
+          ca[3 * k + 2] = static_cast<std::uint8_t>(s.unreachable_step);
+        }
+        return py::make_tuple(q, codes, static_cast<int>(r.status));
+      });
 
   m.def(
       "ik_batch",

@@ -17,6 +17,8 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.pipeline` -- the reconstruction job: frames in, model, trajectory and report out.
 - :mod:`scanalign.evaluation` -- ATE / RPE (Sturm et al. 2012), exact cloud-to-mesh distance.
 - :mod:`scanalign.cga` -- conformal geometric algebra G(4,1): points, spheres, planes, lines, motors.
+- :mod:`scanalign.kinematics` -- 6R robots (KUKA KR6 R900 sixx, UR arms): forward kinematics, analytic CGA
+  inverse kinematics.
 - :mod:`scanalign.plots` -- trajectory, per-frame and benchmark figures (matplotlib, Agg).
 
 Units are metres and radians throughout.  A transform named ``T_a_b`` is a 4x4
@@ -32,7 +34,7 @@ from typing import Any
 __version__ = "0.1.0"
 
 _SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "camera", "trajectory", "tum",
-               "synthetic", "cga", "fitting", "segmentation", "pipeline", "evaluation", "plots", "cli")
+               "synthetic", "cga", "kinematics", "fitting", "segmentation", "pipeline", "evaluation", "plots", "cli")
 
 __all__ = ["__version__", *_SUBMODULES]
 

@@ -135,9 +135,8 @@ def _load_source(source: str, args: argparse.Namespace) -> tuple:
     from . import synthetic, tum
 
     if source == "builtin":
-        scan = synthetic.builtin_scan(n_frames=args.frames or 36, noise=args.noise or "sr300",
-                                      seed=0 if args.seed is None else args.seed)
-        return scan.frames, scan, "built-in synthetic scan"
+        scan = _builtin_config(args).build()
+        return scan.frames, scan, "built-in synthetic scan" + _robot_note(scan)
     path = Path(source)
     if path.is_dir():
         if not tum.is_tum_folder(path):
@@ -149,13 +148,53 @@ def _load_source(source: str, args: argparse.Namespace) -> tuple:
         config = synthetic.SyntheticConfig.from_file(path)
         overrides = {k: v for k, v in (("n_frames", args.frames), ("noise", args.noise), ("seed", args.seed))
                      if v is not None}
+        overrides.update(_robot_overrides(args))
         if overrides:
             config = synthetic.SyntheticConfig(**{**config.to_dict(), **overrides})
         scan = config.build()
-        return scan.frames, scan, f"synthetic scan from {path}"
+        return scan.frames, scan, f"synthetic scan from {path}" + _robot_note(scan)
     if not path.exists():
         raise FileNotFoundError(f"{source}: no such folder or file")
     raise ValueError(f"{source}: expected a TUM RGB-D folder, a synthetic config (.json/.yaml) or 'builtin'")
+
+
+def _robot_overrides(args: argparse.Namespace) -> dict:
+    """SyntheticConfig fields from --robot / --robot-base (only those given)."""
+    out: dict = {}
+    if getattr(args, "robot", None) is not None:
+        out["robot"] = args.robot
+    if getattr(args, "robot_base", None) is not None:
+        names = ("robot_x", "robot_y", "robot_z", "robot_roll", "robot_pitch", "robot_yaw")
+        out.update(zip(names, (float(v) for v in args.robot_base)))
+    return out
+
+
+def _builtin_config(args: argparse.Namespace):
+    """The built-in scan's config with the command line's overrides."""
+    from . import synthetic
+
+    return synthetic.SyntheticConfig(n_frames=args.frames or 36, noise=args.noise or "sr300",
+                                      seed=0 if args.seed is None else args.seed, **_robot_overrides(args))
+
+
+def _robot_note(scan) -> str:
+    if scan.robot is None:
+        return " (camera poses as planned, no robot)"
+    p = scan.T_base_robot[:3, 3]
+    return (f" (camera on a {scan.robot.name} based at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m, "
+            f"poses from its forward kinematics)")
+
+
+def _add_robot_options(g) -> None:
+    g.add_argument("--robot", help="robot arm that moves the camera: ur5 (default), another name known to "
+                                   "scanalign.kinematics (ur3, ur10, ur3e, ur5e, ur10e, kr6_r900_sixx), or 'none' "
+                                   "for the planned camera poses without an arm. With an arm, its joints come "
+                                   "from inverse kinematics (closest to the previous frame, radians, written to "
+                                   "joints.csv) and the reference poses from its forward kinematics")
+    g.add_argument("--robot-base", type=float, nargs=6, metavar=("X", "Y", "Z", "ROLL", "PITCH", "YAW"),
+                   help="where the robot's base frame sits in the scene: position in metres and roll, pitch, yaw "
+                        "in radians (R = Rz(yaw) Ry(pitch) Rx(roll)); default: hanging 0.9 m above the object, "
+                        "i.e. OBJECT_X OBJECT_Y 0.9 3.141592653589793 0 0")
 
 
 def _settings_from_args(args: argparse.Namespace) -> dict:
@@ -235,6 +274,7 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
     g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
     g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
     g.add_argument("--seed", type=int, help="random seed of the sensor noise (builtin: 0)")
+    _add_robot_options(g)
     g = p.add_argument_group("real sequences (TUM RGB-D folder)")
     g.add_argument("--intrinsics", help="intrinsics preset (tum_fr1, tum_fr2, tum_fr3, tum_default, sr300, d435) or "
                                         "a JSON/YAML file with width height fx fy cx cy (pixels); default: the "
@@ -286,12 +326,80 @@ def synth(args: argparse.Namespace) -> int:
     """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder."""
     from . import synthetic, tum
 
-    scan = synthetic.SyntheticConfig.from_file(args.config).build() if args.config != "builtin" else \
-        synthetic.builtin_scan(n_frames=args.frames or 36, noise=args.noise or "sr300", seed=args.seed or 0)
+    from .pipeline import write_joints_csv
+
+    if args.config != "builtin":
+        config = synthetic.SyntheticConfig.from_file(args.config)
+        overrides = _robot_overrides(args)
+        if overrides:
+            config = synthetic.SyntheticConfig(**{**config.to_dict(), **overrides})
+    else:
+        config = _builtin_config(args)
+    scan = config.build()
     folder = tum.write_tum_sequence(args.out, scan.frames, intrinsics=scan.intrinsics,
                                     depth_scale=scan.frames[0].depth_scale)
-    print(f"scanalign: wrote {len(scan.frames)} frames to {folder} (TUM RGB-D layout, ground truth included)")
+    extra = ""
+    if scan.joints is not None:
+        write_joints_csv(Path(folder) / "joints.csv", [f.index for f in scan.frames],
+                         [f.timestamp for f in scan.frames], scan.joints)
+        extra = f", {scan.robot.name} joints in joints.csv (rad)"
+    print(f"scanalign: wrote {len(scan.frames)} frames to {folder} (TUM RGB-D layout, ground truth included{extra})")
     return 0
+
+
+def ik_command(args: argparse.Namespace) -> int:
+    """``scanalign ik``: every inverse-kinematics solution of one tool pose, labelled."""
+    from . import kinematics as kin
+
+    robot = kin.Robot.by_name(args.robot)
+    if (args.pose is None) == (args.joints is None):
+        raise ValueError("give exactly one of --pose X Y Z RX RY RZ or --joints Q1 ... Q6")
+    if args.joints is not None:
+        q_in = np.asarray(args.joints, dtype=np.float64)
+        T = robot.fk(q_in)
+        source = f"FK of q = {np.array2string(q_in, precision=4)} rad"
+    else:
+        v = np.asarray(args.pose, dtype=np.float64)
+        if not np.all(np.isfinite(v)):
+            raise ValueError("--pose: non-finite value")
+        theta = float(np.linalg.norm(v[3:]))
+        K = np.zeros((3, 3)) if theta == 0 else np.array(
+            [[0, -v[5], v[4]], [v[5], 0, -v[3]], [-v[4], v[3], 0]]) / theta
+        T = np.eye(4)
+        T[:3, :3] = np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * (K @ K)  # Rodrigues
+        T[:3, 3] = v[:3]
+        source = "the given pose"
+    sol = robot.ik(T, respect_limits=not args.ignore_limits)
+    p = T[:3, 3]
+    print(f"{robot.name} ({robot.geometry}): tool at ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m in the robot base "
+          f"frame ({source})")
+    print("  k  shoulder elbow wrist  status           q1..q6 [rad]                                   |FK(q)-T|")
+    labels = []
+    for k in range(8):
+        s_, e_, w_ = (int(x) for x in sol.config[k])
+        labels.append(f"shoulder {s_:+d} elbow {e_:+d} wrist {w_:+d}")
+        line = f"  {k}  {s_:+d}       {e_:+d}    {w_:+d}     {sol.status[k]:<16}"
+        if np.all(np.isfinite(sol.q[k])):
+            err = float(np.abs(robot.fk(sol.q[k]) - T).max())
+            line += " " + " ".join(f"{x:+7.4f}" for x in sol.q[k]) + f"   {err:.1e}"
+        if sol.singular[k]:
+            line += "  singular: " + ",".join(sol.singular[k])
+        if sol.unreachable_step[k]:
+            line += f"  ({sol.unreachable_step[k]} point pair imaginary)"
+        print(line)
+    print(f"  {len(sol)} solution(s) ok, {len(sol.distinct())} distinct")
+    if args.closest is not None:
+        best = robot.ik_closest(T, np.asarray(args.closest, dtype=np.float64),
+                                respect_limits=not args.ignore_limits)
+        print(f"  closest to {np.array2string(np.asarray(args.closest), precision=4)}: {best.status}"
+              + (" q = " + " ".join(f"{x:+.4f}" for x in best.q) if best.ok else ""))
+    if args.plot:
+        from . import plots
+
+        path = plots.plot_arm_configurations(robot, sol.q, args.plot, labels=labels, T_base_tool=T,
+                                             title=f"{robot.name}: inverse kinematics solutions")
+        print(f"  wrote {path}")
+    return 0 if len(sol) else 1
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -299,9 +407,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("demo", help="reconstruct a built-in synthetic eye-in-hand scan (no download needed)",
-                       description="Renders a built-in synthetic scan (a camera on a robot's hand circling a part "
-                                   "on a table, SR300-like noise), reconstructs it frame-to-model and writes "
-                                   "model.ply, trajectory.txt, reference.txt, frames.csv, report.json, "
+                       description="Renders a built-in synthetic scan (a camera on the hand of a UR5 circling a "
+                                   "part on a table, SR300-like noise; the reference poses are the robot's forward "
+                                   "kinematics), reconstructs it frame-to-model and writes model.ply, "
+                                   "trajectory.txt, reference.txt, frames.csv, joints.csv, report.json, "
                                    "trajectory.png and frames.png.")
     _add_reconstruct_options(p, "scanalign-demo")
     # The demo keeps the workspace around the part (20 x 20 cm in the camera's view) and uses
@@ -321,6 +430,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--frames", type=int, help="builtin: number of frames (36)")
     p.add_argument("--noise", help="builtin: noise preset (sr300)")
     p.add_argument("--seed", type=int, help="builtin: random seed (0)")
+    _add_robot_options(p)
     p = sub.add_parser("register", help="ICP between two clouds (PCD or PLY, metres)")
     p.add_argument("source", help="source cloud (its camera frame)")
     p.add_argument("target", help="target cloud (the model frame); normals are estimated if absent")
@@ -336,8 +446,25 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--out", default="scanalign-register-demo", help="output folder")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     p.add_argument("--noise", type=float, default=0.0005, help="depth noise sigma in metres (default 0.0005)")
+    p = sub.add_parser("ik", help="all analytic inverse-kinematics solutions of a tool pose (CGA, thesis Paper 1)",
+                       description="Prints every inverse-kinematics solution (up to 8) of one tool pose with its "
+                                   "configuration labels (shoulder front/back, elbow up/down, wrist flip), status "
+                                   "and forward-kinematics check. Exit status 1 when no solution is ok.")
+    p.add_argument("--robot", default="ur5", help="ur5 (default), ur3, ur10, ur3e, ur5e, ur10e, ur5_thesis, "
+                                                  "kr6_r900_sixx")
+    p.add_argument("--pose", type=float, nargs=6, metavar=("X", "Y", "Z", "RX", "RY", "RZ"),
+                   help="tool pose in the robot base frame: position in metres and rotation vector (axis times "
+                        "angle) in radians, as a UR controller shows it")
+    p.add_argument("--joints", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
+                   help="use the pose of these joint values (radians, forward kinematics)")
+    p.add_argument("--closest", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
+                   help="also print the solution nearest these joints (radians)")
+    p.add_argument("--ignore-limits", action="store_true", help="ignore the joint limits")
+    p.add_argument("--plot", help="write a PNG with every configuration drawn as a stick figure")
     args = parser.parse_args(argv)
     try:
+        if args.command == "ik":
+            return ik_command(args)
         if args.command == "demo":
             _run_reconstruction("builtin", args)
             return 0

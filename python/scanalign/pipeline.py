@@ -12,8 +12,11 @@ what people look at:
 - ``reference.txt``: reference camera poses of the same frames, TUM format (base frame);
 - ``frames.csv``: per-frame statistics (status, time, iterations, fitness, RMSE, sizes);
 - ``report.json``: settings, ATE, RPE, per-frame times, model size and quality;
+- ``joints.csv``: when the frames carry robot joints (``Frame.meta["joints"]``, e.g. a
+  synthetic scan moved by a UR5), per frame: index, timestamp (s), q1 ... q6 (rad);
 - ``trajectory.png``: top-down estimated vs reference trajectory with error segments
-  (like seed 000 Fig. 4); ``frames.png``: per-frame time and model size.
+  (like seed 000 Fig. 4); ``frames.png``: per-frame time and model size; ``joints.png``:
+  the robot's joint angles over time with its limits (when joints are known).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from .camera import Frame
 from .reconstruction import FrameRecord, FrameToModelSettings, Model, Reconstructor
 from .trajectory import Trajectory
 
-__all__ = ["ReconstructionResult", "reconstruct", "settings_to_dict"]
+__all__ = ["ReconstructionResult", "reconstruct", "settings_to_dict", "write_joints_csv"]
 
 
 def settings_to_dict(settings: FrameToModelSettings) -> Dict[str, Any]:
@@ -68,6 +71,10 @@ class ReconstructionResult:
         settings: the settings used; registration: the registration method.
         metrics: ATE / RPE / timing summary (see :meth:`summary`).
         seconds: wall time of the whole run (frame loading included).
+        joints: (len(records), 6) robot joints (rad) of every input frame, in the order of
+            :attr:`records`, from ``Frame.meta["joints"]`` (NaN rows for frames without);
+            None when no frame has joints.
+        robot: the robot's name from ``Frame.meta["robot"]``, or None.
     """
 
     model: Model
@@ -79,6 +86,8 @@ class ReconstructionResult:
     registration: str
     seconds: float
     metrics: Dict[str, Any] = field(default_factory=dict)
+    joints: Optional[np.ndarray] = None
+    robot: Optional[str] = None
 
     @property
     def skipped(self) -> List[FrameRecord]:
@@ -104,13 +113,16 @@ class ReconstructionResult:
             "iterations_median": float(np.median([r.iterations for r in self.records if r.status == "registered"]))
             if t.size else None,
         }
+        if self.joints is not None:
+            out["robot"] = self.robot
         out.update(self.metrics)
         return out
 
     def save(self, out_dir: Union[str, Path], plots: bool = True) -> Dict[str, Path]:
         """Writes model.ply, trajectory.txt, reference.txt (when known), frames.csv,
-        report.json, and (``plots``) trajectory.png and frames.png into ``out_dir``.
-        Returns the paths written."""
+        joints.csv (when the frames carry robot joints), report.json, and (``plots``)
+        trajectory.png, frames.png and joints.png (with joints) into ``out_dir``. Returns the
+        paths written."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths: Dict[str, Path] = {}
@@ -130,6 +142,10 @@ class ReconstructionResult:
             w.writerow(cols)
             for r in self.records:
                 w.writerow([getattr(r, c) for c in cols])
+        if self.joints is not None:
+            paths["joints"] = out / "joints.csv"
+            write_joints_csv(paths["joints"], [r.index for r in self.records], [r.timestamp for r in self.records],
+                             self.joints)
         report = {
             "summary": self.summary(),
             "settings": settings_to_dict(self.settings),
@@ -153,6 +169,18 @@ class ReconstructionResult:
                          model_points=r.model_points, skipped=not r.merged) for r in self.records]
             paths["frames_png"] = _plots.plot_frame_stats(rows, out / "frames.png",
                                                           title="per-frame time and model size")
+            if self.joints is not None and len(self.records) >= 2:
+                limits = None
+                if self.robot is not None:
+                    from . import kinematics as _kin
+
+                    try:
+                        limits = _kin.Robot.by_name(self.robot).limits
+                    except ValueError:  # a custom robot: no limits to draw
+                        limits = None
+                paths["joints_png"] = _plots.plot_joint_trajectory(
+                    [r.timestamp for r in self.records], self.joints, out / "joints.png", limits=limits,
+                    title=f"{self.robot or 'robot'} joint trajectory (inverse kinematics, closest to previous)")
         return paths
 
     def estimate_at_reference(self) -> Trajectory:
@@ -161,6 +189,20 @@ class ReconstructionResult:
             return self.estimate
         keep = np.isin(self.estimate.timestamps, self.reference.timestamps)
         return self.estimate[np.nonzero(keep)[0]]
+
+
+def write_joints_csv(path: Union[str, Path], indices: Iterable[int], timestamps: Iterable[float],
+                     joints: np.ndarray) -> Path:
+    """Writes a joint trajectory as CSV: header ``index,timestamp,q1,...,q6``, then one row
+    per frame (timestamp in seconds, joints in radians, 17 significant digits so the values
+    read back exactly; empty cells for unknown joints)."""
+    q = np.asarray(joints, dtype=np.float64)
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        w = csv.writer(f)
+        w.writerow(["index", "timestamp", "q1", "q2", "q3", "q4", "q5", "q6"])
+        for i, t, row in zip(indices, timestamps, q):
+            w.writerow([int(i), repr(float(t))] + [repr(float(v)) if math.isfinite(v) else "" for v in row])
+    return Path(path)
 
 
 def _plot_estimate_only(estimate: Trajectory, path: Path) -> Path:
@@ -277,6 +319,8 @@ def reconstruct(
     callback = progress if callable(progress) else None
     ref_of: Dict[int, np.ndarray] = {}
     last_ref: Optional[np.ndarray] = None
+    joints: List[Optional[np.ndarray]] = []
+    robot_name: Optional[str] = None
     try:
         for frame in frames:
             if rec is None:
@@ -298,6 +342,11 @@ def reconstruct(
                     # that frame's estimate.
                     guess = rec.last_pose @ np.linalg.inv(last_ref) @ np.asarray(frame.T_base_camera)
             record = rec.integrate(frame, guess=guess)
+            meta = getattr(frame, "meta", None) or {}
+            q = meta.get("joints")
+            joints.append(None if q is None else np.asarray(q, dtype=np.float64).reshape(6))
+            if q is not None and robot_name is None and meta.get("robot") is not None:
+                robot_name = str(meta["robot"])
             if frame.T_base_camera is not None:
                 ref_of[record.index] = np.asarray(frame.T_base_camera, dtype=np.float64)
                 if record.merged:
@@ -318,6 +367,9 @@ def reconstruct(
     result = ReconstructionResult(model=rec.model, records=rec.records, estimate=estimate, reference=reference,
                                   T_model_camera0=rec.T_model_camera0, settings=rec.settings,
                                   registration=registration, seconds=time.perf_counter() - t_start)
+    if any(q is not None for q in joints):
+        result.joints = np.array([np.full(6, np.nan) if q is None else q for q in joints])
+        result.robot = robot_name
     if evaluate and reference is not None and len(reference) >= 3:
         result.metrics.update(trajectory_metrics(result.estimate_at_reference(), reference))
     return result

@@ -18,7 +18,7 @@ import numpy as np
 
 from .trajectory import Trajectory
 
-__all__ = ["plot_trajectory_topdown", "plot_frame_stats", "plot_series"]
+__all__ = ["plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory"]
 
 PathLike = Union[str, os.PathLike]
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -290,4 +290,102 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
         ax.set_title(title)
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize=8)
+    return _save(fig, path, dpi)
+
+
+def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels: Optional[Sequence[str]] = None,
+                            T_base_tool: Optional[np.ndarray] = None, title: Optional[str] = None,
+                            dpi: int = 110) -> Path:
+    """Draws arm configurations (e.g. all IK solutions of one pose) as stick figures.
+
+    Args:
+        robot: a :class:`scanalign.kinematics.Robot` (its ``joint_frames(q)`` gives the DH
+            frames 0..6 in DH frame 0; they are drawn in the robot base frame).
+        q: (K, 6) joint values, radians; rows with NaN are skipped.
+        path: output PNG.
+        labels: one caption per row (e.g. "shoulder +1 elbow +1 wrist -1").
+        T_base_tool: (4, 4) target tool pose (tool -> base), drawn as a small RGB triad.
+        title: figure title.
+
+    Returns:
+        The path written. One 3D panel per configuration, metres, equal axes.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    if q.ndim != 2 or q.shape[1] != 6:
+        raise ValueError(f"q: expected shape (K, 6), got {q.shape}")
+    rows = [k for k in range(q.shape[0]) if np.all(np.isfinite(q[k]))]
+    if labels is not None and len(labels) != q.shape[0]:
+        raise ValueError("labels: need one label per row of q")
+    n = max(len(rows), 1)
+    cols = min(n, 4)
+    nrows = (n + cols - 1) // cols
+    fig = _figure((3.2 * cols, 3.2 * nrows))
+    T_base_dh0 = np.asarray(robot.T_base_dh0, dtype=np.float64)
+    chains = []
+    for k in rows:
+        F = T_base_dh0 @ np.asarray(robot.joint_frames(q[k]))
+        tool = robot.fk(q[k])
+        chains.append((k, np.vstack([F[:, :3, 3], tool[None, :3, 3]])))
+    pts = np.vstack([c for _, c in chains] + ([np.asarray(T_base_tool)[None, :3, 3]] if T_base_tool is not None else [])
+                    ) if chains else np.zeros((1, 3))
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    half = 0.55 * max(float(np.ptp(pts, axis=0).max()), 1e-3)
+    for i, (k, chain) in enumerate(chains):
+        ax = fig.add_subplot(nrows, cols, i + 1, projection="3d")
+        ax.plot(chain[:, 0], chain[:, 1], chain[:, 2], "-o", color="0.25", lw=2.5, ms=3.5)
+        ax.plot([chain[0, 0]], [chain[0, 1]], [chain[0, 2]], "s", color="k", ms=6)
+        if T_base_tool is not None:
+            T = np.asarray(T_base_tool, dtype=np.float64)
+            for a, colour in enumerate(("r", "g", "b")):
+                e = T[:3, 3] + 0.25 * half * T[:3, a]
+                ax.plot([T[0, 3], e[0]], [T[1, 3], e[1]], [T[2, 3], e[2]], color=colour, lw=1.5)
+        ax.set_xlim(centre[0] - half, centre[0] + half)
+        ax.set_ylim(centre[1] - half, centre[1] + half)
+        ax.set_zlim(centre[2] - half, centre[2] + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.tick_params(labelsize=6)
+        ax.set_title(labels[k] if labels is not None else f"solution {k}", fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _save(fig, path, dpi)
+
+
+def plot_joint_trajectory(t: Sequence[float], q: np.ndarray, path: PathLike, *,
+                          limits: Optional[np.ndarray] = None, title: Optional[str] = None, dpi: int = 110) -> Path:
+    """Joint angles over time, one panel per joint, with the joint limits as dashed lines.
+
+    Args:
+        t: (N,) times, seconds.
+        q: (N, 6) joint values, radians (NaN rows: steps without a solution, left as gaps).
+        path: output PNG.
+        limits: (6, 2) lower / upper joint limits, radians.
+        title: figure title.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != 6 or t.shape != (q.shape[0],):
+        raise ValueError(f"expected t (N,) and q (N, 6), got {t.shape} and {q.shape}")
+    fig = _figure((9.0, 5.0))
+    axes = fig.subplots(2, 3, sharex=True)
+    for j, ax in enumerate(axes.ravel()):
+        ax.plot(t, np.degrees(q[:, j]), color="C0", lw=1.4)
+        if limits is not None:
+            lo, hi = np.degrees(np.asarray(limits, dtype=np.float64)[j])
+            span = np.nanmax(np.abs(np.degrees(q[:, j]))) if np.isfinite(q[:, j]).any() else 180.0
+            for v in (lo, hi):
+                if abs(v) <= 1.5 * span + 30:
+                    ax.axhline(v, color="C3", ls="--", lw=0.8)
+        vals = np.degrees(q[:, j])
+        if np.isfinite(vals).any():  # at least 10 degrees of span: a still joint reads as still
+            mid = 0.5 * (np.nanmin(vals) + np.nanmax(vals))
+            half = max(0.55 * (np.nanmax(vals) - np.nanmin(vals)), 5.0)
+            ax.set_ylim(mid - half, mid + half)
+        ax.ticklabel_format(axis="y", useOffset=False)
+        ax.set_title(f"joint {j + 1}", fontsize=9)
+        ax.set_ylabel("deg", fontsize=8)
+        ax.grid(alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("time [s]", fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
     return _save(fig, path, dpi)

@@ -7,9 +7,14 @@ scored against the truth.
 
 Frames (all transforms ``T_a_b`` map b-coordinates into a, metres, 4x4 float64):
 
-- ``base``: the robot base; z up, the table top is the plane ``z = table_height``
-  (0 by default), the objects stand on it.
-- ``flange``: the robot's tool flange; ``T_base_flange`` comes from forward kinematics.
+- ``base``: the scene (world) frame; z up, the table top is the plane ``z = table_height``
+  (0 by default), the objects stand on it. Every pose and the reconstruction's model are
+  given in this frame.
+- ``robot``: the base frame of the robot arm that moves the camera (a UR5 by default,
+  :mod:`scanalign.kinematics`), mounted at ``T_base_robot`` in the scene (default
+  :func:`robot_mount`: hanging 0.9 m above the table centre).
+- ``flange``: the robot's tool flange; ``T_base_flange = T_base_robot @ fk(q)`` comes from
+  forward kinematics of the joints ``q``.
 - ``camera``: the depth camera, OpenCV convention (x right, y down, z along the optical
   axis); ``T_flange_camera`` is the hand-eye calibration, so
   ``T_base_camera = T_base_flange @ T_flange_camera``.
@@ -19,14 +24,24 @@ Pipeline::
 
     scene = Scene(table_size=(0.6, 0.6))
     scene.add_object(builtin_mesh(), position=(0.5, 0.0), yaw=0.3)
-    traj = loop_trajectory(36, center=scene.center, height=0.40, radius=0.20)
+    traj = loop_trajectory(36, center=scene.center, height=0.40, radius=0.20, robot="ur5")
     scan = render_scan(scene, traj, "sr300", noise="sr300", seed=1)
+    scan.joints[0]                     # UR5 joints of frame 0 (rad), from inverse kinematics
     scan.frames[0].depth_metres()      # (480, 640) float32, NaN = no measurement
     scan.reference.poses[0]            # exact T_base_camera of frame 0
     scan.mesh                          # the whole scene in the base frame (for cloud-to-mesh)
 
 or, for the demo, ``builtin_scan(n_frames=36, noise="sr300", seed=0)``, or from a JSON /
 flat YAML file with :class:`SyntheticConfig`.
+
+With a robot (``robot="ur5"``, the default of :class:`SyntheticConfig` and
+:func:`builtin_scan`), the planned camera poses become flange poses
+``T_base_camera @ inv(T_flange_camera)``, mapped into the robot base frame; the arm's
+analytic inverse kinematics gives the joints, each step taking the solution closest to the
+previous one (:meth:`scanalign.kinematics.Robot.ik_trajectory`), and forward kinematics of
+those joints gives the reference flange and camera poses: the reconstruction is scored
+against the robot's own pose, as in seed 000. A pose the arm cannot reach raises
+ValueError naming the frame and the IK status.
 """
 
 from __future__ import annotations
@@ -59,6 +74,9 @@ __all__ = [
     "DEFAULT_T_FLANGE_CAMERA",
     "look_at",
     "ScanTrajectory",
+    "DEFAULT_ROBOT_HEIGHT",
+    "robot_mount",
+    "attach_robot",
     "loop_trajectory",
     "hemisphere_trajectory",
     "SensorNoise",
@@ -776,14 +794,25 @@ class ScanTrajectory:
     """Robot poses of a scan and the camera poses they give.
 
     Attributes:
-        T_base_flange: (N, 4, 4) flange poses (flange -> base), metres.
+        T_base_flange: (N, 4, 4) flange poses (flange -> base), metres. With a robot, forward
+            kinematics of :attr:`joints`: ``robot.fk(joints)``.
         T_flange_camera: (4, 4) hand-eye transform (camera -> flange).
         timestamps: (N,) seconds.
+        joints: (N, 6) joint values of the robot (rad, as its controller reports them), or
+            None when the poses were planned without a robot.
+        robot: the :class:`scanalign.kinematics.Robot` that moves the camera, placed in the
+            scene (its base transform is ``T_base_robot``, its tool the flange), so that
+            ``robot.fk(joints)`` is :attr:`T_base_flange`; None without a robot.
+        T_base_robot: (4, 4) where the robot's own base frame is mounted in the scene
+            (robot base -> scene base), or None.
     """
 
     T_base_flange: np.ndarray
     T_flange_camera: np.ndarray
     timestamps: np.ndarray
+    joints: Optional[np.ndarray] = None
+    robot: Optional[Any] = None
+    T_base_robot: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         self.T_base_flange = np.asarray(self.T_base_flange, dtype=np.float64)
@@ -793,6 +822,12 @@ class ScanTrajectory:
         self.timestamps = np.asarray(self.timestamps, dtype=np.float64).reshape(-1)
         if len(self.timestamps) != len(self.T_base_flange):
             raise ValueError("one timestamp per pose expected")
+        if self.joints is not None:
+            self.joints = np.asarray(self.joints, dtype=np.float64)
+            if self.joints.shape != (len(self.T_base_flange), 6):
+                raise ValueError(f"joints: expected shape ({len(self.T_base_flange)}, 6), got {self.joints.shape}")
+        if self.T_base_robot is not None:
+            self.T_base_robot = _check_rigid(self.T_base_robot, "T_base_robot")
 
     def __len__(self) -> int:
         return len(self.T_base_flange)
@@ -806,6 +841,166 @@ class ScanTrajectory:
     def reference(self) -> Trajectory:
         """The exact camera trajectory (``T_base_camera`` per frame) as a :class:`Trajectory`."""
         return Trajectory(self.timestamps.copy(), self.T_base_camera)
+
+
+#: Default height (m) of the scan robot's base above the table top (:func:`robot_mount`).
+DEFAULT_ROBOT_HEIGHT: float = 0.90
+
+
+def robot_mount(x: float = 0.5, y: float = 0.0, z: float = DEFAULT_ROBOT_HEIGHT, roll: float = math.pi,
+                pitch: float = 0.0, yaw: float = 0.0) -> np.ndarray:
+    """``T_base_robot``: where a robot's own base frame sits in the scene (robot base ->
+    scene base), from a position (m) and roll / pitch / yaw angles (rad, rotation
+    ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, as URDF).
+
+    The default mounts the arm upside down (roll = pi: its first joint axis points down)
+    0.9 m above the table centre of the default scene, e.g. on a gantry or the ceiling. A
+    camera that circles an object all the way round has to circle the arm's first axis
+    too: from a base beside the table, a UR5 (reach 0.85 m) cannot reach the far side of
+    the default hemisphere path, and the near side passes through the shoulder
+    singularity (the wrist within d4 = 0.11 m of the first axis). From above, both default
+    paths (the loop 40 cm above the table and the hemisphere at 35-75 deg elevation) lie
+    0.15-0.47 m from the first axis and 0.3-0.7 m from the shoulder, well inside the
+    workspace and away from every singularity.
+    """
+    vals = (x, y, z, roll, pitch, yaw)
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
+        raise ValueError(f"robot_mount: expected finite numbers (m, rad), got {vals!r}")
+    T = np.eye(4)
+    T[:3, :3] = _rot([0.0, 0.0, 1.0], yaw) @ _rot([0.0, 1.0, 0.0], pitch) @ _rot([1.0, 0.0, 0.0], roll)
+    T[:3, 3] = [x, y, z]
+    return T
+
+
+def _as_robot(robot: Any) -> Any:
+    from . import kinematics as kin
+
+    if isinstance(robot, str):
+        return kin.Robot.by_name(robot)
+    if not isinstance(robot, kin.Robot):
+        raise TypeError(f"robot: expected a scanalign.kinematics.Robot or a robot name, got {type(robot)!r}")
+    return robot
+
+
+def attach_robot(
+    trajectory: ScanTrajectory,
+    robot: Any = "ur5",
+    *,
+    T_base_robot: Optional[np.ndarray] = None,
+    q_start: Optional[Sequence[float]] = None,
+    elbow: str = "up",
+) -> ScanTrajectory:
+    """Moves a planned camera path with a robot arm: joints by inverse kinematics, poses
+    by forward kinematics.
+
+    The planned flange poses (``trajectory.T_base_flange``, i.e. the planned camera poses
+    times ``inv(T_flange_camera)``) are mapped into the robot's base frame,
+    ``inv(T_base_robot) @ T_base_flange``; :meth:`Robot.ik_trajectory` takes at each step
+    the inverse-kinematics solution closest to the previous step's joints; and forward
+    kinematics of those joints gives the returned flange poses, so the reference camera
+    poses are the robot's own (equal to the planned ones up to rounding, ~1e-15 m, since
+    the IK is exact).
+
+    The start configuration, unless ``q_start`` is given, is chosen among the solutions of
+    the first pose: those with the requested ``elbow`` ("up": the elbow on the side of the
+    arm away from the table -- IK label elbow = +1 for an upright base, -1 for a hanging
+    one; "down": the other; "any"), each with its first and last joint shifted by -2 pi, 0
+    and +2 pi where the limits allow; the one whose trajectory reaches every pose with the
+    smallest largest joint step wins (ties within 1e-9 rad: the lowest configuration index,
+    then no shift before -2 pi before +2 pi). So a loop
+    around the first axis starts where it can turn all the way without leaving the joint
+    limits, and no step switches branch.
+
+    Args:
+        trajectory: the planned path (its ``T_base_flange`` and ``T_flange_camera``).
+        robot: a :class:`scanalign.kinematics.Robot` or a name for
+            :meth:`Robot.by_name` ("ur5", ...); its tool transform is replaced by the
+            flange (the camera's hand-eye transform plays that role), its base transform
+            by ``T_base_robot`` (composed with the model's own DH-frame-0 placement).
+        T_base_robot: (4, 4) mounting of the robot base in the scene (robot base -> scene
+            base, metres); default :func:`robot_mount` ``()``.
+        q_start: (6,) joints (rad) to start from instead of the automatic choice: the first
+            step is the solution closest to it.
+        elbow: "up", "down" or "any" (see above; ignored with ``q_start``).
+
+    Returns:
+        A new :class:`ScanTrajectory` with ``joints``, ``robot`` (placed in the scene) and
+        ``T_base_robot`` set.
+
+    Raises:
+        ValueError: a pose the robot cannot reach, or reaches only outside its joint limits
+            (the message names the frame, its time and the IK status), a bad ``elbow`` or
+            ``q_start``, or a malformed ``T_base_robot``.
+        TypeError: ``robot`` of another type.
+    """
+    if not isinstance(trajectory, ScanTrajectory):
+        raise TypeError(f"trajectory: expected ScanTrajectory, got {type(trajectory)!r}")
+    if elbow not in ("up", "down", "any"):
+        raise ValueError(f"elbow must be 'up', 'down' or 'any', got {elbow!r}")
+    model = _as_robot(robot).with_tool(np.eye(4))
+    Tbr = robot_mount() if T_base_robot is None else _check_rigid(T_base_robot, "T_base_robot")
+    # Flange poses in the robot's own base frame, which is what its controller (and IK) sees.
+    T_robot_flange = _rigid_inverse(Tbr) @ trajectory.T_base_flange
+    n = len(T_robot_flange)
+    stamps = trajectory.timestamps
+
+    def where(k: int) -> str:
+        p = T_robot_flange[k, :3, 3]
+        return (f"frame {k} (t = {stamps[k]:.3f} s, flange at ({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f}) m in the "
+                f"{model.name} base frame)")
+
+    def run(q0: np.ndarray) -> Tuple[Any, float]:
+        tr = model.ik_trajectory(T_robot_flange, q0)
+        if not np.all(tr.ok):
+            return tr, math.inf
+        steps = np.abs(np.diff(np.vstack([q0[None], tr.q]), axis=0))
+        return tr, float(steps.max())
+
+    if q_start is not None:
+        q0 = np.asarray(q_start, dtype=np.float64).reshape(-1)
+        if q0.shape != (6,) or not np.all(np.isfinite(q0)):
+            raise ValueError(f"q_start: expected 6 finite joint values (rad), got {q_start!r}")
+        best, _ = run(q0)
+    else:
+        first = model.ik(T_robot_flange[0])
+        ok = np.asarray(first.ok, dtype=bool)
+        if not ok.any():
+            status = sorted(set(first.status), key=("outside_limits", "unreachable", "invalid_input", "ok").index)
+            raise ValueError(f"robot {model.name} mounted at T_base_robot cannot reach {where(0)}: IK status "
+                             f"{status[0]!r} for every configuration; move the robot (T_base_robot) or the path")
+        # Elbow label of "up" in the scene: +1 when the robot's z axis points upwards.
+        z_up = (Tbr @ model.T_base_dh0)[2, 2] >= 0
+        want = {"up": 1 if z_up else -1, "down": -1 if z_up else 1, "any": 0}[elbow]
+        candidates = [k for k in range(8) if ok[k] and (want == 0 or int(first.config[k][1]) == want)]
+        if not candidates:
+            raise ValueError(f"robot {model.name}: no elbow-{elbow} solution within the joint limits for {where(0)}; "
+                             f"use elbow='any' or another mount")
+        lo, hi = model.limits[:, 0], model.limits[:, 1]
+        best, best_step = None, math.inf
+        for k in candidates:
+            for d1 in (0.0, -2 * math.pi, 2 * math.pi):
+                for d6 in (0.0, -2 * math.pi, 2 * math.pi):
+                    q0 = np.array(first.q[k], dtype=np.float64)
+                    q0[0] += d1
+                    q0[5] += d6
+                    if np.any(q0 < lo) or np.any(q0 > hi):
+                        continue
+                    tr, step = run(q0)
+                    # Strictly smaller by more than rounding: equal steps keep the earlier
+                    # candidate (lower configuration index, no shift first).
+                    if best is None or step < best_step - 1e-9 or (
+                            step == best_step == math.inf and np.count_nonzero(tr.ok) > np.count_nonzero(best.ok)):
+                        best, best_step = tr, step
+    if not np.all(best.ok):
+        k = int(np.flatnonzero(~np.asarray(best.ok, dtype=bool))[0])
+        raise ValueError(f"robot {model.name} mounted at T_base_robot cannot follow the camera path: {where(k)} "
+                         f"has IK status {best.status[k]!r} ({int(np.count_nonzero(best.ok))} of {n} frames "
+                         f"reachable); move the robot (T_base_robot) or the path")
+    q = np.array(best.q, dtype=np.float64)
+    placed = model.with_base(Tbr @ model.T_base_dh0)
+    T_base_flange = placed.fk(q)
+    return ScanTrajectory(T_base_flange, trajectory.T_flange_camera.copy(), stamps.copy(), joints=q, robot=placed,
+                          T_base_robot=Tbr.copy())
 
 
 def _scan_from_camera_poses(T_base_camera: np.ndarray, T_flange_camera: Optional[np.ndarray], frame_rate: float,
@@ -828,6 +1023,17 @@ def _scan_from_camera_poses(T_base_camera: np.ndarray, T_flange_camera: Optional
     return ScanTrajectory(T_base_flange, np.array(Tfc), np.arange(len(T_cam)) / frame_rate)
 
 
+def _with_robot(traj: ScanTrajectory, robot: Any, T_base_robot: Optional[np.ndarray],
+                q_start: Optional[Sequence[float]], center: np.ndarray) -> ScanTrajectory:
+    if robot is None or (isinstance(robot, str) and robot == "none"):
+        if T_base_robot is not None or q_start is not None:
+            raise ValueError("T_base_robot and q_start need a robot")
+        return traj
+    if T_base_robot is None:
+        T_base_robot = robot_mount(float(center[0]), float(center[1]), float(center[2]) + DEFAULT_ROBOT_HEIGHT)
+    return attach_robot(traj, robot, T_base_robot=T_base_robot, q_start=q_start)
+
+
 def loop_trajectory(
     n_frames: int = 36,
     *,
@@ -842,6 +1048,9 @@ def loop_trajectory(
     jitter_translation: float = 0.0,
     jitter_rotation: float = 0.0,
     seed: int = 0,
+    robot: Any = None,
+    T_base_robot: Optional[np.ndarray] = None,
+    q_start: Optional[Sequence[float]] = None,
 ) -> ScanTrajectory:
     """A loop around the object, like seed 000 Fig. 4: the camera circles at ``height``
     above the table, tilted to look at the target.
@@ -864,6 +1073,14 @@ def loop_trajectory(
         jitter_translation, jitter_rotation: standard deviations (m, rad) of an optional
             random perturbation of each camera pose (the reference includes it). 0: smooth.
         seed: seed of the jitter.
+        robot: None (default): the flange poses are the planned ones, no arm. A robot name
+            ("ur5") or :class:`scanalign.kinematics.Robot`: the arm follows the path
+            (:func:`attach_robot`), the trajectory carries its joints, and its poses are
+            forward kinematics of them.
+        T_base_robot: with a robot, its mounting in the scene (robot base -> base, m);
+            default :func:`robot_mount` hanging :data:`DEFAULT_ROBOT_HEIGHT` above ``center``.
+        q_start: with a robot, joints (rad) to start from (default: chosen automatically,
+            elbow up; see :func:`attach_robot`).
     """
     if int(n_frames) != n_frames or n_frames < 1:
         raise ValueError(f"n_frames must be a positive integer, got {n_frames}")
@@ -885,8 +1102,9 @@ def loop_trajectory(
         # Straight down (radius 0): keep the image up pointing outwards along the azimuth.
         up = np.array([0.0, 0.0, 1.0]) if radius > 1e-9 * height else radial
         poses.append(look_at(eye, tgt, up))
-    return _scan_from_camera_poses(np.array(poses), T_flange_camera, frame_rate, jitter_translation,
+    traj = _scan_from_camera_poses(np.array(poses), T_flange_camera, frame_rate, jitter_translation,
                                    jitter_rotation, seed)
+    return _with_robot(traj, robot, T_base_robot, q_start, c)
 
 
 def hemisphere_trajectory(
@@ -902,6 +1120,9 @@ def hemisphere_trajectory(
     jitter_translation: float = 0.0,
     jitter_rotation: float = 0.0,
     seed: int = 0,
+    robot: Any = None,
+    T_base_robot: Optional[np.ndarray] = None,
+    q_start: Optional[Sequence[float]] = None,
 ) -> ScanTrajectory:
     """Rings on a hemisphere of radius ``distance`` around the target, one per elevation.
 
@@ -917,8 +1138,8 @@ def hemisphere_trajectory(
         distance: camera distance to the target (m).
         elevations: ring elevations above the table plane (rad, in (0, pi/2]).
         start_angle: azimuth of the first pose (rad).
-        target, T_flange_camera, frame_rate, jitter_translation, jitter_rotation, seed: as
-            for :func:`loop_trajectory`.
+        target, T_flange_camera, frame_rate, jitter_translation, jitter_rotation, seed,
+            robot, T_base_robot, q_start: as for :func:`loop_trajectory`.
     """
     el = np.asarray(elevations, dtype=np.float64).reshape(-1)
     if el.size == 0 or not np.all((el > 0) & (el <= math.pi / 2 + 1e-12)):
@@ -950,8 +1171,9 @@ def hemisphere_trajectory(
             up = np.array([0.0, 0.0, 1.0]) if math.cos(e) > 1e-6 else radial
             poses.append(look_at(eye, tgt, up))
         azimuth = azimuth + direction * step * (n - 1)
-    return _scan_from_camera_poses(np.array(poses), T_flange_camera, frame_rate, jitter_translation,
+    traj = _scan_from_camera_poses(np.array(poses), T_flange_camera, frame_rate, jitter_translation,
                                    jitter_rotation, seed)
+    return _with_robot(traj, robot, T_base_robot, q_start, c)
 
 
 # --------------------------------------------------------------------------- sensor noise
@@ -1113,7 +1335,8 @@ class SyntheticScan:
             :func:`render_scan`; or float32 metres with NaN when rendered with
             ``depth_unit=None``), ``rgb`` (uint8, registered to the depth), ``timestamp`` (s),
             ``T_base_camera`` (the exact pose), ``index``; ``meta`` holds ``T_base_flange``
-            when known and, with ``keep_ground_truth``, ``depth_true`` (float32 m, NaN = no
+            when known, ``joints`` (6 rad) and ``robot`` (its name) when a robot moved the
+            camera, and, with ``keep_ground_truth``, ``depth_true`` (float32 m, NaN = no
             hit) and ``face_id`` (int32, indexes :attr:`mesh`).
         reference: the exact camera trajectory, ``T_base_camera`` per frame.
         mesh: the whole scene (objects and table) in the base frame, metres.
@@ -1125,6 +1348,11 @@ class SyntheticScan:
         T_base_flange: (N, 4, 4) flange poses, or None.
         scene: the scene rendered.
         seed: the noise seed.
+        joints: (N, 6) joints of the robot that moved the camera (rad), when the poses came
+            from a :class:`ScanTrajectory` with a robot (else None); also in each frame's
+            ``meta["joints"]``.
+        robot: that robot, placed in the scene (``robot.fk(joints) == T_base_flange``), or None.
+        T_base_robot: the robot's mounting in the scene (robot base -> base), or None.
     """
 
     frames: List[Frame]
@@ -1137,6 +1365,9 @@ class SyntheticScan:
     T_base_flange: Optional[np.ndarray]
     scene: Scene
     seed: int
+    joints: Optional[np.ndarray] = None
+    robot: Optional[Any] = None
+    T_base_robot: Optional[np.ndarray] = None
 
     def __len__(self) -> int:
         return len(self.frames)
@@ -1173,7 +1404,8 @@ def render_scan(
 
     Args:
         scene: what is seen.
-        poses: a :class:`ScanTrajectory` (flange poses + hand-eye), a :class:`Trajectory` of
+        poses: a :class:`ScanTrajectory` (flange poses + hand-eye, and the robot's joints
+            when it has a robot: stored in the scan and each frame's meta), a :class:`Trajectory` of
             ``T_base_camera``, or an (N, 4, 4) array of ``T_base_camera`` (camera -> base, m).
         intrinsics: camera intrinsics or a preset name (:data:`scanalign.camera.INTRINSICS_PRESETS`).
         noise: a :class:`SensorNoise` or a preset name (:data:`NOISE_PRESETS`); None = "none".
@@ -1211,10 +1443,13 @@ def render_scan(
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     if int(num_threads) != num_threads or num_threads < 0:
         raise ValueError(f"num_threads must be a non-negative integer, got {num_threads!r}")
-    T_flange_camera = T_base_flange = None
+    T_flange_camera = T_base_flange = joints = robot = T_base_robot = None
     if isinstance(poses, ScanTrajectory):
         T_cams, stamps = poses.T_base_camera, poses.timestamps
         T_flange_camera, T_base_flange = poses.T_flange_camera.copy(), poses.T_base_flange.copy()
+        if poses.joints is not None:
+            joints, robot = poses.joints.copy(), poses.robot
+            T_base_robot = None if poses.T_base_robot is None else poses.T_base_robot.copy()
     elif isinstance(poses, Trajectory):
         T_cams, stamps = poses.poses, poses.timestamps
     else:
@@ -1248,6 +1483,10 @@ def render_scan(
         meta: Dict[str, Any] = {"noise": model.name}
         if T_base_flange is not None:
             meta["T_base_flange"] = T_base_flange[k].copy()
+        if joints is not None:
+            meta["joints"] = joints[k].copy()
+            if robot is not None:
+                meta["robot"] = robot.name
         if keep_ground_truth:
             meta["depth_true"] = clean.depth
             meta["face_id"] = clean.face_id
@@ -1276,6 +1515,9 @@ def render_scan(
         T_base_flange=T_base_flange,
         scene=scene,
         seed=int(seed),
+        joints=joints,
+        robot=robot,
+        T_base_robot=T_base_robot,
     )
 
 
@@ -1311,6 +1553,17 @@ class SyntheticConfig:
         depth_unit: metres per uint16 depth unit; ``"auto"`` for the sensor's own unit (0.1 mm
             without one); 0 stores float32 metres.
         frame_rate: Hz.
+        robot: the arm that moves the camera: a name of
+            :meth:`scanalign.kinematics.Robot.by_name` (default ``"ur5"``), or ``"none"`` for
+            camera poses exactly as planned without an arm (no joints).
+        robot_x, robot_y, robot_z: position of the robot's base frame in the scene (m); x, y
+            None (default) = above the object (``object_x``, ``object_y``); z default 0.9
+            (:data:`DEFAULT_ROBOT_HEIGHT` above the table top).
+        robot_roll, robot_pitch, robot_yaw: orientation of the robot base in the scene (rad,
+            ``Rz(yaw) Ry(pitch) Rx(roll)``); default (pi, 0, 0): hanging, first axis down
+            (see :func:`robot_mount` for why).
+        robot_elbow: start configuration: ``"up"`` (default: elbow away from the table),
+            ``"down"`` or ``"any"`` (see :func:`attach_robot`).
     """
 
     mesh: str = "builtin"
@@ -1334,6 +1587,14 @@ class SyntheticConfig:
     seed: int = 0
     depth_unit: Union[float, str] = "auto"
     frame_rate: float = 10.0
+    robot: str = "ur5"
+    robot_x: Optional[float] = None
+    robot_y: Optional[float] = None
+    robot_z: float = DEFAULT_ROBOT_HEIGHT
+    robot_roll: float = math.pi
+    robot_pitch: float = 0.0
+    robot_yaw: float = 0.0
+    robot_elbow: str = "up"
 
     def __post_init__(self) -> None:
         if self.trajectory not in ("loop", "hemisphere"):
@@ -1367,6 +1628,21 @@ class SyntheticConfig:
                 raise ValueError(f"{name} must be a positive number or null, got {v!r}")
         if not 0 < self.min_elevation <= self.max_elevation <= math.pi / 2:
             raise ValueError("need 0 < min_elevation <= max_elevation <= pi/2 (radians)")
+        if not isinstance(self.robot, str):
+            raise ValueError(f"robot must be a robot name or 'none', got {self.robot!r}")
+        if self.robot != "none":
+            try:
+                _as_robot(self.robot)
+            except ValueError as e:
+                raise ValueError(f"robot: {e} (or 'none' for no robot)") from None
+        for name in ("robot_x", "robot_y", "robot_z", "robot_roll", "robot_pitch", "robot_yaw"):
+            v = getattr(self, name)
+            if v is None and name in ("robot_x", "robot_y"):
+                continue
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)):
+                raise ValueError(f"{name} must be a finite number (m or rad), got {v!r}")
+        if self.robot_elbow not in ("up", "down", "any"):
+            raise ValueError(f"robot_elbow must be 'up', 'down' or 'any', got {self.robot_elbow!r}")
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "SyntheticConfig":
@@ -1376,7 +1652,7 @@ class SyntheticConfig:
         if unknown:
             raise ValueError(f"unknown synthetic config keys {unknown}; known: {sorted(known)}")
         values = dict(d)
-        for key in ("object_size", "distance"):
+        for key in ("object_size", "distance", "robot_x", "robot_y"):
             if isinstance(values.get(key), str) and values[key].lower() in ("null", "none", "~", ""):
                 values[key] = None
         return cls(**values)
@@ -1422,14 +1698,33 @@ class SyntheticConfig:
         scene.add_object(self.load_mesh(), position=(self.object_x, self.object_y), yaw=self.object_yaw, name=name)
         return scene
 
+    def T_base_robot(self) -> Optional[np.ndarray]:
+        """The robot's mounting in the scene (robot base -> base, 4x4, m), or None without a robot."""
+        if self.robot == "none":
+            return None
+        return robot_mount(self.object_x if self.robot_x is None else self.robot_x,
+                           self.object_y if self.robot_y is None else self.robot_y,
+                           self.robot_z, self.robot_roll, self.robot_pitch, self.robot_yaw)
+
     def build_trajectory(self, scene: Scene) -> ScanTrajectory:
+        """The planned camera path; with a robot, followed by the arm (:func:`attach_robot`).
+
+        Raises:
+            ValueError: a pose the robot cannot reach from its mount (naming the frame and the
+                IK status).
+        """
         if self.trajectory == "loop":
-            return loop_trajectory(self.n_frames, center=scene.center, height=self.height, radius=self.radius,
+            traj = loop_trajectory(self.n_frames, center=scene.center, height=self.height, radius=self.radius,
                                    start_angle=self.start_angle, frame_rate=self.frame_rate)
-        distance = self.distance if self.distance is not None else math.hypot(self.height, self.radius)
-        elevations = np.linspace(self.min_elevation, self.max_elevation, self.rings)
-        return hemisphere_trajectory(self.n_frames, center=scene.center, distance=distance, elevations=elevations,
-                                     start_angle=self.start_angle, frame_rate=self.frame_rate)
+        else:
+            distance = self.distance if self.distance is not None else math.hypot(self.height, self.radius)
+            elevations = np.linspace(self.min_elevation, self.max_elevation, self.rings)
+            traj = hemisphere_trajectory(self.n_frames, center=scene.center, distance=distance,
+                                         elevations=elevations, start_angle=self.start_angle,
+                                         frame_rate=self.frame_rate)
+        if self.robot == "none":
+            return traj
+        return attach_robot(traj, self.robot, T_base_robot=self.T_base_robot(), elbow=self.robot_elbow)
 
     def build(self, *, keep_ground_truth: bool = False) -> SyntheticScan:
         """Builds the scene and trajectory and renders the scan."""
@@ -1449,9 +1744,12 @@ def builtin_scan(
     intrinsics: str = "sr300",
     resolution_scale: float = 1.0,
     keep_ground_truth: bool = False,
+    robot: str = "ur5",
 ) -> SyntheticScan:
     """The demo scan: the built-in part on a 60 cm table, seen by an SR300-like camera on a
-    loop 40 cm above the table (radius 20 cm), 10 Hz, no download needed.
+    loop 40 cm above the table (radius 20 cm), 10 Hz, no download needed. The camera is on
+    the hand of a UR5 hanging 0.9 m above the table: the reference poses are its forward
+    kinematics, the joints are in ``scan.joints``.
 
     Args:
         n_frames: frames around the full loop.
@@ -1461,6 +1759,7 @@ def builtin_scan(
         intrinsics: intrinsics preset name.
         resolution_scale: image resize factor.
         keep_ground_truth: store noise-free depth and face ids in each frame's ``meta``.
+        robot: the arm's name, or ``"none"`` for the planned poses without an arm.
     """
     return SyntheticConfig(n_frames=n_frames, noise=noise, seed=seed, trajectory=trajectory, intrinsics=intrinsics,
-                           resolution_scale=resolution_scale).build(keep_ground_truth=keep_ground_truth)
+                           resolution_scale=resolution_scale, robot=robot).build(keep_ground_truth=keep_ground_truth)

@@ -533,6 +533,13 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& 
         // both elbows of this shoulder / wrist branch
         for (int e = 1; e >= -1; e -= 2) {
           const int wl = wrist_singular ? (b ? -1 : 1) : 0;
+          const int wlabel = wl != 0 ? wl : ((p5 - P4).dot(z1.cross(a_e)) >= 0 ? 1 : -1);
+          if (rec && rec->matches(shoulder, e, wlabel)) {
+            rec->out->elbow_discriminant = Q2.discriminant;
+            rec->set(2, P_c);
+            rec->set(3, P4);
+            rec->set(4, P3);
+          }
           if (wl != 0) {
             const IKConfig cfg{static_cast<std::int8_t>(shoulder), static_cast<std::int8_t>(e),
                                static_cast<std::int8_t>(wl)};
