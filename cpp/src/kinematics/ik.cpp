@@ -8,6 +8,8 @@
 
 #include <omp.h>
 
+#include "scanalign/cga/vector5.hpp"
+
 namespace scanalign::kinematics {
 
 namespace {
@@ -18,45 +20,14 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 using Vector3d = Eigen::Vector3d;
 using Matrix3d = Eigen::Matrix3d;
-/// Conformal vector on (e1, e2, e3, e∞, e0), as in fitting/sphere_fit.hpp.
-using Vector5d = Eigen::Matrix<double, 5, 1>;
+/// Conformal vectors on (e1, e2, e3, e∞, e0) with the metric of (5.32): scanalign/cga/vector5.hpp.
+using Vector5d = cga5::Vec5;
+using cga5::dualPlane;
+using cga5::dualSphere;
 
 // ---------------------------------------------------------------------------
 // CGA in 5-vector coordinates (spec §1.3; the metric of (5.32))
 // ---------------------------------------------------------------------------
-
-/// up(p) = p + ½p² e∞ + e0 (4.54).
-inline Vector5d upPoint(const Vector3d& p) {
-  Vector5d v;
-  v << p, 0.5 * p.squaredNorm(), 1.0;
-  return v;
-}
-/// Dual sphere S* = up(c) − ½r² e∞ (4.59); r2 = r².
-inline Vector5d dualSphere(const Vector3d& c, double r2) {
-  Vector5d v;
-  v << c, 0.5 * (c.squaredNorm() - r2), 1.0;
-  return v;
-}
-/// Dual plane Π* = n + δ e∞ (4.65): the plane n·x = δ.
-inline Vector5d dualPlane(const Vector3d& n, double delta) {
-  Vector5d v;
-  v << n, delta, 0.0;
-  return v;
-}
-inline Vector5d e0Vector() {
-  Vector5d v = Vector5d::Zero();
-  v[4] = 1;
-  return v;
-}
-inline Vector5d eInfVector() {
-  Vector5d v = Vector5d::Zero();
-  v[3] = 1;
-  return v;
-}
-/// X·Y = [X]ᵀ M [Y] (5.32): Euclidean part minus the e∞e0 cross terms (e0·e∞ = −1).
-inline double dot5(const Vector5d& x, const Vector5d& y) {
-  return x[0] * y[0] + x[1] * y[1] + x[2] * y[2] - x[3] * y[4] - x[4] * y[3];
-}
 
 /// The point pair Q = (A* ∧ B* ∧ C*)* of three dual spheres / planes (spec §1.4), returned
 /// as its two points. The null vectors X = up(x) with X·A* = X·B* = X·C* = 0 are the
@@ -352,8 +323,8 @@ void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o
       // K* = P_w + (P_w·S2*) e∞ (spec §1.7 ⚑: "+"), the sphere of the points X on S2 with
       // (X − P2) ⊥ (X − P_w); Q_wx = (K* ∧ S2*)·Π_c.
       const Vector5d S2 = dualSphere(P2, a3 * a3);
-      const Vector5d Pw = upPoint(p_w);
-      const Vector5d K = Pw + dot5(Pw, S2) * eInfVector();
+      const Vector5d Pw = cga5::up(p_w);
+      const Vector5d K = Pw + cga5::inner(Pw, S2) * cga5::eInf();
       const PointPair Qwx = meet3(K, S2, Pi_c);
       // The DH chain has P_w − P_wx = d4 z3, P_wx − P2 = a3 x3 and x3 × z3 = z2 = z1 (alpha3
       // = -pi/2): choose the candidate with ((P_wx − P2) × (P_w − P_wx))·z1 of sign a3·d4
@@ -461,7 +432,7 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& 
   // (43)-(45): P_c by the horizon of the origin on S_c* = P5 − ½d4² e∞:
   // K0* = e0 + (e0·S_c*) e∞ (spec §4.4 ⚑ "+"), in the horizontal plane through P5.
   const Vector5d Sc = dualSphere(p5, d4 * d4);
-  const Vector5d K0 = e0Vector() + dot5(e0Vector(), Sc) * eInfVector();
+  const Vector5d K0 = cga5::e0() + cga5::inner(cga5::e0(), Sc) * cga5::eInf();
   const PointPair Qc = meet3(Sc, K0, dualPlane(e3, p5.z()));
   const int realc = reality(Qc, tol);
   if (rec) rec->out->shoulder_discriminant = Qc.discriminant;

@@ -29,6 +29,7 @@
 
 #include <Eigen/Core>
 
+#include "scanalign/cga/vector5.hpp"
 #include "scanalign/common/cloud_view.hpp"
 
 #ifdef _OPENMP
@@ -37,39 +38,7 @@
 
 namespace scanalign {
 
-// ---------------------------------------------------------------------------
-// The small 5-vector algebra the models need (no full multivector library).
-// ---------------------------------------------------------------------------
-namespace cga5 {
-
-using Vec5 = Eigen::Matrix<double, 5, 1>;  ///< coefficients of (e1, e2, e3, e_inf, e0)
-
-/// Conformal point up(p) = p + p^2/2 e_inf + e0 (4.54-4.55).
-inline Vec5 up(const Eigen::Vector3d& p) {
-  Vec5 v;
-  v << p, 0.5 * p.squaredNorm(), 1.0;
-  return v;
-}
-/// The point at infinity e_inf.
-inline Vec5 eInf() {
-  Vec5 v = Vec5::Zero();
-  v[3] = 1.0;
-  return v;
-}
-/// Inner product of two vectors, [a]^T M [b] with M = diag(I3, [[0,-1],[-1,0]]) (5.32);
-/// e0 . e_inf = -1 (4.45).
-inline double inner(const Vec5& a, const Vec5& b) {
-  return a.head<3>().dot(b.head<3>()) - a[3] * b[4] - a[4] * b[3];
-}
-/// Dual (A*, (4.50)) of the 4-blade a ^ b ^ c ^ d, a vector. In five dimensions the
-/// outer product of four vectors is determined by the five 4x4 minors of the matrix with
-/// rows a, b, c, d; the dual maps it to the vector v with v . x = det[a; b; c; d; x] for
-/// every x, i.e. v = M * cofactors (M^-1 = M). The sign convention reproduces the
-/// verified example of spec §1.3: the dual of up(0,0,1)^up(1,0,1)^up(0,1,1)^e_inf is
-/// -(e3 + e_inf).
-Vec5 dualOfOuter4(const Vec5& a, const Vec5& b, const Vec5& c, const Vec5& d);
-
-}  // namespace cga5
+// The small 5-vector algebra the models need: scanalign/cga/vector5.hpp (cga5::).
 
 // ---------------------------------------------------------------------------
 // Models
