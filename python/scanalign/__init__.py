@@ -17,6 +17,7 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.pipeline` -- the reconstruction job: frames in, model, trajectory and report out.
 - :mod:`scanalign.evaluation` -- ATE / RPE (Sturm et al. 2012), exact cloud-to-mesh distance.
 - :mod:`scanalign.cga` -- conformal geometric algebra G(4,1): points, spheres, planes, lines, motors.
+- :mod:`scanalign.cad` -- CAD model to clouds: tessellated-sphere viewpoint sampling.
 - :mod:`scanalign.kinematics` -- 6R robots (KUKA KR6 R900 sixx, UR arms): forward kinematics, analytic CGA
   inverse kinematics.
 - :mod:`scanalign.plots` -- trajectory, per-frame and benchmark figures (matplotlib, Agg).
