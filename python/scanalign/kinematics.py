@@ -385,18 +385,6 @@ def _wrap(x: np.ndarray) -> np.ndarray:
 _CONFIGS_RO = CONFIGS  # read-only; identical for every pose (solution k has configuration k)
 
 
-def _solutions(d: dict) -> IKSolutions:
-    q = d["q"]
-    q.setflags(write=False)
-    return IKSolutions(
-        q=q,
-        status=tuple(STATUS_NAMES[s] for s in d["status"].tolist()),
-        config=_CONFIGS_RO,
-        singular=tuple(_SINGULAR_TABLE[b] for b in d["singular"].tolist()),
-        unreachable_step=tuple(STEP_NAMES[s] for s in d["step"].tolist()),
-    )
-
-
 def _solution(d: dict) -> IKSolution:
     status = STATUS_NAMES[d["status"]]
     return IKSolution(q=_readonly(np.asarray(d["q"], dtype=np.float64)), status=status,
