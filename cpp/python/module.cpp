@@ -13,6 +13,7 @@ void defineFitting(py::module_& m);
 void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
 void defineCga(py::module_& m);
 void defineKinematics(py::module_& m);
+void definePose(py::module_& m);
 }  // namespace scanalign::python
 
 PYBIND11_MODULE(_core, m) {
@@ -32,4 +33,6 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineCga(cga);
   auto kinematics = m.def_submodule("kinematics", "DH robots, forward kinematics, CGA inverse kinematics");
   scanalign::python::defineKinematics(kinematics);
+  auto pose = m.def_submodule("pose", "CBD descriptor, motor estimation, correspondence RANSAC, flag alignment");
+  scanalign::python::definePose(pose);
 }

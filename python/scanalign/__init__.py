@@ -35,7 +35,7 @@ from typing import Any
 __version__ = "0.1.0"
 
 _SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "camera", "trajectory", "tum",
-               "synthetic", "cga", "kinematics", "cad", "fitting", "segmentation", "pipeline", "evaluation", "plots", "cli")
+               "synthetic", "cga", "kinematics", "cad", "cbd", "pose", "fitting", "segmentation", "pipeline", "evaluation", "plots", "cli")
 
 __all__ = ["__version__", *_SUBMODULES]
 

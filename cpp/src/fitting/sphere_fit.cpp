@@ -21,6 +21,7 @@
 // (claim 13), so this changes the solution only by the known similarity, which is undone at the
 // end; it keeps D well scaled for data far from the origin or in any unit.
 #include "scanalign/fitting/sphere_fit.hpp"
+#include "scanalign/fitting/detail/pencil.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -43,37 +44,6 @@ struct Normalization {
   Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
   double scale = 1.0;  // RMS distance to the centroid, m
 };
-
-// Largest-μ eigenvector of C = L⁻¹ B L⁻ᵀ, returned as a = L⁻ᵀ b: the solution of A a = λ B a
-// with the smallest positive λ, for A symmetric positive semi-definite and B symmetric
-// indefinite (5.21–5.25 for Pratt, 5.31–5.34 for the CGA fit). Also returns λ = 1/μ and the
-// eigenvalues of A (ascending) for degeneracy tests.
-template <int N>
-struct PencilSolution {
-  Eigen::Matrix<double, N, 1> a;
-  double lambda;
-  Eigen::Matrix<double, N, 1> a_eigenvalues;
-};
-
-template <int N>
-PencilSolution<N> smallestPositive(const Eigen::Matrix<double, N, N>& A, const Eigen::Matrix<double, N, N>& B) {
-  using Mat = Eigen::Matrix<double, N, N>;
-  using Vec = Eigen::Matrix<double, N, 1>;
-  Eigen::SelfAdjointEigenSolver<Mat> ea(A);
-  const Vec ev = ea.eigenvalues();
-  const double floor = std::max(ev(N - 1), 0.0) * kClamp;
-  Vec inv_sqrt;
-  for (int i = 0; i < N; ++i) inv_sqrt(i) = 1.0 / std::sqrt(std::max(ev(i), floor));
-  const Mat Linv_T = ea.eigenvectors() * inv_sqrt.asDiagonal();  // L⁻ᵀ with L = VΛ^½
-  const Mat C = Linv_T.transpose() * B * Linv_T;
-  Eigen::SelfAdjointEigenSolver<Mat> ec(C);
-  const double mu = ec.eigenvalues()(N - 1);  // the largest: 1/(smallest positive λ)
-  PencilSolution<N> out;
-  out.a = Linv_T * ec.eigenvectors().col(N - 1);
-  out.lambda = mu > 0 ? 1.0 / mu : std::numeric_limits<double>::quiet_NaN();
-  out.a_eigenvalues = ev;
-  return out;
-}
 
 void checkWeight(double w, std::size_t i) {
   if (!std::isfinite(w) || w < 0)
@@ -139,7 +109,7 @@ SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, cons
   D /= wsum;
 
   const Matrix5d M = conformalMetric();
-  const PencilSolution<5> sol = smallestPositive<5>(D, M);
+  const detail::PencilSolution<5> sol = detail::smallestPositive<5>(D, M, kClamp);
   if (sol.a_eigenvalues(1) <= kDegenerate * sol.a_eigenvalues(4))
     throw std::invalid_argument(
         "fitSphere: degenerate data (collinear or coincident points, or points on one circle): no unique sphere");
@@ -242,7 +212,7 @@ CircleFit fitCirclePratt(const double* xy, std::size_t n) {
   Eigen::Matrix4d N = Eigen::Matrix4d::Zero();
   N(1, 1) = N(2, 2) = 1.0;
   N(0, 3) = N(3, 0) = -2.0;
-  const PencilSolution<4> sol = smallestPositive<4>(Mz, N);
+  const detail::PencilSolution<4> sol = detail::smallestPositive<4>(Mz, N, kClamp);
   if (sol.a_eigenvalues(1) <= kDegenerate * sol.a_eigenvalues(3))
     throw std::invalid_argument("fitCirclePratt: degenerate data (coincident points, or three collinear points)");
   Eigen::Vector4d c = sol.a;

@@ -1,0 +1,114 @@
+// CBD coarse alignment. See cbd_alignment.hpp.
+#include "scanalign/registration/cbd_alignment.hpp"
+
+#include <omp.h>
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include "scanalign/registration/kdtree.hpp"
+
+namespace scanalign {
+
+namespace {
+double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+template <typename Scalar>
+std::pair<double, double> alignmentFitness(const CloudView<Scalar>& source, const CloudView<Scalar>& target,
+                                           const Eigen::Matrix4d& T, double threshold, int num_threads) {
+  if (!(threshold > 0) || !std::isfinite(threshold))
+    throw std::invalid_argument("alignmentFitness: threshold must be a finite positive distance in metres");
+  if (!T.allFinite()) throw std::invalid_argument("alignmentFitness: transform is not finite");
+  const LeftBalancedKdTree<Scalar> tree(target);
+  if (tree.empty()) return {0.0, 0.0};
+  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = T.topRightCorner<3, 1>();
+  const Scalar thr2 = static_cast<Scalar>(threshold * threshold);
+  std::size_t finite = 0, inl = 0;
+  double acc = 0;
+#pragma omp parallel for reduction(+ : finite, inl, acc) schedule(static) \
+    num_threads(num_threads > 0 ? num_threads : omp_get_max_threads())
+  for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(source.size); ++ii) {
+    if (!source.isFinite(ii)) continue;
+    ++finite;
+    const Eigen::Vector3d y = R * source[ii].template cast<double>() + t;
+    const Scalar q[3] = {static_cast<Scalar>(y.x()), static_cast<Scalar>(y.y()), static_cast<Scalar>(y.z())};
+    const auto nn = tree.nearest(q, thr2, LeftBalancedKdTree<Scalar>::kMaxStack);
+    if (nn.found()) {
+      ++inl;
+      acc += double(nn.squared_distance);
+    }
+  }
+  if (finite == 0) return {0.0, 0.0};
+  return {double(inl) / double(finite), inl ? std::sqrt(acc / double(inl)) : 0.0};
+}
+
+template <typename Scalar>
+CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CloudView<Scalar>& target,
+                            const CbdAlignmentSettings& s) {
+  if (s.matches_per_keypoint < 1) throw std::invalid_argument("alignCbd: matches_per_keypoint must be >= 1");
+  const auto t0 = std::chrono::steady_clock::now();
+  CbdAlignmentResult out;
+  const CbdFeatures fs = computeCbd(source, s.cbd);
+  const CbdFeatures ft = s.target_thresholds_from_source ? computeCbd(target, s.cbd, &fs.thresholds)
+                                                         : computeCbd(target, s.cbd);
+  out.feature_seconds = since(t0);
+  out.source_keypoints = fs.keypoints.size();
+  out.target_keypoints = ft.keypoints.size();
+  if (fs.keypoints.size() < 3 || ft.keypoints.size() < 3) {
+    out.message = "too few CBD keypoints (source " + std::to_string(fs.keypoints.size()) + ", target " +
+                  std::to_string(ft.keypoints.size()) + "; need 3): the cloud is too small or too sparse for radius " +
+                  std::to_string(s.cbd.radius) + " m and min_neighbors " + std::to_string(s.cbd.min_neighbors);
+    out.seconds = since(t0);
+    return out;
+  }
+  const auto t1 = std::chrono::steady_clock::now();
+  const CbdMatches m = matchCbd(fs, ft, s.cbd.variant, s.matches_per_keypoint, s.cbd.num_threads);
+  out.matches = m.source.size();
+  out.match_seconds = since(t1);
+  // Pairs as indices into keypoint coordinate arrays (double).
+  std::vector<double> xs(3 * fs.keypoints.size()), ys(3 * ft.keypoints.size());
+  for (std::size_t i = 0; i < fs.keypoints.size(); ++i)
+    for (int k = 0; k < 3; ++k) xs[3 * i + k] = double(source.ptr(fs.keypoints[i])[k]);
+  for (std::size_t i = 0; i < ft.keypoints.size(); ++i)
+    for (int k = 0; k < 3; ++k) ys[3 * i + k] = double(target.ptr(ft.keypoints[i])[k]);
+  std::vector<std::uint32_t> pairs(2 * m.source.size());
+  for (std::size_t k = 0; k < m.source.size(); ++k) {
+    pairs[2 * k] = m.source[k];
+    pairs[2 * k + 1] = m.target[k];
+  }
+  const auto t2 = std::chrono::steady_clock::now();
+  CorrespondenceRansacSettings rs = s.ransac;
+  if (rs.num_threads == 0) rs.num_threads = s.cbd.num_threads;
+  const CorrespondenceRansacResult r =
+      ransacRigidMotion(CloudView<double>(xs.data(), fs.keypoints.size()), CloudView<double>(ys.data(), ft.keypoints.size()),
+                        pairs.data(), m.source.size(), rs);
+  out.ransac_seconds = since(t2);
+  out.found = r.found;
+  out.match_inliers = r.inliers.size();
+  out.message = r.message;
+  if (r.found) {
+    out.T_target_source = r.T_target_source;
+    const auto f = alignmentFitness(source, target, r.T_target_source, rs.inlier_threshold, s.cbd.num_threads);
+    out.fitness = f.first;
+    out.inlier_rmse = f.second;
+  }
+  out.seconds = since(t0);
+  return out;
+}
+
+#define SCANALIGN_INSTANTIATE(S)                                                                              \
+  template CbdAlignmentResult alignCbd<S>(const CloudView<S>&, const CloudView<S>&, const CbdAlignmentSettings&); \
+  template std::pair<double, double> alignmentFitness<S>(const CloudView<S>&, const CloudView<S>&,               \
+                                                         const Eigen::Matrix4d&, double, int);
+SCANALIGN_INSTANTIATE(float)
+SCANALIGN_INSTANTIATE(double)
+#undef SCANALIGN_INSTANTIATE
+
+}  // namespace scanalign
