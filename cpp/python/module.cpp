@@ -14,6 +14,7 @@ void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
 void defineCga(py::module_& m);
 void defineKinematics(py::module_& m);
 void definePose(py::module_& m);
+void definePclFeatures(py::module_& m);
 }  // namespace scanalign::python
 
 PYBIND11_MODULE(_core, m) {
@@ -35,4 +36,5 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineKinematics(kinematics);
   auto pose = m.def_submodule("pose", "CBD descriptor, motor estimation, correspondence RANSAC, flag alignment");
   scanalign::python::definePose(pose);
+  scanalign::python::definePclFeatures(pose);
 }

@@ -53,6 +53,7 @@ __all__ = [
     "alignment_fitness",
     "estimate_pose",
     "find_objects",
+    "write_pose_outputs",
     "METHODS",
     "THESIS_PCL_PRESET",
 ]
@@ -683,3 +684,61 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
             sys.stderr.write(f"object {k + 1}/{len(objects)} ({len(idx)} points)\n")
         poses.append(estimate_pose(model, pts[idx], method=method, progress=progress, **pose_kwargs))
     return ObjectPoses(poses, objects, plane, time.perf_counter() - t0)
+
+
+def write_pose_outputs(model: object, scene: np.ndarray, result: PoseResult, prefix: Union[str, Path], *,
+                       object_indices: Optional[np.ndarray] = None, samples: int = 20000) -> Dict[str, Path]:
+    """Files to inspect a pose: ``<prefix>_model.ply`` (the model surface, sampled, placed in
+    the scene frame by ``T_scene_model``; open it together with the scan in a viewer),
+    ``<prefix>_scene.ply`` (the scene, the object in orange, the rest grey, the model in
+    blue) and ``<prefix>_overlay.png`` (three orthographic projections of object and model).
+
+    Args:
+        model: a mesh (or (vertices, faces), or an (N, 3) model cloud), metres.
+        scene: (M, 3) scene points, metres.
+        result: the :class:`PoseResult` to draw.
+        object_indices: the object's points in ``scene`` (default all).
+    """
+    from . import io as _io
+    from .datasets import sample_mesh
+
+    prefix = Path(prefix)
+    prefix.parent.mkdir(parents=True, exist_ok=True)
+    scene = as_points(scene, "scene", np.dtype(np.float64))
+    if isinstance(model, (str, Path)):
+        model = _io.read_mesh(model)
+    if isinstance(model, np.ndarray):
+        mp = as_points(model, "model", np.dtype(np.float64))
+    else:
+        mp, _ = sample_mesh(model, samples, seed=0)
+    T = np.asarray(result.T_scene_model, dtype=np.float64)
+    placed = mp @ T[:3, :3].T + T[:3, 3]
+    paths = {"model_ply": prefix.with_name(prefix.name + "_model.ply"),
+             "scene_ply": prefix.with_name(prefix.name + "_scene.ply"),
+             "overlay_png": prefix.with_name(prefix.name + "_overlay.png")}
+    _io.write_ply(paths["model_ply"], placed.astype(np.float32))
+    idx = np.arange(len(scene)) if object_indices is None else np.asarray(object_indices, dtype=np.int64)
+    colours = np.full((len(scene), 3), 160, np.uint8)
+    colours[idx] = (240, 140, 40)
+    _io.write_ply(paths["scene_ply"], np.vstack([scene, placed]).astype(np.float32),
+                  colors=np.vstack([colours, np.tile(np.array([[40, 90, 230]], np.uint8), (len(placed), 1))]))
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    obj = scene[idx]
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.4))
+    for ax, (i, j, name) in zip(axes, ((0, 1, "x-y"), (0, 2, "x-z"), (1, 2, "y-z"))):
+        ax.scatter(1000 * obj[::3, i], 1000 * obj[::3, j], s=0.3, c="tab:orange", label="object (scan)")
+        ax.scatter(1000 * placed[::3, i], 1000 * placed[::3, j], s=0.3, c="tab:blue", alpha=0.4,
+                   label="model at T_scene_model")
+        ax.set_title(f"{name} (mm)")
+        ax.set_aspect("equal")
+    axes[0].legend(loc="upper right", markerscale=12, fontsize=8)
+    fig.suptitle(f"{result.method}: fitness {result.fitness:.3f}, coverage {result.coverage:.3f}, "
+                 f"inlier RMSE {1000 * result.inlier_rmse:.3f} mm, {result.seconds:.2f} s")
+    fig.tight_layout()
+    fig.savefig(paths["overlay_png"], dpi=110)
+    plt.close(fig)
+    return paths

@@ -231,12 +231,14 @@ double keypointScore(const NeighbourhoodPca& pca, int min_neighbors) {
 std::vector<std::uint32_t> selectKeypoints(const std::vector<NeighbourhoodPca>& pca, const ShapeThresholds& t,
                                            int min_neighbors, bool inclusive) {
   std::vector<std::uint32_t> out;
-  const auto pass = [inclusive](double c, double delta) { return delta < 1.0 && (inclusive ? c >= delta : c > delta); };
+  // A factor never exceeds 1, so δ >= 1 disables its term with ">" (claim 16); with ">="
+  // (derived δ's) a δ of exactly 1 comes from a pure keypoint and must select it.
+  const auto pass = [inclusive](double c, double delta) { return inclusive ? c >= delta : c > delta; };
   for (std::size_t i = 0; i < pca.size(); ++i) {
     if (pca[i].count < static_cast<std::uint32_t>(std::max(min_neighbors, 0)) || !(pca[i].eigenvalues.sum() > 0))
       continue;
     const features::ShapeFactors f = shapeFactorsOf(pca[i]);
-    // (6.4); a δ >= 1 disables its term (claim 16) even for a factor of exactly 1.
+    // (6.4)
     if (pass(f.linear, t.linear) || pass(f.planar, t.planar) || pass(f.spherical, t.spherical))
       out.push_back(static_cast<std::uint32_t>(i));
   }
@@ -253,7 +255,9 @@ std::vector<std::uint32_t> automaticKeypoints(const std::vector<NeighbourhoodPca
   const std::size_t n = std::min<std::size_t>(static_cast<std::size_t>(k), scored.size());
   std::partial_sort(scored.begin(), scored.begin() + n, scored.end());
   std::vector<std::uint32_t> out(n);
-  ShapeThresholds t{1.0, 1.0, 1.0};
+  // P5 starts from δ = 1; 2 marks a group no keypoint lowered, so that it stays disabled also
+  // with the inclusive comparison.
+  ShapeThresholds t{2.0, 2.0, 2.0};
   for (std::size_t j = 0; j < n; ++j) {
     out[j] = scored[j].index;
     const features::ShapeFactors f = shapeFactorsOf(pca[scored[j].index]);

@@ -46,7 +46,7 @@ enum class CbdDescriptorVariant {
 };
 
 /// δ_l, δ_p, δ_s of (6.4): a point is a keypoint if any shape factor exceeds its δ. A δ ≥ 1
-/// disables that factor (claim 16).
+/// disables that factor (claim 16; with the inclusive comparison, δ > 1).
 struct ShapeThresholds {
   double linear = 0.3;     ///< δ_l (thesis Fig 6.3: 0.3)
   double planar = 1.0;     ///< δ_p (thesis: 1, i.e. planar points are never keypoints)
@@ -125,8 +125,8 @@ std::vector<std::uint32_t> selectKeypoints(const std::vector<NeighbourhoodPca>& 
                                            int min_neighbors, bool inclusive = false);
 
 /// Automatic keypoints (P5 §III-B4): the `k` points with the lowest score (ascending index
-/// order), and the δ's they imply: starting from 1, each keypoint lowers the δ of its largest
-/// shape factor to that factor's value. Applying the δ's with inclusive = true to the same
+/// order), and the δ's they imply: each keypoint lowers the δ of its largest shape factor to
+/// that factor's value; a group no keypoint belongs to keeps δ = 2 (disabled). Applying the δ's with inclusive = true to the same
 /// cloud selects (a superset of, and with distinct scores exactly) these keypoints (claim 17).
 std::vector<std::uint32_t> automaticKeypoints(const std::vector<NeighbourhoodPca>& pca, int k, int min_neighbors,
                                               ShapeThresholds* thresholds);
