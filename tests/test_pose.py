@@ -191,9 +191,13 @@ def test_pose_bad_input_gives_errors_or_not_found(fandisk_views):
         pose.estimate_pose(mesh, pts, method="nope")
     with pytest.raises(ValueError):
         cbd.compute(pts, radius=-1.0)
-    # too few points
+    # too few points in the scene, or in a model cloud
     r = pose.estimate_pose(mesh, pts[:5], views=[5])
     assert not r.found and "need at least" in r.message
+    r = pose.estimate_pose(pts[:8], pts)
+    assert not r.found and r.message
+    with pytest.raises(ValueError):
+        pose.estimate_pose(np.zeros((0, 3)), pts)
     # sparse cloud: no keypoints at n_min = 200
     few = pose.align_cbd(pts[::50], pts[::50])
     assert not few.found and "keypoints" in few.message
