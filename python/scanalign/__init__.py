@@ -18,6 +18,9 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.evaluation` -- ATE / RPE (Sturm et al. 2012), exact cloud-to-mesh distance.
 - :mod:`scanalign.cga` -- conformal geometric algebra G(4,1): points, spheres, planes, lines, motors.
 - :mod:`scanalign.cad` -- CAD model to clouds: tessellated-sphere viewpoint sampling.
+- :mod:`scanalign.cbd` -- the curvature-based descriptor (keypoints, weighted CGA spheres, matching).
+- :mod:`scanalign.pose` -- CAD-model pose: motor estimation, RANSAC, CBD / paper 4 / PCL baseline
+  alignment, the table-scene pipeline.
 - :mod:`scanalign.kinematics` -- 6R robots (KUKA KR6 R900 sixx, UR arms): forward kinematics, analytic CGA
   inverse kinematics.
 - :mod:`scanalign.plots` -- trajectory, per-frame and benchmark figures (matplotlib, Agg).

@@ -421,6 +421,8 @@ def pose_command(args: argparse.Namespace) -> int:
     scene = scene[np.all(np.isfinite(scene), axis=1)]
     kw = dict(method=args.method, views=args.views, resolution=args.resolution,
               inlier_threshold=args.inlier_threshold, icp_distance=args.icp_distance, progress=not args.quiet)
+    if args.method == "cbd":
+        kw["radius"] = args.cbd_radius
     if args.no_segment:
         results = [_pose.estimate_pose(mesh, scene, **kw)]
         objects = [np.arange(len(scene))]
@@ -522,6 +524,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--scene", required=True, help="scan: PCD or PLY, metres, camera frame")
     p.add_argument("--method", default="cbd", choices=["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags"],
                    help="coarse alignment (default cbd)")
+    p.add_argument("--cbd-radius", type=float, default=0.0063,
+                   help="CBD neighbourhood radius, m (thesis 0.0063; about 0.015 for scans with ~1-2 mm noise)")
     p.add_argument("--model-scale", type=float, default=1.0, help="multiply the model's coordinates (0.001: mm)")
     p.add_argument("--views", type=int, nargs="+", help="only these of the 42 views (default all)")
     p.add_argument("--resolution", type=int, default=150, help="model view size, pixels (150)")
