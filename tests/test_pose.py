@@ -205,6 +205,22 @@ def test_pose_bad_input_gives_errors_or_not_found(fandisk_views):
     plane = np.c_[g, np.zeros(len(g))]
     r = pose.estimate_pose(mesh, plane, views=[5])
     assert not r.found and r.message
+    # flags, RANSAC, matching and settings: clear errors
+    with pytest.raises(ValueError, match="differ in shape"):
+        pose.align_flags(pts, pts[:-1], pts, pts)
+    with pytest.raises(ValueError, match="empty"):
+        pose.align_flags(np.zeros((0, 3)), np.zeros((0, 3)), pts, pts)
+    with pytest.raises(ValueError):
+        pose.ransac_rigid_motion(pts, pts, np.zeros((3, 2), int), inlier_threshold=0.0)
+    with pytest.raises(TypeError, match="unknown CBD setting"):
+        cbd.compute(pts, radious=0.01)
+    with pytest.raises(ValueError, match="unknown value"):
+        cbd.make_settings(variant="curvy")
+    f = cbd.compute(pts, min_neighbors=0)
+    with pytest.raises(ValueError):
+        cbd.match(f, f, k=0)
+    with pytest.raises(ValueError):
+        pose.find_objects(mesh, pts, max_objects=0)
     # NaN rows are ignored, not fatal
     noisy = pts.copy()
     noisy[::7] = np.nan

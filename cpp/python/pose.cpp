@@ -324,12 +324,6 @@ void definePose(py::module_& m) {
       },
       py::arg("source"), py::arg("target"), py::arg("weights"));
   m.def(
-      "motor_cost_matrix",
-      [](const py::array& s, const py::array& t) {
-        return Eigen::MatrixXd(motorCostMatrix(cloudView<double>(s, "source"), cloudView<double>(t, "target")));
-      },
-      py::arg("source"), py::arg("target"));
-  m.def(
       "motor_to_matrix", [](const Eigen::Matrix<double, 8, 1>& mv) { return motorToMatrix(mv); }, py::arg("motor"));
   m.def(
       "ransac_rigid_motion",

@@ -474,39 +474,26 @@ class PoseResult:
         return d
 
 
-class _Progress:
-    def __init__(self, total: int, label: str, enabled: bool) -> None:
-        self.total, self.label, self.enabled, self.done = total, label, enabled and total > 1, 0
-        self.t0 = time.perf_counter()
-
-    def step(self, note: str = "") -> None:
-        self.done += 1
-        if not self.enabled:
-            return
-        w = 30
-        k = int(w * self.done / self.total)
-        el = time.perf_counter() - self.t0
-        sys.stderr.write(f"\r{self.label} [{'#' * k}{'.' * (w - k)}] {self.done}/{self.total} {el:5.1f}s {note:20s}")
-        if self.done == self.total:
-            sys.stderr.write("\n")
-        sys.stderr.flush()
-
-
 def _model_clouds(model: object, resolution: int, views: Optional[Sequence[int]]
                   ) -> Tuple[List[np.ndarray], List[np.ndarray], List[Optional[int]]]:
     """The model as a list of (points, normals) candidates: one per tessellated-sphere view
-    of a mesh (spec §8: 42 views), or the given cloud itself."""
+    of a mesh (spec §8: 42 views), the given views, or the given cloud itself."""
     from . import cad, io
 
-    if isinstance(model, (str, Path)):
-        model = io.read_mesh(model)
-    if isinstance(model, np.ndarray):
+    if isinstance(model, list) and model and all(isinstance(v, cad.ModelView) for v in model):
+        vs = model
+    else:
+        if isinstance(model, (str, Path)):
+            model = io.read_mesh(model)
+        vs = None
+    if vs is None and isinstance(model, np.ndarray):
         p = as_points(model, "model", np.dtype(np.float64))
         if len(p) == 0:
             raise ValueError("model: empty cloud")
         from .features import estimate_normals
         return [p], [estimate_normals(p, radius=0.005, viewpoint=p.mean(axis=0) + np.array([0, 0, 1.0]))], [None]
-    vs = cad.render_views(model, resolution=resolution)
+    if vs is None:
+        vs = cad.render_views(model, resolution=resolution)
     idx = list(range(len(vs))) if views is None else [int(i) for i in views]
     for i in idx:
         if not 0 <= i < len(vs):
@@ -525,7 +512,9 @@ def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", v
 
     Args:
         model: a mesh (:class:`scanalign.io.Mesh`, ``(vertices, faces)`` or a mesh file path;
-            metres) rendered from the 42 vertices of a tessellated sphere, or an (N, 3) cloud.
+            metres) rendered from the 42 vertices of a tessellated sphere, the list of
+            :class:`scanalign.cad.ModelView` that :func:`scanalign.cad.render_views` returned
+            (rendered once, reused across objects), or an (N, 3) cloud.
         scene: (M, 3) the object's points in the scene (camera) frame, metres.
         method: coarse method, one of :data:`METHODS` (``"cbd"`` default).
         views: subset of view indices to try (default all 42).
@@ -577,7 +566,10 @@ def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", v
                                f"curved/edge regions at radius {st.cbd.radius} m")
             nothing.seconds = time.perf_counter() - t_start
             return nothing
-    bar = _Progress(len(clouds), f"pose ({method})", progress)
+    from tqdm.auto import tqdm
+
+    bar = tqdm(total=len(clouds), desc=f"pose ({method})", unit="view", file=sys.stderr, dynamic_ncols=True,
+               disable=not progress or len(clouds) < 2)
     best: Optional[PoseResult] = None
     best_score = -1.0
     candidates: List[Dict[str, Any]] = []
@@ -599,7 +591,8 @@ def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", v
             if best is None or score > best_score:
                 best, best_score = PoseResult(T, True, fit, cov, rmse, method, vi, 0.0), score
         candidates.append(cand)
-        bar.step(f"view {vi}" if vi is not None else "")
+        bar.update(1)
+    bar.close()
     result = best if best is not None else nothing
     if best is None:
         result.message = f"no model view aligned with {method} (coarse alignment found no consensus)"
@@ -669,6 +662,7 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
         viewpoint / up: orient the table normal (camera centre, or an "up" vector).
         **pose_kwargs: passed to :func:`estimate_pose`.
     """
+    from . import cad, io
     from .segmentation import segment_table
 
     t0 = time.perf_counter()
@@ -678,6 +672,11 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
     plane, objects = segment_table(pts, threshold=table_threshold, cluster_tolerance=cluster_tolerance,
                                    min_cluster_size=min_cluster_size, viewpoint=viewpoint, up=up)
     objects = objects[: int(max_objects)]
+    if isinstance(model, (str, Path)):
+        model = io.read_mesh(model)
+    if objects and not isinstance(model, (np.ndarray, list)):
+        # Render the model views once for all objects.
+        model = cad.render_views(model, resolution=int(pose_kwargs.get("resolution", 150)))
     poses = []
     for k, idx in enumerate(objects):
         if progress:

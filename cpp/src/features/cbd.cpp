@@ -192,16 +192,12 @@ class DescriptorTree4 {
   std::vector<std::uint8_t> axis_;
 };
 
-}  // namespace
-
+/// PCA of every point over an existing tree of the same cloud (computeCbd reuses the tree
+/// for the sphere fits instead of building a second one).
 template <typename Scalar>
-std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, double radius, int num_threads) {
-  if (!(radius > 0) || !std::isfinite(radius))
-    throw std::invalid_argument("neighbourhoodPca: radius must be a finite positive distance in metres");
-  if (num_threads < 0) throw std::invalid_argument("neighbourhoodPca: num_threads must be >= 0");
+std::vector<NeighbourhoodPca> pcaOverTree(const CloudView<Scalar>& points, const LeftBalancedKdTree<Scalar>& tree,
+                                          double radius, int num_threads) {
   std::vector<NeighbourhoodPca> out(points.size);
-  if (points.size == 0) return out;
-  const LeftBalancedKdTree<Scalar> tree(points);
   const Scalar r2 = static_cast<Scalar>(radius * radius);
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threadsOf(num_threads))
   for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(points.size); ++ii) {
@@ -212,6 +208,17 @@ std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, 
     eigenDescending(m.scatter(), out[i].eigenvalues, nullptr);
   }
   return out;
+}
+
+}  // namespace
+
+template <typename Scalar>
+std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, double radius, int num_threads) {
+  if (!(radius > 0) || !std::isfinite(radius))
+    throw std::invalid_argument("neighbourhoodPca: radius must be a finite positive distance in metres");
+  if (num_threads < 0) throw std::invalid_argument("neighbourhoodPca: num_threads must be >= 0");
+  if (points.size == 0) return {};
+  return pcaOverTree(points, LeftBalancedKdTree<Scalar>(points), radius, num_threads);
 }
 
 features::ShapeFactors shapeFactorsOf(const NeighbourhoodPca& pca) {
@@ -281,7 +288,8 @@ CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& setti
   const auto t0 = std::chrono::steady_clock::now();
   CbdFeatures out;
   const int threads = threadsOf(settings.num_threads);
-  const std::vector<NeighbourhoodPca> pca = neighbourhoodPca(points, settings.radius, threads);
+  const LeftBalancedKdTree<Scalar> tree(points);  // one tree for the PCA and the sphere fits
+  const std::vector<NeighbourhoodPca> pca = pcaOverTree(points, tree, settings.radius, threads);
   CbdSettings s = settings;
   if (s.min_neighbors == 0) {
     std::vector<std::uint32_t> counts;
@@ -331,7 +339,6 @@ CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& setti
   out.sphere2.resize(nk);
   out.axes.resize(nk);
   if (nk > 0) {
-    const LeftBalancedKdTree<Scalar> tree(points);
     const Scalar r2 = static_cast<Scalar>(settings.radius * settings.radius);
     const double inv_r = 1.0 / settings.radius;
 #pragma omp parallel for schedule(dynamic, 8) num_threads(threads)

@@ -169,11 +169,6 @@ Eigen::Matrix4d motorToMatrix(const Vector8d& motor) {
   return cga::Motor::fromMultivector(cga::translator(t) * R, 1e-6).matrix();
 }
 
-Matrix8d motorCostMatrix(const CloudView<double>& source, const CloudView<double>& target, const double* weights) {
-  checkInputs(source, target, weights, "motorCostMatrix");
-  return costMatrix(source, target, weights, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), 1.0);
-}
-
 MotorEstimate estimateMotor(const CloudView<double>& source, const CloudView<double>& target, const double* weights,
                             bool normalize) {
   checkInputs(source, target, weights, "estimateMotor");

@@ -49,11 +49,6 @@ MotorEstimate estimateMotor(const CloudView<double>& source, const CloudView<dou
 MotorEstimate estimateRigidSvd(const CloudView<double>& source, const CloudView<double>& target,
                                const double* weights = nullptr);
 
-/// The 8x8 quadratic form Q of the Valkenburg–Dorst cost for the given pairs (exposed for
-/// tests and teaching; estimateMotor builds it the same way).
-Eigen::Matrix<double, 8, 8> motorCostMatrix(const CloudView<double>& source, const CloudView<double>& target,
-                                            const double* weights = nullptr);
-
 /// 4x4 rigid transform of an 8-coefficient motor (basis as above), normalised first.
 Eigen::Matrix4d motorToMatrix(const Eigen::Matrix<double, 8, 1>& motor);
 
