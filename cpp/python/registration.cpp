@@ -17,6 +17,18 @@ IcpEstimator estimatorFromString(const std::string& s) {
   throw py::value_error("estimator must be 'point_to_plane' or 'point_to_point', got '" + s + "'");
 }
 
+IcpSearch searchFromString(const std::string& s) {
+  if (s == toString(IcpSearch::BucketKdTree)) return IcpSearch::BucketKdTree;
+  if (s == toString(IcpSearch::LeftBalancedKdTree)) return IcpSearch::LeftBalancedKdTree;
+  throw py::value_error("search must be 'bucket_kdtree' or 'left_balanced_kdtree', got '" + s + "'");
+}
+
+RobustKernel kernelFromString(const std::string& s) {
+  for (auto k : {RobustKernel::None, RobustKernel::Huber, RobustKernel::Cauchy})
+    if (s == toString(k)) return k;
+  throw py::value_error("robust_kernel must be 'none', 'huber' or 'cauchy', got '" + s + "'");
+}
+
 PclIcpVariant variantFromString(const std::string& s) {
   for (auto v : {PclIcpVariant::Svd, PclIcpVariant::DualQuaternion, PclIcpVariant::PointToPlaneLLS,
                  PclIcpVariant::ScanalignPointToPlaneLLS})
@@ -49,9 +61,9 @@ void defineIcp(py::module_& m, const char* name) {
       .def_property(
           "settings", [](const Icp<Scalar>& self) { return self.settings(); },
           [](Icp<Scalar>& self, const IcpSettings& s) { self.settings() = s; })
-      .def_property_readonly("target_size", [](const Icp<Scalar>& self) { return self.tree().size(); })
+      .def_property_readonly("target_size", &Icp<Scalar>::targetSize)
       .def_property_readonly("has_normals", &Icp<Scalar>::hasNormals)
-      .def_property_readonly("tree_height", [](const Icp<Scalar>& self) { return self.tree().height(); })
+      .def_property_readonly("tree_height", &Icp<Scalar>::treeHeight)
       .def_property_readonly("tree_build_seconds", &Icp<Scalar>::treeBuildSeconds);
 }
 
@@ -106,6 +118,46 @@ void defineKdTree(py::module_& m, const char* name) {
           py::arg("query"), py::arg("radius"));
 }
 
+template <typename Scalar>
+void defineBucketKdTree(py::module_& m, const char* name) {
+  using Tree = BucketKdTree<Scalar>;
+  py::class_<Tree>(m, name)
+      .def(py::init([](const py::array& points, int leaf_size) {
+             const auto view = cloudView<Scalar>(points, "points");
+             py::gil_scoped_release release;
+             return Tree(view, leaf_size);
+           }),
+           py::arg("points"), py::arg("leaf_size"))
+      .def_property_readonly("size", &Tree::size)
+      .def_property_readonly("height", &Tree::height)
+      .def_property_readonly("leaf_size", &Tree::leafSize)
+      .def_property_readonly("node_count", &Tree::nodeCount)
+      .def_property_readonly("memory_bytes", &Tree::memoryBytes)
+      .def(
+          "nearest",
+          [](const Tree& tree, const py::array& queries, double max_distance) {
+            const auto q = cloudView<Scalar>(queries, "queries");
+            const auto n = static_cast<py::ssize_t>(q.size);
+            py::array_t<std::int64_t> index(n);
+            py::array_t<Scalar> d2(n);
+            auto* ip = index.mutable_data();
+            auto* dp = d2.mutable_data();
+            const Scalar max_d2 = std::isinf(max_distance) ? std::numeric_limits<Scalar>::infinity()
+                                                             : static_cast<Scalar>(max_distance * max_distance);
+            {
+              py::gil_scoped_release release;
+#pragma omp parallel for schedule(dynamic, 256)
+              for (py::ssize_t i = 0; i < n; ++i) {
+                const auto nn = tree.nearest(q.ptr(static_cast<std::size_t>(i)), max_d2);
+                ip[i] = nn.found() ? static_cast<std::int64_t>(tree.index(nn.node)) : -1;
+                dp[i] = nn.squared_distance;
+              }
+            }
+            return py::make_tuple(index, d2);
+          },
+          py::arg("queries"), py::arg("max_distance"));
+}
+
 std::string describe(const IcpResult& r) {
   std::ostringstream os;
   os << "IcpResult(status='" << toString(r.status) << "', converged=" << (r.converged ? "True" : "False")
@@ -148,7 +200,14 @@ void defineRegistration(py::module_& m) {
       .def_readwrite("transformation_rotation_epsilon", &IcpSettings::transformation_rotation_epsilon)
       .def_readwrite("fitness_epsilon", &IcpSettings::fitness_epsilon)
       .def_readwrite("absolute_mse_epsilon", &IcpSettings::absolute_mse_epsilon)
+      .def_property(
+          "robust_kernel", [](const IcpSettings& s) { return std::string(toString(s.robust_kernel)); },
+          [](IcpSettings& s, const std::string& v) { s.robust_kernel = kernelFromString(v); })
+      .def_readwrite("robust_scale", &IcpSettings::robust_scale)
       .def_readwrite("box", &IcpSettings::box)
+      .def_property(
+          "search", [](const IcpSettings& s) { return std::string(toString(s.search)); },
+          [](IcpSettings& s, const std::string& v) { s.search = searchFromString(v); })
       .def_readwrite("search_stack_depth", &IcpSettings::search_stack_depth)
       .def_readwrite("warm_start", &IcpSettings::warm_start)
       .def_readwrite("min_correspondences", &IcpSettings::min_correspondences)
@@ -176,6 +235,8 @@ void defineRegistration(py::module_& m) {
   defineIcp<double>(m, "Icp64");
   defineKdTree<float>(m, "KdTree32");
   defineKdTree<double>(m, "KdTree64");
+  defineBucketKdTree<float>(m, "BucketKdTree32");
+  defineBucketKdTree<double>(m, "BucketKdTree64");
 
   m.def(
       "pcl_icp",

@@ -174,7 +174,7 @@ FrameReport FrameToModel::integratePrepared(const PreparedFrame& frame, const Ei
     const auto tr = Clock::now();
     icp_.settings() = settings_.icp;
     if (settings_.num_threads > 0) icp_.settings().num_threads = settings_.num_threads;
-    if (!tree_current_) {
+    if (!tree_current_ || icp_.targetSearch() != icp_.settings().search) {
       icp_.setTarget(CloudView<float>(model_.points.data(), model_.size()),
                      CloudView<float>(model_.normals.data(), model_.size()));
       tree_current_ = true;

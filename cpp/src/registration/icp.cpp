@@ -29,6 +29,19 @@ const char* toString(IcpStatus status) {
   return "unknown";
 }
 
+const char* toString(IcpSearch search) {
+  return search == IcpSearch::BucketKdTree ? "bucket_kdtree" : "left_balanced_kdtree";
+}
+
+const char* toString(RobustKernel kernel) {
+  switch (kernel) {
+    case RobustKernel::None: return "none";
+    case RobustKernel::Huber: return "huber";
+    case RobustKernel::Cauchy: return "cauchy";
+  }
+  return "unknown";
+}
+
 const char* toString(IcpEstimator estimator) {
   return estimator == IcpEstimator::PointToPlane ? "point_to_plane" : "point_to_point";
 }
@@ -49,6 +62,9 @@ void validate(const IcpSettings& s) {
   if (!(s.degeneracy_threshold >= 0.0) || s.degeneracy_threshold >= 1.0)
     fail("degeneracy_threshold must be in [0, 1)");
   if (s.num_threads < 0) fail("num_threads must be >= 0 (0 = all cores)");
+  if (!(s.robust_scale > 0.0) || !std::isfinite(s.robust_scale)) fail("robust_scale must be a finite positive length in metres");
+  if (s.robust_kernel != RobustKernel::None && s.estimator != IcpEstimator::PointToPlane)
+    fail("robust_kernel applies to the point_to_plane estimator only");
   if (s.box && !s.box->valid()) fail("box bounds must be finite with min <= max on every axis");
 }
 
@@ -116,6 +132,45 @@ void mortonOrder(const CloudView<Scalar>& cloud, std::vector<std::uint32_t>& ord
   for (std::size_t i = 0; i < cloud.size; ++i) order[i] = keyed[i].second;
 }
 
+/// Bucket size of the ICP's tree. Larger than the tree's generic default: ICP queries
+/// start from their last neighbour's leaf, and a wider leaf holds more of them whole
+/// (measured: 32 fastest on the 1 mm frame-to-model workload, see bench/bench_peers.py).
+constexpr int kIcpLeafSize = 32;
+
+/// The two target structures behind one interface, so the ICP pass is compiled once per
+/// structure with no virtual call in the loop. Positions are in the tree's own order.
+template <typename Scalar>
+struct BucketSearch {
+  const BucketKdTree<Scalar>& tree;
+  NearestNeighbor<Scalar> nearest(const Scalar* q, Scalar max_d2, std::uint32_t hint) const {
+    return tree.nearest(q, max_d2, hint);
+  }
+  Scalar squaredDistance(const Scalar* q, std::uint32_t pos) const { return tree.squaredDistance(q, pos); }
+  void point(std::uint32_t pos, double out[3]) const {
+    out[0] = tree.x(pos);
+    out[1] = tree.y(pos);
+    out[2] = tree.z(pos);
+  }
+};
+
+template <typename Scalar>
+struct LeftBalancedSearch {
+  const LeftBalancedKdTree<Scalar>& tree;
+  int stack_depth;
+  NearestNeighbor<Scalar> nearest(const Scalar* q, Scalar max_d2, std::uint32_t hint) const {
+    return tree.nearest(q, max_d2, stack_depth, hint);
+  }
+  Scalar squaredDistance(const Scalar* q, std::uint32_t pos) const {
+    return detail::squaredDistance(q, tree.node(pos).p);
+  }
+  void point(std::uint32_t pos, double out[3]) const {
+    const Scalar* p = tree.node(pos).p;
+    out[0] = p[0];
+    out[1] = p[1];
+    out[2] = p[2];
+  }
+};
+
 void checkRigid(const Eigen::Matrix4d& T) {
   if (!T.allFinite()) throw std::invalid_argument("initial transform has non-finite entries");
   const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
@@ -136,20 +191,30 @@ void Icp<Scalar>::setTarget(const CloudView<Scalar>& points, const CloudView<Sca
                                 std::to_string(points.size) + " points");
   const auto t0 = std::chrono::steady_clock::now();
   const bool with_normals = !normals.empty();
-  tree_.build(points, [&](std::size_t i) {
+  auto keep = [&](std::size_t i) {
     if (!with_normals) return true;
     const Scalar* n = normals.ptr(i);
     if (!(std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]))) return false;
     return double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2] > 1e-20;
-  });
-  if (tree_.empty())
+  };
+  // Only one structure is kept: the other is released.
+  target_search_ = settings_.search;
+  lb_tree_ = LeftBalancedKdTree<Scalar>();
+  bucket_tree_ = BucketKdTree<Scalar>();
+  if (target_search_ == IcpSearch::BucketKdTree)
+    bucket_tree_.build(points, keep, kIcpLeafSize);
+  else
+    lb_tree_.build(points, keep);
+  const std::size_t m = targetSize();
+  if (m == 0)
     throw std::invalid_argument(with_normals ? "ICP target: no point with finite coordinates and a valid normal"
                                              : "ICP target: no finite point");
   normals_.clear();
   if (with_normals) {
-    normals_.resize(3 * tree_.size());
-    for (std::size_t k = 0; k < tree_.size(); ++k) {
-      const Scalar* n = normals.ptr(tree_.node(k).index());
+    normals_.resize(3 * m);
+    const bool bucket = target_search_ == IcpSearch::BucketKdTree;
+    for (std::size_t k = 0; k < m; ++k) {
+      const Scalar* n = normals.ptr(bucket ? bucket_tree_.index(k) : lb_tree_.node(k).index());
       const double len = std::sqrt(double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2]);
       for (int c = 0; c < 3; ++c) normals_[3 * k + c] = static_cast<Scalar>(n[c] / len);
     }
@@ -158,9 +223,23 @@ void Icp<Scalar>::setTarget(const CloudView<Scalar>& points, const CloudView<Sca
 }
 
 template <typename Scalar>
+std::size_t Icp<Scalar>::targetSize() const {
+  return target_search_ == IcpSearch::BucketKdTree ? bucket_tree_.size() : lb_tree_.size();
+}
+
+template <typename Scalar>
+int Icp<Scalar>::treeHeight() const {
+  return target_search_ == IcpSearch::BucketKdTree ? bucket_tree_.height() : lb_tree_.height();
+}
+
+template <typename Scalar>
 IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matrix4d& T_init) {
   validate(settings_);
-  if (tree_.empty()) throw std::invalid_argument("ICP: no target set (call setTarget first)");
+  if (targetSize() == 0) throw std::invalid_argument("ICP: no target set (call setTarget first)");
+  if (settings_.search != target_search_)
+    throw std::invalid_argument(std::string("ICP: settings.search is '") + toString(settings_.search) +
+                                "' but the target was built for '" + toString(target_search_) +
+                                "'; call setTarget again");
   if (source.empty()) throw std::invalid_argument("ICP source: empty point cloud");
   const bool plane = settings_.estimator == IcpEstimator::PointToPlane;
   if (plane && normals_.empty())
@@ -171,9 +250,10 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
   const std::size_t n = source.size;
   const std::size_t nblocks = (n + kReduceBlock - 1) / kReduceBlock;
   const Scalar max_d2 = static_cast<Scalar>(settings_.max_correspondence_distance * settings_.max_correspondence_distance);
-  const int depth = settings_.search_stack_depth;
   const bool warm = settings_.warm_start;
   const std::optional<Box> box = settings_.box;
+  const RobustKernel kernel = settings_.robust_kernel;
+  const double robust_k = settings_.robust_scale;
   const int threads = settings_.num_threads > 0 ? settings_.num_threads : omp_get_max_threads();
   const std::size_t min_corr =
       static_cast<std::size_t>(std::max(settings_.min_correspondences, plane ? 6 : 3));
@@ -189,7 +269,7 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
 
   // One pass over the source at transform T. With System = void-like accumulation off
   // (accumulate == false) it only evaluates correspondences (for the final fitness).
-  auto run = [&](auto system_tag, bool accumulate) {
+  auto run = [&](const auto& search, auto system_tag, bool accumulate) {
     using System = decltype(system_tag);
     auto& parts = [&]() -> std::vector<Partial<System>>& {
       if constexpr (std::is_same_v<System, PointToPlaneSystem>)
@@ -214,10 +294,10 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
         const std::uint32_t other = part.last_node;
         if (other != NearestNeighbor<Scalar>::kNone &&
             (hint == NearestNeighbor<Scalar>::kNone ||
-             detail::squaredDistance(q.data(), tree_.node(other).p) < detail::squaredDistance(q.data(), tree_.node(hint).p)))
+             search.squaredDistance(q.data(), other) < search.squaredDistance(q.data(), hint)))
           hint = other;
       }
-      const auto nn = tree_.nearest(q.data(), max_d2, depth, hint);
+      const auto nn = search.nearest(q.data(), max_d2, hint);
       part.exact = part.exact && nn.exact;
       if (!nn.found()) return;
       neighbor_[i] = nn.node;
@@ -226,25 +306,31 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
       part.sum_d2 += nn.squared_distance;
       if (!accumulate) return;
       const double sq[3] = {double(q[0]), double(q[1]), double(q[2])};
-      const Scalar* dp = tree_.node(nn.node).p;
-      const double dq[3] = {double(dp[0]), double(dp[1]), double(dp[2])};
+      double dq[3];
+      search.point(nn.node, dq);
       if constexpr (std::is_same_v<System, PointToPlaneSystem>) {
         const Scalar* np = &normals_[3 * static_cast<std::size_t>(nn.node)];
         const double nq[3] = {double(np[0]), double(np[1]), double(np[2])};
-        part.system.add(sq, dq, nq);
+        double w = 1.0;
+        if (kernel != RobustKernel::None) {
+          const double r = std::abs(nq[0] * (dq[0] - sq[0]) + nq[1] * (dq[1] - sq[1]) + nq[2] * (dq[2] - sq[2]));
+          w = kernel == RobustKernel::Huber ? (r <= robust_k ? 1.0 : robust_k / r)
+                                            : 1.0 / (1.0 + (r / robust_k) * (r / robust_k));
+        }
+        part.system.add(sq, dq, nq, w);
       } else {
         part.system.add(sq, dq);
       }
     });
   };
 
-  auto iterate = [&](auto system_tag) {
+  auto iterate = [&](const auto& search, auto system_tag) {
     double prev_mse = std::numeric_limits<double>::max();
     const double rot_threshold = settings_.transformation_rotation_epsilon > 0.0
                                      ? settings_.transformation_rotation_epsilon
                                      : 1.0 - settings_.transformation_epsilon;
     for (int it = 0; it < settings_.max_iterations; ++it) {
-      const auto total = run(system_tag, true);
+      const auto total = run(search, system_tag, true);
       result.exact_search = result.exact_search && total.exact;
       if (total.inliers < min_corr) {
         result.status = IcpStatus::NotEnoughCorrespondences;
@@ -290,13 +376,17 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
     result.status = IcpStatus::MaxIterations;
   };
 
-  if (plane)
-    iterate(PointToPlaneSystem{});
-  else
-    iterate(PointToPointSystem{});
-
-  // Quality at the final transform (one more search, no estimation).
-  const auto final_pass = run(PointToPointSystem{}, false);
+  auto solve = [&](const auto& search) {
+    if (plane)
+      iterate(search, PointToPlaneSystem{});
+    else
+      iterate(search, PointToPointSystem{});
+    // Quality at the final transform (one more search, no estimation).
+    return run(search, PointToPointSystem{}, false);
+  };
+  const auto final_pass = target_search_ == IcpSearch::BucketKdTree
+                              ? solve(BucketSearch<Scalar>{bucket_tree_})
+                              : solve(LeftBalancedSearch<Scalar>{lb_tree_, settings_.search_stack_depth});
   result.exact_search = result.exact_search && final_pass.exact;
   result.T_target_source = T;
   result.source_points_used = final_pass.used;

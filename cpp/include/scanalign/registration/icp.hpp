@@ -17,6 +17,7 @@
 
 #include "scanalign/common/cloud_view.hpp"
 #include "scanalign/registration/box.hpp"
+#include "scanalign/registration/bucket_kdtree.hpp"
 #include "scanalign/registration/kdtree.hpp"
 
 namespace scanalign {
@@ -24,6 +25,27 @@ namespace scanalign {
 enum class IcpEstimator {
   PointToPlane,  ///< Low (2004) linear least squares, seed 000 §3.2 (needs target normals)
   PointToPoint,  ///< closed form (Horn / Umeyama), for comparison
+};
+
+/// The nearest-neighbour structure over the target.
+enum class IcpSearch {
+  /// K-d tree with 8-point leaf buckets and tight node boxes (bucket_kdtree.hpp): the
+  /// fastest on CPU cores. Always exact.
+  BucketKdTree,
+  /// Seed 000 §3.1: the left-balanced tree, one point per node, searched with a fixed
+  /// stack of search_stack_depth entries (the layout the seed copies to a GPU).
+  LeftBalancedKdTree,
+};
+
+/// M-estimator on the point-to-plane residual, solved by iteratively reweighted least
+/// squares: each correspondence's row of Low's system is weighted by w(|r|) (Zhang 1997,
+/// "Parameter estimation techniques"). Far correspondences then pull less than in plain
+/// least squares, which matters when the correspondence distance is large (sparse scans
+/// with a large initial motion).
+enum class RobustKernel {
+  None,    ///< w = 1: Low's plain least squares (seed 000 §3.2)
+  Huber,   ///< w = 1 for |r| <= k, k / |r| beyond
+  Cauchy,  ///< w = 1 / (1 + (r / k)^2)
 };
 
 /// Why the ICP loop stopped.
@@ -37,6 +59,8 @@ enum class IcpStatus {
 
 const char* toString(IcpStatus status);
 const char* toString(IcpEstimator estimator);
+const char* toString(IcpSearch search);
+const char* toString(RobustKernel kernel);
 
 /// ICP settings. Defaults are seed 000's (§3.3) where it gives one. PCL semantics.
 struct IcpSettings {
@@ -56,11 +80,20 @@ struct IcpSettings {
   double fitness_epsilon = 1e-8;
   /// Converged when |MSE_k - MSE_{k-1}| < this (m^2). PCL's default 1e-12.
   double absolute_mse_epsilon = 1e-12;
+  /// Robust kernel on the point-to-plane residual (point-to-plane only). Default: none,
+  /// as the seed.
+  RobustKernel robust_kernel = RobustKernel::None;
+  /// The kernel's scale k (m): residuals up to about k count fully. Set it near the
+  /// residual noise after convergence (a few voxel sizes; 0.1 m on a 0.25 m LiDAR grid).
+  double robust_scale = 0.01;
   /// Optional box in the source camera frame (seed 000 §3.4).
   std::optional<Box> box;
-  /// Depth of the fixed search stack (seed 000 §3.1: 20). Exact while the tree's height
-  /// is <= this, i.e. up to 2^21 - 1 model points at depth 20; deeper trees may
-  /// approximate, which IcpResult::exact_search reports.
+  /// Nearest-neighbour structure built by setTarget (changing it needs a new setTarget).
+  IcpSearch search = IcpSearch::BucketKdTree;
+  /// Depth of the fixed search stack of the left-balanced tree (seed 000 §3.1: 20).
+  /// Exact while the tree's height is <= this, i.e. up to 2^21 - 1 model points at depth
+  /// 20; deeper trees may approximate, which IcpResult::exact_search reports. The bucket
+  /// tree's search is always exact and ignores this.
   int search_stack_depth = 20;
   /// Seed each search with last iteration's neighbour and the previous query's (exact:
   /// a hint only tightens the search bound, so results equal a cold search up to ties).
@@ -104,8 +137,9 @@ class Icp {
   explicit Icp(IcpSettings settings = {}) : settings_(std::move(settings)) {}
 
   /// Sets the model: points (and unit normals, required for point-to-plane) in the target
-  /// frame. Non-finite points or normals, and zero normals, are left out of the tree.
-  /// Normals are re-normalised. Throws std::invalid_argument on size mismatch / no points.
+  /// frame, and builds the search structure settings().search names. Non-finite points or
+  /// normals, and zero normals, are left out of the tree. Normals are re-normalised.
+  /// Throws std::invalid_argument on size mismatch / no points.
   void setTarget(const CloudView<Scalar>& points, const CloudView<Scalar>& normals = {});
 
   /// Aligns `source` (points in the source camera frame) to the target starting from
@@ -116,14 +150,23 @@ class Icp {
 
   const IcpSettings& settings() const { return settings_; }
   IcpSettings& settings() { return settings_; }
-  const LeftBalancedKdTree<Scalar>& tree() const { return tree_; }
+  /// Target points in the search structure (finite, with a valid normal if normals were given).
+  std::size_t targetSize() const;
+  /// Levels of the target's tree below its root.
+  int treeHeight() const;
+  /// The structure setTarget built (align() requires settings().search to match).
+  IcpSearch targetSearch() const { return target_search_; }
+  const LeftBalancedKdTree<Scalar>& leftBalancedTree() const { return lb_tree_; }
+  const BucketKdTree<Scalar>& bucketTree() const { return bucket_tree_; }
   bool hasNormals() const { return !normals_.empty(); }
   double treeBuildSeconds() const { return tree_seconds_; }
 
  private:
   IcpSettings settings_;
-  LeftBalancedKdTree<Scalar> tree_;
-  std::vector<Scalar> normals_;           ///< 3 per node, in tree order
+  LeftBalancedKdTree<Scalar> lb_tree_;
+  BucketKdTree<Scalar> bucket_tree_;
+  IcpSearch target_search_ = IcpSearch::BucketKdTree;
+  std::vector<Scalar> normals_;           ///< 3 per target point, in the built tree's order
   std::vector<std::uint32_t> neighbor_;   ///< last neighbour (node) per source point
   std::vector<std::uint32_t> order_;      ///< processing order of the source (Morton)
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed_;  ///< scratch for the order
