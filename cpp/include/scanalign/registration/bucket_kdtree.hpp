@@ -115,6 +115,33 @@ class BucketKdTree {
     return d2;
   }
 
+  /// Scans leaf `nd` for a point closer than best_d2 (updated in place).
+  void scanLeaf(const Scalar* q, const Node& nd, Scalar& best_d2, std::uint32_t& best_pos) const {
+    // Distances first, into a small array (a loop the compiler vectorises), then their
+    // minimum by a SIMD reduction; only a leaf that improves the bound is searched for
+    // the position. Ties go to the first point, as a sequential scan would.
+    alignas(32) Scalar d2[kMaxLeafSize];
+    const Scalar* xs = x_.data() + nd.first;
+    const Scalar* ys = y_.data() + nd.first;
+    const Scalar* zs = z_.data() + nd.first;
+    const int n = static_cast<int>(nd.count);
+    const Scalar qx = q[0], qy = q[1], qz = q[2];
+#pragma omp simd
+    for (int i = 0; i < n; ++i) {
+      const Scalar dx = xs[i] - qx, dy = ys[i] - qy, dz = zs[i] - qz;
+      d2[i] = dx * dx + dy * dy + dz * dz;
+    }
+    Scalar m = best_d2;
+#pragma omp simd reduction(min : m)
+    for (int i = 0; i < n; ++i) m = std::min(m, d2[i]);
+    if (!(m < best_d2)) return;
+    for (int i = 0; i < n; ++i)
+      if (d2[i] == m) {
+        best_pos = nd.first + static_cast<std::uint32_t>(i);
+        break;
+      }
+    best_d2 = m;
+  }
   /// Searches the subtree of `start` for points closer than best_d2 (updated in place).
   void searchDown(const Scalar* q, std::uint32_t start, Scalar& best_d2, std::uint32_t& best_pos) const;
   /// The open ball of squared radius r2 around q lies strictly inside node i's cell.
@@ -244,21 +271,10 @@ void BucketKdTree<Scalar>::searchDown(const Scalar* q, std::uint32_t start, Scal
   std::array<Pending, kMaxStack> stack;
   int sp = 0;
   std::uint32_t cur = start;
-  const Scalar* xs = x_.data();
-  const Scalar* ys = y_.data();
-  const Scalar* zs = z_.data();
   for (;;) {
     const Node& nd = nodes_[cur];
     if (nd.leaf()) {
-      const std::uint32_t e = nd.first + nd.count;
-      for (std::uint32_t i = nd.first; i < e; ++i) {
-        const Scalar dx = xs[i] - q[0], dy = ys[i] - q[1], dz = zs[i] - q[2];
-        const Scalar d2 = dx * dx + dy * dy + dz * dz;
-        if (d2 < best_d2) {
-          best_d2 = d2;
-          best_pos = i;
-        }
-      }
+      scanLeaf(q, nd, best_d2, best_pos);
     } else {
       // Nearer child first; the farther one waits on the stack if its box can still
       // hold a closer point.
@@ -291,14 +307,7 @@ NearestNeighbor<Scalar> BucketKdTree<Scalar>::nearest(const Scalar* q, Scalar ma
   if (hint < index_.size()) {
     // Bottom-up: the hint's leaf first.
     const std::uint32_t leaf = leaf_of_[hint];
-    const Node& nd = nodes_[leaf];
-    for (std::uint32_t i = nd.first; i < nd.first + nd.count; ++i) {
-      const Scalar d2 = squaredDistance(q, i);
-      if (d2 < best_d2) {
-        best_d2 = d2;
-        best_pos = i;
-      }
-    }
+    scanLeaf(q, nodes_[leaf], best_d2, best_pos);
     // Climb: at each level the sibling subtree is searched (its box test rejects it
     // unless the ball reaches it), until the ball lies inside the current node's cell.
     std::uint32_t cur = leaf;
