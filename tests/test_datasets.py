@@ -326,3 +326,36 @@ def test_cgal_fandisk(dataset_cache: Path) -> None:
     assert points.shape == (1000, 3)
     assert np.all(points >= mesh.vertices.min(axis=0) - 1e-12)
     assert np.all(points <= mesh.vertices.max(axis=0) + 1e-12)
+
+
+@pytest.mark.data
+def test_small_gicp_lidar_pair() -> None:
+    try:
+        source, target, T = datasets.small_gicp_lidar_pair()
+    except datasets.DatasetUnavailableError as exc:
+        if os.environ.get("CI") or os.environ.get("SCANALIGN_REQUIRE_DATA"):
+            pytest.fail(f"test data unavailable: {exc}")
+        pytest.skip(f"test data unavailable: {exc}")
+    assert (datasets.cache_dir() / "sdists" / datasets.SMALL_GICP_SDIST).exists()
+    assert source.dtype == target.dtype == T.dtype == np.float64
+    assert source.shape == (69792, 3) and target.shape == (69088, 3)
+    assert np.isfinite(source).all() and np.isfinite(target).all()
+    # Outdoor LiDAR scans in metres: tens of metres across.
+    assert np.all((np.ptp(source, axis=0) > [20, 20, 5]) & (np.ptp(source, axis=0) < [100, 100, 30]))
+    # The reference pose is rigid: a rotation and a translation of about half a metre.
+    assert T.shape == (4, 4)
+    np.testing.assert_array_equal(T[3], [0, 0, 0, 1])
+    np.testing.assert_allclose(T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-12)
+    assert np.linalg.det(T[:3, :3]) == pytest.approx(1.0, abs=1e-12)
+    np.testing.assert_allclose(T[:3, 3], [0.488882, 0.121214, -0.0253342], atol=1e-6)
+    # ... and it aligns the pair better than identity does.
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(target)
+    before = np.median(tree.query(source)[0])
+    after = np.median(tree.query(source @ T[:3, :3].T + T[:3, 3])[0])
+    assert after < 0.9 * before, (before, after)
+    # A second call reads the cache (no pip): same arrays.
+    again = datasets.small_gicp_lidar_pair()
+    np.testing.assert_array_equal(again[0], source)
+    np.testing.assert_array_equal(again[2], T)

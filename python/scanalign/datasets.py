@@ -16,6 +16,11 @@ needed, nothing is installed) and unpacked with ``dpkg-deb -x`` into a cache fol
 - ``python3-pcl``: PCL tutorial clouds (``table_scene_lms400``, ``milk``, ``bun0``, ...),
   in metres.
 
+One more data set comes from PyPI: :func:`small_gicp_lidar_pair`, the outdoor LiDAR pair
+with its reference pose shipped in the ``small_gicp`` 1.0.1 source distribution (fetched
+with ``pip download`` into ``<cache>/sdists/``, its ``data/`` unpacked into
+``<cache>/small_gicp_data/``).
+
 Run ``python -m scanalign.datasets fetch`` to download everything ahead of time.
 
 :func:`sample_mesh` turns a mesh into an oriented point cloud, and
@@ -54,6 +59,7 @@ __all__ = [
     "pcl_cloud_names",
     "pcl_cloud_path",
     "sample_mesh",
+    "small_gicp_lidar_pair",
 ]
 
 CGAL_PACKAGE = "libcgal-demo"
@@ -296,6 +302,112 @@ def load_pcl_cloud(name: str) -> np.ndarray:
     return io.read_pcd_points(pcl_cloud_path(name), dtype=np.float64, remove_nan=True)
 
 
+# --------------------------------------------------------------------------- small_gicp LiDAR pair
+
+SMALL_GICP_SDIST = "small_gicp-1.0.1.tar.gz"
+_SMALL_GICP_REQUIREMENT = "small_gicp==1.0.1"
+_SMALL_GICP_DATA = ("source.ply", "target.ply", "T_target_source.txt")
+
+
+def _small_gicp_sdist() -> Path:
+    """small_gicp's source distribution in ``<cache>/sdists``, fetched from PyPI with
+    ``pip download`` (no build, no install) if absent."""
+    sdists = cache_dir() / "sdists"
+    target = sdists / SMALL_GICP_SDIST
+    if target.exists():
+        return target
+    sdists.mkdir(parents=True, exist_ok=True)
+    manual = (f"download {SMALL_GICP_SDIST} from https://pypi.org/project/small-gicp/1.0.1/#files "
+              f"into {sdists}")
+    base = [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:", "--disable-pip-version-check",
+            _SMALL_GICP_REQUIREMENT]
+    errors = []
+    # pip prepares the sdist's metadata even for a download; --no-build-isolation does
+    # that with the scikit-build-core already installed (no extra download). Without it
+    # in the environment, the second try lets pip fetch the build backend itself.
+    for extra in (["--no-build-isolation"], []):
+        with tempfile.TemporaryDirectory(dir=sdists) as scratch:
+            try:
+                subprocess.run(base + extra + ["-d", scratch], check=True, capture_output=True, text=True,
+                               timeout=600)
+            except FileNotFoundError as exc:  # pragma: no cover - sys.executable always exists
+                errors.append(str(exc))
+                continue
+            except subprocess.TimeoutExpired:
+                errors.append("pip download timed out")
+                continue
+            except subprocess.CalledProcessError as exc:
+                detail = (exc.stderr or exc.stdout or "").strip().splitlines()[-2:]
+                errors.append(f"exit {exc.returncode}: {' | '.join(detail)}")
+                continue
+            downloaded = Path(scratch) / SMALL_GICP_SDIST
+            if not downloaded.exists():
+                errors.append(f"pip saved no {SMALL_GICP_SDIST}")
+                continue
+            os.replace(downloaded, target)
+            return target
+    raise DatasetUnavailableError(
+        f"`pip download {_SMALL_GICP_REQUIREMENT}` (source distribution) failed: {'; '.join(errors)}. "
+        f"To fix, check network access to PyPI, or {manual}."
+    )
+
+
+def _small_gicp_data_dir() -> Path:
+    """``<cache>/small_gicp_data`` holding small_gicp's ``data/`` LiDAR pair."""
+    root = cache_dir() / "small_gicp_data"
+    if (root / _COMPLETE_MARKER).exists():
+        return root
+    sdist = _small_gicp_sdist()
+    prefix = SMALL_GICP_SDIST[: -len(".tar.gz")] + "/data/"
+    found = {}
+    try:
+        with tarfile.open(sdist, "r:gz") as tar:
+            for member in tar:
+                name = member.name[len(prefix):] if member.name.startswith(prefix) else None
+                if name in _SMALL_GICP_DATA and member.isfile():
+                    source = tar.extractfile(member)
+                    assert source is not None
+                    found[name] = source.read()
+    except (tarfile.TarError, OSError, EOFError) as exc:
+        sdist.unlink(missing_ok=True)  # a corrupt download: fetch again next time
+        raise DatasetUnavailableError(f"{sdist} is not a readable tarball ({exc}); it was deleted, try again")
+    missing = [name for name in _SMALL_GICP_DATA if name not in found]
+    if missing:
+        raise DatasetUnavailableError(f"{sdist} has no {', '.join(prefix + m for m in missing)}")
+    for name, data in found.items():
+        _write_atomic(root / name, data)
+    (root / _COMPLETE_MARKER).touch()
+    return root
+
+
+def small_gicp_lidar_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The outdoor LiDAR scan pair of small_gicp's examples, with its reference pose.
+
+    Two downsampled outdoor LiDAR scans (about 70k points each, about 60 x 40 x 12 m, in
+    metres) and the reference ``T_target_source`` shipped with them in the ``small_gicp``
+    1.0.1 source distribution on PyPI (``data/source.ply``, ``data/target.ply``,
+    ``data/T_target_source.txt``). The sdist is fetched once with ``pip download
+    --no-deps --no-binary :all:`` into ``<cache>/sdists/`` (nothing is built or
+    installed) and its ``data/`` unpacked into ``<cache>/small_gicp_data/``.
+
+    Returns:
+        ``(source (N, 3) float64, target (M, 3) float64, T_target_source (4, 4) float64)``.
+        The file stores the pose with 6 significant digits; its rotation is projected onto
+        the nearest rotation matrix (a change below 1e-6), so the result is exactly rigid.
+
+    Raises:
+        DatasetUnavailableError: pip cannot download the sdist (no network, no PyPI).
+    """
+    root = _small_gicp_data_dir()
+    source = io.read_ply_points(root / "source.ply")["points"]
+    target = io.read_ply_points(root / "target.ply")["points"]
+    T = np.loadtxt(root / "T_target_source.txt", dtype=np.float64).reshape(4, 4)
+    u, _, vt = np.linalg.svd(T[:3, :3])
+    T[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    T[3] = (0.0, 0.0, 0.0, 1.0)
+    return source, target, T
+
+
 # --------------------------------------------------------------------------- sampling
 
 MeshLike = Union[io.Mesh, tuple[npt.ArrayLike, npt.ArrayLike]]
@@ -474,9 +586,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.command == "fetch":
             for root in fetch_all():
                 print(f"ready: {root}")
+            print(f"ready: {_small_gicp_data_dir()}")
         else:
             print("CGAL meshes:", " ".join(cgal_mesh_names()))
             print("PCL clouds:", " ".join(pcl_cloud_names()))
+            print("small_gicp LiDAR pair: small_gicp_lidar_pair()")
     except DatasetUnavailableError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 1
