@@ -202,7 +202,7 @@ void Icp<Scalar>::setTarget(const CloudView<Scalar>& points, const CloudView<Sca
   lb_tree_ = LeftBalancedKdTree<Scalar>();
   bucket_tree_ = BucketKdTree<Scalar>();
   if (target_search_ == IcpSearch::BucketKdTree)
-    bucket_tree_.build(points, keep, kIcpLeafSize);
+    bucket_tree_.build(points, keep, kIcpLeafSize, settings_.num_threads);
   else
     lb_tree_.build(points, keep);
   const std::size_t m = targetSize();

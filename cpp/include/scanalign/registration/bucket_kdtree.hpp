@@ -34,6 +34,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include <omp.h>
+
 #include "scanalign/common/cloud_view.hpp"
 #include "scanalign/registration/kdtree.hpp"  // NearestNeighbor
 
@@ -62,9 +64,10 @@ class BucketKdTree {
   void build(const CloudView<Scalar>& cloud, int leaf_size = kDefaultLeafSize) {
     build(cloud, [](std::size_t) { return true; }, leaf_size);
   }
-  /// As build(cloud), keeping only the finite points i with keep(i).
+  /// As build(cloud), keeping only the finite points i with keep(i). `num_threads` OpenMP
+  /// threads build the top of the tree (0: OpenMP's default).
   template <typename Keep>
-  void build(const CloudView<Scalar>& cloud, Keep&& keep, int leaf_size = kDefaultLeafSize);
+  void build(const CloudView<Scalar>& cloud, Keep&& keep, int leaf_size = kDefaultLeafSize, int num_threads = 0);
 
   std::size_t size() const { return index_.size(); }
   bool empty() const { return index_.empty(); }
@@ -176,7 +179,7 @@ void BucketKdTree<Scalar>::collect(const CloudView<Scalar>& cloud, Keep&& keep,
 
 template <typename Scalar>
 template <typename Keep>
-void BucketKdTree<Scalar>::build(const CloudView<Scalar>& cloud, Keep&& keep, int leaf_size) {
+void BucketKdTree<Scalar>::build(const CloudView<Scalar>& cloud, Keep&& keep, int leaf_size, int num_threads) {
   if (leaf_size < 1 || leaf_size > kMaxLeafSize)
     throw std::invalid_argument("bucket k-d tree: leaf_size must be in [1, 64]");
   if (cloud.size >= (std::size_t{1} << 32) - 1) throw std::invalid_argument("bucket k-d tree: too many points");
@@ -197,7 +200,7 @@ void BucketKdTree<Scalar>::build(const CloudView<Scalar>& cloud, Keep&& keep, in
   if (n == 0) return;
   const Scalar inf = std::numeric_limits<Scalar>::infinity();
   const Scalar root_cell[6] = {-inf, -inf, -inf, inf, inf, inf};
-#pragma omp parallel
+#pragma omp parallel num_threads(num_threads > 0 ? num_threads : omp_get_max_threads())
 #pragma omp single nowait
   buildNode(cloud, order.data(), n, 0, 0, 0, NearestNeighbor<Scalar>::kNone, root_cell);
 }
