@@ -402,7 +402,8 @@ class FrameRecord:
 @dataclass
 class Model:
     """The accumulated model: (M, 3) float32 points in the model frame (m), (M, 3) unit
-    normals (NaN where opposite normals cancelled), and (M, 3) uint8 colours or None."""
+    normals (NaN where opposite normals cancelled), and (M, 3) uint8 colours or None. One
+    point per occupied voxel of the model grid, in the order the voxels were first occupied."""
 
     points: np.ndarray
     normals: np.ndarray

@@ -22,7 +22,7 @@ VoxelGridResult voxelGrid(const CloudView<Scalar>& points, double leaf_size, con
                         std::numeric_limits<std::int64_t>::max()};
   std::int64_t hi[3] = {std::numeric_limits<std::int64_t>::min(), std::numeric_limits<std::int64_t>::min(),
                         std::numeric_limits<std::int64_t>::min()};
-  auto cell = [&](const Scalar* p, int k) { return static_cast<std::int64_t>(std::floor(p[k] * inv)); };
+  auto cell = [&](const Scalar* p, int k) { return voxelCoordinate(p[k], inv); };
   std::size_t finite = 0;
   for (std::size_t i = 0; i < points.size; ++i) {
     if (!points.isFinite(i)) continue;

@@ -18,6 +18,10 @@ struct NormalEstimationSettings {
   int min_neighbors = 3;
   /// OpenMP threads; 0 = all cores.
   int num_threads = 0;
+  /// Cells per radius of the grid neighbourhood search used by estimateNormals without a
+  /// tree (1..16; 0 = chosen from the cloud's density). Only the speed depends on it: the
+  /// normals are the same up to rounding.
+  int grid_subdivisions = 0;
 };
 
 /// Estimates a unit normal per point: the eigenvector of the smallest eigenvalue of the

@@ -2,12 +2,22 @@
 // the points inside it, with optional per-point attributes (normals, colours) averaged.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
 #include "scanalign/common/cloud_view.hpp"
 
 namespace scanalign {
+
+/// The voxel coordinate of v along one axis, floor(v * inv_leaf) with the product in the
+/// cloud's own precision and inv_leaf = Scalar(1) / Scalar(leaf), as pcl::VoxelGrid
+/// computes it. voxelGrid and the reconstruction's incremental merge both use it, so they
+/// put every point into the same voxel.
+template <typename Scalar>
+inline std::int64_t voxelCoordinate(Scalar v, Scalar inv_leaf) {
+  return static_cast<std::int64_t>(std::floor(v * inv_leaf));
+}
 
 struct VoxelGridResult {
   std::vector<double> points;           ///< 3 per voxel (m): the centroid
