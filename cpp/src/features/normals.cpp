@@ -14,6 +14,8 @@
 
 #include <Eigen/Eigenvalues>
 
+#include "scanalign/common/radix_sort.hpp"
+
 namespace scanalign {
 
 namespace {
@@ -143,12 +145,14 @@ template <typename Offset>
 int chooseSubdivisions(std::size_t m, double r, Offset offset) {
   const std::size_t samples = std::min<std::size_t>(m, 4096);
   const double inv = 1.0 / r;
-  std::vector<std::array<std::int64_t, 3>> keys(samples);
+  std::vector<std::uint64_t> keys(samples);  // cells packed 21 bits per axis (wrapping: rare merges)
   for (std::size_t s = 0; s < samples; ++s) {
     const std::size_t j = s * m / samples;
+    keys[s] = 0;
     for (int k = 0; k < 3; ++k) {
       const double v = offset(j, k) * inv;
-      keys[s][k] = std::abs(v) < 1e15 ? static_cast<std::int64_t>(std::floor(v)) : 0;
+      const auto c = static_cast<std::uint64_t>(std::abs(v) < 1e15 ? static_cast<std::int64_t>(std::floor(v)) : 0);
+      keys[s] |= (c & 0x1FFFFF) << (21 * k);
     }
   }
   std::sort(keys.begin(), keys.end());
@@ -233,14 +237,23 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
   for (int k = 0; k < 3; ++k)
     if (hi[k] - lo[k] + 2 * R + 1 >= kAxis) return false;  // room for the +-R neighbours
   auto key = [](std::uint64_t x, std::uint64_t y, std::uint64_t z) { return (z << 42) | (y << 21) | x; };
+  // Sort by cell (z, y, x) on compact keys (a few radix passes), then keep the packed keys.
+  const auto span_x = static_cast<std::uint64_t>(hi[0] - lo[0] + 1);
+  const auto span_y = static_cast<std::uint64_t>(hi[1] - lo[1] + 1);
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed(m);
   for (std::size_t j = 0; j < m; ++j) {
     std::uint64_t u[3];
-    for (int k = 0; k < 3; ++k) u[k] = static_cast<std::uint64_t>(icell[3 * j + k] - lo[k] + R);
-    keyed[j] = {key(u[0], u[1], u[2]), finite[j]};
+    for (int k = 0; k < 3; ++k) u[k] = static_cast<std::uint64_t>(icell[3 * j + k] - lo[k]);
+    keyed[j] = {(u[2] * span_y + u[1]) * span_x + u[0], static_cast<std::uint32_t>(j)};
+  }
+  radixSortByKey(keyed);
+  for (auto& [k, j] : keyed) {
+    const std::int64_t* c = &icell[3 * std::size_t{j}];
+    k = key(static_cast<std::uint64_t>(c[0] - lo[0] + R), static_cast<std::uint64_t>(c[1] - lo[1] + R),
+            static_cast<std::uint64_t>(c[2] - lo[2] + R));
+    j = finite[j];
   }
   std::vector<std::int64_t>().swap(icell);
-  std::sort(keyed.begin(), keyed.end());
   // Sorted offsets, one array per axis so the point tests vectorise.
   std::vector<double> X(m), Y(m), Z(m);
   for (std::size_t j = 0; j < m; ++j) {

@@ -7,6 +7,8 @@
 #include <string>
 #include <utility>
 
+#include "scanalign/common/radix_sort.hpp"
+
 namespace scanalign {
 
 template <typename Scalar>
@@ -40,6 +42,9 @@ VoxelGridResult voxelGrid(const CloudView<Scalar>& points, double leaf_size, con
     if (hi[k] - lo[k] >= kAxis)
       throw std::invalid_argument("voxel grid: leaf_size " + std::to_string(leaf_size) +
                                   " m is too small for the cloud's extent (more than 2^21 voxels along an axis)");
+  // Compact voxel keys (< 2^63: at most 2^21 voxels per axis) sort in a few radix passes.
+  const auto nx = static_cast<std::uint64_t>(hi[0] - lo[0] + 1);
+  const auto ny = static_cast<std::uint64_t>(hi[1] - lo[1] + 1);
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keyed;
   keyed.reserve(finite);
   for (std::size_t i = 0; i < points.size; ++i) {
@@ -48,9 +53,9 @@ VoxelGridResult voxelGrid(const CloudView<Scalar>& points, double leaf_size, con
     const auto x = static_cast<std::uint64_t>(cell(p, 0) - lo[0]);
     const auto y = static_cast<std::uint64_t>(cell(p, 1) - lo[1]);
     const auto z = static_cast<std::uint64_t>(cell(p, 2) - lo[2]);
-    keyed.emplace_back((z << 42) | (y << 21) | x, static_cast<std::uint32_t>(i));
+    keyed.emplace_back((z * ny + y) * nx + x, static_cast<std::uint32_t>(i));  // PCL's z-y-x order
   }
-  std::sort(keyed.begin(), keyed.end());
+  radixSortByKey(keyed);  // stable: within a voxel, input order
   for (std::size_t a = 0; a < keyed.size();) {
     std::size_t b = a;
     while (b < keyed.size() && keyed[b].first == keyed[a].first) ++b;
