@@ -129,6 +129,10 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT / "python") not in sys.path and not any(Path(p).joinpath("scanalign").is_dir() for p in sys.path if p):
     sys.path.insert(0, str(ROOT / "python"))
 
+sys.path.insert(0, str(ROOT / "tests"))
+from helpers import rigid  # noqa: E402  (the tests' rigid-transform helper)
+from scanalign.pipeline import _jsonable  # noqa: E402  (the report writer's JSON conversion)
+
 SECTIONS = ("dense", "lidar", "loop", "scaling", "memory")
 DEMO_CROP = (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0)
 DEMO_NORMAL_RADIUS = 0.01
@@ -158,16 +162,6 @@ def pose_error(T_est: np.ndarray, T_ref: np.ndarray) -> Tuple[float, float]:
     E = np.linalg.inv(T_ref) @ np.asarray(T_est, dtype=np.float64)
     angle = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(E[:3, :3]) - 1.0) / 2.0))))
     return float(np.linalg.norm(E[:3, 3]) * 1e3), angle
-
-
-def rigid(axis, angle: float, t) -> np.ndarray:
-    a = np.asarray(axis, dtype=float)
-    a = a / np.linalg.norm(a)
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    T = np.eye(4)
-    T[:3, :3] = np.eye(3) + math.sin(angle) * K + (1 - math.cos(angle)) * K @ K
-    T[:3, 3] = t
-    return T
 
 
 def pca_normals(points: np.ndarray, k: int, viewpoint=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -1019,22 +1013,6 @@ def child_main(args) -> int:
             log(f"[bench_peers] threads={t}: {section} done in {time.perf_counter() - t0:.0f} s")
     Path(args.child_json).write_text(json.dumps(_jsonable(results)))
     return 0
-
-
-def _jsonable(v: Any) -> Any:
-    if isinstance(v, dict):
-        return {str(k): _jsonable(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_jsonable(x) for x in v]
-    if isinstance(v, np.ndarray):
-        return _jsonable(v.tolist())
-    if isinstance(v, (float, np.floating)):
-        return float(v) if math.isfinite(float(v)) else None
-    if isinstance(v, (np.integer,)):
-        return int(v)
-    if isinstance(v, np.bool_):
-        return bool(v)
-    return v
 
 
 # ----------------------------------------------------------------------------- tables
