@@ -1056,9 +1056,14 @@ def registration_table(case: str, blocks: List[Dict[str, Any]]) -> str:
     for r in rows:
         lines.append(f"| {r['method']} | {r['threads']} | {fmt(r['median_ms'])} | {fmt(r['iterations'], 'd')} | "
                      f"{fmt(r['ratio'])} | {fmt(r['error_mm'], '.3f')} | {fmt(r['error_deg'], '.4f')} |")
+    return with_notes(lines, blocks)
+
+
+def with_notes(lines: List[str], blocks: List[Dict[str, Any]]) -> str:
+    """The table's lines, then every block's notes once, as markdown."""
     notes = sorted({n for b in blocks for n in b["notes"]})
     if notes:
-        lines += [""] + [f"- {n}" for n in notes]
+        lines = lines + [""] + [f"- {n}" for n in notes]
     return "\n".join(lines)
 
 
@@ -1075,10 +1080,7 @@ def loop_table(blocks: List[Dict[str, Any]]) -> str:
                      f"{fmt(r['prepare_ms'], '.1f')} | {fmt(r['register_ms'], '.1f')} | {fmt(r['merge_ms'], '.1f')} | "
                      f"{fmt(r['iterations'], '.0f')} | {fmt(r['ratio'])} | {r['merged']} / {r['frames']} | "
                      f"{fmt(r.get('ate_rmse_mm'))} | {fmt(r.get('ate_max_mm'))} |")
-    notes = sorted({n for b in blocks for n in b["notes"]})
-    if notes:
-        lines += [""] + [f"- {n}" for n in notes]
-    return "\n".join(lines)
+    return with_notes(lines, blocks)
 
 
 def scaling_table(blocks: List[Dict[str, Any]]) -> str:
@@ -1102,10 +1104,7 @@ def scaling_table(blocks: List[Dict[str, Any]]) -> str:
             sweep, label = key.split("|", 1)
             lines.append(f"| {b['threads']} | {sweep} | {label} | {fmt(f.get('total_ms'))} | {fmt(f.get('build_ms'))} | "
                          f"{fmt(f.get('align_ms'))} | {fmt(f.get('align_ms_per_iteration'))} |")
-    notes = sorted({n for b in blocks for n in b["notes"]})
-    if notes:
-        lines += [""] + [f"- {n}" for n in notes]
-    return "\n".join(lines)
+    return with_notes(lines, blocks)
 
 
 def memory_tables(mem: Dict[str, Any]) -> str:

@@ -91,3 +91,14 @@ def test_robust_kernel_settings_are_checked():
         reg.make_settings(robust_scale=float("nan"))
     with pytest.raises(ValueError, match="point_to_plane estimator only"):
         reg.make_settings(robust_kernel="cauchy", estimator="point_to_point")
+
+
+@pytest.mark.parametrize("bad", [0.0, -1.0, float("nan")])
+def test_bucket_tree_rejects_bad_distances_and_shapes(bad):
+    tree = _core.registration.BucketKdTree64(np.random.default_rng(0).random((100, 3)), 8)
+    with pytest.raises(ValueError, match="max_distance"):
+        tree.nearest(np.zeros((1, 3)), bad)
+    with pytest.raises((ValueError, TypeError)):
+        tree.nearest(np.zeros((4, 2)), 1.0)
+    with pytest.raises(ValueError, match="leaf_size"):
+        _core.registration.BucketKdTree64(np.zeros((10, 3)), 0)

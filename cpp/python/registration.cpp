@@ -67,6 +67,35 @@ void defineIcp(py::module_& m, const char* name) {
       .def_property_readonly("tree_build_seconds", &Icp<Scalar>::treeBuildSeconds);
 }
 
+/// Nearest neighbour of every query row (in parallel): (input index or -1, squared
+/// distance in m^2, exact) arrays. `search(q, max_d2)` returns a NearestNeighbor whose node
+/// `index_of` maps back to the input cloud.
+template <typename Scalar, typename Search, typename IndexOf>
+py::tuple nearestAll(const py::array& queries, double max_distance, Search&& search, IndexOf&& index_of) {
+  if (!(max_distance > 0.0)) throw py::value_error("max_distance must be a positive distance in metres (or inf)");
+  const auto q = cloudView<Scalar>(queries, "queries");
+  const auto n = static_cast<py::ssize_t>(q.size);
+  py::array_t<std::int64_t> index(n);
+  py::array_t<Scalar> d2(n);
+  py::array_t<bool> exact(n);
+  auto* ip = index.mutable_data();
+  auto* dp = d2.mutable_data();
+  auto* ep = exact.mutable_data();
+  const Scalar max_d2 = std::isinf(max_distance) ? std::numeric_limits<Scalar>::infinity()
+                                                   : static_cast<Scalar>(max_distance * max_distance);
+  {
+    py::gil_scoped_release release;
+#pragma omp parallel for schedule(dynamic, 256)
+    for (py::ssize_t i = 0; i < n; ++i) {
+      const auto nn = search(q.ptr(static_cast<std::size_t>(i)), max_d2);
+      ip[i] = nn.found() ? static_cast<std::int64_t>(index_of(nn.node)) : -1;
+      dp[i] = nn.squared_distance;
+      ep[i] = nn.exact;
+    }
+  }
+  return py::make_tuple(index, d2, exact);
+}
+
 template <typename Scalar>
 void defineKdTree(py::module_& m, const char* name) {
   using Tree = LeftBalancedKdTree<Scalar>;
@@ -82,27 +111,10 @@ void defineKdTree(py::module_& m, const char* name) {
       .def(
           "nearest",
           [](const Tree& tree, const py::array& queries, double max_distance, int stack_depth) {
-            const auto q = cloudView<Scalar>(queries, "queries");
-            const auto n = static_cast<py::ssize_t>(q.size);
-            py::array_t<std::int64_t> index(n);
-            py::array_t<Scalar> d2(n);
-            py::array_t<bool> exact(n);
-            auto* ip = index.mutable_data();
-            auto* dp = d2.mutable_data();
-            auto* ep = exact.mutable_data();
-            const Scalar max_d2 = std::isinf(max_distance) ? std::numeric_limits<Scalar>::infinity()
-                                                             : static_cast<Scalar>(max_distance * max_distance);
-            {
-              py::gil_scoped_release release;
-#pragma omp parallel for schedule(dynamic, 256)
-              for (py::ssize_t i = 0; i < n; ++i) {
-                const auto nn = tree.nearest(q.ptr(static_cast<std::size_t>(i)), max_d2, stack_depth);
-                ip[i] = nn.found() ? static_cast<std::int64_t>(tree.node(nn.node).index()) : -1;
-                dp[i] = nn.squared_distance;
-                ep[i] = nn.exact;
-              }
-            }
-            return py::make_tuple(index, d2, exact);
+            return nearestAll<Scalar>(
+                queries, max_distance,
+                [&](const Scalar* q, Scalar max_d2) { return tree.nearest(q, max_d2, stack_depth); },
+                [&](std::uint32_t node) { return tree.node(node).index(); });
           },
           py::arg("queries"), py::arg("max_distance"), py::arg("stack_depth"))
       .def(
@@ -136,24 +148,10 @@ void defineBucketKdTree(py::module_& m, const char* name) {
       .def(
           "nearest",
           [](const Tree& tree, const py::array& queries, double max_distance) {
-            const auto q = cloudView<Scalar>(queries, "queries");
-            const auto n = static_cast<py::ssize_t>(q.size);
-            py::array_t<std::int64_t> index(n);
-            py::array_t<Scalar> d2(n);
-            auto* ip = index.mutable_data();
-            auto* dp = d2.mutable_data();
-            const Scalar max_d2 = std::isinf(max_distance) ? std::numeric_limits<Scalar>::infinity()
-                                                             : static_cast<Scalar>(max_distance * max_distance);
-            {
-              py::gil_scoped_release release;
-#pragma omp parallel for schedule(dynamic, 256)
-              for (py::ssize_t i = 0; i < n; ++i) {
-                const auto nn = tree.nearest(q.ptr(static_cast<std::size_t>(i)), max_d2);
-                ip[i] = nn.found() ? static_cast<std::int64_t>(tree.index(nn.node)) : -1;
-                dp[i] = nn.squared_distance;
-              }
-            }
-            return py::make_tuple(index, d2);
+            const py::tuple r = nearestAll<Scalar>(
+                queries, max_distance, [&](const Scalar* q, Scalar max_d2) { return tree.nearest(q, max_d2); },
+                [&](std::uint32_t node) { return tree.index(node); });
+            return py::make_tuple(r[0], r[1]);  // always exact
           },
           py::arg("queries"), py::arg("max_distance"));
 }
