@@ -31,15 +31,22 @@ lidar    Sparse outdoor LiDAR with a large motion: small_gicp's example pair wit
          reference (``datasets.small_gicp_lidar_pair()``), 0.25 m voxel grid
          (``reconstruction.voxel_grid``), 20-NN PCA target normals computed once here
          (scipy cKDTree + numpy, oriented towards the sensor at the origin), identity init,
-         max distance 1.0 m. An extra row runs scanalign with a Huber kernel at 0.1 m
-         (``robust_kernel="huber"``), the answer to small_gicp's better pose here.
+         max distance 1.0 m. Extra rows run scanalign with a Huber kernel at 0.1 m
+         (``robust_kernel="huber"``), the answer to small_gicp's better pose here, with
+         our criteria and with small_gicp's default ones (1e-3 m, 0.1 deg).
+Both registration sections also run scanalign coarse-to-fine (``coarse_stride=4``:
+every 4th source point until converged, then all points until converged; its
+iterations column shows coarse + full).
 loop     The whole demo loop, raw depth + colour in -> model merged, 640x480, 36 frames:
-         scanalign's ``Reconstructor`` with the demo settings; the same loop built from
-         Open3D parts; scanalign's loop with PCL's ICP. Per-frame wall time of the whole
+         scanalign's ``Reconstructor`` with the demo settings (``scanalign demo``: each
+         frame's ICP starts from the constant-velocity prediction, the last inter-frame
+         motion applied again); the same with the seed's initial guess (the previous
+         pose); the same loop built from Open3D parts and scanalign's loop with PCL's ICP,
+         both from the same constant-velocity prediction. Per-frame wall time of the whole
          step (median over registered frames, also as Hz), the prepare / register /
          merge medians, and ATE against the robot's poses (``pipeline.trajectory_metrics``,
-         as ``scanalign demo`` reports it). The three loops advance frame by frame in
-         lockstep (interleaved); ``--loop-repeats`` whole passes.
+         as ``scanalign demo`` reports it). The loops advance frame by frame in lockstep
+         (interleaved); ``--loop-repeats`` whole passes.
 scaling  scanalign ICP time against source points (model fixed) and against model points
          (source fixed), on a CGAL mesh (bunny00, 15 cm, 0.5 m away) sampled with exact
          normals, a 1 degree / 5.8 mm motion and 0.5 mm noise; small_gicp and Open3D at the
@@ -147,7 +154,16 @@ LIDAR_ROBUST_SCALE = 0.1
 # increment norm <= sqrt(1e-8) m, rotation increment angle <= acos(1 - 1e-8) rad.
 SG_TRANSLATION_EPS = math.sqrt(1e-8)
 SG_ROTATION_EPS = math.acos(1.0 - 1e-8)
+# small_gicp's default criteria (translation 1e-3 m, rotation 0.1 deg) in ours: the
+# squared translation (transformation_epsilon) and the cosine (transformation_rotation_epsilon).
+SG_DEFAULT_TRANSLATION_EPS = 1e-3
+SG_DEFAULT_ROTATION_EPS = math.radians(0.1)
 SCANALIGN_F32 = "scanalign f32"
+# The coarse-to-fine row: every 4th source point until converged, then all (IcpSettings.coarse_stride).
+COARSE_STRIDE = 4
+SCANALIGN_COARSE = f"scanalign f32 coarse-to-fine (stride {COARSE_STRIDE})"
+# The demo's motion model (scanalign demo's --initial-guess default), applied to every loop.
+DEMO_MOTION_MODEL = "constant_velocity"
 
 
 def log(msg: str) -> None:
@@ -292,15 +308,26 @@ def registration_methods(case: Dict[str, np.ndarray], threads: int, peers: Dict[
         def run():
             r = registration.icp(s, t, n, init, max_correspondence_distance=dist, num_threads=threads, **extra)
             return r.T_target_source, int(r.iterations), {"status": r.status, "fitness": r.fitness,
-                                                          "exact_search": bool(r.exact_search)}
+                                                          "exact_search": bool(r.exact_search),
+                                                          "coarse_iterations": int(r.coarse_iterations)}
         return run
 
     methods.append(Method(SCANALIGN_F32, sa(src32, tgt32, nrm32), "registration.icp float32, defaults (50 it, 1e-8, 1e-8)"))
     methods.append(Method("scanalign f64", sa(src64, tgt64, nrm64), "registration.icp float64, defaults"))
+    methods.append(Method(SCANALIGN_COARSE, sa(src32, tgt32, nrm32, coarse_stride=COARSE_STRIDE),
+                          f"registration.icp float32, defaults + coarse_stride={COARSE_STRIDE} "
+                          "(iterations: coarse + full)"))
     if "robust_scale" in case:
         k = float(case["robust_scale"])
         methods.append(Method(f"scanalign f32 Huber {k:g} m", sa(src32, tgt32, nrm32, robust_kernel="huber", robust_scale=k),
                               f"registration.icp float32, defaults + robust_kernel='huber', robust_scale={k:g}"))
+        methods.append(Method(f"scanalign f32 Huber {k:g} m (small_gicp's criteria)",
+                              sa(src32, tgt32, nrm32, robust_kernel="huber", robust_scale=k,
+                                 transformation_epsilon=SG_DEFAULT_TRANSLATION_EPS ** 2,
+                                 transformation_rotation_epsilon=math.cos(SG_DEFAULT_ROTATION_EPS)),
+                              f"as above, stopping as small_gicp's defaults: transformation_epsilon="
+                              f"{SG_DEFAULT_TRANSLATION_EPS:g}^2 m^2, transformation_rotation_epsilon="
+                              f"cos({SG_DEFAULT_ROTATION_EPS:.4g} rad)"))
 
     sg = peer(peers, "small_gicp")
     if sg is None:
@@ -452,12 +479,12 @@ def demo_frames(n_frames: int = 36, resolution_scale: float = 1.0, seed: int = 0
     return synthetic.builtin_scan(n_frames=n_frames, resolution_scale=resolution_scale, seed=seed).frames
 
 
-def demo_reconstructor(frames, threads: int = 0, registration: str = "scanalign"):
+def demo_reconstructor(frames, threads: int = 0, registration: str = "scanalign", motion_model: str = "previous"):
     from scanalign.reconstruction import DepthFilter, Reconstructor
 
     return Reconstructor(T_model_camera0=frames[0].T_base_camera, crop_box=list(DEMO_CROP),
                          normal_radius=DEMO_NORMAL_RADIUS, depth_filter=DepthFilter(), registration=registration,
-                         num_threads=threads, icp=dict(num_threads=threads))
+                         num_threads=threads, icp=dict(num_threads=threads), motion_model=motion_model)
 
 
 def prepare_like_pipeline(rec, frame):
@@ -555,13 +582,15 @@ def section_lidar(args, threads: int, peers) -> Dict[str, Any]:
 class Open3DLoop:
     """The demo loop from Open3D parts (see the module docstring of section ``loop``)."""
 
-    def __init__(self, o3d, T0: np.ndarray, intrinsics) -> None:
+    def __init__(self, o3d, T0: np.ndarray, intrinsics, motion_model: str = DEMO_MOTION_MODEL) -> None:
         self.o3d, self.T0 = o3d, np.asarray(T0, dtype=np.float64)
+        self.motion_model = motion_model
         self.K = o3d.camera.PinholeCameraIntrinsic(intrinsics.width, intrinsics.height, intrinsics.fx, intrinsics.fy,
                                                    intrinsics.cx, intrinsics.cy)
         self.box = o3d.geometry.AxisAlignedBoundingBox(np.array(DEMO_CROP[0::2]), np.array(DEMO_CROP[1::2]))
         self.model = None
         self.last_pose = self.T0.copy()
+        self.previous_pose: Optional[np.ndarray] = None  # the merged pose before last_pose
         self.records: List[Dict[str, Any]] = []
 
     def integrate(self, frame) -> Dict[str, Any]:
@@ -587,6 +616,9 @@ class Open3DLoop:
                    frame_points=len(pcd.points), iterations=None, register_seconds=0.0, merge_seconds=0.0,
                    filter_seconds=t_filter)
         guess = self.last_pose
+        if self.motion_model == "constant_velocity" and self.previous_pose is not None:
+            # The same prediction as scanalign's tracker: the last motion applied again.
+            guess = self.last_pose @ np.linalg.inv(self.previous_pose) @ self.last_pose
         T = guess
         if self.model is None:
             rec["status"] = "initialized"
@@ -608,6 +640,7 @@ class Open3DLoop:
             t2 = time.perf_counter()
             pcd.transform(T)
             self.model = pcd if self.model is None else (self.model + pcd).voxel_down_sample(0.001)
+            self.previous_pose = None if rec["status"] == "initialized" else self.last_pose
             self.last_pose = T
             rec["merge_seconds"] = time.perf_counter() - t2
             rec["merged"] = True
@@ -622,8 +655,8 @@ class Open3DLoop:
 class ScanalignLoop:
     """scanalign's Reconstructor (its engine or PCL's ICP), timed around the whole step."""
 
-    def __init__(self, frames, threads: int, registration: str) -> None:
-        self.rec = demo_reconstructor(frames, threads, registration)
+    def __init__(self, frames, threads: int, registration: str, motion_model: str = DEMO_MOTION_MODEL) -> None:
+        self.rec = demo_reconstructor(frames, threads, registration, motion_model)
         self.records: List[Dict[str, Any]] = []
 
     def integrate(self, frame) -> Dict[str, Any]:
@@ -681,18 +714,22 @@ def section_loop(args, threads: int, peers) -> Dict[str, Any]:
     notes = [] if o3d is not None else [f"Open3D loop skipped: {peers['open3d']}"]
     settings = {
         "scanalign": "Reconstructor, demo settings (crop, bilateral filter, 1 mm grid, 10 mm normals, ICP 0.02 m "
-                     "from the previous pose, 50 it / 1e-8 / 1e-8, fitness >= 0.3, converged)",
+                     "from the constant-velocity prediction, 50 it / 1e-8 / 1e-8, fitness >= 0.3, converged)",
+        "seed": "as scanalign, ICP from the previous pose (the seed's initial guess, motion_model='previous')",
         "Open3D": "scanalign's bilateral filter -> RGBDImage.create_from_color_and_depth -> "
                   "PointCloud.create_from_rgbd_image -> crop -> voxel_down_sample(0.001) -> "
                   "estimate_normals(KDTreeSearchParamRadius(0.01)) oriented to the camera -> registration_icp "
-                  "point-to-plane 0.02 m from the previous pose, ICPConvergenceCriteria() -> fitness >= 0.3 and "
+                  "point-to-plane 0.02 m from the same constant-velocity prediction, ICPConvergenceCriteria() -> "
+                  "fitness >= 0.3 and "
                   "motion checks -> transform, merge, voxel_down_sample(0.001)",
-        "PCL": "scanalign's Reconstructor (its preparation and merge) with PCL IterativeClosestPointWithNormals "
-               "(registration='pcl_point_to_plane_lls')",
+        "PCL": "scanalign's Reconstructor (its preparation, prediction and merge) with PCL "
+               "IterativeClosestPointWithNormals (registration='pcl_point_to_plane_lls')",
     }
     passes: Dict[str, List[Dict[str, Any]]] = {}
     for p in range(args.loop_repeats):
-        loops: List[Tuple[str, Any, str]] = [("scanalign", ScanalignLoop(frames, threads, "scanalign"), settings["scanalign"])]
+        loops: List[Tuple[str, Any, str]] = [
+            ("scanalign", ScanalignLoop(frames, threads, "scanalign"), settings["scanalign"]),
+            ("scanalign, previous pose (seed)", ScanalignLoop(frames, threads, "scanalign", "previous"), settings["seed"])]
         if o3d is not None:
             loops.append(("Open3D loop", Open3DLoop(o3d, frames[0].T_base_camera, frames[0].intrinsics),
                           settings["Open3D"]))
@@ -1054,7 +1091,10 @@ def registration_table(case: str, blocks: List[Dict[str, Any]]) -> str:
     lines += ["", f"| method | threads | median ms | iterations | {RATIO_HEADER} | error mm | error deg |",
               "| --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
     for r in rows:
-        lines.append(f"| {r['method']} | {r['threads']} | {fmt(r['median_ms'])} | {fmt(r['iterations'], 'd')} | "
+        its = fmt(r['iterations'], 'd')
+        if r.get("coarse_iterations"):
+            its = f"{r['coarse_iterations']}+{its}"
+        lines.append(f"| {r['method']} | {r['threads']} | {fmt(r['median_ms'])} | {its} | "
                      f"{fmt(r['ratio'])} | {fmt(r['error_mm'], '.3f')} | {fmt(r['error_deg'], '.4f')} |")
     return with_notes(lines, blocks)
 

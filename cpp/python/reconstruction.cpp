@@ -132,6 +132,16 @@ void defineReconstruction(py::module_& m) {
       .def_readwrite("max_translation_change", &FrameToModelSettings::max_translation_change)
       .def_readwrite("max_rotation_change", &FrameToModelSettings::max_rotation_change)
       .def_readwrite("num_threads", &FrameToModelSettings::num_threads)
+      .def_property(
+          "motion_model", [](const FrameToModelSettings& s) { return std::string(toString(s.motion_model)); },
+          [](FrameToModelSettings& s, const std::string& v) {
+            if (v == toString(MotionModel::Previous))
+              s.motion_model = MotionModel::Previous;
+            else if (v == toString(MotionModel::ConstantVelocity))
+              s.motion_model = MotionModel::ConstantVelocity;
+            else
+              throw py::value_error("motion_model must be 'previous' or 'constant_velocity', got '" + v + "'");
+          })
       .def("validate", [](const FrameToModelSettings& s) { validate(s); });
 
   py::class_<FrameReport>(m, "FrameReport")
@@ -209,6 +219,7 @@ void defineReconstruction(py::module_& m) {
       })
       .def_property_readonly("model_size", [](const FrameToModel& self) { return self.model().size(); })
       .def_property_readonly("last_pose", [](const FrameToModel& self) { return self.lastPose(); })
+      .def_property_readonly("predicted_pose", [](const FrameToModel& self) { return self.predictedPose(); })
       .def_property_readonly("frames_seen", &FrameToModel::framesSeen)
       .def_property_readonly("frames_merged", &FrameToModel::framesMerged)
       .def_property(

@@ -159,7 +159,7 @@ void defineBucketKdTree(py::module_& m, const char* name) {
 std::string describe(const IcpResult& r) {
   std::ostringstream os;
   os << "IcpResult(status='" << toString(r.status) << "', converged=" << (r.converged ? "True" : "False")
-     << ", iterations=" << r.iterations << ", fitness=" << r.fitness << ", inlier_rmse=" << r.inlier_rmse
+     << ", iterations=" << r.iterations << ", coarse_iterations=" << r.coarse_iterations << ", fitness=" << r.fitness << ", inlier_rmse=" << r.inlier_rmse
      << ", correspondences=" << r.correspondence_count << ", degenerate=" << (r.degenerate ? "True" : "False")
      << ", seconds=" << r.seconds << ")";
   return os.str();
@@ -210,6 +210,7 @@ void defineRegistration(py::module_& m) {
       .def_readwrite("warm_start", &IcpSettings::warm_start)
       .def_readwrite("min_correspondences", &IcpSettings::min_correspondences)
       .def_readwrite("degeneracy_threshold", &IcpSettings::degeneracy_threshold)
+      .def_readwrite("coarse_stride", &IcpSettings::coarse_stride)
       .def_readwrite("num_threads", &IcpSettings::num_threads)
       .def("validate", [](const IcpSettings& s) { validate(s); });
 
@@ -218,6 +219,7 @@ void defineRegistration(py::module_& m) {
       .def_readonly("converged", &IcpResult::converged)
       .def_property_readonly("status", [](const IcpResult& r) { return std::string(toString(r.status)); })
       .def_readonly("iterations", &IcpResult::iterations)
+      .def_readonly("coarse_iterations", &IcpResult::coarse_iterations)
       .def_readonly("fitness", &IcpResult::fitness)
       .def_readonly("inlier_rmse", &IcpResult::inlier_rmse)
       .def_readonly("correspondence_count", &IcpResult::correspondence_count)

@@ -120,6 +120,22 @@ TEST(BucketKdTree, DoublePrecisionAndDuplicates) {
   expectExact(pts, queries, 1e-3, 8);
 }
 
+TEST(BucketKdTree, LatticeWithTiedCoordinates) {
+  // A 1 mm lattice (as a voxel-gridded model): thousands of points share each coordinate
+  // value, so the median selection meets its pivot value many times over.
+  std::vector<float> pts;
+  for (int i = 0; i < 40; ++i)
+    for (int j = 0; j < 30; ++j)
+      for (int k = 0; k < 12; ++k) pts.insert(pts.end(), {0.001f * float(i), 0.001f * float(j), 0.001f * float(k)});
+  for (int i = 0; i < 300; ++i) pts.insert(pts.end(), {0.02f, 0.015f, 0.006f});  // and a pile
+  const auto queries = uniform<float>(800, 9, -0.002f, 0.042f);
+  for (int leaf : {1, 8, 32, 64}) {
+    SCOPED_TRACE(leaf);
+    expectExact(pts, queries, std::numeric_limits<float>::infinity(), leaf);
+    expectExact(pts, queries, 1e-6f, leaf);
+  }
+}
+
 TEST(BucketKdTree, SkipsNonFiniteAndKeepsIndices) {
   std::vector<float> pts = {0, 0, 0, NAN, 1, 1, 1, 1, 1, INFINITY, 0, 0, 2, 2, 2};
   BucketKdTree<float> tree(CloudView<float>(pts.data(), 5), 1);

@@ -161,3 +161,38 @@ TEST(IcpEngine, BadInputThrows) {
   icp.settings().max_correspondence_distance = -1;
   EXPECT_THROW(icp.align(view(s.points)), std::invalid_argument);
 }
+
+TEST(IcpEngine, CoarseToFineReachesTheAnswerWithFewerFullIterations) {
+  // 18400 points (a 120 x 120 sheet and a sphere): a stride of 4 leaves 4600 for the
+  // coarse phase. The full-resolution phase then starts near its fixed point.
+  const Surface s = wavySurfaceWithSphere();
+  const Eigen::Matrix4d T_true = rigid(0.04, -0.03, 0.05, 0.008, -0.006, 0.01);
+  const auto src = transformed(s.points, T_true.inverse());
+  IcpSettings settings;
+  Icp<float> seed(settings);
+  seed.setTarget(view(s.points), view(s.normals));
+  const auto full = seed.align(view(src));
+  ASSERT_TRUE(full.converged);
+  EXPECT_EQ(full.coarse_iterations, 0);
+  settings.coarse_stride = 4;
+  Icp<float> icp(settings);
+  icp.setTarget(view(s.points), view(s.normals));
+  const auto r = icp.align(view(src));
+  EXPECT_TRUE(r.converged) << scanalign::toString(r.status);
+  EXPECT_GT(r.coarse_iterations, 0);
+  EXPECT_LT(r.iterations, full.iterations);
+  EXPECT_LT(rotationError(r.T_target_source, T_true), 1e-5);
+  EXPECT_LT(translationError(r.T_target_source, T_true), 1e-5);
+  // Quality figures are those of all points at the final pose.
+  EXPECT_EQ(r.source_points_used, src.size() / 3);
+  EXPECT_DOUBLE_EQ(r.fitness, 1.0);
+  EXPECT_FALSE(r.degenerate);
+  // A stride leaving fewer than 500 points skips the coarse phase: the seed's run exactly.
+  icp.settings().coarse_stride = 100;
+  const auto skipped = icp.align(view(src));
+  EXPECT_EQ(skipped.coarse_iterations, 0);
+  EXPECT_EQ(skipped.iterations, full.iterations);
+  EXPECT_EQ((skipped.T_target_source - full.T_target_source).cwiseAbs().maxCoeff(), 0.0);
+  icp.settings().coarse_stride = 0;
+  EXPECT_THROW(icp.align(view(src)), std::invalid_argument);
+}

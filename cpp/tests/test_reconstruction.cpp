@@ -265,3 +265,50 @@ TEST(FrameToModel, ExternalPoseMergeAndBadSettings) {
   EXPECT_THROW(f2m.merge(p, not_rigid), std::invalid_argument);
   EXPECT_THROW(f2m.reset(not_rigid), std::invalid_argument);
 }
+
+TEST(FrameToModel, ConstantVelocityPredictsTheLastMotionAgain) {
+  const PinholeIntrinsics K = smallCamera();
+  FrameToModelSettings s;
+  s.motion_model = MotionModel::ConstantVelocity;
+  FrameToModel f2m(s);
+  const Eigen::Matrix4d T0 = rigid(0.1, -0.2, 0.3, 0.5, 0.1, -0.2);
+  f2m.reset(T0);
+  EXPECT_EQ(f2m.predictedPose(), T0);  // nothing merged: the initial pose
+  const DepthCloud c = cloudOf(rayCast(loopPose(0, 24), K), K);
+  const PreparedFrame p = f2m.prepare(CloudView<float>(c.points.data(), c.size()));
+  f2m.merge(p, T0);
+  EXPECT_EQ(f2m.predictedPose(), T0);  // one pose: no velocity yet
+  // The camera moves by M (in its own frame) between frames: the next pose is T0 M M.
+  const Eigen::Matrix4d M = rigid(0.004, -0.002, 0.003, 0.02, 0.01, -0.015);
+  f2m.merge(p, T0 * M);
+  const Eigen::Matrix4d predicted = f2m.predictedPose();
+  EXPECT_LT((predicted - T0 * M * M).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((predicted.topLeftCorner<3, 3>().transpose() * predicted.topLeftCorner<3, 3>() -
+             Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff(), 1e-14);
+  f2m.settings().motion_model = MotionModel::Previous;
+  EXPECT_EQ(f2m.predictedPose(), T0 * M);
+  f2m.reset();
+  EXPECT_TRUE(f2m.predictedPose().isIdentity());
+}
+
+TEST(FrameToModel, ConstantVelocityTracksALoopInFewerIterations) {
+  // The loop turns at a constant rate: the prediction starts each frame near its pose.
+  const PinholeIntrinsics K = smallCamera();
+  const int n = 24;
+  int iterations[2] = {0, 0};
+  for (MotionModel model : {MotionModel::Previous, MotionModel::ConstantVelocity}) {
+    FrameToModelSettings s;
+    s.motion_model = model;
+    FrameToModel f2m(s);
+    f2m.reset(loopPose(0, n));
+    for (int i = 0; i < n; ++i) {
+      const Eigen::Matrix4d T_true = loopPose(i, n);
+      const DepthCloud c = cloudOf(rayCast(T_true, K, 0.0003, i), K);
+      const FrameReport r = f2m.integrate(CloudView<float>(c.points.data(), c.size()));
+      ASSERT_TRUE(r.merged()) << toString(model) << " frame " << i << " " << toString(r.status);
+      EXPECT_LT(translationError(r.T_model_camera, T_true), 0.002) << toString(model) << " frame " << i;
+      iterations[model == MotionModel::ConstantVelocity] += r.icp.iterations;
+    }
+  }
+  EXPECT_LT(iterations[1], 0.7 * iterations[0]) << iterations[0] << " vs " << iterations[1];
+}

@@ -306,8 +306,11 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
     g.add_argument("--model-frame", choices=["auto", "camera", "base"], default="auto",
                    help="model in the first camera's frame or the robot base frame (auto: base when reference "
                         "poses exist)")
-    g.add_argument("--initial-guess", choices=["previous", "reference"], default="previous",
-                   help="ICP starts from the previous registration (seed) or adds the robot's reference motion")
+    g.add_argument("--initial-guess", choices=["previous", "constant_velocity", "reference"],
+                   default="constant_velocity",
+                   help="ICP starts from the last registration plus the last inter-frame motion (default: "
+                        "constant velocity, half the iterations on a smooth scan path), from the previous "
+                        "registration (the seed's choice), or from it plus the robot's reference motion")
     g = p.add_argument_group("registration")
     g.add_argument("--registration", default="scanalign",
                    choices=["scanalign", "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls"],

@@ -292,9 +292,11 @@ def reconstruct(
             ``"base"``: the robot base frame, placing the first frame at its reference
             pose ``T_base_camera`` (required then); ``"auto"``: base when the first
             frame has a reference pose, else camera.
-        initial_guess: ``"previous"`` (seed: the previous registration) or
-            ``"reference"`` (the robot's reference motion since the last merged frame
-            applied to its estimate: odometry-aided tracking; needs reference poses).
+        initial_guess: ``"previous"`` (seed: the previous registration),
+            ``"constant_velocity"`` (the last inter-frame motion applied once more:
+            sets ``settings.motion_model``) or ``"reference"`` (the robot's reference
+            motion since the last merged frame applied to its estimate: odometry-aided
+            tracking; needs reference poses).
         min_depth, max_depth: valid depth range, metres; pixel_stride: image subsampling.
         depth_filter: a :class:`scanalign.reconstruction.DepthFilter`, ``"default"`` (the
             default bilateral filter) or None (raw depth, as the seed; the default).
@@ -310,8 +312,10 @@ def reconstruct(
     """
     if model_frame not in ("auto", "camera", "base"):
         raise ValueError("model_frame must be 'auto', 'camera' or 'base'")
-    if initial_guess not in ("previous", "reference"):
-        raise ValueError("initial_guess must be 'previous' or 'reference'")
+    if initial_guess not in ("previous", "constant_velocity", "reference"):
+        raise ValueError("initial_guess must be 'previous', 'constant_velocity' or 'reference'")
+    if initial_guess != "reference":
+        overrides["motion_model"] = initial_guess
     t_start = time.perf_counter()
     total = len(frames) if hasattr(frames, "__len__") else None  # type: ignore[arg-type]
     rec: Optional[Reconstructor] = None

@@ -290,6 +290,10 @@ Fields:
         False for fixed iteration budgets as in seed Figs. 6 and 9).
     max_translation_change, max_rotation_change: largest accepted distance of the result
         from the initial guess, metres (0.10) and radians (0.5); farther means failure.
+    motion_model: initial guess of a frame integrated without one: ``"previous"`` (seed
+        §3.2: the previous registration; the default) or ``"constant_velocity"`` (the
+        motion between the last two merged frames applied once more; fewer ICP
+        iterations on a smooth scan path).
     num_threads: OpenMP threads for normals and ICP, 0 = all cores."""
 
 _RECON_FIELDS = (
@@ -302,6 +306,7 @@ _RECON_FIELDS = (
     "require_convergence",
     "max_translation_change",
     "max_rotation_change",
+    "motion_model",
     "num_threads",
 )
 
@@ -557,7 +562,7 @@ class Reconstructor:
 
     def _integrate_external(self, p: np.ndarray, c: Optional[np.ndarray], g: Optional[np.ndarray], index: int,
                             ts: float) -> FrameRecord:
-        guess = self._core.last_pose if g is None else g
+        guess = self._core.predicted_pose if g is None else g
         prepared = self._core.prepare(p, c)
         rec = FrameRecord(index=index, timestamp=ts, status="skipped_empty", merged=False, T_model_camera=guess,
                           input_points=p.shape[0], frame_points=len(prepared), model_points=self._core.model_size,
@@ -598,6 +603,12 @@ class Reconstructor:
     def last_pose(self) -> np.ndarray:
         """The last accepted ``T_model_camera`` (``T_model_camera0`` before any frame)."""
         return np.array(self._core.last_pose)
+
+    @property
+    def predicted_pose(self) -> np.ndarray:
+        """The initial guess ``T_model_camera`` of the next frame integrated without one
+        (``settings.motion_model`` applied to the last accepted poses)."""
+        return np.array(self._core.predicted_pose)
 
     @property
     def trajectory(self) -> Trajectory:

@@ -82,7 +82,7 @@ Fields:
         count fully; set it near the residual noise after convergence.
     box: optional :class:`Box` in the source camera frame.
     search: the target's nearest-neighbour structure: ``"bucket_kdtree"`` (default; a
-        k-d tree with 8-point leaves and tight node boxes, the fastest on CPU cores, always
+        k-d tree with 32-point leaves and tight node boxes, the fastest on CPU cores, always
         exact) or ``"left_balanced_kdtree"`` (seed 000 §3.1: one point per node, searched
         with a fixed stack; the layout the seed's GPU path uses).
     search_stack_depth: fixed search stack of the left-balanced tree (seed: 20); exact for
@@ -94,6 +94,11 @@ Fields:
         unconstrained (planar scenes); such directions are not updated (default 1e-10:
         only numerically exact rank loss, because a small object on a large table gives
         ratios near 1e-7 that must still be solved).
+    coarse_stride: coarse-to-fine when > 1: iterate first on every ``coarse_stride``-th
+        source point (an even spatial subset) until that converges, then on all points
+        until they converge; the answer is the full-resolution fixed point either way,
+        reached with fewer full iterations (default 1 = off, as the seed; skipped when the
+        subset has fewer than 500 points).
     num_threads: OpenMP threads, 0 = all cores."""
 
 IcpResult.__doc__ = """Outcome of an ICP run; quality figures are measured at the final transform.
@@ -104,7 +109,9 @@ Attributes:
     status: ``"converged_transform"``, ``"converged_absolute_mse"``,
         ``"converged_relative_mse"``, ``"max_iterations"`` or
         ``"not_enough_correspondences"`` (the transform is then the last good estimate).
-    iterations: iterations run.
+    iterations: full-resolution iterations run.
+    coarse_iterations: iterations of the coarse phase (``coarse_stride`` > 1), each on a
+        subset of the source.
     fitness: inlier correspondences / usable source points (finite and inside the box).
     inlier_rmse: RMS point-to-point distance of the inliers, metres.
     correspondence_count: inliers at the final transform.
@@ -154,6 +161,7 @@ _SETTING_FIELDS = (
     "warm_start",
     "min_correspondences",
     "degeneracy_threshold",
+    "coarse_stride",
     "num_threads",
 )
 

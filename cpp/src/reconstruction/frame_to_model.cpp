@@ -43,6 +43,10 @@ const char* toString(FrameStatus status) {
   return "unknown";
 }
 
+const char* toString(MotionModel model) {
+  return model == MotionModel::ConstantVelocity ? "constant_velocity" : "previous";
+}
+
 void validate(const FrameToModelSettings& s) {
   validate(s.icp);
   auto positive = [](double v) { return std::isfinite(v) && v > 0.0; };
@@ -58,6 +62,8 @@ void validate(const FrameToModelSettings& s) {
   if (!(s.max_rotation_change > 0.0) || std::isnan(s.max_rotation_change))
     throw std::invalid_argument("max_rotation_change must be positive (rad; inf = off)");
   if (s.num_threads < 0) throw std::invalid_argument("num_threads must be >= 0");
+  if (s.motion_model != MotionModel::Previous && s.motion_model != MotionModel::ConstantVelocity)
+    throw std::invalid_argument("motion_model must be Previous or ConstantVelocity");
 }
 
 FrameToModel::FrameToModel(FrameToModelSettings settings) : settings_(std::move(settings)) {
@@ -70,6 +76,7 @@ void FrameToModel::reset(const Eigen::Matrix4d& T_model_camera0) {
   voxels_.clear();
   index_leaf_ = 0.0;
   last_pose_ = T_model_camera0;
+  previous_pose_ = T_model_camera0;
   frames_seen_ = 0;
   frames_merged_ = 0;
   tree_current_ = false;
@@ -161,12 +168,27 @@ FrameStatus FrameToModel::check(const IcpResult& result, const Eigen::Matrix4d& 
   return FrameStatus::Registered;
 }
 
+Eigen::Matrix4d FrameToModel::predictedPose() const {
+  if (settings_.motion_model != MotionModel::ConstantVelocity || frames_merged_ < 2) return last_pose_;
+  // T_k = T_{k-1} (T_{k-2}^-1 T_{k-1}): the last camera motion, expressed in the camera
+  // frame, applied once more. The rotation is re-normalised (through a unit quaternion)
+  // so that rounding in the products cannot accumulate into a non-rigid guess.
+  const Eigen::Isometry3d last(last_pose_), previous(previous_pose_);
+  const Eigen::Isometry3d motion = previous.inverse() * last;
+  Eigen::Isometry3d next = last * motion;
+  next.linear() = Eigen::Quaterniond(next.rotation()).normalized().toRotationMatrix();
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  T.topLeftCorner<3, 3>() = next.linear();
+  T.topRightCorner<3, 1>() = next.translation();
+  return T;
+}
+
 FrameReport FrameToModel::integratePrepared(const PreparedFrame& frame, const Eigen::Matrix4d* guess_in) {
   validate(settings_);
   const auto t0 = Clock::now();
   FrameReport r;
   r.index = frames_seen_++;
-  const Eigen::Matrix4d guess = guess_in ? *guess_in : last_pose_;
+  const Eigen::Matrix4d guess = guess_in ? *guess_in : predictedPose();
   requireRigid(guess, "T_model_camera_guess");
   r.T_model_camera = guess;
   r.frame_points = frame.size();
@@ -436,7 +458,8 @@ std::size_t FrameToModel::merge(const PreparedFrame& frame, const Eigen::Matrix4
       voxels_.mark(touched[t].position) = 0;
     }
   }
-  last_pose_ = T;  // the next frame starts from this registration (seed §3.2)
+  previous_pose_ = frames_merged_ > 0 ? last_pose_ : T;
+  last_pose_ = T;  // the next frame starts from this registration (seed §3.2) or a prediction from it
   tree_current_ = false;
   ++frames_merged_;
   return model_.size();

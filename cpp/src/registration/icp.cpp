@@ -62,6 +62,7 @@ void validate(const IcpSettings& s) {
   if (!(s.degeneracy_threshold >= 0.0) || s.degeneracy_threshold >= 1.0)
     fail("degeneracy_threshold must be in [0, 1)");
   if (s.num_threads < 0) fail("num_threads must be >= 0 (0 = all cores)");
+  if (s.coarse_stride < 1) fail("coarse_stride must be >= 1 (1 = off)");
   if (!(s.robust_scale > 0.0) || !std::isfinite(s.robust_scale)) fail("robust_scale must be a finite positive length in metres");
   if (s.robust_kernel != RobustKernel::None && s.estimator != IcpEstimator::PointToPlane)
     fail("robust_kernel applies to the point_to_plane estimator only");
@@ -136,6 +137,9 @@ void mortonOrder(const CloudView<Scalar>& cloud, std::vector<std::uint32_t>& ord
 /// start from their last neighbour's leaf, and a wider leaf holds more of them whole
 /// (measured: 32 fastest on the 1 mm frame-to-model workload, see bench/bench_peers.py).
 constexpr int kIcpLeafSize = 32;
+
+/// Smallest coarse subset worth a coarse phase (fewer: straight to all points).
+constexpr std::size_t kMinCoarsePoints = 500;
 
 /// The two target structures behind one interface, so the ICP pass is compiled once per
 /// structure with no virtual call in the loop. Positions are in the tree's own order.
@@ -262,6 +266,8 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
 
   IcpResult result;
   Eigen::Matrix4d T = T_init;
+  // A coarse phase only when its subset is big enough to constrain the pose.
+  const bool coarse = settings_.coarse_stride > 1 && n / static_cast<std::size_t>(settings_.coarse_stride) >= kMinCoarsePoints;
   // Per-block partial sums, allocated once here: the iteration loop allocates nothing.
   std::vector<Partial<PointToPlaneSystem>> plane_parts;
   std::vector<Partial<PointToPointSystem>> point_parts(nblocks);
@@ -269,6 +275,8 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
 
   // One pass over the source at transform T. With System = void-like accumulation off
   // (accumulate == false) it only evaluates correspondences (for the final fitness).
+  // The points a pass visits: order_[0, count) with a stride (coarse phase) or all.
+  std::size_t stride = 1, count = n;
   auto run = [&](const auto& search, auto system_tag, bool accumulate) {
     using System = decltype(system_tag);
     auto& parts = [&]() -> std::vector<Partial<System>>& {
@@ -279,8 +287,8 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
     }();
     const Eigen::Matrix<Scalar, 3, 3> R = T.topLeftCorner<3, 3>().cast<Scalar>();
     const Eigen::Matrix<Scalar, 3, 1> t = T.topRightCorner<3, 1>().cast<Scalar>();
-    return blockReduce(n, threads, parts, [&](std::size_t k, Partial<System>& part) {
-      const std::size_t i = order_[k];
+    return blockReduce(count, threads, parts, [&](std::size_t k, Partial<System>& part) {
+      const std::size_t i = order_[k * stride];
       const Scalar* s = source.ptr(i);
       if (!(std::isfinite(s[0]) && std::isfinite(s[1]) && std::isfinite(s[2]))) return;
       if (box && !box->contains(s)) return;
@@ -324,7 +332,7 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
     });
   };
 
-  auto iterate = [&](const auto& search, auto system_tag) {
+  auto iterate = [&](const auto& search, auto system_tag, int& iterations) {
     double prev_mse = std::numeric_limits<double>::max();
     const double rot_threshold = settings_.transformation_rotation_epsilon > 0.0
                                      ? settings_.transformation_rotation_epsilon
@@ -350,7 +358,7 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
         delta = sol.T;
       }
       T = delta * T;
-      ++result.iterations;
+      ++iterations;
       const double mse = total.sum_d2 / static_cast<double>(total.inliers);
       result.mse = mse;
       // Convergence as pcl::DefaultConvergenceCriteria, on the increment `delta`.
@@ -377,10 +385,27 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
   };
 
   auto solve = [&](const auto& search) {
+    if (coarse) {
+      stride = static_cast<std::size_t>(settings_.coarse_stride);
+      count = (n + stride - 1) / stride;
+      if (plane)
+        iterate(search, PointToPlaneSystem{}, result.coarse_iterations);
+      else
+        iterate(search, PointToPointSystem{}, result.coarse_iterations);
+      stride = 1;
+      count = n;
+      // The full-resolution loop decides the outcome on its own: a subset may be
+      // degenerate (or short of correspondences) where all points are not.
+      result.status = IcpStatus::MaxIterations;
+      result.converged = false;
+      result.mse = 0.0;
+      result.min_rank = 6;
+      result.degenerate = false;
+    }
     if (plane)
-      iterate(search, PointToPlaneSystem{});
+      iterate(search, PointToPlaneSystem{}, result.iterations);
     else
-      iterate(search, PointToPointSystem{});
+      iterate(search, PointToPointSystem{}, result.iterations);
     // Quality at the final transform (one more search, no estimation).
     return run(search, PointToPointSystem{}, false);
   };

@@ -5,7 +5,8 @@
 //   1. cropped (optional box in its camera frame) and voxel-downsampled;
 //   2. given normals by PCA over 5 mm, oriented towards the camera (§3.5);
 //   3. registered to the model by the point-to-plane LLS ICP engine, starting from the
-//      previous registration (§3.2; optional box rejector, §3.4);
+//      previous registration (§3.2) or a constant-velocity prediction (MotionModel);
+//      optional box rejector, §3.4;
 //   4. checked (convergence, fitness, motion since the guess): a frame that fails is
 //      reported and skipped and leaves the model untouched;
 //   5. transformed into the model frame, merged, and the model voxel-gridded at 1 mm so
@@ -27,6 +28,21 @@
 #include "scanalign/registration/icp.hpp"
 
 namespace scanalign {
+
+/// Where a frame's registration starts when the caller gives no initial guess.
+enum class MotionModel {
+  /// Seed 000 §3.2: the previous registration (the camera is assumed not to move).
+  Previous,
+  /// The motion between the last two merged frames, applied once more:
+  /// T_k = T_{k-1} (T_{k-2}^-1 T_{k-1}), as a constant-velocity tracker (e.g. KISS-ICP,
+  /// Vizzo et al. 2023). For frames at a constant rate along a smooth path (a robot's
+  /// scan), it starts ICP much closer to the answer, so fewer iterations run. Falls back
+  /// to Previous until two frames are merged; after a skipped frame the prediction lags
+  /// by that frame's motion.
+  ConstantVelocity,
+};
+
+const char* toString(MotionModel model);
 
 struct FrameToModelSettings {
   /// Registration settings (seed §3.3 convergence defaults). The correspondence distance
@@ -60,6 +76,8 @@ struct FrameToModelSettings {
   /// A registration that jumps further is taken to have failed.
   double max_translation_change = 0.10;
   double max_rotation_change = 0.5;
+  /// Initial guess of a frame given none (see MotionModel). Default: the seed's.
+  MotionModel motion_model = MotionModel::Previous;
   /// OpenMP threads for normals and ICP (overrides icp.num_threads when > 0); 0 = all cores.
   int num_threads = 0;
 };
@@ -134,8 +152,7 @@ class FrameToModel {
   PreparedFrame prepare(const CloudView<float>& points_camera, const std::uint8_t* colors = nullptr) const;
 
   /// The whole step for one frame. The initial guess is `T_model_camera_guess` when given
-  /// (e.g. from the robot's kinematics), else the last accepted pose (seed: the previous
-  /// registration). Never throws on bad frames: they come back with a Skipped status and
+  /// (e.g. from the robot's kinematics), else predictedPose() (settings.motion_model). Never throws on bad frames: they come back with a Skipped status and
   /// the model is unchanged. Throws std::invalid_argument only for invalid settings or a
   /// non-rigid guess.
   FrameReport integrate(const CloudView<float>& points_camera, const std::uint8_t* colors = nullptr,
@@ -159,6 +176,9 @@ class FrameToModel {
   const Model& model() const { return model_; }
   /// The last accepted pose (camera -> model); the initial pose before the first frame.
   const Eigen::Matrix4d& lastPose() const { return last_pose_; }
+  /// The initial guess (camera -> model) of the next frame when none is given, from
+  /// settings().motion_model and the last two accepted poses.
+  Eigen::Matrix4d predictedPose() const;
   bool hasModel() const { return model_.size() > 0; }
   int framesSeen() const { return frames_seen_; }
   int framesMerged() const { return frames_merged_; }
@@ -169,6 +189,7 @@ class FrameToModel {
   FrameToModelSettings settings_;
   Model model_;
   Eigen::Matrix4d last_pose_ = Eigen::Matrix4d::Identity();
+  Eigen::Matrix4d previous_pose_ = Eigen::Matrix4d::Identity();  ///< the accepted pose before last_pose_
   int frames_seen_ = 0;
   int frames_merged_ = 0;
   Icp<float> icp_;

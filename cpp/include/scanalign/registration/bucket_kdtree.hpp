@@ -99,10 +99,17 @@ class BucketKdTree {
                                   std::uint32_t hint = NearestNeighbor<Scalar>::kNone) const;
 
  private:
+  /// A point during the build: its coordinates next to its input index, so that the
+  /// median selections move contiguous records instead of chasing indices into the cloud.
+  struct Record {
+    Scalar p[3];
+    std::uint32_t index;
+  };
   template <typename Keep>
-  void collect(const CloudView<Scalar>& cloud, Keep&& keep, std::vector<std::uint32_t>& order) const;
-  void buildNode(const CloudView<Scalar>& cloud, std::uint32_t* first, std::size_t n, std::size_t node,
-                 std::size_t offset, int depth, std::uint32_t parent, const Scalar* cell);
+  void collect(const CloudView<Scalar>& cloud, Keep&& keep, std::vector<Record>& records) const;
+  void buildNode(Record* first, std::size_t n, std::size_t node, std::size_t offset, int depth,
+                 std::uint32_t parent, const Scalar* cell);
+  static void selectMedian(Record* first, std::size_t n, std::size_t m, int axis);
   std::size_t subtreeNodes(std::size_t n) const {
     return n <= static_cast<std::size_t>(leaf_size_) ? 1 : 1 + subtreeNodes(n / 2) + subtreeNodes(n - n / 2);
   }
@@ -169,12 +176,14 @@ class BucketKdTree {
 
 template <typename Scalar>
 template <typename Keep>
-void BucketKdTree<Scalar>::collect(const CloudView<Scalar>& cloud, Keep&& keep,
-                                   std::vector<std::uint32_t>& order) const {
-  order.clear();
-  order.reserve(cloud.size);
+void BucketKdTree<Scalar>::collect(const CloudView<Scalar>& cloud, Keep&& keep, std::vector<Record>& records) const {
+  records.clear();
+  records.reserve(cloud.size);
   for (std::size_t i = 0; i < cloud.size; ++i)
-    if (cloud.isFinite(i) && keep(i)) order.push_back(static_cast<std::uint32_t>(i));
+    if (cloud.isFinite(i) && keep(i)) {
+      const Scalar* p = cloud.ptr(i);
+      records.push_back({{p[0], p[1], p[2]}, static_cast<std::uint32_t>(i)});
+    }
 }
 
 template <typename Scalar>
@@ -184,9 +193,9 @@ void BucketKdTree<Scalar>::build(const CloudView<Scalar>& cloud, Keep&& keep, in
     throw std::invalid_argument("bucket k-d tree: leaf_size must be in [1, 64]");
   if (cloud.size >= (std::size_t{1} << 32) - 1) throw std::invalid_argument("bucket k-d tree: too many points");
   leaf_size_ = leaf_size;
-  std::vector<std::uint32_t> order;
-  collect(cloud, keep, order);
-  const std::size_t n = order.size();
+  std::vector<Record> records;
+  collect(cloud, keep, records);
+  const std::size_t n = records.size();
   const std::size_t nn = n ? subtreeNodes(n) : 0;
   nodes_.assign(nn, Node{});
   cells_.assign(6 * nn, Scalar(0));
@@ -202,19 +211,18 @@ void BucketKdTree<Scalar>::build(const CloudView<Scalar>& cloud, Keep&& keep, in
   const Scalar root_cell[6] = {-inf, -inf, -inf, inf, inf, inf};
 #pragma omp parallel num_threads(num_threads > 0 ? num_threads : omp_get_max_threads())
 #pragma omp single nowait
-  buildNode(cloud, order.data(), n, 0, 0, 0, NearestNeighbor<Scalar>::kNone, root_cell);
+  buildNode(records.data(), n, 0, 0, 0, NearestNeighbor<Scalar>::kNone, root_cell);
 }
 
 template <typename Scalar>
-void BucketKdTree<Scalar>::buildNode(const CloudView<Scalar>& cloud, std::uint32_t* first, std::size_t n,
-                                     std::size_t node, std::size_t offset, int depth, std::uint32_t parent,
-                                     const Scalar* cell) {
+void BucketKdTree<Scalar>::buildNode(Record* first, std::size_t n, std::size_t node, std::size_t offset, int depth,
+                                     std::uint32_t parent, const Scalar* cell) {
   Node& nd = nodes_[node];
   parent_[node] = parent;
   std::copy(cell, cell + 6, &cells_[6 * node]);
-  for (int k = 0; k < 3; ++k) nd.lo[k] = nd.hi[k] = cloud.ptr(first[0])[k];
+  for (int k = 0; k < 3; ++k) nd.lo[k] = nd.hi[k] = first[0].p[k];
   for (std::size_t i = 1; i < n; ++i) {
-    const Scalar* p = cloud.ptr(first[i]);
+    const Scalar* p = first[i].p;
     for (int k = 0; k < 3; ++k) {
       nd.lo[k] = std::min(nd.lo[k], p[k]);
       nd.hi[k] = std::max(nd.hi[k], p[k]);
@@ -224,11 +232,11 @@ void BucketKdTree<Scalar>::buildNode(const CloudView<Scalar>& cloud, std::uint32
     nd.first = static_cast<std::uint32_t>(offset);
     nd.count = static_cast<std::uint32_t>(n);
     for (std::size_t i = 0; i < n; ++i) {
-      const Scalar* p = cloud.ptr(first[i]);
+      const Scalar* p = first[i].p;
       x_[offset + i] = p[0];
       y_[offset + i] = p[1];
       z_[offset + i] = p[2];
-      index_[offset + i] = first[i];
+      index_[offset + i] = first[i].index;
       leaf_of_[offset + i] = static_cast<std::uint32_t>(node);
     }
     return;
@@ -237,14 +245,13 @@ void BucketKdTree<Scalar>::buildNode(const CloudView<Scalar>& cloud, std::uint32
   for (int k = 1; k < 3; ++k)
     if (nd.hi[k] - nd.lo[k] > nd.hi[axis] - nd.lo[axis]) axis = k;
   const std::size_t m = n / 2;
-  std::nth_element(first, first + m, first + n,
-                   [&](std::uint32_t a, std::uint32_t b) { return cloud.ptr(a)[axis] < cloud.ptr(b)[axis]; });
+  selectMedian(first, n, m, axis);
   const std::size_t left = node + 1, right = node + 1 + subtreeNodes(m);
   nd.first = static_cast<std::uint32_t>(right);
   nd.count = 0;
   // Points left of the median are <= the split value, points right of it >= it, so the
   // children's closed cells meet only on the splitting plane.
-  const Scalar split = cloud.ptr(first[m])[axis];
+  const Scalar split = first[m].p[axis];
   Scalar left_cell[6], right_cell[6];
   std::copy(cell, cell + 6, left_cell);
   std::copy(cell, cell + 6, right_cell);
@@ -254,13 +261,61 @@ void BucketKdTree<Scalar>::buildNode(const CloudView<Scalar>& cloud, std::uint32
   // Tasks near the root only: below a few thousand points the task overhead dominates.
   if (n > 8192 && depth < 8) {
 #pragma omp task firstprivate(first, m, left, offset, depth, self, left_cell)
-    buildNode(cloud, first, m, left, offset, depth + 1, self, left_cell);
-    buildNode(cloud, first + m, n - m, right, offset + m, depth + 1, self, right_cell);
+    buildNode(first, m, left, offset, depth + 1, self, left_cell);
+    buildNode(first + m, n - m, right, offset + m, depth + 1, self, right_cell);
 #pragma omp taskwait
   } else {
-    buildNode(cloud, first, m, left, offset, depth + 1, self, left_cell);
-    buildNode(cloud, first + m, n - m, right, offset + m, depth + 1, self, right_cell);
+    buildNode(first, m, left, offset, depth + 1, self, left_cell);
+    buildNode(first + m, n - m, right, offset + m, depth + 1, self, right_cell);
   }
+}
+
+/// Reorders first[0, n) so that first[m] holds the m-th smallest coordinate along `axis`,
+/// with no larger one before it and no smaller one after it (as std::nth_element).
+/// Quickselect whose pivot is the median of a small sample, so that each round keeps
+/// about a tenth of the range, and whose partition is branch-free: comparisons on
+/// scattered coordinates are unpredictable, and std::nth_element's mispredicted branches
+/// were most of the build's time.
+template <typename Scalar>
+void BucketKdTree<Scalar>::selectMedian(Record* first, std::size_t n, std::size_t m, int axis) {
+  constexpr std::size_t kSmall = 64, kSample = 15;
+  while (n > kSmall) {
+    Scalar sample[kSample];
+    for (std::size_t s = 0; s < kSample; ++s) sample[s] = first[(2 * s + 1) * n / (2 * kSample)].p[axis];
+    // The sample's order statistic nearest m's rank.
+    const std::size_t rank = std::min(kSample - 1, m * kSample / n);
+    std::nth_element(sample, sample + rank, sample + kSample);
+    const Scalar pivot = sample[rank];
+    // Branch-free Lomuto partitions: [0, lt) < pivot, then (only when m is not below
+    // them) [lt, le) == pivot.
+    std::size_t lt = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Record r = first[i];
+      first[i] = first[lt];
+      first[lt] = r;
+      lt += r.p[axis] < pivot;
+    }
+    if (m < lt) {
+      n = lt;
+      continue;
+    }
+    std::size_t le = lt;
+    for (std::size_t i = lt; i < n; ++i) {
+      const Record r = first[i];
+      first[i] = first[le];
+      first[le] = r;
+      le += !(pivot < r.p[axis]);
+    }
+    if (m < le) {
+      return;  // first[m] equals the pivot: done
+    } else {
+      first += le;
+      m -= le;
+      n -= le;
+    }
+  }
+  std::nth_element(first, first + m, first + n,
+                   [axis](const Record& a, const Record& b) { return a.p[axis] < b.p[axis]; });
 }
 
 template <typename Scalar>

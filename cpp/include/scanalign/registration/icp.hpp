@@ -107,6 +107,14 @@ struct IcpSettings {
   /// 1e-7 (the table's points dominate lambda_max), and freezing those motions would be
   /// a silent wrong answer; only (numerically) exact rank loss is treated as degenerate.
   double degeneracy_threshold = 1e-10;
+  /// Coarse-to-fine: when > 1, ICP first iterates on every coarse_stride-th source point
+  /// (in the Z-order the engine visits points in, so an even spatial subset) until that
+  /// converges by the criteria above, then on all points until they converge. The coarse
+  /// phase only moves the start of the full-resolution iterations closer to their fixed
+  /// point, which is the answer either way; each coarse iteration costs 1/coarse_stride
+  /// of a full one. 1 = off (seed: every iteration on all points). Skipped when the
+  /// subset would have fewer than 500 points.
+  int coarse_stride = 1;
   /// OpenMP threads; 0 = OpenMP's default (all cores).
   int num_threads = 0;
 };
@@ -117,7 +125,8 @@ struct IcpResult {
   Eigen::Matrix4d T_target_source = Eigen::Matrix4d::Identity();
   bool converged = false;   ///< a convergence criterion (transform or MSE) was met
   IcpStatus status = IcpStatus::MaxIterations;
-  int iterations = 0;       ///< iterations run (each: search + estimate + update)
+  int iterations = 0;       ///< full-resolution iterations run (each: search + estimate + update)
+  int coarse_iterations = 0;  ///< iterations of the coarse phase (IcpSettings::coarse_stride)
   double fitness = 0.0;     ///< inliers / usable source points (finite, inside the box)
   double inlier_rmse = 0.0; ///< RMS point-to-point distance of the inliers (m)
   std::size_t correspondence_count = 0;  ///< inlier correspondences at the final transform
