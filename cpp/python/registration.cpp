@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "arrays.hpp"
+#include "scanalign/common/rigid.hpp"
 #include "scanalign/registration/icp.hpp"
 #include "scanalign/registration/pcl/baselines.hpp"
 
@@ -235,6 +236,22 @@ void defineRegistration(py::module_& m) {
   defineIcp<double>(m, "Icp64");
   defineKdTree<float>(m, "KdTree32");
   defineKdTree<double>(m, "KdTree64");
+  m.def(
+      "fit_similarity",
+      [](const py::array& source, const py::array& target, bool with_scale) {
+        const auto x = cloudView<double>(source, "source");
+        const auto y = cloudView<double>(target, "target");
+        Similarity r;
+        {
+          py::gil_scoped_release release;
+          r = fitSimilarity(x, y, with_scale);
+        }
+        return py::make_tuple(Eigen::Matrix3d(r.R), Eigen::Vector3d(r.t), r.scale);
+      },
+      py::arg("source"), py::arg("target"), py::arg("with_scale"),
+      "Least-squares (R, t, scale) with target ~ scale R source + t (Umeyama 1991); scale 1 "
+      "unless with_scale. Raises ValueError for unequal sizes, fewer than 3 pairs, non-finite "
+      "or degenerate (coincident or collinear) points.");
   defineBucketKdTree<float>(m, "BucketKdTree32");
   defineBucketKdTree<double>(m, "BucketKdTree64");
 

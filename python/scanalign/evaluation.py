@@ -27,6 +27,7 @@ from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 
+from . import _core
 from .trajectory import Trajectory
 
 __all__ = [
@@ -119,36 +120,10 @@ def umeyama_alignment(source: np.ndarray, target: np.ndarray,
             (all points coincident or collinear in source or target: the cross-covariance
             has rank < 2 and the rotation is not determined).
     """
-    x = np.asarray(source, dtype=np.float64)
-    y = np.asarray(target, dtype=np.float64)
-    if x.ndim != 2 or x.shape[1] != 3 or y.shape != x.shape:
-        raise ValueError(f"umeyama_alignment: expected two (N, 3) arrays of equal shape, got {x.shape} and {y.shape}")
-    n = x.shape[0]
-    if n < 3:
-        raise ValueError(f"umeyama_alignment needs at least 3 point pairs, got {n}")
-    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(y))):
-        raise ValueError("umeyama_alignment: non-finite coordinates")
-    mx = x.mean(axis=0)
-    my = y.mean(axis=0)
-    xc = x - mx
-    yc = y - my
-    cov = (yc.T @ xc) / n  # Umeyama eq. 38: (1/n) sum (y_i - my)(x_i - mx)^T
-    U, d, Vt = np.linalg.svd(cov)
-    if not d[0] > 0.0 or d[1] <= 1e-12 * d[0]:
-        raise ValueError(
-            "umeyama_alignment: degenerate input (points coincident or collinear; cross-covariance "
-            f"singular values {d.tolist()}), the rotation is not determined")
-    S = np.ones(3)
-    if np.linalg.det(U) * np.linalg.det(Vt) < 0.0:
-        S[2] = -1.0  # reflection correction (eq. 43)
-    R = (U * S) @ Vt
-    if with_scale:
-        var_x = np.sum(xc * xc) / n
-        s = float(np.dot(d, S) / var_x)
-    else:
-        s = 1.0
-    t = my - s * (R @ mx)
-    return R, t, s
+    # The one Kabsch/Umeyama implementation is C++'s (scanalign/common/rigid.hpp).
+    R, t, s = _core.registration.fit_similarity(np.ascontiguousarray(source, dtype=np.float64),
+                                                np.ascontiguousarray(target, dtype=np.float64), bool(with_scale))
+    return np.asarray(R), np.asarray(t), float(s)
 
 
 # --------------------------------------------------------------------------------------

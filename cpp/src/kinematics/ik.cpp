@@ -9,6 +9,7 @@
 #include <omp.h>
 
 #include "scanalign/cga/vector5.hpp"
+#include "scanalign/common/rigid.hpp"
 
 namespace scanalign::kinematics {
 
@@ -574,15 +575,7 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& 
   }
 }
 
-bool validPose(const Eigen::Isometry3d& T) {
-  const Eigen::Matrix4d& M = T.matrix();
-  if (!M.allFinite()) return false;
-  if (std::abs(M(3, 0)) > 1e-9 || std::abs(M(3, 1)) > 1e-9 || std::abs(M(3, 2)) > 1e-9 || std::abs(M(3, 3) - 1) > 1e-9)
-    return false;
-  const Matrix3d R = M.topLeftCorner<3, 3>();
-  if ((R.transpose() * R - Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6) return false;
-  return R.determinant() > 0;
-}
+bool validPose(const Eigen::Isometry3d& T) { return isRigid(T.matrix()); }
 
 IKResult solve(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKOptions& o, Recorder* rec) {
   IKResult res;

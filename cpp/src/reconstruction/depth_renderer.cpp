@@ -5,6 +5,8 @@
 // multiply-add in one code path (e.g. a vectorised loop body) and not in another would break.
 #include "scanalign/reconstruction/depth_renderer.hpp"
 
+#include "scanalign/common/rigid.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -330,12 +332,7 @@ void checkInputs(std::size_t n_vertices, const std::int32_t* faces, std::size_t 
     throw std::invalid_argument("renderDepth: focal lengths fx, fy must be finite and positive (pixels)");
   if (!(std::isfinite(cam.cx) && std::isfinite(cam.cy)))
     throw std::invalid_argument("renderDepth: principal point cx, cy must be finite (pixels)");
-  if (!T.allFinite()) throw std::invalid_argument("renderDepth: T_camera_world must be finite");
-  if (T(3, 0) != 0.0 || T(3, 1) != 0.0 || T(3, 2) != 0.0 || T(3, 3) != 1.0)
-    throw std::invalid_argument("renderDepth: T_camera_world must have bottom row 0 0 0 1");
-  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
-  if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-6 || R.determinant() < 0.0)
-    throw std::invalid_argument("renderDepth: T_camera_world must be rigid (orthonormal rotation, det +1)");
+  requireRigid(T, "renderDepth: T_camera_world");
   if (!(std::isfinite(s.near_clip) && s.near_clip > 0.0))
     throw std::invalid_argument("renderDepth: near_clip must be finite and positive (m)");
   if (!(s.far_clip > s.near_clip)) throw std::invalid_argument("renderDepth: far_clip must exceed near_clip (m)");

@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 
+#include "scanalign/common/rigid.hpp"
 #include "scanalign/features/normals.hpp"
 #include "scanalign/reconstruction/voxel_grid.hpp"
 
@@ -19,13 +20,6 @@ using Clock = std::chrono::steady_clock;
 double since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 constexpr std::uint8_t kGrey = 128;  // colour of points from frames that had no colour image
-
-void requireRigid(const Eigen::Matrix4d& T, const char* what) {
-  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
-  const bool ok = T.allFinite() && (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() < 1e-5 &&
-                  R.determinant() > 0.0 && T(3, 0) == 0.0 && T(3, 1) == 0.0 && T(3, 2) == 0.0 && T(3, 3) == 1.0;
-  if (!ok) throw std::invalid_argument(std::string(what) + " is not a finite rigid transform");
-}
 
 }  // namespace
 

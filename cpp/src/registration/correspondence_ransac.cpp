@@ -1,6 +1,8 @@
 // RANSAC over correspondences. See correspondence_ransac.hpp.
 #include "scanalign/registration/correspondence_ransac.hpp"
 
+#include "scanalign/common/rigid.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -17,7 +19,7 @@ namespace scanalign {
 
 namespace {
 
-/// Kabsch on three pairs (no allocation); false when a triangle is degenerate.
+/// The rigid motion of three pairs (Kabsch, common/rigid.hpp); false when a triangle is degenerate.
 bool kabsch3(const Eigen::Vector3d x[3], const Eigen::Vector3d y[3], Eigen::Matrix4d& T) {
   const Eigen::Vector3d cx = (x[0] + x[1] + x[2]) / 3.0, cy = (y[0] + y[1] + y[2]) / 3.0;
   const Eigen::Vector3d ax = (x[1] - x[0]).cross(x[2] - x[0]), ay = (y[1] - y[0]).cross(y[2] - y[0]);
@@ -26,10 +28,7 @@ bool kabsch3(const Eigen::Vector3d x[3], const Eigen::Vector3d y[3], Eigen::Matr
   if (!(ax.norm() > 1e-9 * ex) || !(ay.norm() > 1e-9 * ey)) return false;
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   for (int k = 0; k < 3; ++k) H += (y[k] - cy) * (x[k] - cx).transpose();
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  const Eigen::Matrix3d R = svd.matrixU() * D * svd.matrixV().transpose();
+  const Eigen::Matrix3d R = rotationFromCrossCovariance(H).R;
   T.setIdentity();
   T.topLeftCorner<3, 3>() = R;
   T.topRightCorner<3, 1>() = cy - R * cx;

@@ -3,6 +3,7 @@
 #include "scanalign/registration/icp.hpp"
 
 #include "scanalign/common/block_reduce.hpp"
+#include "scanalign/common/rigid.hpp"
 
 #include <omp.h>
 
@@ -175,16 +176,6 @@ struct LeftBalancedSearch {
   }
 };
 
-void checkRigid(const Eigen::Matrix4d& T) {
-  if (!T.allFinite()) throw std::invalid_argument("initial transform has non-finite entries");
-  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
-  const double orth = (R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff();
-  const bool last_row = T(3, 0) == 0.0 && T(3, 1) == 0.0 && T(3, 2) == 0.0 && T(3, 3) == 1.0;
-  if (orth > 1e-5 || R.determinant() < 0.0 || !last_row)
-    throw std::invalid_argument("initial transform is not a rigid transform (rotation must be orthonormal with "
-                                "det +1 and the last row 0 0 0 1)");
-}
-
 }  // namespace
 
 template <typename Scalar>
@@ -248,7 +239,7 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
   const bool plane = settings_.estimator == IcpEstimator::PointToPlane;
   if (plane && normals_.empty())
     throw std::invalid_argument("ICP: point-to-plane needs target normals (setTarget(points, normals))");
-  checkRigid(T_init);
+  requireRigid(T_init, "ICP initial transform");
 
   const auto t0 = std::chrono::steady_clock::now();
   const std::size_t n = source.size;

@@ -8,6 +8,8 @@
 // pair and the algebra stays the thesis's, not a hand-expanded formula.
 #include "scanalign/registration/motor_estimation.hpp"
 
+#include "scanalign/common/rigid.hpp"
+
 #include <array>
 #include <cmath>
 #include <stdexcept>
@@ -217,10 +219,7 @@ MotorEstimate estimateRigidSvd(const CloudView<double>& source, const CloudView<
     if (w == 0) continue;
     H += w * (target[i] - p.cy) * (source[i] - p.cx).transpose();
   }
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixU() * svd.matrixV().transpose()).determinant() < 0 ? -1.0 : 1.0;  // no reflection
-  const Eigen::Matrix3d R = svd.matrixU() * D * svd.matrixV().transpose();
+  const Eigen::Matrix3d R = rotationFromCrossCovariance(H).R;  // never a reflection
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
   T.topLeftCorner<3, 3>() = R;
   T.topRightCorner<3, 1>() = p.cy - R * p.cx;  // spec §8: t = ȳ − R x̄

@@ -7,6 +7,8 @@
 #include <Eigen/Core>
 #include <Eigen/SVD>
 
+#include "scanalign/common/rigid.hpp"
+
 namespace scanalign {
 
 struct PointToPointSystem {
@@ -39,24 +41,19 @@ struct PointToPointSolve {
 };
 
 /// Least-squares rigid transform T minimising sum |T s_i - d_i|^2 (Kabsch/Umeyama):
-/// H = sum (s - s_mean)(d - d_mean)^T = U S V^T, R = V diag(1, 1, det(V U^T)) U^T.
+/// the rotation of the cross-covariance (common/rigid.hpp), t = d_mean - R s_mean.
 inline PointToPointSolve solvePointToPoint(const PointToPointSystem& sys, double degeneracy_threshold = 1e-10) {
   PointToPointSolve out;
   if (sys.count < 1.0) return out;
   const Eigen::Vector3d ms = Eigen::Map<const Eigen::Vector3d>(sys.sum_s.data()) / sys.count;
   const Eigen::Vector3d md = Eigen::Map<const Eigen::Vector3d>(sys.sum_d.data()) / sys.count;
   const Eigen::Matrix3d sum_sd = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(sys.sum_sd.data());
+  // sum (s - s_mean)(d - d_mean)^T, transposed: the target-by-source cross-covariance.
   const Eigen::Matrix3d H = sum_sd - sys.count * ms * md.transpose();
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::Vector3d sv = svd.singularValues();
-  out.rank = 0;
-  for (int k = 0; k < 3; ++k)
-    if (sv(k) > degeneracy_threshold * std::max(sv(0), 1e-300)) ++out.rank;
+  const CrossCovarianceRotation rot = rotationFromCrossCovariance(H.transpose());
+  out.rank = rot.rank(degeneracy_threshold);
   out.degenerate = out.rank < 2;
-  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
-  D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  const Eigen::Matrix3d R =
-      out.degenerate ? Eigen::Matrix3d::Identity() : Eigen::Matrix3d(svd.matrixV() * D * svd.matrixU().transpose());
+  const Eigen::Matrix3d R = out.degenerate ? Eigen::Matrix3d::Identity() : rot.R;
   out.T.topLeftCorner<3, 3>() = R;
   out.T.topRightCorner<3, 1>() = md - R * ms;
   return out;
