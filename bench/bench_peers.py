@@ -178,9 +178,10 @@ def log(msg: str) -> None:
 
 def pose_error(T_est: np.ndarray, T_ref: np.ndarray) -> Tuple[float, float]:
     """(translation error mm, rotation error deg) of T_est relative to T_ref."""
-    E = np.linalg.inv(T_ref) @ np.asarray(T_est, dtype=np.float64)
-    angle = math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(E[:3, :3]) - 1.0) / 2.0))))
-    return float(np.linalg.norm(E[:3, 3]) * 1e3), angle
+    from scanalign import se3
+
+    rot, trans = se3.pose_error(T_est, T_ref)
+    return trans * 1e3, math.degrees(rot)
 
 
 def pca_normals(points: np.ndarray, k: int, viewpoint=(0.0, 0.0, 0.0)) -> np.ndarray:

@@ -20,24 +20,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-
-def _rotation_angle(R: np.ndarray) -> float:
-    return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
-
-
-def _pose_error(T_est: np.ndarray, T_true: np.ndarray) -> tuple:
-    E = np.linalg.inv(T_true) @ T_est
-    return _rotation_angle(E[:3, :3]), float(np.linalg.norm(E[:3, 3]))
-
-
-def _rigid(axis: Sequence[float], angle: float, t: Sequence[float]) -> np.ndarray:
-    a = np.asarray(axis, dtype=float)
-    a = a / np.linalg.norm(a)
-    K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    T = np.eye(4)
-    T[:3, :3] = np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
-    T[:3, 3] = t
-    return T
+from . import se3
 
 
 def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
@@ -54,7 +37,7 @@ def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
     model_normals = estimate_normals(model, radius=0.005, viewpoint=(0.0, 0.0, 0.0))
     # A new frame: the camera moved by T_model_camera; the frame sees part of the object
     # (one side cut away) with depth noise, in its own camera frame.
-    T_model_camera = _rigid((0.3, 1.0, 0.2), np.deg2rad(4.0), (0.012, -0.008, 0.006))
+    T_model_camera = se3.rigid((0.3, 1.0, 0.2), np.deg2rad(4.0), (0.012, -0.008, 0.006))
     visible = model[model[:, 0] > -0.02]
     frame = (np.linalg.inv(T_model_camera) @ np.c_[visible, np.ones(len(visible))].T).T[:, :3]
     frame = frame + rng.normal(0.0, noise, frame.shape)
@@ -70,7 +53,7 @@ def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
         t0 = time.perf_counter()
         r = fn()
         wall = time.perf_counter() - t0
-        rot, trans = _pose_error(r.T_target_source, T_model_camera)
+        rot, trans = se3.pose_error(r.T_target_source, T_model_camera)
         runs[name] = dict(status=r.status, converged=bool(r.converged), iterations=r.iterations,
                           fitness=r.fitness, inlier_rmse_m=r.inlier_rmse, rotation_error_rad=rot,
                           translation_error_m=trans, seconds=wall, T_target_source=r.T_target_source.tolist())

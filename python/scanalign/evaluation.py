@@ -27,7 +27,7 @@ from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
 
-from . import _core
+from . import _core, se3
 from .trajectory import Trajectory
 
 __all__ = [
@@ -51,29 +51,6 @@ TrajectoryLike = Union[Trajectory, np.ndarray]
 # --------------------------------------------------------------------------------------
 # Small SE(3) helpers
 # --------------------------------------------------------------------------------------
-
-def _inverse_rigid(T: np.ndarray) -> np.ndarray:
-    """Inverse of rigid transforms (..., 4, 4): [R^T, -R^T t]."""
-    R = T[..., :3, :3]
-    t = T[..., :3, 3]
-    Rt = np.swapaxes(R, -1, -2)
-    out = np.zeros_like(T)
-    out[..., :3, :3] = Rt
-    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, t)
-    out[..., 3, 3] = 1.0
-    return out
-
-
-def _rotation_angle(R: np.ndarray) -> np.ndarray:
-    """Rotation angles in [0, pi] (radians) of rotation matrices (..., 3, 3).
-
-    ``atan2(||axis * 2 sin(theta)||, 2 cos(theta))`` from the skew and trace parts: accurate
-    to rounding over the whole range, unlike ``arccos((trace - 1) / 2)`` near 0 and pi.
-    """
-    v = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1)
-    tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
-    return np.arctan2(np.linalg.norm(v, axis=-1), tr - 1.0)
-
 
 def _as_trajectory(x: TrajectoryLike, name: str) -> Trajectory:
     if isinstance(x, Trajectory):
@@ -406,7 +383,7 @@ def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLik
     aligned = Trajectory(est.timestamps.copy(), aligned_poses)
     trans_err = np.linalg.norm(aligned_poses[:, :3, 3] - q, axis=1)
     rel_rot = np.swapaxes(ref.rotations, 1, 2) @ aligned_poses[:, :3, :3]
-    rot_err = np.degrees(_rotation_angle(rel_rot))
+    rot_err = np.degrees(se3.rotation_angle(rel_rot))
     T = np.eye(4)
     T[:3, :3] = s * R
     T[:3, 3] = t
@@ -535,11 +512,11 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
         raise ValueError(f"relative_pose_error: delta = {delta} {delta_unit} gives no pose pair among {n} poses")
     i, j = pairs[:, 0], pairs[:, 1]
     Q, P = ref.poses, est.poses
-    Q_rel = _inverse_rigid(Q[i]) @ Q[j]
-    P_rel = _inverse_rigid(P[i]) @ P[j]
-    E = _inverse_rigid(Q_rel) @ P_rel
+    Q_rel = se3.inverse(Q[i]) @ Q[j]
+    P_rel = se3.inverse(P[i]) @ P[j]
+    E = se3.inverse(Q_rel) @ P_rel
     trans = np.linalg.norm(E[:, :3, 3], axis=1)
-    rot = np.degrees(_rotation_angle(E[:, :3, :3]))
+    rot = np.degrees(se3.rotation_angle(E[:, :3, :3]))
     return RpeResult(translation=ErrorStats.from_errors(trans), rotation=ErrorStats.from_errors(rot),
                      pairs=pairs.astype(np.intp), delta=delta_out, delta_unit=delta_unit, all_pairs=bool(all_pairs))
 

@@ -50,13 +50,12 @@ non-finite or non-rigid pose).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import Dict, Optional, Tuple
+from typing import Dict, Tuple
 
 import numpy as np
 
-from . import _core
+from . import _core, se3
 
 __all__ = [
     "Robot",
@@ -99,8 +98,6 @@ _GEOMETRY = {"Unsupported": "unsupported", "SphericalWrist": "spherical_wrist",
 CONFIGS = np.array([[-1 if k & 4 else 1, -1 if k & 2 else 1, -1 if k & 1 else 1] for k in range(8)], dtype=np.int8)
 CONFIGS.setflags(write=False)
 
-_ROT_TOL = 1e-6     # |R^T R - I| (max entry) allowed in a pose, as the C++ solver
-_ROW_TOL = 1e-9     # |last row - [0, 0, 0, 1]| allowed in a pose, as the C++ solver
 _REACH_TOL = float(_K.DEFAULT_REACH_TOLERANCE)     # C++ IKOptions::reach_tolerance default
 _SING_TOL = float(_K.DEFAULT_SINGULAR_TOLERANCE)   # C++ IKOptions::singular_tolerance default
 
@@ -145,38 +142,12 @@ def _joints(q: object, name: str = "q") -> np.ndarray:
     return a
 
 
-def _rigid_problem(m: np.ndarray) -> Optional[str]:
-    """Why the 4x4 matrix m is not a rigid transform, or None. Plain float arithmetic on
-    the 16 entries: NumPy calls on a 3x3 cost more than the IK itself."""
-    r0, r1, r2, r3 = m.tolist()
-    if not all(math.isfinite(v) for v in (*r0, *r1, *r2, *r3)):
-        return "non-finite entries"
-    if max(abs(r3[0]), abs(r3[1]), abs(r3[2]), abs(r3[3] - 1.0)) > _ROW_TOL:
-        return f"last row must be [0, 0, 0, 1], got {r3}"
-    cols = ((r0[0], r1[0], r2[0]), (r0[1], r1[1], r2[1]), (r0[2], r1[2], r2[2]))
-    err = 0.0
-    for i in range(3):
-        ci = cols[i]
-        for j in range(i, 3):
-            cj = cols[j]
-            g = ci[0] * cj[0] + ci[1] * cj[1] + ci[2] * cj[2] - (1.0 if i == j else 0.0)
-            err = max(err, abs(g))
-    if err > _ROT_TOL:
-        return f"rotation part is not orthonormal (|R^T R - I| = {err:.3g} > {_ROT_TOL:g})"
-    a, b, c = cols
-    det = (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-           + a[2] * (b[0] * c[1] - b[1] * c[0]))
-    if det <= 0:
-        return "rotation part is a reflection (det < 0)"
-    return None
-
-
 def _pose(T: object, name: str) -> np.ndarray:
     """One rigid 4x4 transform, float64; ValueError / TypeError naming the argument."""
     m = _real(T, name)
     if m.shape != (4, 4):
         raise ValueError(f"{name}: expected a 4x4 homogeneous transform, got shape {m.shape}")
-    why = _rigid_problem(m)
+    why = se3.rigid_problem(m)
     if why:
         raise ValueError(f"{name}: not a rigid transform: {why}")
     return m
@@ -190,7 +161,7 @@ def _poses(T: object, name: str, *, check_each: bool) -> np.ndarray:
         raise ValueError(f"{name}: expected an (N, 4, 4) array of poses, got shape {m.shape}")
     if check_each:
         for i in range(m.shape[0]):
-            why = _rigid_problem(m[i])
+            why = se3.rigid_problem(m[i])
             if why:
                 raise ValueError(f"{name}[{i}]: not a rigid transform: {why}")
     return m
@@ -221,7 +192,7 @@ def _pose_fast(T: object, name: str) -> np.ndarray:
 
 def _explain_invalid(T: np.ndarray, name: str) -> None:
     """Raises the ValueError for a pose the C++ solver rejected as invalid."""
-    why = _rigid_problem(T) or "rejected by the solver"
+    why = se3.rigid_problem(T) or "rejected by the solver"
     raise ValueError(f"{name}: not a rigid transform: {why}")
 
 

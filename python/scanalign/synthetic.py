@@ -60,6 +60,7 @@ import numpy as np
 
 from . import _core
 from . import io as _io
+from . import se3
 from ._arrays import as_points, as_transform
 from .camera import INTRINSICS_PRESETS, Frame, Intrinsics, read_camera_file
 from .trajectory import Trajectory
@@ -114,27 +115,6 @@ class RenderResult:
     def hit(self) -> np.ndarray:
         """(H, W) bool: pixels that see a surface."""
         return self.face_id >= 0
-
-
-def _rigid_inverse(T: np.ndarray) -> np.ndarray:
-    """Inverse of a rigid transform (exact transpose of the rotation, no matrix inversion)."""
-    R = T[..., :3, :3]
-    Rt = np.swapaxes(R, -1, -2)
-    out = np.zeros_like(T)
-    out[..., :3, :3] = Rt
-    out[..., :3, 3] = -np.einsum("...ij,...j->...i", Rt, T[..., :3, 3])
-    out[..., 3, 3] = 1.0
-    return out
-
-
-def _check_rigid(T: np.ndarray, name: str) -> np.ndarray:
-    T = as_transform(T, name)
-    if not np.array_equal(T[3], [0.0, 0.0, 0.0, 1.0]):
-        raise ValueError(f"{name}: bottom row must be [0, 0, 0, 1], got {T[3].tolist()}")
-    R = T[:3, :3]
-    if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) < 0:
-        raise ValueError(f"{name}: rotation part must be orthonormal with determinant +1")
-    return T
 
 
 def _as_faces(faces: object, n_vertices: int) -> np.ndarray:
@@ -204,7 +184,7 @@ def render_depth(
     K = _check_intrinsics(intrinsics)
     v = as_points(vertices, "vertices")
     f = _as_faces(faces, v.shape[0])
-    T = _check_rigid(T_camera_world, "T_camera_world")
+    T = se3.require_rigid(T_camera_world, "T_camera_world")
     near, far = float(near), float(far)
     if not (math.isfinite(near) and near > 0):
         raise ValueError(f"near must be a finite positive distance in metres, got {near}")
@@ -550,7 +530,7 @@ class Scene:
         if T_base_object is not None:
             if position is not None or yaw != 0.0:
                 raise ValueError("give either T_base_object or position/yaw, not both")
-            T = _check_rigid(T_base_object, "T_base_object")
+            T = se3.require_rigid(T_base_object, "T_base_object")
         else:
             if not math.isfinite(yaw):
                 raise ValueError("yaw must be finite (radians)")
@@ -684,8 +664,8 @@ class Scene:
         """Noise-free depth, face ids and incidence for a camera at ``T_base_camera``
         (camera -> base). Face ids index :attr:`mesh`."""
         c = self._build()
-        T = _check_rigid(T_base_camera, "T_base_camera")
-        return render_depth(c["vertices"], c["faces"], intrinsics, _rigid_inverse(T), near=near, far=far,
+        T = se3.require_rigid(T_base_camera, "T_base_camera")
+        return render_depth(c["vertices"], c["faces"], intrinsics, se3.inverse(T), near=near, far=far,
                             num_threads=num_threads)
 
     def _prepare_shading(self) -> None:
@@ -740,19 +720,12 @@ class Scene:
 # --------------------------------------------------------------------------- trajectories
 
 
-def _rot(axis: Sequence[float], angle: float) -> np.ndarray:
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / np.linalg.norm(a)
-    Kx = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + math.sin(angle) * Kx + (1 - math.cos(angle)) * Kx @ Kx
-
-
 def _default_hand_eye() -> np.ndarray:
     T = np.eye(4)
     # Camera mounted beside the gripper: 3.5 cm off the tool axis along flange x, 5 cm in
     # front of the flange along its z, looking along the tool axis, with the few-degree
     # misalignment a real bracket has (so the hand-eye transform is not a pure offset).
-    T[:3, :3] = _rot([1.0, 0.0, 0.0], math.radians(3.0)) @ _rot([0.0, 1.0, 0.0], math.radians(-2.0)) @ _rot(
+    T[:3, :3] = se3.rotation_about([1.0, 0.0, 0.0], math.radians(3.0)) @ se3.rotation_about([0.0, 1.0, 0.0], math.radians(-2.0)) @ se3.rotation_about(
         [0.0, 0.0, 1.0], math.radians(1.0))
     T[:3, 3] = [0.035, 0.0, 0.05]
     return T
@@ -818,7 +791,7 @@ class ScanTrajectory:
         self.T_base_flange = np.asarray(self.T_base_flange, dtype=np.float64)
         if self.T_base_flange.ndim != 3 or self.T_base_flange.shape[1:] != (4, 4):
             raise ValueError(f"T_base_flange: expected shape (N, 4, 4), got {self.T_base_flange.shape}")
-        self.T_flange_camera = _check_rigid(self.T_flange_camera, "T_flange_camera")
+        self.T_flange_camera = se3.require_rigid(self.T_flange_camera, "T_flange_camera")
         self.timestamps = np.asarray(self.timestamps, dtype=np.float64).reshape(-1)
         if len(self.timestamps) != len(self.T_base_flange):
             raise ValueError("one timestamp per pose expected")
@@ -827,7 +800,7 @@ class ScanTrajectory:
             if self.joints.shape != (len(self.T_base_flange), 6):
                 raise ValueError(f"joints: expected shape ({len(self.T_base_flange)}, 6), got {self.joints.shape}")
         if self.T_base_robot is not None:
-            self.T_base_robot = _check_rigid(self.T_base_robot, "T_base_robot")
+            self.T_base_robot = se3.require_rigid(self.T_base_robot, "T_base_robot")
 
     def __len__(self) -> int:
         return len(self.T_base_flange)
@@ -867,7 +840,7 @@ def robot_mount(x: float = 0.5, y: float = 0.0, z: float = DEFAULT_ROBOT_HEIGHT,
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
         raise ValueError(f"robot_mount: expected finite numbers (m, rad), got {vals!r}")
     T = np.eye(4)
-    T[:3, :3] = _rot([0.0, 0.0, 1.0], yaw) @ _rot([0.0, 1.0, 0.0], pitch) @ _rot([1.0, 0.0, 0.0], roll)
+    T[:3, :3] = se3.rotation_about([0.0, 0.0, 1.0], yaw) @ se3.rotation_about([0.0, 1.0, 0.0], pitch) @ se3.rotation_about([1.0, 0.0, 0.0], roll)
     T[:3, 3] = [x, y, z]
     return T
 
@@ -938,9 +911,9 @@ def attach_robot(
     if elbow not in ("up", "down", "any"):
         raise ValueError(f"elbow must be 'up', 'down' or 'any', got {elbow!r}")
     model = _as_robot(robot).with_tool(np.eye(4))
-    Tbr = robot_mount() if T_base_robot is None else _check_rigid(T_base_robot, "T_base_robot")
+    Tbr = robot_mount() if T_base_robot is None else se3.require_rigid(T_base_robot, "T_base_robot")
     # Flange poses in the robot's own base frame, which is what its controller (and IK) sees.
-    T_robot_flange = _rigid_inverse(Tbr) @ trajectory.T_base_flange
+    T_robot_flange = se3.inverse(Tbr) @ trajectory.T_base_flange
     n = len(T_robot_flange)
     stamps = trajectory.timestamps
 
@@ -1005,7 +978,7 @@ def attach_robot(
 
 def _scan_from_camera_poses(T_base_camera: np.ndarray, T_flange_camera: Optional[np.ndarray], frame_rate: float,
                             jitter_translation: float, jitter_rotation: float, seed: int) -> ScanTrajectory:
-    Tfc = DEFAULT_T_FLANGE_CAMERA if T_flange_camera is None else _check_rigid(T_flange_camera, "T_flange_camera")
+    Tfc = DEFAULT_T_FLANGE_CAMERA if T_flange_camera is None else se3.require_rigid(T_flange_camera, "T_flange_camera")
     if not (math.isfinite(frame_rate) and frame_rate > 0):
         raise ValueError("frame_rate must be positive (Hz)")
     if not (jitter_translation >= 0 and jitter_rotation >= 0):
@@ -1017,9 +990,9 @@ def _scan_from_camera_poses(T_base_camera: np.ndarray, T_flange_camera: Optional
         rng = np.random.default_rng(seed)
         for T in T_cam:
             axis = rng.normal(size=3)
-            T[:3, :3] = _rot(axis, rng.normal() * jitter_rotation) @ T[:3, :3]
+            T[:3, :3] = se3.rotation_about(axis, rng.normal() * jitter_rotation) @ T[:3, :3]
             T[:3, 3] += rng.normal(size=3) * jitter_translation
-    T_base_flange = T_cam @ _rigid_inverse(np.asarray(Tfc))
+    T_base_flange = T_cam @ se3.inverse(np.asarray(Tfc))
     return ScanTrajectory(T_base_flange, np.array(Tfc), np.arange(len(T_cam)) / frame_rate)
 
 
@@ -1461,7 +1434,7 @@ def render_scan(
         if not (math.isfinite(frame_rate) and frame_rate > 0):
             raise ValueError("frame_rate must be positive (Hz)")
         stamps = np.arange(len(T_cams)) / frame_rate
-    T_cams = np.array([_check_rigid(T, f"poses[{k}]") for k, T in enumerate(T_cams)]).reshape(-1, 4, 4)
+    T_cams = np.array([se3.require_rigid(T, f"poses[{k}]") for k, T in enumerate(T_cams)]).reshape(-1, 4, 4)
     if len(T_cams) == 0:
         raise ValueError("poses: no camera poses given")
 
