@@ -75,11 +75,11 @@ TEST(SphereFit, ObjectiveIsEigenvalueAndOneNegativeEigenvalue) {  // claims 11 a
   const auto pts = spherePoints(c, 0.5, 200, rng, 0.01, 1.0);
   const auto fit = fitSphere(view(pts));
   // L(S) = mean (S*·P)²/S*² evaluated directly with the 5x5 metric (5.27, 5.32).
-  const auto M = scanalign::conformalMetric();
+  const auto M = scanalign::cga5::metric();
   double L = 0;
   Eigen::Matrix<double, 5, 5> Q = Eigen::Matrix<double, 5, 5>::Zero();
   for (std::size_t i = 0; i < pts.size() / 3; ++i) {
-    const auto P = scanalign::conformalPoint(Eigen::Vector3d(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]));
+    const auto P = scanalign::cga5::up(Eigen::Vector3d(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]));
     const double sp = fit.dual.dot(M * P);
     L += sp * sp / fit.dual.dot(M * fit.dual);
     Q += P * P.transpose() * M;

@@ -93,7 +93,7 @@ struct ScoredIndex {
 /// the 5x5 moment matrix well conditioned whatever the cloud's position.
 CbdSphere fitLocalSphere(const Eigen::Matrix<double, 5, 5>& D, const Eigen::Vector3d& p_i, double scale,
                          double max_radius) {
-  static const Matrix5d M = conformalMetric();
+  static const Matrix5d M = cga5::metric();
   const detail::PencilSolution<5> sol = detail::smallestPositive<5>(D, M);
   const Vector5d s = M * sol.a;  // [S*] (5.31)
   CbdSphere out;

@@ -14,30 +14,6 @@
 
 namespace scanalign {
 
-namespace cga5 {
-
-Vec5 dualOfOuter4(const Vec5& a, const Vec5& b, const Vec5& c, const Vec5& d) {
-  // cof_j = det[a; b; c; d; e_j] = (-1)^(4+j) * minor_j (drop column j).
-  Eigen::Matrix<double, 4, 5> A;
-  A.row(0) = a.transpose();
-  A.row(1) = b.transpose();
-  A.row(2) = c.transpose();
-  A.row(3) = d.transpose();
-  Vec5 cof;
-  for (int j = 0; j < 5; ++j) {
-    Eigen::Matrix4d minor;
-    for (int col = 0, k = 0; col < 5; ++col)
-      if (col != j) minor.col(k++) = A.col(col);
-    cof[j] = ((4 + j) % 2 == 0 ? 1.0 : -1.0) * minor.determinant();
-  }
-  // v = M cof: v . x = [v]^T M [x] = cof^T [x] = det[a; b; c; d; x].
-  Vec5 v;
-  v << cof.head<3>(), -cof[4], -cof[3];
-  return v;
-}
-
-}  // namespace cga5
-
 const char* toString(RansacStatus s) {
   switch (s) {
     case RansacStatus::kSuccess: return "success";

@@ -52,19 +52,6 @@ void checkWeight(double w, std::size_t i) {
 
 }  // namespace
 
-Matrix5d conformalMetric() {
-  Matrix5d M = Matrix5d::Zero();
-  M(0, 0) = M(1, 1) = M(2, 2) = 1.0;
-  M(3, 4) = M(4, 3) = -1.0;  // e∞·e0 = −1 (4.45)
-  return M;
-}
-
-Vector5d conformalPoint(const Eigen::Vector3d& p) {
-  Vector5d P;
-  P << p, 0.5 * p.squaredNorm(), 1.0;
-  return P;
-}
-
 template <typename Scalar>
 SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, const SphereFitOptions& options) {
   if (!(options.plane_tolerance >= 0) || !std::isfinite(options.plane_tolerance))
@@ -103,12 +90,12 @@ SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, cons
   for (std::size_t i = 0; i < points.size; ++i) {
     const double w = weights ? weights[i] : 1.0;
     if (w == 0) continue;
-    const Vector5d P = conformalPoint((points[i].template cast<double>() - nz.centroid) / nz.scale);
+    const Vector5d P = cga5::up((points[i].template cast<double>() - nz.centroid) / nz.scale);
     D.noalias() += w * P * P.transpose();
   }
   D /= wsum;
 
-  const Matrix5d M = conformalMetric();
+  const Matrix5d M = cga5::metric();
   const detail::PencilSolution<5> sol = detail::smallestPositive<5>(D, M, kClamp);
   if (sol.a_eigenvalues(1) <= kDegenerate * sol.a_eigenvalues(4))
     throw std::invalid_argument(

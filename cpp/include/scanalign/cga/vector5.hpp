@@ -5,11 +5,13 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/LU>
 
 namespace scanalign {
 namespace cga5 {
 
 using Vec5 = Eigen::Matrix<double, 5, 1>;  ///< coefficients of (e1, e2, e3, e_inf, e0)
+using Mat5 = Eigen::Matrix<double, 5, 5>;
 
 /// Conformal point up(p) = p + p^2/2 e_inf + e0 (4.54-4.55).
 inline Vec5 up(const Eigen::Vector3d& p) {
@@ -41,8 +43,15 @@ inline Vec5 eInf() {
   v[3] = 1.0;
   return v;
 }
-/// Inner product of two vectors, [a]^T M [b] with M = diag(I3, [[0,-1],[-1,0]]) (5.32);
-/// e0 . e_inf = -1 (4.45).
+/// The metric M = diag(I3, [[0,-1],[-1,0]]) of (5.32): a . b = [a]^T M [b]; e0 . e_inf = -1
+/// (4.45). M is its own inverse.
+inline Mat5 metric() {
+  Mat5 M = Mat5::Zero();
+  M(0, 0) = M(1, 1) = M(2, 2) = 1.0;
+  M(3, 4) = M(4, 3) = -1.0;
+  return M;
+}
+/// Inner product of two vectors, [a]^T M [b] (M = metric(), written out).
 inline double inner(const Vec5& a, const Vec5& b) {
   return a.head<3>().dot(b.head<3>()) - a[3] * b[4] - a[4] * b[3];
 }
@@ -51,8 +60,26 @@ inline double inner(const Vec5& a, const Vec5& b) {
 /// rows a, b, c, d; the dual maps it to the vector v with v . x = det[a; b; c; d; x] for
 /// every x, i.e. v = M * cofactors (M^-1 = M). The sign convention reproduces the
 /// verified example of spec §1.3: the dual of up(0,0,1)^up(1,0,1)^up(0,1,1)^e_inf is
-/// -(e3 + e_inf). Defined in src/fitting/ransac.cpp.
-Vec5 dualOfOuter4(const Vec5& a, const Vec5& b, const Vec5& c, const Vec5& d);
+/// -(e3 + e_inf).
+inline Vec5 dualOfOuter4(const Vec5& a, const Vec5& b, const Vec5& c, const Vec5& d) {
+  // cof_j = det[a; b; c; d; e_j] = (-1)^(4+j) * minor_j (drop column j).
+  Eigen::Matrix<double, 4, 5> A;
+  A.row(0) = a.transpose();
+  A.row(1) = b.transpose();
+  A.row(2) = c.transpose();
+  A.row(3) = d.transpose();
+  Vec5 cof;
+  for (int j = 0; j < 5; ++j) {
+    Eigen::Matrix4d minor;
+    for (int col = 0, k = 0; col < 5; ++col)
+      if (col != j) minor.col(k++) = A.col(col);
+    cof[j] = ((4 + j) % 2 == 0 ? 1.0 : -1.0) * minor.determinant();
+  }
+  // v = M cof: v . x = [v]^T M [x] = cof^T [x] = det[a; b; c; d; x].
+  Vec5 v;
+  v << cof.head<3>(), -cof[4], -cof[3];
+  return v;
+}
 
 }  // namespace cga5
 }  // namespace scanalign

@@ -18,18 +18,15 @@
 
 #include <Eigen/Core>
 
+#include "scanalign/cga/vector5.hpp"
 #include "scanalign/common/cloud_view.hpp"
 
 namespace scanalign {
 
-using Vector5d = Eigen::Matrix<double, 5, 1>;
-using Matrix5d = Eigen::Matrix<double, 5, 5>;
-
-/// The 5x5 metric M of (5.32): X·Y = [X]ᵀ M [Y] for 5-vectors on (e1, e2, e3, e∞, e0).
-Matrix5d conformalMetric();
-
-/// [up(p)] = [p; ½p²; 1] (4.55).
-Vector5d conformalPoint(const Eigen::Vector3d& p);
+// 5-vectors on (e1, e2, e3, e∞, e0), their metric M of (5.32) and up(p) (4.55) are the
+// ones of scanalign/cga/vector5.hpp (cga5::Vec5, cga5::metric(), cga5::up()).
+using Vector5d = cga5::Vec5;
+using Matrix5d = cga5::Mat5;
 
 struct SphereFitOptions {
   /// The result is a plane when |e0 coefficient| <= plane_tolerance * |Euclidean part| of the
