@@ -28,56 +28,13 @@ __all__ = ["SphereFitResult", "CircleFitResult", "SphereFitBatch", "fit_sphere",
 MIN_SPHERE_POINTS = 5
 
 
-@dataclass(frozen=True)
-class SphereFitResult:
-    """Result of :func:`fit_sphere`.
-
-    Attributes:
-        center: (3,) sphere centre, metres (NaN for a plane).
-        radius: sphere radius, metres (NaN for a plane; ``|r|`` when ``imaginary``).
-        is_plane: the fitted e0 coefficient vanished relative to scale: the data is flat and
-            the result is the plane ``normal . p = distance``.
-        normal: (3,) unit plane normal (NaN for a sphere), oriented so that ``distance >= 0``.
-        distance: plane offset from the origin along ``normal``, metres (NaN for a sphere).
-        imaginary: the fitted sphere has r^2 < 0 (not expected for real data).
-        rms: (weighted) RMS geometric residual, metres: ``| |p - c| - r |`` for a sphere,
-            ``|normal . p - distance|`` for a plane.
-        objective: the weighted mean of (S.P)^2 / S^2 at the optimum (thesis 5.27), i.e. the
-            chosen eigenvalue (5.31), square metres.
-        count: number of points used (those with positive weight).
-        dual: (5,) the dual sphere ``[c, (|c|^2 - r^2)/2, 1]`` or plane ``[n, distance, 0]``.
-    """
-
-    center: np.ndarray
-    radius: float
-    is_plane: bool
-    normal: np.ndarray
-    distance: float
-    imaginary: bool
-    rms: float
-    objective: float
-    count: int
-    dual: np.ndarray
-
-
-@dataclass(frozen=True)
-class CircleFitResult:
-    """Result of :func:`fit_circle_2d`.
-
-    Attributes:
-        center: (2,) circle centre, metres.
-        radius: circle radius, metres.
-        rms: RMS geometric residual ``| |p - c| - r |``, metres.
-        coefficients: (4,) ``(a, d, e, f)`` of ``a(x^2+y^2) + dx + ey + f = 0`` with Pratt's
-            normalization ``d^2 + e^2 - 4af = 1`` (thesis 5.21).
-        count: number of points.
-    """
-
-    center: np.ndarray
-    radius: float
-    rms: float
-    coefficients: np.ndarray
-    count: int
+#: Result of :func:`fit_sphere` (bound from C++; its fields are documented there:
+#: ``help(SphereFitResult)``): ``center``, ``radius``, ``is_plane``, ``normal``,
+#: ``distance``, ``imaginary``, ``rms``, ``objective``, ``count``, ``dual``.
+SphereFitResult = _core.fitting.SphereFitResult
+#: Result of :func:`fit_circle_2d` (bound from C++): ``center``, ``radius``, ``rms``,
+#: ``coefficients``, ``count``.
+CircleFitResult = _core.fitting.CircleFitResult
 
 
 @dataclass(frozen=True)
@@ -151,11 +108,7 @@ def fit_sphere(points: np.ndarray, weights: Optional[np.ndarray] = None, *,
     if n_used < MIN_SPHERE_POINTS:
         raise ValueError(f"fit_sphere needs at least {MIN_SPHERE_POINTS} points (with positive weight), got {n_used}")
     fn = _core.fitting.fit_sphere_f64 if p.dtype == np.float64 else _core.fitting.fit_sphere_f32
-    d = fn(p, w, _check_tolerance(plane_tolerance))
-    return SphereFitResult(center=np.asarray(d["center"]), radius=float(d["radius"]), is_plane=bool(d["is_plane"]),
-                           normal=np.asarray(d["normal"]), distance=float(d["distance"]),
-                           imaginary=bool(d["imaginary"]), rms=float(d["rms"]), objective=float(d["objective"]),
-                           count=int(d["count"]), dual=np.asarray(d["dual"]))
+    return fn(p, w, _check_tolerance(plane_tolerance))
 
 
 def fit_spheres(points: np.ndarray, offsets: np.ndarray, *, plane_tolerance: float = 1e-6,
@@ -212,6 +165,4 @@ def fit_circle_2d(points: np.ndarray) -> CircleFitResult:
         raise ValueError(f"fit_circle_2d needs at least 3 points, got {a.shape[0]}")
     if not np.all(np.isfinite(a)):
         raise ValueError("points: non-finite coordinates")
-    d = _core.fitting.fit_circle_pratt(np.ascontiguousarray(a, dtype=np.float64))
-    return CircleFitResult(center=np.asarray(d["center"]), radius=float(d["radius"]), rms=float(d["rms"]),
-                           coefficients=np.asarray(d["coefficients"]), count=int(d["count"]))
+    return _core.fitting.fit_circle_pratt(np.ascontiguousarray(a, dtype=np.float64))
