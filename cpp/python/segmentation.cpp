@@ -1,8 +1,10 @@
 // _core.segmentation: RANSAC plane / sphere (thesis §5.2) and table segmentation (paper 3).
-// Results come back as dicts; python/scanalign/segmentation.py validates inputs and wraps
-// them in dataclasses.
+// The result structs are bound directly, their Python docs written here once;
+// python/scanalign/segmentation.py validates and converts inputs.
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
+
+#include <string>
 
 #include "arrays.hpp"
 #include "scanalign/fitting/ransac.hpp"
@@ -29,38 +31,40 @@ RansacSettings settingsFrom(double threshold, int max_iterations, double confide
   return s;
 }
 
+using PlaneResult = RansacResult<PlaneModel>;
+using SphereResult = RansacResult<SphereModel>;
+
+/// The fields every RANSAC result shares.
 template <typename Model>
-py::dict common(const RansacResult<Model>& r) {
-  py::dict d;
-  d["status"] = toString(r.status);
-  d["inliers"] = indexArray(r.inliers);
-  d["hypothesis_inliers"] = r.hypothesis_inliers;
-  d["iterations"] = r.iterations;
-  d["degenerate_samples"] = r.degenerate_samples;
-  d["refined"] = r.refined;
-  return d;
+void bindCommon(py::class_<RansacResult<Model>>& c) {
+  using R = RansacResult<Model>;
+  c.def_property_readonly(
+       "status", [](const R& r) { return std::string(toString(r.status)); },
+       "\"success\", or \"degenerate\" (no non-degenerate sample was drawn)")
+      .def_property_readonly("success", &R::success, "status == \"success\"")
+      .def_property_readonly(
+          "inliers", [](const R& r) { return indexArray(r.inliers); },
+          "(K,) int64 input row indices (ascending) within threshold of the returned model")
+      .def_readonly("iterations", &R::iterations, "hypotheses drawn (degenerate samples included)")
+      .def_readonly("degenerate_samples", &R::degenerate_samples, "samples rejected as degenerate")
+      .def_readonly("refined", &R::refined, "the least-squares refit was applied")
+      .def_readonly("hypothesis_inliers", &R::hypothesis_inliers, "inlier count of the winning minimal-sample hypothesis");
 }
 
-py::dict planeDict(const RansacResult<PlaneModel>& r) {
-  py::dict d = common(r);
-  d["normal"] = r.model.normal;
-  d["distance"] = r.model.distance;
-  d["hypothesis_normal"] = r.hypothesis.normal;
-  d["hypothesis_distance"] = r.hypothesis.distance;
-  return d;
-}
-
-py::dict sphereDict(const RansacResult<SphereModel>& r) {
-  py::dict d = common(r);
-  d["center"] = r.model.center;
-  d["radius"] = r.model.radius;
-  d["hypothesis_center"] = r.hypothesis.center;
-  d["hypothesis_radius"] = r.hypothesis.radius;
-  return d;
+/// normal . p - distance for one point (3,) or points (N, 3) (4.67), metres.
+py::object signedDistance(const PlaneResult& r, const py::array_t<double, py::array::c_style | py::array::forcecast>& p) {
+  if (p.ndim() == 1 && p.shape(0) == 3)
+    return py::float_(r.model.signedDistance(Eigen::Vector3d(p.at(0), p.at(1), p.at(2))));
+  if (p.ndim() != 2 || p.shape(1) != 3) throw py::value_error("points: expected shape (3,) or (N, 3)");
+  py::array_t<double> out(p.shape(0));
+  auto in = p.unchecked<2>();
+  for (py::ssize_t i = 0; i < p.shape(0); ++i)
+    out.mutable_data()[i] = r.model.signedDistance(Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)));
+  return std::move(out);
 }
 
 template <typename Scalar>
-py::dict plane(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
+PlaneResult plane(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
                int num_threads, bool refine) {
   const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
   const RansacSettings s = settingsFrom(threshold, max_iterations, confidence, seed, num_threads, refine);
@@ -69,11 +73,11 @@ py::dict plane(const py::array& points, double threshold, int max_iterations, do
     py::gil_scoped_release release;
     r = ransacPlane(view, s);
   }
-  return planeDict(r);
+  return r;
 }
 
 template <typename Scalar>
-py::dict sphere(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
+SphereResult sphere(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
                 int num_threads, bool refine, double min_radius, double max_radius) {
   const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
   const RansacSettings s = settingsFrom(threshold, max_iterations, confidence, seed, num_threads, refine);
@@ -85,11 +89,11 @@ py::dict sphere(const py::array& points, double threshold, int max_iterations, d
     py::gil_scoped_release release;
     r = ransacSphere(view, s, lim);
   }
-  return sphereDict(r);
+  return r;
 }
 
 template <typename Scalar>
-py::dict table(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
+TableSegmentation table(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
                int num_threads, bool refine, const py::object& crop_min, const py::object& crop_max,
                const Eigen::Vector3d& viewpoint, const Eigen::Vector3d& up, double cluster_tolerance,
                std::size_t min_cluster_size, std::size_t max_cluster_size) {
@@ -111,20 +115,77 @@ py::dict table(const py::array& points, double threshold, int max_iterations, do
     py::gil_scoped_release release;
     r = segmentTable(view, s);
   }
-  py::dict d;
-  d["status"] = toString(r.status);
-  d["plane"] = planeDict(r.plane);
-  py::list objects;
-  for (const auto& c : r.objects) objects.append(indexArray(c));
-  d["objects"] = objects;
-  d["cropped_points"] = r.cropped_points;
-  d["above_points"] = r.above_points;
-  return d;
+  return r;
 }
 
 }  // namespace
 
 void defineSegmentation(py::module_& m) {
+  py::class_<PlaneResult> plane_result(m, "PlaneResult",
+                                       "A RANSAC plane normal . p = distance (metres), |normal| = 1, with the CGA "
+                                       "plane model (thesis 5.35-5.36)");
+  bindCommon(plane_result);
+  plane_result
+      .def_property_readonly(
+          "normal", [](const PlaneResult& r) { return Eigen::Vector3d(r.model.normal); },
+          "(3,) unit normal (the dual plane Pi* = n + distance e_inf)")
+      .def_property_readonly(
+          "distance", [](const PlaneResult& r) { return r.model.distance; },
+          "signed distance of the plane from the origin along normal, m")
+      .def_property_readonly(
+          "hypothesis_normal", [](const PlaneResult& r) { return Eigen::Vector3d(r.hypothesis.normal); },
+          "(3,) the winning minimal-sample plane's normal")
+      .def_property_readonly(
+          "hypothesis_distance", [](const PlaneResult& r) { return r.hypothesis.distance; },
+          "the winning minimal-sample plane's distance, m")
+      .def("signed_distance", &signedDistance, py::arg("points"),
+           "normal . p - distance for one point (3,) or points (N, 3) (4.67), m")
+      .def("__repr__", [](const PlaneResult& r) {
+        return "PlaneResult(status=" + std::string(toString(r.status)) + ", normal=(" +
+               std::to_string(r.model.normal.x()) + ", " + std::to_string(r.model.normal.y()) + ", " +
+               std::to_string(r.model.normal.z()) + "), distance=" + std::to_string(r.model.distance) +
+               ", inliers=" + std::to_string(r.inliers.size()) + ")";
+      });
+  py::class_<SphereResult> sphere_result(m, "SphereResult",
+                                         "A RANSAC sphere |p - center| = radius (metres), the CGA sphere through "
+                                         "four points (thesis 4.58-4.60)");
+  bindCommon(sphere_result);
+  sphere_result
+      .def_property_readonly(
+          "center", [](const SphereResult& r) { return Eigen::Vector3d(r.model.center); }, "(3,) centre, m")
+      .def_property_readonly(
+          "radius", [](const SphereResult& r) { return r.model.radius; }, "radius, m")
+      .def_property_readonly(
+          "hypothesis_center", [](const SphereResult& r) { return Eigen::Vector3d(r.hypothesis.center); },
+          "(3,) the winning minimal-sample sphere's centre, m")
+      .def_property_readonly(
+          "hypothesis_radius", [](const SphereResult& r) { return r.hypothesis.radius; },
+          "the winning minimal-sample sphere's radius, m")
+      .def("__repr__", [](const SphereResult& r) {
+        return "SphereResult(status=" + std::string(toString(r.status)) + ", center=(" +
+               std::to_string(r.model.center.x()) + ", " + std::to_string(r.model.center.y()) + ", " +
+               std::to_string(r.model.center.z()) + "), radius=" + std::to_string(r.model.radius) +
+               ", inliers=" + std::to_string(r.inliers.size()) + ")";
+      });
+  py::class_<TableSegmentation>(m, "TableSegmentation", "Result of segment_table (paper 3 §3.1.2-3.1.3)")
+      .def_readonly("plane", &TableSegmentation::plane,
+                    "the table (PlaneResult, normal oriented up / towards the camera; inliers index the input)")
+      .def_property_readonly(
+          "objects",
+          [](const TableSegmentation& t) {
+            py::list objects;
+            for (const auto& c : t.objects) objects.append(indexArray(c));
+            return objects;
+          },
+          "one int64 index array per object (ascending input rows), largest first")
+      .def_readonly("cropped_points", &TableSegmentation::cropped_points,
+                    "finite points inside the crop box (all finite points without crop)")
+      .def_readonly("above_points", &TableSegmentation::above_points,
+                    "points left above the table before clustering")
+      .def_property_readonly(
+          "status", [](const TableSegmentation& t) { return std::string(toString(t.status)); },
+          "the table plane RANSAC's status")
+      .def_property_readonly("success", &TableSegmentation::success, "the table plane was found");
   m.def("ransac_plane_f32", &plane<float>);
   m.def("ransac_plane_f64", &plane<double>);
   m.def("ransac_sphere_f32", &sphere<float>);

@@ -33,7 +33,6 @@ max_cluster_size]`` dropped. Each remaining cluster is one object.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import List, Optional, Sequence, Tuple
 
 import numpy as np
@@ -53,87 +52,17 @@ __all__ = [
 ]
 
 
-@dataclass
-class PlaneResult:
-    """A RANSAC plane ``normal . p = distance`` (metres), ``|normal| = 1``.
-
-    Attributes:
-        normal: (3,) unit normal (dual plane ``Pi* = n + distance e_inf``).
-        distance: signed distance of the plane from the origin along ``normal``, metres.
-        inliers: (K,) int64 input row indices (ascending) with ``|normal . p - distance| <
-            threshold`` for the returned plane.
-        status: ``"success"`` or ``"degenerate"`` (no non-degenerate sample was drawn).
-        iterations: hypotheses drawn (degenerate samples included).
-        degenerate_samples: samples rejected as degenerate.
-        refined: the least-squares (PCA) refit was applied.
-        hypothesis_normal, hypothesis_distance: the winning minimal-sample plane.
-        hypothesis_inliers: its inlier count.
-    """
-
-    normal: np.ndarray
-    distance: float
-    inliers: np.ndarray
-    status: str
-    iterations: int
-    degenerate_samples: int
-    refined: bool
-    hypothesis_normal: np.ndarray
-    hypothesis_distance: float
-    hypothesis_inliers: int
-
-    @property
-    def success(self) -> bool:
-        return self.status == "success"
-
-    def signed_distance(self, points: np.ndarray) -> np.ndarray:
-        """``normal . p - distance`` for (N, 3) points (4.67), metres."""
-        return np.asarray(points, dtype=np.float64) @ self.normal - self.distance
-
-
-@dataclass
-class SphereResult:
-    """A RANSAC sphere ``|p - center| = radius`` (metres).
-
-    Attributes:
-        center: (3,) metres. radius: metres.
-        inliers: (K,) int64 input row indices (ascending) with ``| |p - center| - radius |
-            < threshold`` for the returned sphere.
-        status, iterations, degenerate_samples, refined, hypothesis_*: as in
-            :class:`PlaneResult`.
-    """
-
-    center: np.ndarray
-    radius: float
-    inliers: np.ndarray
-    status: str
-    iterations: int
-    degenerate_samples: int
-    refined: bool
-    hypothesis_center: np.ndarray
-    hypothesis_radius: float
-    hypothesis_inliers: int
-
-    @property
-    def success(self) -> bool:
-        return self.status == "success"
-
-
-@dataclass
-class TableSegmentation:
-    """Result of :func:`segment_table`.
-
-    Attributes:
-        plane: the table (:class:`PlaneResult`, normal oriented up / towards the camera;
-            inliers index the input).
-        objects: one int64 index array per object (ascending input rows), largest first.
-        cropped_points: finite points inside the crop box (all finite points without crop).
-        above_points: points left above the table before clustering.
-    """
-
-    plane: PlaneResult
-    objects: List[np.ndarray] = field(default_factory=list)
-    cropped_points: int = 0
-    above_points: int = 0
+#: Result of :func:`ransac_plane` (bound from C++; ``help(PlaneResult)`` documents every
+#: field): ``normal``, ``distance``, ``inliers``, ``status``, ``success``, ``iterations``,
+#: ``degenerate_samples``, ``refined``, ``hypothesis_normal``, ``hypothesis_distance``,
+#: ``hypothesis_inliers``, and ``signed_distance(points)``.
+PlaneResult = _core.segmentation.PlaneResult
+#: Result of :func:`ransac_sphere` (bound from C++): ``center``, ``radius``, and the
+#: fields PlaneResult shares (``inliers``, ``status``, ...; ``hypothesis_center``, ``hypothesis_radius``).
+SphereResult = _core.segmentation.SphereResult
+#: Result of :func:`segment_table_full` (bound from C++): ``plane``, ``objects``,
+#: ``cropped_points``, ``above_points``, ``status``, ``success``.
+TableSegmentation = _core.segmentation.TableSegmentation
 
 
 def _check_common(threshold: float, max_iterations: int, confidence: float) -> None:
@@ -151,21 +80,6 @@ def _points(points: object, minimum: int, what: str) -> np.ndarray:
     if finite < minimum:
         raise ValueError(f"{what} needs at least {minimum} finite points, got {finite}")
     return p
-
-
-def _plane(d: dict) -> PlaneResult:
-    return PlaneResult(
-        normal=np.asarray(d["normal"], dtype=np.float64),
-        distance=float(d["distance"]),
-        inliers=d["inliers"],
-        status=d["status"],
-        iterations=int(d["iterations"]),
-        degenerate_samples=int(d["degenerate_samples"]),
-        refined=bool(d["refined"]),
-        hypothesis_normal=np.asarray(d["hypothesis_normal"], dtype=np.float64),
-        hypothesis_distance=float(d["hypothesis_distance"]),
-        hypothesis_inliers=int(d["hypothesis_inliers"]),
-    )
 
 
 def ransac_plane(
@@ -196,8 +110,8 @@ def ransac_plane(
     _check_common(threshold, max_iterations, confidence)
     p = _points(points, 3, "ransac_plane")
     fn = _core.segmentation.ransac_plane_f64 if p.dtype == np.float64 else _core.segmentation.ransac_plane_f32
-    return _plane(fn(p, float(threshold), int(max_iterations), float(confidence), int(seed) & (2**64 - 1),
-                     int(num_threads), bool(refine)))
+    return fn(p, float(threshold), int(max_iterations), float(confidence), int(seed) & (2**64 - 1),
+              int(num_threads), bool(refine))
 
 
 def ransac_sphere(
@@ -225,20 +139,8 @@ def ransac_sphere(
         raise ValueError("need 0 <= min_radius < max_radius (metres)")
     p = _points(points, 4, "ransac_sphere")
     fn = _core.segmentation.ransac_sphere_f64 if p.dtype == np.float64 else _core.segmentation.ransac_sphere_f32
-    d = fn(p, float(threshold), int(max_iterations), float(confidence), int(seed) & (2**64 - 1), int(num_threads),
-           bool(refine), float(min_radius), float(max_radius))
-    return SphereResult(
-        center=np.asarray(d["center"], dtype=np.float64),
-        radius=float(d["radius"]),
-        inliers=d["inliers"],
-        status=d["status"],
-        iterations=int(d["iterations"]),
-        degenerate_samples=int(d["degenerate_samples"]),
-        refined=bool(d["refined"]),
-        hypothesis_center=np.asarray(d["hypothesis_center"], dtype=np.float64),
-        hypothesis_radius=float(d["hypothesis_radius"]),
-        hypothesis_inliers=int(d["hypothesis_inliers"]),
-    )
+    return fn(p, float(threshold), int(max_iterations), float(confidence), int(seed) & (2**64 - 1), int(num_threads),
+              bool(refine), float(min_radius), float(max_radius))
 
 
 def _vec3(v: Optional[Sequence[float]], name: str, allow_inf: bool = False) -> Optional[np.ndarray]:
@@ -324,10 +226,8 @@ def segment_table_full(points: np.ndarray, **kwargs) -> TableSegmentation:
         raise TypeError(f"unexpected keyword arguments: {sorted(kwargs)}")
     p = _points(points, 3, "segment_table")
     fn = _core.segmentation.segment_table_f64 if p.dtype == np.float64 else _core.segmentation.segment_table_f32
-    d = fn(p, float(threshold), int(max_iterations), float(confidence), seed, num_threads, True, crop_min, crop_max,
-           viewpoint, up, tol, min_size, max_size)
-    return TableSegmentation(plane=_plane(d["plane"]), objects=list(d["objects"]),
-                             cropped_points=int(d["cropped_points"]), above_points=int(d["above_points"]))
+    return fn(p, float(threshold), int(max_iterations), float(confidence), seed, num_threads, True, crop_min, crop_max,
+              viewpoint, up, tol, min_size, max_size)
 
 
 def plane_from_points(a: Sequence[float], b: Sequence[float], c: Sequence[float]) -> Optional[Tuple[np.ndarray, float]]:
