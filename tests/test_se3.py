@@ -51,7 +51,7 @@ def test_rigid_problem_names_each_failure():
     bad = T.copy()
     bad[0, 3] = np.inf
     assert "non-finite" in se3.rigid_problem(bad)
-    with pytest.raises(ValueError, match="T_base_camera: rotation part is a reflection"):
+    with pytest.raises(ValueError, match=r"T_base_camera: its rotation block is a reflection \(determinant -1\)"):
         se3.require_rigid(np.diag([1.0, 1.0, -1.0, 1.0]), "T_base_camera")
     with pytest.raises(ValueError, match="4x4"):
         se3.require_rigid(np.eye(3), "T")

@@ -236,6 +236,15 @@ void defineRegistration(py::module_& m) {
   defineIcp<double>(m, "Icp64");
   defineKdTree<float>(m, "KdTree32");
   defineKdTree<double>(m, "KdTree64");
+  m.attr("RIGID_TOLERANCE") = kRigidTolerance;
+  m.attr("RIGID_ROW_TOLERANCE") = kRigidRowTolerance;
+  m.def(
+      "rigid_problem",
+      [](const Eigen::Matrix4d& T) -> py::object {
+        const char* problem = rigidProblem(T);
+        return problem ? py::object(py::str(problem)) : py::object(py::none());
+      },
+      py::arg("T"), "Why a 4x4 matrix is not a rigid transform (common/rigid.hpp), or None when it is.");
   m.def(
       "fit_similarity",
       [](const py::array& source, const py::array& target, bool with_scale) {

@@ -45,7 +45,7 @@ TEST(Rigid, AcceptsRotationsThroughFloatAndRejectsEverythingElse) {
   EXPECT_STREQ(rigidProblem(bad), "its rotation block is a reflection (determinant -1)");
   bad = T;
   bad(3, 0) = 0.5;
-  EXPECT_STREQ(rigidProblem(bad), "its last (bottom) row is not 0 0 0 1");
+  EXPECT_STREQ(rigidProblem(bad), "its last row (the bottom row) is not 0 0 0 1");
   bad = T;
   bad(1, 3) = std::numeric_limits<double>::quiet_NaN();
   EXPECT_STREQ(rigidProblem(bad), "it has non-finite entries");

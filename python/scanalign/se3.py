@@ -2,8 +2,8 @@
 
 Building rotations and 4x4 transforms, inverting them, their rotation angles and pose
 errors, and the rigidity check that every function taking a transform applies. The check
-is the C++ core's (``scanalign/common/rigid.hpp``, ``requireRigid``) with the same
-tolerances, so a transform accepted here is accepted there. Transforms are 4x4 float64
+is the C++ core's (``scanalign/common/rigid.hpp``, ``rigidProblem``), called directly, so
+a transform accepted here is accepted there. Transforms are 4x4 float64
 arrays ``T_to_from`` mapping ``from``-frame coordinates (metres) into the ``to`` frame.
 """
 
@@ -14,15 +14,16 @@ from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
+from . import _core
 from ._arrays import as_transform
 
 __all__ = ["ROTATION_TOLERANCE", "ROW_TOLERANCE", "rotation_about", "rigid", "inverse", "rotation_angle",
            "pose_error", "rigid_problem", "require_rigid"]
 
-#: Largest |R^T R - I| entry accepted as a rotation (C++ ``kRigidTolerance``).
-ROTATION_TOLERANCE = 1e-5
-#: Largest |entry - target| accepted in the last row (0, 0, 0, 1) (C++ ``kRigidRowTolerance``).
-ROW_TOLERANCE = 1e-9
+#: Largest |R^T R - I| entry accepted as a rotation (C++ ``kRigidTolerance``: 1e-5).
+ROTATION_TOLERANCE: float = _core.registration.RIGID_TOLERANCE
+#: Largest |entry - target| accepted in the last row (0, 0, 0, 1) (C++ ``kRigidRowTolerance``: 1e-9).
+ROW_TOLERANCE: float = _core.registration.RIGID_ROW_TOLERANCE
 
 
 def rotation_about(axis: Sequence[float], angle: float) -> np.ndarray:
@@ -73,30 +74,9 @@ def pose_error(T_est: np.ndarray, T_ref: np.ndarray) -> Tuple[float, float]:
 
 def rigid_problem(m: np.ndarray) -> Optional[str]:
     """Why the 4x4 matrix ``m`` is not a rigid transform, or None when it is: finite, last
-    row (0, 0, 0, 1), rotation part orthonormal (ROTATION_TOLERANCE) with determinant +1.
-    Plain float arithmetic on the 16 entries: NumPy calls on a 3x3 cost more than an
-    inverse kinematics solve, which checks every pose it is given."""
-    r0, r1, r2, r3 = np.asarray(m, dtype=np.float64).tolist()
-    if not all(math.isfinite(v) for v in (*r0, *r1, *r2, *r3)):
-        return "non-finite entries"
-    if max(abs(r3[0]), abs(r3[1]), abs(r3[2]), abs(r3[3] - 1.0)) > ROW_TOLERANCE:
-        return f"last row (the bottom row) must be [0, 0, 0, 1], got {r3}"
-    cols = ((r0[0], r1[0], r2[0]), (r0[1], r1[1], r2[1]), (r0[2], r1[2], r2[2]))
-    err = 0.0
-    for i in range(3):
-        ci = cols[i]
-        for j in range(i, 3):
-            cj = cols[j]
-            g = ci[0] * cj[0] + ci[1] * cj[1] + ci[2] * cj[2] - (1.0 if i == j else 0.0)
-            err = max(err, abs(g))
-    if err > ROTATION_TOLERANCE:
-        return f"rotation part is not orthonormal (|R^T R - I| = {err:.3g} > {ROTATION_TOLERANCE:g})"
-    a, b, c = cols
-    det = (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-           + a[2] * (b[0] * c[1] - b[1] * c[0]))
-    if det <= 0:
-        return "rotation part is a reflection (det < 0)"
-    return None
+    row (0, 0, 0, 1) to ROW_TOLERANCE, rotation part orthonormal to ROTATION_TOLERANCE with
+    determinant +1. The check is the C++ core's (``rigidProblem``), called directly."""
+    return _core.registration.rigid_problem(np.asarray(m, dtype=np.float64))
 
 
 def require_rigid(T: object, name: str) -> np.ndarray:

@@ -30,7 +30,7 @@ inline constexpr double kRigidRowTolerance = 1e-9;
 inline const char* rigidProblem(const Eigen::Matrix4d& T) {
   if (!T.allFinite()) return "it has non-finite entries";
   if ((T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > kRigidRowTolerance)
-    return "its last (bottom) row is not 0 0 0 1";
+    return "its last row (the bottom row) is not 0 0 0 1";
   const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
   if ((R.transpose() * R - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > kRigidTolerance)
     return "its rotation block is not orthonormal (to 1e-5)";
