@@ -3,7 +3,8 @@
 For each real surface (CGAL demo meshes, scaled to 15 cm, 50 cm from the camera) a
 target of --target-points points with normals and a noisy source of --source-points
 points displaced by a known motion are registered by every method with the same
-criteria (seed 000 §3.3: 50 iterations, epsilons 1e-8, 2 cm max distance). Times are
+criteria (the eye-in-hand paper, (Comput. Electron. Agric. 180 (2021) 105929), §3.3: 50 iterations, epsilons 1e-8, 2 cm max
+distance). Times are
 medians over --repeats runs and include each method's k-d tree build. Ratios are PCL
 time / scanalign time from this same run (this machine is noisy; do not compare
 numbers across runs).
@@ -30,7 +31,7 @@ from helpers import apply, pose_error, rigid  # noqa: E402
 from scanalign import datasets, registration  # noqa: E402
 
 # Motions of the camera between the two clouds (T_target_source). "frame-to-frame" is an
-# eye-in-hand step at the seed's capture rate (10 Hz, arm at <= 0.1 m/s): about 1 cm;
+# eye-in-hand step at the eye-in-hand paper's capture rate (10 Hz, arm at <= 0.1 m/s): about 1 cm;
 # "large" is a 5 degree, 8.8 mm step (a 4.4 cm shift at the object, 50 cm away), where
 # many source points start farther than the 2 cm correspondence distance.
 MOTIONS = {

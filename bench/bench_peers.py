@@ -40,7 +40,7 @@ iterations column shows coarse + full).
 loop     The whole demo loop, raw depth + colour in -> model merged, 640x480, 36 frames:
          scanalign's ``Reconstructor`` with the demo settings (``scanalign demo``: each
          frame's ICP starts from the constant-velocity prediction, the last inter-frame
-         motion applied again); the same with the seed's initial guess (the previous
+         motion applied again); the same with eye-in-hand paper's initial guess (Comput. Electron. Agric. 180 (2021) 105929) (the previous
          pose); the same loop built from Open3D parts and scanalign's loop with PCL's ICP,
          both from the same constant-velocity prediction. Per-frame wall time of the whole
          step (median over registered frames, also as Hz), the prepare / register /
@@ -68,7 +68,7 @@ How each peer's settings map to ours
 ------------------------------------
 All methods get the same arrays (float32 values; float64 copies of those values where a
 peer takes only doubles), the same target normals, the same initial pose and the same
-max correspondence distance. ICP semantics (PCL's, seed 000 §3.3): scanalign stops at 50
+max correspondence distance. ICP semantics (PCL's, eye-in-hand paper §3.3): scanalign stops at 50
 iterations or when the last increment moves < 1e-4 m (squared translation <= 1e-8) and
 turns < 1.41e-4 rad (cos >= 1 - 1e-8), or when the correspondence MSE changes by a
 relative 1e-8.
@@ -734,7 +734,7 @@ def section_loop(args, threads: int, peers) -> Dict[str, Any]:
     settings = {
         "scanalign": "Reconstructor, demo settings (crop, bilateral filter, 1 mm grid, 10 mm normals, ICP 0.02 m "
                      "from the constant-velocity prediction, 50 it / 1e-8 / 1e-8, fitness >= 0.3, converged)",
-        "seed": "as scanalign, ICP from the previous pose (the seed's initial guess, motion_model='previous')",
+        "seed": "as scanalign, ICP from the previous pose (the eye-in-hand paper's initial guess, motion_model='previous')",
         "Open3D": "scanalign's bilateral filter -> RGBDImage.create_from_color_and_depth -> "
                   "PointCloud.create_from_rgbd_image -> crop -> voxel_down_sample(0.001) -> "
                   "estimate_normals(KDTreeSearchParamRadius(0.01)) oriented to the camera -> registration_icp "

@@ -1,6 +1,7 @@
-"""Seed 000 Figures 5, 6, 7 and 9 on the synthetic eye-in-hand dataset.
+"""Figures 5, 6, 7 and 9 of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)
+on the synthetic eye-in-hand dataset.
 
-A camera circles the object on the table (one full loop, seed Fig. 4) and the frames are
+A camera circles the object on the table (one full loop, eye-in-hand paper Fig. 4) and the frames are
 reconstructed frame-to-model by each registration method, in this one run:
 
 - Fig. 5: total registration time vs number of images per loop (4, 8, 17, 34, 69);
@@ -8,15 +9,15 @@ reconstructed frame-to-model by each registration method, in this one run:
 - Fig. 7: ATE vs number of images;
 - Fig. 9: ATE vs iteration cap.
 
-Methods: scanalign's engine with Low's point-to-plane LLS (the seed's method) and with the
+Methods: scanalign's engine with Low's point-to-plane LLS (the eye-in-hand paper's method) and with the
 closed-form point-to-point estimator, and stock PCL 1.13 ICP with SVD, dual quaternion
 and point-to-plane LLS (IterativeClosestPointWithNormals). Every method gets the same
 prepared frames (1 mm voxels, 5 mm normals), the same model updates (1 mm grid) and the
 same criteria, with the demo's settings (a 20 x 20 cm workspace crop, 10 mm normals, the
-bilateral depth filter); as in the seed, every registration is merged (no rejection), so
+bilateral depth filter); as in the eye-in-hand paper, every registration is merged (no rejection), so
 the curves show each estimator's own behaviour. Times are the registration only (tree
 build + ICP), summed over the frames; normals and merging are the same for everyone and
-excluded, as in the seed. Ratios are PCL / scanalign from this same run.
+excluded, as in the eye-in-hand paper. Ratios are PCL / scanalign from this same run.
 
     python bench/bench_reconstruction.py [--scale 0.5] [--quick] [--out bench-out] [--json r.json]
 

@@ -222,7 +222,7 @@ def test_point_pair_extraction_against_clifford(rng):
         Qc = cl_up(a) ^ cl_up(b)
         assert_mv(Q, Qc, 1e-12)
         q2 = float((Qc * Qc)[()])
-        assert q2 == pytest.approx((0.5 * np.sum((a - b) ** 2)) ** 2)       # claim 5
+        assert q2 == pytest.approx((0.5 * np.sum((a - b) ** 2)) ** 2)       # thesis (4.62)-(4.63)
         # (4.63) evaluated in clifford
         denom = -(C_EINF | Qc)
         Pm, Pp = (Qc - np.sqrt(q2)) * denom.inv(), (Qc + np.sqrt(q2)) * denom.inv()
@@ -267,7 +267,7 @@ def test_meets_against_clifford(rng):
         np.testing.assert_allclose(cga.flat_point_location(from_cl(Fc)), a + t * (b - a), atol=1e-8)
         np.testing.assert_allclose(cga.Line.from_direct(from_cl(Lc)).direction, (b - a) / np.linalg.norm(b - a),
                                    atol=1e-9)
-    # no intersection: plane far from the circle gives an imaginary pair (claim 6)
+    # no intersection: plane far from the circle gives an imaginary pair (thesis (4.70)-(4.73), Paper 1 §3.4)
     s = cga.Sphere([0, 0, 0], 1.0)
     Q = cga.meet_plane_circle(cga.Plane([1, 0, 0], 1.5), cga.meet_sphere_plane(s, cga.Plane([0, 0, 1], 0))).undual()
     assert cga.point_pair_reality(Q) == cga.Reality.imaginary
@@ -290,7 +290,7 @@ def test_motor_against_clifford_and_matrix(rng):
         M = cga.Motor.from_matrix(T)
         np.testing.assert_allclose(M.matrix(), T, atol=1e-12)
         np.testing.assert_allclose(cga.Motor.from_quaternion(q, t).matrix(), T, atol=1e-12)
-        # clifford motor: T = 1 - 1/2 t einf, R = w - (x e23 + y e31 + z e12)  (spec §1.9)
+        # clifford motor: T = 1 - 1/2 t einf, R = w - (x e23 + y e31 + z e12)  (Paper 4 §3.5)
         tv = t[0] * B["e1"] + t[1] * B["e2"] + t[2] * B["e3"]
         Rc = q[0] - (q[1] * B["e23"] - q[2] * B["e13"] + q[3] * B["e12"])
         Mc = (1 - 0.5 * tv * C_EINF) * Rc
@@ -368,7 +368,7 @@ def _orthonormal_in_plane(n):
     return (u, v, -u)
 
 
-# --- spec §1.8: signed angle (17), rotation planes (20), (21); claim 9 ----------------------
+# --- Paper 1 §3.7: signed angle (17), rotation planes (20), (21) -------------------------------
 
 
 def _cl_vec(x):
@@ -392,7 +392,7 @@ def test_signed_angle_claim9_numpy_and_clifford():
         # (a^b) N^{-1} and a.b from clifford, then (17)
         s_cl = float(((_cl_vec(a) ^ _cl_vec(b)) * Nc.inv())[()])
         c_cl = float((_cl_vec(a) | _cl_vec(b))[()])
-        truth = np.arctan2(np.cross(a, b) @ n, a @ b)  # numpy oracle (claim 9)
+        truth = np.arctan2(np.cross(a, b) @ n, a @ b)  # numpy oracle (Paper 1 eq. (17))
         th = cga.signed_angle(a, b, N)
         assert th == pytest.approx(truth, abs=1e-10)
         assert np.arctan2(s_cl, c_cl) == pytest.approx(truth, abs=1e-10)
@@ -438,7 +438,7 @@ def test_rotation_planes_line_and_plane_vs_clifford():
         np.testing.assert_allclose(cga.rotation_axis(cga.rotation_plane_parallel_to_plane(pl)), -normal, atol=1e-9)
 
 
-# --- typed PointPair / FlatPoint (spec §1.3-1.5, claim 5) -----------------------------------
+# --- typed PointPair / FlatPoint (thesis (4.62)-(4.63), (4.69)) -----------------------------------
 
 
 def test_point_pair_claim5_vs_clifford():

@@ -88,7 +88,7 @@ def test_voxel_grid_min_points_and_nan():
     assert voxel_grid(np.full((3, 3), np.nan), 0.001).points.shape == (0, 3)
 
 
-# --- shape factors (thesis (6.1)-(6.3), spec §7.2, claim 15) -------------------------------
+# --- shape factors (Kleppe, PhD thesis, NTNU 2018, (6.1)-(6.3)) -------------------------------
 
 
 def test_shape_factors_sum_and_ideal_shapes():

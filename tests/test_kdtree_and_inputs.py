@@ -156,5 +156,5 @@ def test_settings_object_and_overrides():
     s2 = reg.make_settings(s, max_correspondence_distance=0.01)
     assert s2.max_iterations == 7 and s2.max_correspondence_distance == 0.01 and s2.box is not None
     d = reg.IcpSettings()
-    assert (d.max_iterations, d.transformation_epsilon, d.fitness_epsilon) == (50, 1e-8, 1e-8)  # seed §3.3
-    assert d.search_stack_depth == 20  # seed §3.1
+    assert (d.max_iterations, d.transformation_epsilon, d.fitness_epsilon) == (50, 1e-8, 1e-8)  # eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), §3.3
+    assert d.search_stack_depth == 20  # eye-in-hand paper §3.1

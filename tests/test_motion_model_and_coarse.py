@@ -49,7 +49,7 @@ def test_predicted_pose_is_the_last_motion_applied_again(demo_frames):
         r = rec.integrate(f)
         assert r.merged
         poses.append(r.T_model_camera)
-    # The seed's model predicts no motion.
+    # The eye-in-hand paper's model (Comput. Electron. Agric. 180 (2021) 105929) predicts no motion.
     seed = Reconstructor(T_model_camera0=demo_frames[0].T_base_camera, crop_box=CROP)
     assert seed.settings.motion_model == "previous"
     for f in demo_frames[:2]:

@@ -212,7 +212,7 @@ def test_frames_that_cannot_register_are_skipped_with_a_status(loop36):
     assert (r1.status, r2.status) == ("skipped_too_few_correspondences", "skipped_not_converged")
     assert r2.iterations == 2 and not r2.converged and r2.icp_status == "max_iterations"
     np.testing.assert_array_equal(rec.model.points, before.points)
-    # The same frame is accepted when a fixed iteration budget is allowed (seed Figs. 6/9).
+    # The same frame is accepted when a fixed iteration budget is allowed (eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), Figs. 6/9).
     rec2 = Reconstructor(T_model_camera0=loop36[0].T_base_camera, icp=dict(max_iterations=2),
                          require_convergence=False)
     rec2.integrate(loop36[0])
@@ -247,7 +247,7 @@ def test_wrong_frames_raise_clear_errors():
 def test_settings_overrides_and_crop_box():
     s = make_reconstruction_settings(icp=dict(max_iterations=7), min_fitness=0.5, crop_box=(-0.1, 0.1, -0.1, 0.1, 0, 1))
     assert s.icp.max_iterations == 7 and s.min_fitness == 0.5 and s.crop_box.as_tuple() == (-0.1, 0.1, -0.1, 0.1, 0, 1)
-    assert s.normal_radius == 0.005 and s.model_voxel_size == 0.001  # the seed's defaults
+    assert s.normal_radius == 0.005 and s.model_voxel_size == 0.001  # the eye-in-hand paper's defaults
     # The crop box (camera frame) bounds what is merged.
     f = frames(1)[0]
     rec = Reconstructor(s)

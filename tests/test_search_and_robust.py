@@ -1,5 +1,5 @@
-"""The ICP engine's bucket k-d tree (against scipy's cKDTree and the seed's left-balanced
-tree) and the robust kernels (against outliers with a known motion)."""
+"""The ICP engine's bucket k-d tree (against scipy's cKDTree and the left-balanced tree of
+the eye-in-hand paper, Comput. Electron. Agric. 180 (2021) 105929) and the robust kernels (against outliers with a known motion)."""
 
 from __future__ import annotations
 

@@ -55,7 +55,7 @@ def table_scene(seed=0, noise=0.002):
 
 
 def test_plane_from_three_points_is_the_cga_dual_and_the_euclidean_plane():
-    # spec §1.3 verified example: dual of up(0,0,1)^up(1,0,1)^up(0,1,1)^e_inf = -(e3 + e_inf)
+    # with the dual of Kleppe's thesis (4.50): dual of up(0,0,1)^up(1,0,1)^up(0,1,1)^e_inf = -(e3 + e_inf)
     from scanalign import _core
 
     up = lambda p: np.r_[p, 0.5 * np.dot(p, p), 1.0]  # noqa: E731  (4.55)
@@ -99,7 +99,7 @@ def test_plane_on_table_scene_inliers_are_the_threshold_set():
     dist = np.abs(pts @ r.normal - r.distance)
     np.testing.assert_array_equal(r.inliers, np.flatnonzero(dist < thr))
     # ... which here (noise +-2 mm, objects from 2 cm up) are exactly the points within
-    # the threshold of the true plane: the table (spec §10 claim 29).
+    # the threshold of the true plane: the table (Kleppe, PhD thesis, NTNU 2018, (5.35)-(5.36); Paper 3 §3.1).
     np.testing.assert_array_equal(r.inliers, np.flatnonzero(np.abs(pts @ n_true - d_true) < thr))
     np.testing.assert_array_equal(r.inliers, np.flatnonzero(labels == 0))
     # the refit is the PCA plane of the inliers (independent numpy PCA)
@@ -186,7 +186,7 @@ def test_segment_table_separates_the_objects():
         assert len(set(labels[o])) == 1
     assert found == [1, 2]
     # every object point, nothing else: removing the inliers and the points below the
-    # table leaves only object points (spec §10 claim 29)
+    # table leaves only object points (Kleppe, PhD thesis, NTNU 2018, (5.35)-(5.36); Paper 3 §3.1)
     np.testing.assert_array_equal(np.sort(np.concatenate(objects)), np.flatnonzero((labels == 1) | (labels == 2)))
     # float32 input: the same objects
     plane32, objects32 = seg.segment_table(pts.astype(np.float32), threshold=0.005, cluster_tolerance=0.01,

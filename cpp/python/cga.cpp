@@ -1,4 +1,4 @@
-// Bindings of the CGA core G(4,1) (scanalign/cga/*.hpp, thesis spec §1). The documented API
+// Bindings of the CGA core G(4,1) (scanalign/cga/*.hpp; Kleppe, PhD thesis, NTNU 2018, ch. 4). The documented API
 // is python/scanalign/cga.py.
 #include <sstream>
 
@@ -223,7 +223,7 @@ the direct plane PA^PB^PC^einf (4.64), whose orientation follows the dual conven
       .def("__repr__", [](const cga::Line& l) {
         return "Line(point=" + fmt(l.point) + ", direction=" + fmt(l.direction) + ")";
       });
-  py::class_<cga::Motor>(m, "Motor", R"(Rigid motion M = T R (spec §1.9): T = 1 - 1/2 t einf, R = w - (x e23 + y e31 + z e12)
+  py::class_<cga::Motor>(m, "Motor", R"(Rigid motion M = T R (thesis Paper 4 §3.5): T = 1 - 1/2 t einf, R = w - (x e23 + y e31 + z e12)
 for the unit quaternion (w, x, y, z). Acts by X -> M X ~M; on a point it gives R x + t
 (metres), so from_matrix(T_a_b) maps frame-b coordinates into frame a. a * b applies b
 first. interpolate(a, b, s) slerps the rotation and lerps the translation (not a screw
@@ -278,7 +278,7 @@ motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
   py::class_<cga::PointPair>(m, "PointPair", R"(Point pair, held as the direct 2-blade Q = PA^PB (4.62).
 
 Build with from_points(a, b) (metres), from_direct(Q) or from_dual(Q*) (a meet result such as
-meet_plane_circle). reality() is the sign of Q^2 (spec §1.4); points() gives (P-, P+) of (4.63),
+meet_plane_circle). reality() is the sign of Q^2 (thesis (4.70)-(4.73)); points() gives (P-, P+) of (4.63),
 i.e. (a, b) for from_points(a, b), and raises ValueError for an imaginary pair.)")
       .def_static("from_points", &cga::PointPair::fromPoints, py::arg("a"), py::arg("b"))
       .def_static("from_direct", &cga::PointPair::fromDirect, py::arg("Q"))

@@ -169,7 +169,7 @@ std::string describe(const IcpResult& r) {
 }  // namespace
 
 void defineRegistration(py::module_& m) {
-  py::class_<Box>(m, "Box", "Axis-aligned box in the source camera frame (metres), seed 000 §3.4.")
+  py::class_<Box>(m, "Box", "Axis-aligned box in the source camera frame (metres), eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929) §3.4.")
       .def(py::init<double, double, double, double, double, double>(), py::arg("x_min"), py::arg("x_max"),
            py::arg("y_min"), py::arg("y_max"), py::arg("z_min"), py::arg("z_max"))
       .def_property_readonly("min", [](const Box& b) { return Eigen::Vector3d(b.min); })

@@ -1,4 +1,5 @@
-// CGA core G(4,1) (thesis spec §1, claims 1-5, 7, 10): algebra identities and typed
+// CGA core G(4,1) (Kleppe, PhD thesis, NTNU 2018, ch. 4: (4.45), (4.49), (4.56), (4.59)-(4.67), (4.62)-(4.63), (4.73);
+// Paper 5 eqs. (10), (33)-(35)): algebra identities and typed
 // objects against analytic truth.
 #include <random>
 
@@ -74,7 +75,7 @@ TEST(CgaObjects, UpDownAndPointDistance) {
   for (int k = 0; k < 20; ++k) {
     const Vector3 a = randomVec(g, 2), b = randomVec(g, 2);
     const Multivector A = up(a), B = up(b);
-    EXPECT_NEAR((A * A).maxAbs(), 0.0, 1e-12);                                      // null (claim 1)
+    EXPECT_NEAR((A * A).maxAbs(), 0.0, 1e-12);                                      // null (thesis (4.45), (4.49), (4.56))
     EXPECT_LT((down(A * 3.7) - a).norm(), 1e-14);
     EXPECT_NEAR(A.inner(B).scalar(), -0.5 * (a - b).squaredNorm(), 1e-12);         // (4.56)
     EXPECT_NEAR(pointDistance(a, b), (a - b).norm(), 1e-12);
@@ -100,12 +101,12 @@ TEST(CgaObjects, SpheresAndPlanes) {
     EXPECT_LT((f.center - c).norm(), 1e-9);
     EXPECT_NEAR(f.radius(), r, 1e-9);
     const Vector3 x = randomVec(g, 3);
-    EXPECT_NEAR(spherePointInner(s, x), 0.5 * (r * r - (x - c).squaredNorm()), 1e-12);   // claim 2
+    EXPECT_NEAR(spherePointInner(s, x), 0.5 * (r * r - (x - c).squaredNorm()), 1e-12);   // thesis (4.59)-(4.61), Paper 5 eq. (10)
     EXPECT_NEAR(pointSphereDistance(x, s), (x - c).norm() - r, 1e-9);                    // P5(10)
     const Plane pl(randomVec(g), 0.4);
     EXPECT_NEAR(pointPlaneDistance(x, pl), pl.normal.dot(x) - pl.distance, 1e-12);      // (4.67)
   }
-  // spec §1.3: the plane through (0,0,1),(1,0,1),(0,1,1) is -(e3 + einf) in this convention.
+  // with the dual (4.50), the plane through (0,0,1),(1,0,1),(0,1,1) is -(e3 + einf) in this convention.
   const Plane q = Plane::throughPoints({0, 0, 1}, {1, 0, 1}, {0, 1, 1});
   EXPECT_LT((q.normal - Vector3(0, 0, -1)).norm(), 1e-12);
   EXPECT_NEAR(q.distance, -1.0, 1e-12);
@@ -119,7 +120,7 @@ TEST(CgaObjects, PointPairExtractionAndReality) {
   for (int k = 0; k < 20; ++k) {
     const Vector3 a = randomVec(g), b = randomVec(g);
     const Multivector Q = pointPair(a, b);
-    EXPECT_NEAR((Q * Q).scalar(), std::pow(0.5 * (a - b).squaredNorm(), 2), 1e-10);   // claim 5
+    EXPECT_NEAR((Q * Q).scalar(), std::pow(0.5 * (a - b).squaredNorm(), 2), 1e-10);   // thesis (4.62)-(4.63)
     const auto [pm, pp] = pointPairPoints(Q);
     EXPECT_LT((pm - a).norm(), 1e-9);
     EXPECT_LT((pp - b).norm(), 1e-9);
@@ -129,7 +130,7 @@ TEST(CgaObjects, PointPairExtractionAndReality) {
     const double sr2 = Sphere::throughPoints(a, b, c, d).radius2;   // sphere as a round
     EXPECT_NEAR(roundRadius2(up(a).outer(up(b)).outer(up(c)).outer(up(d))), sr2, 1e-8 * std::max(1.0, sr2));
   }
-  // sphere meet plane meet plane (claim 6): unit sphere, plane z = 0, plane x = h.
+  // sphere meet plane meet plane (thesis (4.70)-(4.73), Paper 1 §3.4): unit sphere, plane z = 0, plane x = h.
   const Sphere s(Vector3::Zero(), 1.0);
   const Plane z(Vector3::UnitZ(), 0.0);
   for (double h : {0.6, 1.0, 1.4}) {
@@ -165,7 +166,7 @@ TEST(CgaObjects, LinesCirclesMeets) {
     EXPECT_LT((f.direction - (b - a).normalized()).norm(), 1e-9);
     EXPECT_LT((f.point - l.point).norm(), 1e-9);
     EXPECT_LT((Line::fromDual(l.dual()).point - l.point).norm(), 1e-9);
-    // line meet plane (4.73): flat point at the Euclidean intersection (claim 7)
+    // line meet plane (4.73): flat point at the Euclidean intersection (thesis (4.73))
     const Plane p(randomVec(g), 0.2);
     const double t = (p.distance - p.normal.dot(a)) / p.normal.dot(b - a);
     EXPECT_LT((flatPointLocation(meetLinePlane(l, p)) - (a + t * (b - a))).norm(), 1e-8);
@@ -191,7 +192,7 @@ TEST(CgaMotor, AppliesRigidTransform) {
     const Eigen::Quaterniond q(Eigen::AngleAxisd(3.0 * (k + 1) / 21, randomVec(g).normalized()));
     const Vector3 t = randomVec(g);
     const Motor M = Motor::fromQuaternion(q, t);
-    expectMvNear(M.multivector() * M.multivector().reverse(), Multivector(1.0), 1e-12);   // claim 10
+    expectMvNear(M.multivector() * M.multivector().reverse(), Multivector(1.0), 1e-12);   // M ~M = 1, Paper 5 eq. (35)
     const Eigen::Matrix3d R = q.toRotationMatrix();
     const Vector3 x = randomVec(g, 2);
     EXPECT_LT((M.apply(x) - (R * x + t)).norm(), 1e-12);
@@ -234,11 +235,11 @@ TEST(CgaObjects, DirectionFormulasAndHorizon) {
     // P1 (19): -(Pi*^einf).e0 = n for Pi* = n + delta einf.
     const Plane p(randomVec(g), 0.7);
     expectMvNear(-(p.dual().outer(ei)).inner(e0), Multivector::vector(p.normal), 1e-12);
-    // claim 2: S*.up(x) > 0 inside, < 0 outside
+    // thesis (4.59)-(4.61), Paper 5 eq. (10): S*.up(x) > 0 inside, < 0 outside
     const Sphere s(a, 0.5);
     EXPECT_GT(spherePointInner(s, a + Vector3(0.3, 0, 0)), 0);
     EXPECT_LT(spherePointInner(s, a + Vector3(0.6, 0, 0)), 0);
-    // Horizon (spec §1.7, claim 8): S* = P1 - 1/2 d^2 einf, K* = P2 + (P2.S*) einf.
+    // Horizon (Paper 1 §3.6, with the sign of K* corrected): S* = P1 - 1/2 d^2 einf, K* = P2 + (P2.S*) einf.
     const Vector3 p1 = a, p2 = a + 2.0 * randomVec(g).normalized();
     const double d = 0.8;
     const Multivector S = up(p1) - ei * (0.5 * d * d);
@@ -257,7 +258,7 @@ TEST(CgaObjects, DirectionFormulasAndHorizon) {
 }
 
 // ---------------------------------------------------------------------------
-// Spec §1.8: signed angle (17), rotation planes (20), (21); claim 9
+// Paper 1 §3.7: signed angle (17), rotation planes (20), (21)
 // ---------------------------------------------------------------------------
 
 TEST(CgaAngle, SignedAngleMatchesCrossProductOracle) {
@@ -272,9 +273,9 @@ TEST(CgaAngle, SignedAngleMatchesCrossProductOracle) {
     EXPECT_NEAR(rotationAxis(N).dot(n), 1.0, 1e-12);          // N* = N I3^{-1} = n
     const double truth = std::atan2(a.cross(b).dot(n), a.dot(b));  // independent oracle
     EXPECT_NEAR(signedAngle(a, b, N), truth, 1e-10);
-    EXPECT_NEAR(signedAngle(a, b, N * 3.5), truth, 1e-10);     // N normalised (spec §1.8)
+    EXPECT_NEAR(signedAngle(a, b, N * 3.5), truth, 1e-10);     // N normalised (Paper 1 §3.7)
     EXPECT_NEAR(signedAngle(a, b, -N), -truth, 1e-10);          // opposite plane orientation
-    // rotating a by theta about n (rotor, spec §1.9) lands on b's direction
+    // rotating a by theta about n (rotor, Paper 4 §3.5) lands on b's direction
     const Motor M = Motor::fromQuaternion(Eigen::Quaterniond(Eigen::AngleAxisd(truth, n)), Vector3::Zero());
     EXPECT_LE((M.apply(a).normalized() - b.normalized()).norm(), 1e-9);
   }
@@ -292,7 +293,7 @@ TEST(CgaAngle, RotationPlanesOfLinesAndPlanes) {
   std::mt19937 g(92);
   for (int i = 0; i < 50; ++i) {
     const Vector3 a = randomVec(g, 3.0), b = randomVec(g, 3.0);
-    // (20) with L = up(a)^up(b)^einf: N* = (b - a)/|b - a| (spec §1.8 VERIFIED)
+    // (20) with L = up(a)^up(b)^einf: N* = (b - a)/|b - a| (Paper 1 §3.7)
     const Multivector L = up(a).outer(up(b)).outer(Multivector::eInf());
     const Multivector N = rotationPlanePerpendicularToLine(L.dual());
     EXPECT_NEAR(N.scalarProduct(N.reverse()), 1.0, 1e-12);
@@ -312,7 +313,7 @@ TEST(CgaAngle, RotationPlanesOfLinesAndPlanes) {
 }
 
 // ---------------------------------------------------------------------------
-// Typed PointPair / FlatPoint (spec §1.3-1.5, claim 5)
+// Typed PointPair / FlatPoint (thesis (4.62)-(4.63), (4.69))
 // ---------------------------------------------------------------------------
 
 TEST(CgaPointPair, RealPairSquareAndPoints) {
@@ -321,7 +322,7 @@ TEST(CgaPointPair, RealPairSquareAndPoints) {
     const Vector3 a = randomVec(g, 2.0), b = randomVec(g, 2.0);
     const PointPair Q = PointPair::fromPoints(a, b);
     const double h = 0.5 * (a - b).squaredNorm();
-    EXPECT_NEAR(Q.square(), h * h, 1e-10 * std::max(1.0, h * h));  // claim 5
+    EXPECT_NEAR(Q.square(), h * h, 1e-10 * std::max(1.0, h * h));  // thesis (4.62)-(4.63)
     EXPECT_EQ(Q.reality(), Reality::Real);
     const auto [pm, pp] = Q.points();
     EXPECT_LE((pm - a).norm(), 1e-9);   // "-" -> A

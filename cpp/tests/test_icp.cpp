@@ -187,7 +187,8 @@ TEST(IcpEngine, CoarseToFineReachesTheAnswerWithFewerFullIterations) {
   EXPECT_EQ(r.source_points_used, src.size() / 3);
   EXPECT_DOUBLE_EQ(r.fitness, 1.0);
   EXPECT_FALSE(r.degenerate);
-  // A stride leaving fewer than 500 points skips the coarse phase: the seed's run exactly.
+  // A stride leaving fewer than 500 points skips the coarse phase: the run of the eye-in-hand paper
+  // (Comput. Electron. Agric. 180 (2021) 105929) exactly.
   icp.settings().coarse_stride = 100;
   const auto skipped = icp.align(view(src));
   EXPECT_EQ(skipped.coarse_iterations, 0);

@@ -1,4 +1,5 @@
-// Robot kinematics and CGA inverse kinematics (thesis Paper 1; spec §4, claims 22-28).
+// Robot kinematics and CGA inverse kinematics (Kleppe, PhD thesis, NTNU 2018,
+// Paper 1 §3-5, thesis Tables 1-2).
 // Truth: analytic poses of the thesis, FK round trips, and the general G(4,1) multivector
 // core (scanalign/cga), which computes each point pair as Q = (A* ^ B* ^ C*)* and its
 // points (Q ± sqrt(Q²)) / (−e∞·Q) independently of the solver's closed forms.
@@ -39,7 +40,7 @@ double angleDistance(const Vector6d& a, const Vector6d& b) {
 
 /// The two points of the point pair (A ^ B ^ C)* of three dual vectors (5-vectors on
 /// e1, e2, e3, e∞, e0), with the general multivector algebra: P± = (Q ± sqrt(Q²)) / (−e∞·Q)
-/// (spec §1.5). Returns Q².
+/// (thesis (4.63)). Returns Q².
 double multivectorPointPair(const cga::Vector5& A, const cga::Vector5& B, const cga::Vector5& C, Eigen::Vector3d& p,
                             Eigen::Vector3d& m) {
   const cga::Multivector T = cga::fromVector5(A).outer(cga::fromVector5(B)).outer(cga::fromVector5(C));
@@ -66,7 +67,7 @@ TEST(Kinematics, Claim22AgilusHomePose) {
   const Eigen::Isometry3d T = r.forward(q);
   EXPECT_NEAR((T.translation() - Eigen::Vector3d(0.525, 0, 0.890)).norm(), 0, 1e-12);
   Eigen::Matrix3d R;
-  R << 0, 0, 1, 0, -1, 0, 1, 0, 0;  // spec §4.1: a_e = +e1
+  R << 0, 0, 1, 0, -1, 0, 1, 0, 0;  // thesis Table 1 home pose: a_e = +e1
   EXPECT_LE((T.linear() - R).cwiseAbs().maxCoeff(), 1e-12);
 }
 
@@ -132,7 +133,7 @@ TEST_P(IKRoundTrip, EverySolutionReachesThePoseAndTheGeneratorIsFound) {
     ++hist[res.count()];
   }
   for (int c = 1; c <= 7; c += 2) EXPECT_EQ(hist[c], 0) << "odd solution count " << c;
-  // spec claim 24: typically 8 distinct solutions (Agilus 899/1000; UR5 779/1000)
+  // Paper 1 §4-5: typically 8 distinct solutions (Agilus 899/1000; UR5 779/1000)
   // (UR3 / UR3e: about 68% here; their offsets are large relative to the links)
   EXPECT_GE(hist[8], (r.geometry() == ArmGeometry::SphericalWrist ? 0.85 : 0.60) * N);
 }
@@ -162,7 +163,7 @@ TEST(IK, BaseAndToolTransforms) {
 
 TEST(IK, CgaMultivectorOracleAgilus) {
   // P1, P2 and P_wx of every configuration are points of the point pairs that the general
-  // algebra computes from the thesis's spheres and planes (spec §4.3 with its corrections).
+  // algebra computes from the thesis's spheres and planes (Paper 1 §4 with the corrections noted in ik.cpp).
   const Robot r = Robot::kukaKR6R900sixx();
   std::mt19937 g(5);
   const double d1 = 0.4, a1 = 0.025, a2 = 0.455, a3 = 0.035, d4 = 0.42;

@@ -73,7 +73,7 @@ TEST(Cga5, PointInnerProductIsHalfSquaredDistance) {  // (4.56)
   EXPECT_DOUBLE_EQ(cga5::inner(cga5::eInf(), [] { cga5::Vec5 e0 = cga5::Vec5::Zero(); e0[4] = 1; return e0; }()), -1.0);
 }
 
-TEST(Cga5, DualPlaneMatchesVerifiedExample) {  // spec §1.3: -(e3 + e_inf)
+TEST(Cga5, DualPlaneMatchesVerifiedExample) {  // with the dual (4.50): -(e3 + e_inf)
   const cga5::Vec5 v = cga5::dualOfOuter4(cga5::up(V3(0, 0, 1)), cga5::up(V3(1, 0, 1)), cga5::up(V3(0, 1, 1)), cga5::eInf());
   cga5::Vec5 expect;
   expect << 0, 0, -1, -1, 0;
@@ -121,7 +121,7 @@ TEST(Models, SphereFromFourPoints) {  // (4.58)-(4.61)
   EXPECT_FALSE(sphereFromPoints(V3(0, 0, 1), V3(1, 0, 1), V3(0, 1, 1), V3(1, 1, 1), m));
 }
 
-TEST(Models, SphereLeastSquaresExactAndNoisy) {  // (5.31), spec §10 claims 11-12
+TEST(Models, SphereLeastSquaresExactAndNoisy) {  // Kleppe thesis (5.26)-(5.34)
   std::mt19937 rng(5);
   const V3 c(0.1, -0.2, 0.8);
   const double r = 0.07;

@@ -18,7 +18,7 @@ using scanalign::test::rigid;
 
 namespace {
 
-// Half the seed's SR300 resolution: about 1.4 mm per pixel at 0.4 m. (Much sparser
+// Half the SR300 resolution of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929): about 1.4 mm per pixel at 0.4 m. (Much sparser
 // images -- 3 mm pixels -- leave too few points on the small spheres for 5 mm normals.)
 PinholeIntrinsics smallCamera() { return PinholeIntrinsics{320, 240, 240.0, 242.0, 159.5, 119.5}; }
 

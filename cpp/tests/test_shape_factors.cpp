@@ -1,4 +1,4 @@
-// Shape factors (thesis (6.1)-(6.3), spec §7.2, claim 15) against analytic truth and PCA of
+// Shape factors (Kleppe, PhD thesis, NTNU 2018, (6.1)-(6.3)) against analytic truth and PCA of
 // sampled line / plane / ball point sets.
 #include <random>
 

@@ -1,4 +1,4 @@
-// CGA sphere fit (spec §2.2/§2.3, claims 11–14) and Pratt's circle fit (§2.1), checked
+// CGA sphere fit (Kleppe, PhD thesis, NTNU 2018, (5.26)-(5.34), (6.5)-(6.11)) and Pratt's circle fit ((5.1)-(5.25)), checked
 // against analytic spheres, planes and circles.
 #include <gtest/gtest.h>
 
@@ -40,7 +40,7 @@ CloudView<double> view(const std::vector<double>& v) { return CloudView<double>(
 
 }  // namespace
 
-TEST(SphereFit, ExactPointsOnRandomSpheres) {  // claim 11
+TEST(SphereFit, ExactPointsOnRandomSpheres) {  // thesis (5.31)
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> u(-5, 5), ur(0.01, 3);
   for (int trial = 0; trial < 50; ++trial) {
@@ -69,7 +69,7 @@ TEST(SphereFit, FloatInput) {
   EXPECT_NEAR(fit.radius, 0.05, 1e-6);
 }
 
-TEST(SphereFit, ObjectiveIsEigenvalueAndOneNegativeEigenvalue) {  // claims 11 and 14
+TEST(SphereFit, ObjectiveIsEigenvalueAndOneNegativeEigenvalue) {  // thesis (5.29)-(5.31)
   std::mt19937 rng(3);
   const Eigen::Vector3d c(1, 2, 3);
   const auto pts = spherePoints(c, 0.5, 200, rng, 0.01, 1.0);
@@ -113,7 +113,7 @@ TEST(SphereFit, NoisyCapWithinNoise) {
   EXPECT_NEAR(fit.rms, sigma, 0.2 * sigma);
 }
 
-TEST(SphereFit, CoplanarPointsGiveAPlane) {  // claim 12
+TEST(SphereFit, CoplanarPointsGiveAPlane) {  // thesis (5.26)-(5.34)
   std::mt19937 rng(5);
   std::uniform_real_distribution<double> u(-1, 1);
   const Eigen::Vector3d n = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();
@@ -133,7 +133,7 @@ TEST(SphereFit, CoplanarPointsGiveAPlane) {  // claim 12
   EXPECT_FALSE(std::isfinite(fit.radius));
 }
 
-TEST(SphereFit, WeightsZeroRemovesIntegerDuplicates) {  // §2.3 and claim 13
+TEST(SphereFit, WeightsZeroRemovesIntegerDuplicates) {  // thesis (6.6)
   std::mt19937 rng(6);
   auto pts = spherePoints({0, 0, 1}, 0.2, 40, rng, 0.01, 1.2);
   std::vector<double> w(40);
@@ -159,7 +159,7 @@ TEST(SphereFit, WeightsZeroRemovesIntegerDuplicates) {  // §2.3 and claim 13
   EXPECT_LT((fs.center - fd.center).norm(), 1e-10);
 }
 
-TEST(SphereFit, RigidMotionEquivariance) {  // claim 13
+TEST(SphereFit, RigidMotionEquivariance) {  // thesis (6.6)
   std::mt19937 rng(7);
   const auto pts = spherePoints({0.1, 0.2, 0.3}, 0.1, 60, rng, 0.005, 1.0);
   const Eigen::Matrix3d R = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();

@@ -1,6 +1,7 @@
 """02: reconstruct a synthetic eye-in-hand scan frame by frame, as a robot program would.
 
-A camera on the robot's hand circles a part on a table (seed 000 Fig. 4). Each frame is
+A camera on the robot's hand circles a part on a table (Fig. 4 of the eye-in-hand paper,
+(Comput. Electron. Agric. 180 (2021) 105929)). Each frame is
 registered to the model so far and merged; the model lives in the robot base frame
 because the first frame is placed at its known pose T_base_camera.
 

@@ -52,6 +52,6 @@ def show(robot: kin.Robot, q: np.ndarray) -> None:
 show(kin.ur5(), np.array([0.3, -1.2, 1.4, -1.0, 1.2, 0.3]))
 show(kin.kuka_kr6_r900_sixx(), np.array([0.3, -1.2, 1.4, 0.4, 0.9, -0.3]))
 
-# KUKA home pose (spec claim 22): flange at (0.525, 0, 0.890) m pointing along +x
+# KUKA home pose (thesis Table 1): flange at (0.525, 0, 0.890) m pointing along +x
 home = kin.kuka_kr6_r900_sixx().fk([0, -np.pi / 2, np.pi / 2, 0, 0, 0])
 print("\nKUKA home: p =", home[:3, 3], " a_e =", home[:3, 2])

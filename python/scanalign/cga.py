@@ -1,4 +1,4 @@
-"""Conformal geometric algebra G(4,1) (thesis spec §1; Kleppe Ch.4).
+"""Conformal geometric algebra G(4,1) (Kleppe, PhD thesis, NTNU 2018, ch. 4).
 
 Basis vectors ``e1, e2, e3`` (Euclidean, metres), ``e0`` (origin) and ``einf`` (infinity)
 with ``e0 . einf = -1`` and ``e0^2 = einf^2 = 0`` (4.44)-(4.45); internally the orthonormal
@@ -26,9 +26,9 @@ Objects (all coordinates in metres, in the frame the caller works in):
   :meth:`Motor.interpolate` slerps the rotation and lerps the translation (not a screw).
 - meets (4.70)-(4.73) return dual objects ``A* ^ B*`` (the line-plane meet returns the
   flat point ``Pi* . L``); distances (4.56), (4.67), P5(10).
-- :class:`PointPair` (direct ``Q = PA^PB``; ``reality()`` is the sign of ``Q^2``, spec §1.4;
+- :class:`PointPair` (direct ``Q = PA^PB``; ``reality()`` is the sign of ``Q^2``, thesis (4.70)-(4.73);
   ``points()`` by (4.63)) and :class:`FlatPoint` (``P^einf``, ``location()``), also from meets.
-- angles (spec §1.8): :func:`signed_angle` ``atan2((a^b) N^{-1}, a.b)`` (17) about a rotation
+- angles (Paper 1 §3.7): :func:`signed_angle` ``atan2((a^b) N^{-1}, a.b)`` (17) about a rotation
   plane ``N`` (unit Euclidean bivector whose Euclidean dual ``N* = N I3^{-1}`` is the rotation
   axis); :func:`rotation_plane_perpendicular_to_line` (20) and
   :func:`rotation_plane_parallel_to_plane` (21).
@@ -152,23 +152,23 @@ def point_pair_points(Q: Multivector) -> Tuple[np.ndarray, np.ndarray]:
     """The two points ``(Q -+ sqrt(Q^2)) / (-einf . Q)`` (4.63) of a direct point pair,
     ``(a, b)`` for ``Q = up(a) ^ up(b)`` (negating Q swaps them). A dual pair from a meet is
     made direct with ``.undual()``. Raises ``ValueError`` when ``Q^2 < 0`` (no real points,
-    spec §1.4)."""
+    thesis (4.70)-(4.73))."""
     return _c.point_pair_points(Q)
 
 
 def rotation_plane_from_axis(axis) -> Multivector:
     """Unit rotation plane ``N = n I3`` whose Euclidean dual ``N* = N I3^{-1}`` is the unit
-    ``axis`` (e.g. ``e3 -> e12``); :func:`rotation_axis` is the inverse (spec §1.8)."""
+    ``axis`` (e.g. ``e3 -> e12``); :func:`rotation_axis` is the inverse (Paper 1 §3.7)."""
     return _c.rotation_plane_from_axis(_vec3(axis, "axis"))
 
 
 def signed_angle(a, b, N: Multivector) -> float:
     """Signed angle (radians, in (-pi, pi]) from direction ``a`` to ``b`` in the rotation plane
-    ``N``: ``theta = atan2((a^b) N^{-1}, a.b)`` (17), spec §1.8.
+    ``N``: ``theta = atan2((a^b) N^{-1}, a.b)`` (17), Paper 1 §3.7.
 
     ``a``, ``b``: 3-vectors (any length, in one frame) or grade-1 :class:`Multivector`;
     ``N``: a Euclidean bivector (normalised here). For ``a, b`` perpendicular to the axis
-    ``N*`` this is the right-handed angle about ``N*`` (claim 9)."""
+    ``N*`` this is the right-handed angle about ``N*`` (Paper 1 eq. (17))."""
     if isinstance(a, Multivector) or isinstance(b, Multivector):
         A = a if isinstance(a, Multivector) else _c.Multivector.vector(_vec3(a, "a"))
         Bv = b if isinstance(b, Multivector) else _c.Multivector.vector(_vec3(b, "b"))
@@ -207,12 +207,12 @@ def circle(a, b, c) -> Multivector:
 
 def rotor(axis, angle: float) -> Multivector:
     """Rotor ``cos(angle/2) - sin(angle/2) B`` for a right-handed rotation by ``angle``
-    (radians) about ``axis`` (spec §1.9)."""
+    (radians) about ``axis`` (Paper 4 §3.5)."""
     return _c.rotor(_vec3(axis, "axis"), float(angle))
 
 
 def translator(t) -> Multivector:
-    """Translator ``1 - 1/2 t einf`` (spec §1.9), ``t`` in metres."""
+    """Translator ``1 - 1/2 t einf`` (Paper 4 §3.5), ``t`` in metres."""
     return _c.translator(_vec3(t, "translation"))
 
 

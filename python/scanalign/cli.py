@@ -273,9 +273,9 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
     g.add_argument("--crop", type=float, nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
                    help="keep only points inside this box in camera coordinates, m (x right, y down, z forward; "
                         "the demo: -0.1 0.1 -0.1 0.1 0.1 1.0)")
-    g = p.add_argument_group("reconstruction (seed 000 defaults)")
+    g = p.add_argument_group("reconstruction (defaults of the eye-in-hand paper)")
     g.add_argument("--normal-radius", type=float, default=0.005,
-                   help="PCA normal radius, m (default 0.005, the seed's; the demo uses 0.01)")
+                   help="PCA normal radius, m (default 0.005, the eye-in-hand paper's; the demo uses 0.01)")
     g.add_argument("--depth-filter", action=argparse.BooleanOptionalAction, default=False,
                    help="bilateral smoothing of the depth images (radius 2 px, sigma 1.5 px / 3 mm) for noisy "
                         "consumer sensors (default off; on in the demo)")
@@ -293,7 +293,7 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
                    default="constant_velocity",
                    help="ICP starts from the last registration plus the last inter-frame motion (default: "
                         "constant velocity, half the iterations on a smooth scan path), from the previous "
-                        "registration (the seed's choice), or from it plus the robot's reference motion")
+                        "registration (the eye-in-hand paper's choice), or from it plus the robot's reference motion")
     g = p.add_argument_group("registration")
     g.add_argument("--registration", default="scanalign",
                    choices=["scanalign", "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls"],
@@ -303,8 +303,8 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
     g.add_argument("--max-distance", type=float, default=0.02, help="max correspondence distance, m (default 0.02)")
     g.add_argument("--max-iterations", type=int, default=50, help="ICP iteration cap (default 50)")
     g.add_argument("--box", type=float, nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
-                   help="box correspondence rejector in camera coordinates, m (seed 000 §3.4)")
-    g.add_argument("--box-preset", choices=["free_hand", "banana"], help="the seed's box rejector values")
+                   help="box correspondence rejector in camera coordinates, m (eye-in-hand paper §3.4)")
+    g.add_argument("--box-preset", choices=["free_hand", "banana"], help="the eye-in-hand paper's box rejector values")
     g.add_argument("--threads", type=int, default=0, help="CPU threads, 0 = all (default)")
 
 
@@ -457,7 +457,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     # Its simulated SR300 noise also calls for the bilateral depth filter (ATE 12.6 -> 4.1 mm).
     p.set_defaults(crop=[-0.1, 0.1, -0.1, 0.1, 0.1, 1.0], normal_radius=0.01, depth_filter=True)
     p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder or a synthetic scan",
-                       description="Frame-to-model reconstruction (seed 000 Algorithm 1) of SOURCE: a folder in the "
+                       description="Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper) of SOURCE: a folder in the "
                                    "TUM RGB-D layout (depth/, rgb/, depth.txt, rgb.txt, optional groundtruth.txt), "
                                    "a synthetic-scan config (.json/.yaml), or 'builtin'. Writes the same outputs as "
                                    "'scanalign demo'.")

@@ -15,7 +15,7 @@ what people look at:
 - ``joints.csv``: when the frames carry robot joints (``Frame.meta["joints"]``, e.g. a
   synthetic scan moved by a UR5), per frame: index, timestamp (s), q1 ... q6 (rad);
 - ``trajectory.png``: top-down estimated vs reference trajectory with error segments
-  (like seed 000 Fig. 4); ``frames.png``: per-frame time and model size; ``joints.png``:
+  (like Fig. 4 of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)); ``frames.png``: per-frame time and model size; ``joints.png``:
   the robot's joint angles over time with its limits (when joints are known).
 """
 
@@ -281,7 +281,7 @@ def reconstruct(
     evaluate: bool = True,
     **overrides: Any,
 ) -> ReconstructionResult:
-    """Reconstructs a sequence of RGB-D frames frame-to-model (seed 000 Algorithm 1).
+    """Reconstructs a sequence of RGB-D frames frame-to-model (Algorithm 1 of the eye-in-hand paper).
 
     Args:
         frames: the captures, in order (a list, a synthetic scan's frames, a TUM sequence).
@@ -299,7 +299,7 @@ def reconstruct(
             tracking; needs reference poses).
         min_depth, max_depth: valid depth range, metres; pixel_stride: image subsampling.
         depth_filter: a :class:`scanalign.reconstruction.DepthFilter`, ``"default"`` (the
-            default bilateral filter) or None (raw depth, as the seed; the default).
+            default bilateral filter) or None (raw depth, as the eye-in-hand paper; the default).
         progress: show a progress bar (True), none (False), or a callable per record.
         evaluate: compute ATE/RPE against the reference poses when available.
 

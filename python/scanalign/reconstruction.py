@@ -1,5 +1,6 @@
 """Eye-in-hand reconstruction: depth images to clouds, frame-to-model registration, and
-the voxel grid that keeps the model bounded (seed 000 §3, Algorithm 1).
+the voxel grid that keeps the model bounded (the eye-in-hand paper
+(Comput. Electron. Agric. 180 (2021) 105929), §3, Algorithm 1).
 
 Frames: a frame's points are in its camera frame (x right, y down, z forward, metres).
 The model lives in the *model frame*: the first camera's frame by default, or any frame
@@ -77,7 +78,7 @@ def voxel_grid(
     """Downsamples a cloud to one centroid per cubic voxel, like ``pcl::VoxelGrid``.
 
     Voxels are aligned to the cloud's minimum corner exactly as PCL does, and output in
-    PCL's order, so results match PCL's voxel for voxel. Seed 000 §3.6 uses a 1 mm grid on
+    PCL's order, so results match PCL's voxel for voxel. Eye-in-hand paper §3.6 uses a 1 mm grid on
     the accumulated model after every merge so its size stays bounded.
 
     Args:
@@ -216,7 +217,7 @@ class DepthFilter:
     each camera's rays, so differently from each view), which costs accuracy on
     low-noise data. Measured on the synthetic scans (36-frame loops): SR300 noise, 10 mm
     normals: ATE 12.6 mm without, 4.1 mm with; 0.3 mm noise at 320x240 on small spheres:
-    worst pose error 0.23 mm without, 2.0 mm with. Off by default (the seed's pipeline);
+    worst pose error 0.23 mm without, 2.0 mm with. Off by default (the eye-in-hand paper's pipeline);
     on in ``scanalign demo``.
     """
 
@@ -268,16 +269,16 @@ def frame_to_cloud(frame: Frame, *, min_depth: float = 0.1, max_depth: float = 2
 # ---------------------------------------------------------------------------------------
 
 FrameToModelSettings = _core.reconstruction.FrameToModelSettings
-FrameToModelSettings.__doc__ = """Settings of the frame-to-model pipeline (seed 000 §3).
+FrameToModelSettings.__doc__ = """Settings of the frame-to-model pipeline (eye-in-hand paper §3).
 
 Fields:
-    icp: :class:`scanalign.registration.IcpSettings` of the registration (seed §3.3
+    icp: :class:`scanalign.registration.IcpSettings` of the registration (eye-in-hand paper §3.3
         convergence defaults; ``max_correspondence_distance`` 0.02 m here, because
         consecutive eye-in-hand frames move little; optional ``box`` rejector in the
-        frame's camera coordinates, seed §3.4).
-    normal_radius: PCA normal radius, metres (seed §3.5: 0.005).
+        frame's camera coordinates, eye-in-hand paper §3.4).
+    normal_radius: PCA normal radius, metres (eye-in-hand paper §3.5: 0.005).
     model_voxel_size: voxel edge of the grid applied to the model after every merge,
-        metres (seed §3.6: 0.001).
+        metres (eye-in-hand paper §3.6: 0.001).
     frame_voxel_size: voxel edge applied to each frame before normals and registration,
         metres; 0 keeps full resolution (default 0.001).
     crop_box: optional :class:`scanalign.registration.Box` in the frame's camera
@@ -287,7 +288,7 @@ Fields:
         (default 200).
     min_fitness: registrations whose inlier fraction is below this are rejected (0.3).
     require_convergence: reject registrations that hit the iteration cap (default True;
-        False for fixed iteration budgets as in seed Figs. 6 and 9).
+        False for fixed iteration budgets as in eye-in-hand paper Figs. 6 and 9).
     max_translation_change, max_rotation_change: largest accepted distance of the result
         from the initial guess, metres (0.10) and radians (0.5); farther means failure.
     motion_model: initial guess of a frame integrated without one: ``"previous"`` (seed
@@ -311,7 +312,7 @@ _RECON_FIELDS = (
 )
 
 #: Registration methods of the pipeline: scanalign's engine (its estimator set in
-#: ``settings.icp.estimator``) and stock PCL ICP variants for comparison (seed §3.7).
+#: ``settings.icp.estimator``) and stock PCL ICP variants for comparison (eye-in-hand paper §3.7).
 REGISTRATION_METHODS = ("scanalign", "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls")
 
 
@@ -426,7 +427,7 @@ class Model:
 
 
 class Reconstructor:
-    """Frame-to-model reconstruction (seed 000 Algorithm 1), one frame at a time.
+    """Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper), one frame at a time.
 
     Each :meth:`integrate` call back-projects the frame, crops and downsamples it,
     estimates normals (5 mm), registers it to the model starting from the previous

@@ -1,6 +1,7 @@
 """Rigid registration: the fast ICP engine and stock PCL baselines.
 
-The engine follows seed 000 (Algorithm 1, §3.1-3.4): a left-balanced k-d tree over the
+The engine follows the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)
+(Algorithm 1, §3.1-3.4): a left-balanced k-d tree over the
 target, nearest neighbours with a fixed-size search stack, box and distance rejection,
 and Low's point-to-plane linear least squares (or closed-form point-to-point) reduced by
 a summing tree, iterated until PCL's convergence criteria hold.
@@ -50,14 +51,14 @@ __all__ = [
 ]
 
 Box.__doc__ = """Axis-aligned box ``(x_min, x_max, y_min, y_max, z_min, z_max)`` in metres, in the
-source camera frame (x right, y down, z towards the object); seed 000 §3.4.
+source camera frame (x right, y down, z towards the object); eye-in-hand paper §3.4.
 
 A correspondence is kept only when its source point lies inside the box (bounds
 inclusive). The box is attached to the source frame, so it moves with the transform ICP
 applies to the source. Presets: ``Box.free_hand_preset()`` (±0.20 m, 0.1 mm-10 m deep)
-and ``Box.banana_preset()`` from the seed."""
+and ``Box.banana_preset()`` from the eye-in-hand paper."""
 
-IcpSettings.__doc__ = """ICP settings (PCL semantics; defaults are seed 000 §3.3's where it gives one).
+IcpSettings.__doc__ = """ICP settings (PCL semantics; defaults are those of the eye-in-hand paper, §3.3, where it gives one).
 
 Fields:
     estimator: ``"point_to_plane"`` (Low 2004 LLS, default; needs target normals) or
@@ -72,7 +73,7 @@ Fields:
     fitness_epsilon: converged when the relative change of the correspondence MSE is
         below this (PCL's Euclidean fitness epsilon; default 1e-8).
     absolute_mse_epsilon: converged when the MSE changes by less than this, m² (1e-12).
-    robust_kernel: ``"none"`` (default, Low's plain least squares as the seed),
+    robust_kernel: ``"none"`` (default, Low's plain least squares as the eye-in-hand paper),
         ``"huber"`` or ``"cauchy"``: an M-estimator on the point-to-plane residual, solved
         by iteratively reweighted least squares (point-to-plane only). Use it when the
         correspondence distance is large (sparse scans, large initial motion): on the
@@ -83,8 +84,8 @@ Fields:
     box: optional :class:`Box` in the source camera frame.
     search: the target's nearest-neighbour structure: ``"bucket_kdtree"`` (default; a
         k-d tree with 32-point leaves and tight node boxes, the fastest on CPU cores, always
-        exact) or ``"left_balanced_kdtree"`` (seed 000 §3.1: one point per node, searched
-        with a fixed stack; the layout the seed's GPU path uses).
+        exact) or ``"left_balanced_kdtree"`` (eye-in-hand paper §3.1: one point per node, searched
+        with a fixed stack; the layout the eye-in-hand paper's GPU path uses).
     search_stack_depth: fixed search stack of the left-balanced tree (seed: 20); exact for
         targets of up to 2**21 - 1 points; ``IcpResult.exact_search`` reports otherwise.
     warm_start: seed each search with the last iteration's neighbour (exact speed-up).
@@ -97,7 +98,7 @@ Fields:
     coarse_stride: coarse-to-fine when > 1: iterate first on every ``coarse_stride``-th
         source point (an even spatial subset) until that converges, then on all points
         until they converge; the answer is the full-resolution fixed point either way,
-        reached with fewer full iterations (default 1 = off, as the seed; skipped when the
+        reached with fewer full iterations (default 1 = off, as the eye-in-hand paper; skipped when the
         subset has fewer than 500 points).
     num_threads: OpenMP threads, 0 = all cores."""
 
@@ -291,10 +292,10 @@ def icp(
         init: initial ``T_target_source`` (4x4 rigid), identity by default.
         max_correspondence_distance: metres; farther pairs are rejected [0.05].
         box: optional box in the source camera frame (:class:`Box` or 6 numbers, metres).
-        estimator: ``"point_to_plane"`` (seed 000 §3.2) or ``"point_to_point"``
+        estimator: ``"point_to_plane"`` (eye-in-hand paper §3.2) or ``"point_to_point"``
             [point_to_plane].
         max_iterations, transformation_epsilon, fitness_epsilon: PCL-style convergence
-            criteria [50, 1e-8, 1e-8: seed 000 §3.3].
+            criteria [50, 1e-8, 1e-8: eye-in-hand paper §3.3].
         settings: base :class:`IcpSettings`.
         **overrides: any other :class:`IcpSettings` field, e.g. ``num_threads=1``.
 
@@ -337,7 +338,7 @@ def pcl_icp(
     settings: Optional[IcpSettings] = None,
     **overrides: object,
 ) -> IcpResult:
-    """Stock PCL 1.13 ICP on the same inputs and criteria, for evaluation (seed 000 §4).
+    """Stock PCL 1.13 ICP on the same inputs and criteria, for evaluation (eye-in-hand paper §4).
 
     Variants: ``"svd"`` (``IterativeClosestPoint`` + SVD), ``"dual_quaternion"``,
     ``"point_to_plane_lls"`` (``IterativeClosestPointWithNormals``, PCL's own LLS), and
@@ -379,7 +380,7 @@ def _paired(source: np.ndarray, target: np.ndarray, normals: np.ndarray) -> tupl
 def point_to_plane_lls(
     source: np.ndarray, target: np.ndarray, target_normals: np.ndarray, degeneracy_threshold: float = 1e-10
 ) -> tuple:
-    """One point-to-plane LLS step (Low 2004, seed 000 §3.2) on given correspondences.
+    """One point-to-plane LLS step (Low 2004, eye-in-hand paper §3.2) on given correspondences.
 
     Row i of ``source`` is paired with row i of ``target`` / ``target_normals`` (metres,
     unit normals). Runs ``scanalign::PointToPlaneLLS`` (the PCL plug-in, double precision).
@@ -418,7 +419,7 @@ def box_rejector_keep(source: np.ndarray, query_indices: Sequence[int], box: Box
 
 
 class KdTree:
-    """The left-balanced k-d tree of seed 000 §3.1 (the engine's search structure).
+    """The left-balanced k-d tree of the eye-in-hand paper, §3.1 (the engine's search structure).
 
     Args:
         points: (N, 3) float32/float64 points; non-finite rows are skipped.

@@ -1,4 +1,4 @@
-// Stock PCL 1.13 global registration baselines (thesis spec §7.6, paper 5 §IV-A): FPFH,
+// Stock PCL 1.13 global registration baselines (Kleppe, PhD thesis, NTNU 2018, Paper 5 §IV-A): FPFH,
 // SHOT and 3D shape context matched by SampleConsensusPrerejective or SAC-IA, and Drost's
 // point-pair features with PCL's hash-map voting. The only translation unit that pays for
 // PCL's feature and sample-consensus templates; the header stays PCL-free.

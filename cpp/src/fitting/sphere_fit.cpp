@@ -1,24 +1,24 @@
-// Sphere and circle fitting (spec §2). See sphere_fit.hpp.
+// Sphere and circle fitting (Kleppe, PhD thesis, NTNU 2018, §5.1). See sphere_fit.hpp.
 //
-// Numerics (spec §2.2, 5.31–5.34). The CGA fit minimises
+// Numerics (thesis (5.31)-(5.34)). The CGA fit minimises
 //     L(S) = (1/Σw) Σ w_i (S*·P_i)² / S*²                                     (5.27, 6.5)
 // whose stationarity condition is Q[S*] = λ[S*], Q = D M, D = (1/Σw) Σ w_i [P_i][P_i]ᵀ (5.31, 6.6).
 // With a = M[S*] (so S*·P = aᵀ[P] and S*² = aᵀ M a, because M² = I) this is the symmetric-
-// definite pencil D a = λ M a, λ = aᵀDa / aᵀMa = L(S) (claim 14).
+// definite pencil D a = λ M a, λ = aᵀDa / aᵀMa = L(S) (thesis (5.29)-(5.31)).
 //
-// The spec's reformulation factors D = LLᵀ and solves LᵀML y = λy, s = Ly. That misses the
+// The reformulation that factors D = LLᵀ and solves LᵀML y = λy, s = Ly. That misses the
 // exact fit: for points exactly on a sphere (or plane) D is singular, and the solution s = M a
 // with a ∈ null(D) does not lie in range(L) = range(D). We therefore use the other symmetric
 // form of the same pencil: with D = LLᵀ from D's eigen-decomposition (L = VΛ^½) and b = Lᵀa,
 //     C b = μ b,   C = L⁻¹ M L⁻ᵀ,   μ = 1/λ,
 // C is symmetric with the inertia of M (Sylvester: four positive, one negative eigenvalue, so Q
-// has exactly one negative eigenvalue, claim 11), and the smallest positive λ is the largest μ.
+// has exactly one negative eigenvalue, thesis (5.31)), and the smallest positive λ is the largest μ.
 // As D becomes singular, μ grows without bound and its eigenvector stays well conditioned, so
 // exact and nearly exact data are handled by one code path (tiny eigenvalues of D are clamped).
 //
 // Before all this, the points are centred at their (weighted) centroid and scaled to unit RMS
 // spread. L(S) is invariant under rigid motions and scales with the square of a uniform scaling
-// (claim 13), so this changes the solution only by the known similarity, which is undone at the
+// (thesis (6.6)), so this changes the solution only by the known similarity, which is undone at the
 // end; it keeps D well scaled for data far from the origin or in any unit.
 #include "scanalign/fitting/sphere_fit.hpp"
 #include "scanalign/fitting/detail/pencil.hpp"
@@ -120,7 +120,7 @@ SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, cons
     for (std::size_t i = 0; i < points.size; ++i) {
       const double w = weights ? weights[i] : 1.0;
       if (w == 0) continue;
-      const double d = n.dot(points[i].template cast<double>()) - delta;  // up(p)·Π* = n·p − δ (claim 4)
+      const double d = n.dot(points[i].template cast<double>()) - delta;  // up(p)·Π* = n·p − δ (thesis (4.67))
       r2 += w * d * d;
     }
     out.rms = std::sqrt(r2 / wsum);

@@ -1,4 +1,4 @@
-// Analytic inverse kinematics with CGA (thesis Paper 1 §4-5, Ch. 5.3; spec §4.3-4.7).
+// Analytic inverse kinematics with CGA (Kleppe, PhD thesis, NTNU 2018, Paper 1 §4-5 and §5.3).
 // See ik.hpp for the construction, the configuration labels and the singularity choices.
 #include "scanalign/kinematics/ik.hpp"
 
@@ -27,15 +27,15 @@ using cga5::dualPlane;
 using cga5::dualSphere;
 
 // ---------------------------------------------------------------------------
-// CGA in 5-vector coordinates (spec §1.3; the metric of (5.32))
+// CGA in 5-vector coordinates (thesis (4.54)-(4.69); the metric of (5.32))
 // ---------------------------------------------------------------------------
 
-/// The point pair Q = (A* ∧ B* ∧ C*)* of three dual spheres / planes (spec §1.4), returned
+/// The point pair Q = (A* ∧ B* ∧ C*)* of three dual spheres / planes (thesis (4.70)-(4.73)), returned
 /// as its two points. The null vectors X = up(x) with X·A* = X·B* = X·C* = 0 are the
 /// points of Q; X·V* = v·x − v∞ − ½v0|x|² for V* = [v; v∞; v0]. Eliminating |x|² with the
 /// sphere of largest |v0| leaves one sphere |x − c|² = r² and two planes, i.e. a line
 /// m + t u; the points are m ± h u with h² = r² − |c − m|². Q² is a positive multiple of h²,
-/// so the reality test of spec §1.4 (Q² > 0 real, = 0 tangent, < 0 imaginary) is the sign of
+/// so the reality test of thesis (4.70)-(4.73) (Q² > 0 real, = 0 tangent, < 0 imaginary) is the sign of
 /// the normalised discriminant h²/r².
 struct PointPair {
   Vector3d a = Vector3d::Constant(kNaN), b = Vector3d::Constant(kNaN);
@@ -90,7 +90,7 @@ inline int reality(const PointPair& q, double tol) {
 inline double sgn(double x) { return x < 0 ? -1.0 : 1.0; }
 
 // ---------------------------------------------------------------------------
-// Recursive DH angle extraction (spec §4.5)
+// Recursive DH angle extraction (applies Paper 1's rule N* = z_{i-1}, eq. (22))
 // ---------------------------------------------------------------------------
 
 /// A DH joint with its twist's cosine and sine evaluated once per solve.
@@ -127,7 +127,7 @@ inline Vector3d toChild(const Vector3d& v, const Angle& th, const Link& j) {
 inline Vector3d pointToChild(const Vector3d& p, const Angle& th, const Link& j) {
   return toChild(p - Vector3d(j.a * th.c, j.a * th.s, j.d), th, j);
 }
-// Spec §4.5: with the frames of the angles found so far,
+// With the frames of the angles found so far,
 //   a_i != 0: v = R_{0,i-1}ᵀ (O_i − O_{i−1}) = (a cosθ, a sinθ, d), θ = atan2(v_y/a, v_x/a);
 //   a_i == 0: z = R_{0,i-1}ᵀ z_i = (sinθ sinα, −cosθ sinα, cosα), θ = atan2(z_x/sinα, −z_y/sinα).
 inline Angle angleFromOrigin(const Vector3d& v, const Link& j) {
@@ -245,7 +245,7 @@ inline int elbowLabel(int shoulder, const Vector3d& f, const Vector3d& P1, const
   return shoulder * c >= 0 ? 1 : -1;
 }
 
-// ----- KUKA KR6 R900 sixx and arms of the same layout (P1 §4, spec §4.3) -----
+// ----- KUKA KR6 R900 sixx and arms of the same layout (Paper 1 §4) -----
 void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o, IKResult& res, Recorder* rec) {
   const auto& J = robot.joints;
   const double d1 = J[0].d, a1 = J[0].a, a2 = J[1].a, a3 = J[2].a, d4 = J[3].d, d6 = J[5].d;
@@ -265,7 +265,7 @@ void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o
   makeLinks(robot, Lk);
 
   // Arm plane Π_c = e0 ∧ e3 ∧ P_w ∧ e∞ (25): the vertical plane through the first axis and
-  // P_w. Its horizontal direction towards P_w, ŵ. Shoulder singularity (spec §4.7): P_w on
+  // P_w. Its horizontal direction towards P_w, ŵ. Shoulder singularity (Paper 1 §4-5, singular configurations): P_w on
   // the axis, Π_c = 0; then θ1 = q_free[0] (+ offset) defines the plane.
   const Vector3d pw_h(p_w.x(), p_w.y(), 0.0);
   const double rho = pw_h.norm();
@@ -286,7 +286,8 @@ void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o
     const Vector5d Pi_c = dualPlane(z1, 0.0);
     // (29): P1 from S0* = e0 − ½(d1² + a1²)e∞, Π1* = e3 + d1 e∞, and Π_c. The pair is
     // (d1 e3 ± a1 x1); the front/back choice of (30)-(31) is made with the wrist point
-    // (spec §4.3 ⚑: X = P_w): the candidate on the x1 side.
+    // (Paper 1 tests with P_e, which mislabels about 6 % of random cases; P_w labels them all
+    // right): the candidate on the x1 side.
     const PointPair Q1 = meet3(dualSphere(Vector3d::Zero(), d1 * d1 + a1 * a1), dualPlane(e3, d1), Pi_c);
     if (Q1.degenerate) {
       markUnreachable(res, shoulder, 1, IKStep::Elbow);
@@ -295,7 +296,7 @@ void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o
     }
     const Vector3d P1 = (Q1.a - d1 * e3).dot(x1) * a1 >= (Q1.b - d1 * e3).dot(x1) * a1 ? Q1.a : Q1.b;
     if (rec && rec->config.shoulder == shoulder) rec->set(2, P1);
-    // θ1 from O1 = P1 (spec §4.5), i.e. from x1 (also when a1 = 0).
+    // θ1 from O1 = P1 (Paper 1 eq. (22)), i.e. from x1 (also when a1 = 0).
     const Angle th1 = Angle::fromXY(x1.x(), x1.y());
     const Vector3d O1(a1 * th1.c, a1 * th1.s, d1);
     // the target's approach and normal directions in frame 1 (shared by both elbows)
@@ -321,7 +322,7 @@ void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o
       const int elbow = label2[k];
       const Vector3d& P2 = cand2[k];
       // (35)-(37): P_wx by the horizon of P_w on S2* = P2 − ½a3² e∞:
-      // K* = P_w + (P_w·S2*) e∞ (spec §1.7 ⚑: "+"), the sphere of the points X on S2 with
+      // K* = P_w + (P_w·S2*) e∞ (Paper 1 §3.6, eq. (35); the printed "-" gives an imaginary sphere, "+" reproduces FK), the sphere of the points X on S2 with
       // (X − P2) ⊥ (X − P_w); Q_wx = (K* ∧ S2*)·Π_c.
       const Vector5d S2 = dualSphere(P2, a3 * a3);
       const Vector5d Pw = cga5::up(p_w);
@@ -337,7 +338,7 @@ void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o
         const double ca = (Qwx.a - P2).cross(p_w - Qwx.a).dot(z1);
         P_wx = (ca * a3 * d4 >= 0) ? Qwx.a : Qwx.b;
       }
-      // Angles 1-3 by the recursive DH extraction (spec §4.5).
+      // Angles 1-3 by the recursive DH extraction (Paper 1 eq. (22)).
       Angle th[6];
       th[0] = th1;
       th[1] = angleFromOrigin(toChild(P2 - O1, th1, Lk[0]), Lk[1]);
@@ -348,12 +349,12 @@ void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o
       }
       const Vector3d a_3 = toChild(toChild(a_1, th[1], Lk[1]), th[2], Lk[2]);
       const Vector3d n_3 = toChild(toChild(n_1, th[1], Lk[1]), th[2], Lk[2]);
-      // Wrist: z4 = ±(z3 × a_e)/|z3 × a_e| (spec §4.5); in frame 3, z3 × a = (−a_y, a_x, 0).
+      // Wrist: z4 = ±(z3 × a_e)/|z3 × a_e| (Paper 1 eq. (22)); in frame 3, z3 × a = (−a_y, a_x, 0).
       // Singular when a_e ∥ z3 (§4.7).
       const double s34 = std::hypot(a_3.x(), a_3.y());
       const bool wrist_singular = s34 <= o.singular_tolerance;
       // One wrist branch is computed; on this spherical wrist the other one is
-      // (θ4 + π, −θ5, θ6 + π) (spec §4.6, claim 26).
+      // (θ4 + π, −θ5, θ6 + π) (Paper 1 §4, eq. (28)).
       if (wrist_singular) {
         th[3] = Angle::of(o.q_free[3] + J[3].theta_offset);
       } else {
@@ -411,7 +412,7 @@ double feasibleWristAngle(double desired, const Target& T, const Vector3d& p5, c
   return psi + (delta >= 0 ? 1.0 : -1.0) * std::clamp(mag, A, B);
 }
 
-// ----- Universal Robots (P1 §5, spec §4.4) -----
+// ----- Universal Robots (Paper 1 §5) -----
 void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& o, IKResult& res, Recorder* rec) {
   const auto& J = robot.joints;
   const double d1 = J[0].d, a2 = J[1].a, a3 = J[2].a, d4 = J[3].d, d5 = J[4].d, d6 = J[5].d;
@@ -431,7 +432,7 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& 
     rec->set(6, P1);
   }
   // (43)-(45): P_c by the horizon of the origin on S_c* = P5 − ½d4² e∞:
-  // K0* = e0 + (e0·S_c*) e∞ (spec §4.4 ⚑ "+"), in the horizontal plane through P5.
+  // K0* = e0 + (e0·S_c*) e∞ (Paper 1 eq. (43) prints "-"; only "+" reproduces FK), in the horizontal plane through P5.
   const Vector5d Sc = dualSphere(p5, d4 * d4);
   const Vector5d K0 = cga5::e0() + cga5::inner(cga5::e0(), Sc) * cga5::eInf();
   const PointPair Qc = meet3(Sc, K0, dualPlane(e3, p5.z()));
@@ -465,7 +466,8 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& 
     const Angle th1 = th1s[c];
     const Vector3d x1(th1.c, th1.s, 0.0);
     // (46): Π_c through the first axis with normal z1 (built from P5 − P_c rather than from
-    // P3: spec §4.4 ⚑ — always consistent, also when P_c is on the axis).
+    // P3: Paper 1 §5 builds it from P3, whose side of the axis varies; P_c is always
+    // consistent, also when P_c is on the axis).
     const Vector5d Pi_c = dualPlane(z1, 0.0);
     const Vector3d O1(Lk[0].a * th1.c, Lk[0].a * th1.s, d1);
     const Vector3d a_1 = toChild(a_e, th1, Lk[0]), n_1 = toChild(T.R.col(0), th1, Lk[0]);
@@ -483,7 +485,7 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& 
         // Free angle θ6 = q_free[5]: R05 = R_target Rz(θ6)ᵀ, z4 = R05 (0, sinα5, cosα5),
         // P4 = P5 − d5 z4. The "flip" partner uses θ6 + π. θ6 moves P3 = P4 − d4 z1 on a
         // circle, so the elbow may be out of reach for the requested θ6 but not for others:
-        // then the nearest θ6 that keeps it in reach is used (spec claim 25: "unreachable"
+        // then the nearest θ6 that keeps it in reach is used (Paper 1 §3.4: "unreachable"
         // only when no angles exist).
         th6_free = feasibleWristAngle(o.q_free[5] + J[5].theta_offset + (b ? kPi : 0.0), T, p5, z1, P1, Lk[4], d4,
                                       d5, a2, a3);
@@ -494,7 +496,7 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& 
         P4 = b ? Q4.b : Q4.a;
       }
       // (50): P3 on the line L34 = P4 ∧ Π_c* ∧ e∞ (through P4 along z1) at distance d4, the
-      // candidate lying in Π_c (spec §4.4, robust alternative).
+      // candidate lying in Π_c (Paper 1 §5, robust alternative).
       const Vector3d y1 = z1.cross(e3);
       const PointPair Q3 = meet3(dualPlane(e3, P4.z()), dualPlane(y1, y1.dot(P4)), dualSphere(P4, d4 * d4));
       const Vector3d P3 = std::abs(Q3.a.dot(z1)) <= std::abs(Q3.b.dot(z1)) ? Q3.a : Q3.b;

@@ -1,4 +1,4 @@
-// DH robots and forward kinematics (thesis Paper 1 (1)-(3), spec §4.1).
+// DH robots and forward kinematics (Kleppe, PhD thesis, NTNU 2018, Paper 1 eqs. (1)-(3)).
 #include "scanalign/kinematics/robot.hpp"
 
 #include <cmath>
@@ -128,11 +128,11 @@ bool Robot::withinLimits(const Vector6d& q, double tol) const {
 // ---------------------------------------------------------------------------
 
 Robot Robot::kukaKR6R900sixx() {
-  // DH of the thesis authors' CluCalc code (spec §4.1; the printed Table 1 is garbled):
+  // DH of the thesis authors' CluCalc code (the printed thesis Table 1 is garbled):
   // (d, a, alpha) = (400, 25, -pi/2), (0, 455, 0), (0, 35, -pi/2), (420, 0, pi/2),
   // (0, 0, -pi/2), (80, 0, 0) mm, with theta3 = q3 - pi/2, so that q equals KUKA's axis
   // values A1..A6 in the home pose q = (0, -90°, 90°, 0, 0, 0), where the flange is at
-  // (525, 0, 890) mm pointing along +x (spec claim 22). These are KUKA's published link
+  // (525, 0, 890) mm pointing along +x (thesis Table 1). These are KUKA's published link
   // dimensions of the KR6 R900 sixx: base height 400, A1-A2 offset 25, upper arm 455,
   // A3-A4 offset 35, forearm 420, wrist to flange 80 mm.
   // Limits: KUKA KR AGILUS sixx data sheet (KR 6 R900 sixx): A1 ±170°, A2 -190°..+45°,
@@ -169,8 +169,8 @@ Robot Robot::ur10() { return makeUR("ur10", 0.1273, -0.612, -0.5723, 0.163941, 0
 Robot Robot::ur3e() { return makeUR("ur3e", 0.15185, -0.24355, -0.2132, 0.13105, 0.08535, 0.0921, 2 * kPi); }
 Robot Robot::ur5e() { return makeUR("ur5e", 0.1625, -0.425, -0.3922, 0.1333, 0.0997, 0.0996, 2 * kPi); }
 Robot Robot::ur10e() { return makeUR("ur10e", 0.1807, -0.6127, -0.57155, 0.17415, 0.11985, 0.11655, 2 * kPi); }
-// The thesis's Table 2 numbers (a mix of UR5 series 1 and 3, spec §4.1 and §11.2): FK at
-// q = 0 gives (-817.43, -191.45, -5.45) mm (spec claim 23).
+// The thesis's Table 2 numbers (a mix of UR5 series 1 and 3): FK at
+// q = 0 gives (-817.43, -191.45, -5.45) mm (thesis Table 2).
 Robot Robot::ur5Thesis() { return makeUR("ur5_thesis", 0.0892, -0.425, -0.39243, 0.10915, 0.09465, 0.0823, 2 * kPi); }
 
 Robot Robot::byName(const std::string& name) {

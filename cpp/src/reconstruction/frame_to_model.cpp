@@ -220,7 +220,7 @@ FrameReport FrameToModel::integratePrepared(const PreparedFrame& frame, const Ei
   return r;
 }
 
-// The merge (seed §3.6: the model is voxel-gridded at 1 mm after every frame).
+// The merge (the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), §3.6: the model is voxel-gridded at 1 mm after every frame).
 //
 // Today's definition, kept exactly: the new model is voxelGrid(model points + frame
 // points in the model frame) at model_voxel_size, each model point (a voxel centroid)
@@ -453,7 +453,7 @@ std::size_t FrameToModel::merge(const PreparedFrame& frame, const Eigen::Matrix4
     }
   }
   previous_pose_ = frames_merged_ > 0 ? last_pose_ : T;
-  last_pose_ = T;  // the next frame starts from this registration (seed §3.2) or a prediction from it
+  last_pose_ = T;  // the next frame starts from this registration (eye-in-hand paper §3.2) or a prediction from it
   tree_current_ = false;
   ++frames_merged_;
   return model_.size();

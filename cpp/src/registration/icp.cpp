@@ -1,4 +1,5 @@
-// ICP engine implementation (seed 000 Algorithm 1, §3.1-3.4), explicitly instantiated
+// ICP engine implementation (Algorithm 1 and §3.1-3.4 of the eye-in-hand paper
+// (Comput. Electron. Agric. 180 (2021) 105929)), explicitly instantiated
 // for float and double clouds.
 #include "scanalign/registration/icp.hpp"
 

@@ -1,4 +1,5 @@
-// Stock PCL ICP baselines (seed 000 §3.7, §4): the only other file that pays for PCL's
+// Stock PCL ICP baselines (the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929),
+// §3.7, §4): the only other file that pays for PCL's
 // registration templates.
 #include "scanalign/registration/pcl/baselines.hpp"
 

@@ -1,5 +1,5 @@
 // Conformal geometric algebra G(4,1): a general multivector over the 32 basis blades
-// (thesis spec §1.1-1.2, equations (4.40)-(4.51)).
+// (Kleppe, PhD thesis, NTNU 2018, equations (4.40)-(4.51)).
 //
 // Storage and products use the orthonormal basis e1, e2, e3, e+, e- (e+^2 = 1, e-^2 = -1,
 // (4.40)-(4.43)); blade k of the storage is the outer product of the vectors whose bits are
@@ -128,7 +128,7 @@ class Multivector {
   /// Outer product: <A_r B_s>_{r+s}.
   Multivector outer(const Multivector& o) const { return product<1>(o); }
   /// "Fat"/Hestenes inner product A_r . B_s = <A_r B_s>_{|r-s|}, zero when either grade is 0
-  /// (spec §1.2; the same convention as the `clifford` package's `|`).
+  /// (thesis (4.21), as CluCalc; the same convention as the `clifford` package's `|`).
   Multivector inner(const Multivector& o) const { return product<2>(o); }
   /// Left contraction A_r _| B_s = <A_r B_s>_{s-r} (zero for r > s).
   Multivector leftContraction(const Multivector& o) const { return product<3>(o); }
@@ -168,7 +168,7 @@ class Multivector {
   Multivector dual() const { return -(*this * pseudoscalar()); }
   /// Undual A = A* Ic (4.51).
   Multivector undual() const { return *this * pseudoscalar(); }
-  /// sqrt(|<A ~A>_0|) (spec §1.8 normalisation).
+  /// sqrt(|<A ~A>_0|) (Paper 1 §3.7 normalisation).
   double norm() const { return std::sqrt(std::abs(scalarProduct(reverse()))); }
   /// Largest absolute coefficient (orthonormal basis), for tolerances.
   double maxAbs() const { return c_.cwiseAbs().maxCoeff(); }

@@ -1,4 +1,4 @@
-// Typed CGA objects (thesis spec §1.3-1.9): points, dual spheres and planes, lines,
+// Typed CGA objects (Kleppe, PhD thesis, NTNU 2018, (4.54)-(4.69), and its Papers 1, 4, 5): points, dual spheres and planes, lines,
 // point pairs, flat points, rotors, translators, motors; meets, distances and the 5x5
 // matrix form of the inner product. Units: metres and radians.
 #pragma once
@@ -40,7 +40,7 @@ inline Vector3 euclidean(const Multivector& m) {
 // Vector (grade-1) coefficients and the matrix form (4.55), (4.60), (4.66), (5.32)
 // ---------------------------------------------------------------------------
 
-/// Coefficients of a conformal vector in the order (e1, e2, e3, einf, e0) (spec §1.3 table).
+/// Coefficients of a conformal vector in the order (e1, e2, e3, einf, e0) (thesis (4.55), (4.60), (4.66)).
 inline Vector5 toVector5(const Multivector& v) {
   const auto n = v.nullCoefficients();
   return {n[2], n[4], n[8], n[16], n[1]};
@@ -115,7 +115,7 @@ struct Sphere {
   }
   /// The dual (IPNS) sphere S* (4.59), e0-normalised.
   Multivector dual() const { return up(center) - Multivector::eInf() * (0.5 * radius2); }
-  /// From any scaled dual sphere; r^2 = S*^2/(einf.S*)^2 (spec §1.3). Throws for a plane
+  /// From any scaled dual sphere; r^2 = S*^2/(einf.S*)^2 (thesis (4.61), any scale). Throws for a plane
   /// (e0 coefficient ~ 0) or a multivector that is not a vector.
   static Sphere fromDual(const Multivector& S) {
     detail::requireFinite(S, "sphere");
@@ -169,7 +169,7 @@ struct Plane {
     return Plane(v.head<3>(), v[3]);
   }
   /// From the direct plane PA^PB^PC^einf (4.64). The orientation follows the dual
-  /// convention (spec §1.3: the plane through (0,0,1),(1,0,1),(0,1,1) gives -(e3 + einf)).
+  /// convention (with the dual of thesis (4.50): the plane through (0,0,1),(1,0,1),(0,1,1) gives -(e3 + einf)).
   static Plane fromDirect(const Multivector& P) { return fromDual(P.dual()); }
   static Plane throughPoints(const Vector3& a, const Vector3& b, const Vector3& c) {
     return fromDirect(up(a).outer(up(b)).outer(up(c)).outer(Multivector::eInf()));
@@ -198,10 +198,10 @@ struct Line {
   Multivector direct() const {
     return (Multivector::vector(point) + Multivector::e0()).outer(Multivector::vector(direction)).outer(Multivector::eInf());
   }
-  /// Dual line l* = A + b einf (spec §1.3).
+  /// Dual line l* = A + b einf (Paper 4 §2.1).
   Multivector dual() const { return direct().dual(); }
   /// From a direct line (any scale). The direction is the e0^ei^einf part (= -(L.e0).einf
-  /// of (4.68)'s spec §1.8 formula (18)); the moment p^d is the ei^ej^einf part.
+  /// of (4.68) by Paper 1 eq. (18)); the moment p^d is the ei^ej^einf part.
   static Line fromDirect(const Multivector& L) {
     detail::requireFinite(L, "line");
     const auto n = L.nullCoefficients();
@@ -216,10 +216,10 @@ struct Line {
 };
 
 // ---------------------------------------------------------------------------
-// Angles and rotation planes (spec §1.8, P1 §3.7, eqs. (12)-(21))
+// Angles and rotation planes (Paper 1 §3.7, eqs. (12)-(21))
 // ---------------------------------------------------------------------------
 
-/// A / sqrt(|<A ~A>_0|) (spec §1.8 normalisation). Throws for a (near) null blade.
+/// A / sqrt(|<A ~A>_0|) (Paper 1 §3.7 normalisation). Throws for a (near) null blade.
 inline Multivector normaliseBlade(const Multivector& A) {
   detail::requireFinite(A, "blade");
   const double n2 = std::abs(A.scalarProduct(A.reverse()));
@@ -227,7 +227,7 @@ inline Multivector normaliseBlade(const Multivector& A) {
     throw std::domain_error("cga: cannot normalise a null or zero blade");
   return A / std::sqrt(n2);
 }
-/// Euclidean dual A I3^{-1} (spec §1.2, (4.39)); I3^{-1} = -I3.
+/// Euclidean dual A I3^{-1} (thesis (4.18)-(4.51), (4.39)); I3^{-1} = -I3.
 inline Multivector euclideanDual(const Multivector& A) { return -(A * Multivector::pseudoscalar3()); }
 /// Unit rotation plane N (a Euclidean unit bivector) whose Euclidean dual N* = N I3^{-1} is the
 /// unit `axis`: N = n I3 (e.g. axis e3 -> N = e12). A rotation by +theta about the axis
@@ -252,8 +252,8 @@ inline Vector3 rotationAxis(const Multivector& N) {
 
 /// Signed angle (rad, in (-pi, pi]) from direction a to direction b in the rotation plane N,
 /// theta = atan2((a^b) N^{-1}, a.b) (17) (scalar part; N^{-1} = ~N = -N for a unit bivector).
-/// Any scale of a, b and N > 0 is allowed (N is normalised, spec §1.8). For a, b perpendicular
-/// to N* this is the right-handed angle about the axis N* (claim 9); components along N* do
+/// Any scale of a, b and N > 0 is allowed (N is normalised, Paper 1 §3.7). For a, b perpendicular
+/// to N* this is the right-handed angle about the axis N* (Paper 1 eq. (17)); components along N* do
 /// not enter (a^b is projected onto N by the scalar part).
 inline double signedAngle(const Multivector& a, const Multivector& b, const Multivector& N) {
   detail::requireFinite(a, "direction a");
@@ -269,7 +269,7 @@ inline double signedAngle(const Vector3& a, const Vector3& b, const Multivector&
 
 /// Rotation plane perpendicular to a line, N = (L* ^ einf) . e0 / |.| (20), from the dual
 /// line L*. For L = up(a)^up(b)^einf (4.68) its Euclidean dual N* is (b - a)/|b - a|
-/// (spec §1.8, VERIFIED in the tests).
+/// (Paper 1 §3.7; checked in the tests).
 inline Multivector rotationPlanePerpendicularToLine(const Multivector& dualLine) {
   detail::requireFinite(dualLine, "dual line");
   return normaliseBlade(dualLine.outer(Multivector::eInf()).inner(Multivector::e0()));
@@ -282,16 +282,16 @@ inline Multivector rotationPlaneParallelToPlane(const Multivector& directPlane) 
   detail::requireFinite(directPlane, "direct plane");
   return normaliseBlade(directPlane.inner(Multivector::e0()).inner(Multivector::eInf()));
 }
-/// (21) for a typed plane, oriented explicitly (spec §1.3) so that the axis N* = p.normal.
+/// (21) for a typed plane, oriented explicitly (the orientation of (4.64) depends on the dual convention) so that the axis N* = p.normal.
 inline Multivector rotationPlaneParallelToPlane(const Plane& p) { return -rotationPlaneParallelToPlane(p.direct()); }
 
 // ---------------------------------------------------------------------------
-// Point pairs Q = PA^PB (4.62), (4.63), spec §1.4-1.5
+// Point pairs Q = PA^PB (4.62), (4.63), thesis (4.70)-(4.73)
 // ---------------------------------------------------------------------------
 
 enum class Reality { Real, Tangent, Imaginary };
 
-/// Q^2 = Q.Q sign test (spec §1.4): >0 real, =0 tangent, <0 imaginary. `tol` is relative to
+/// Q^2 = Q.Q sign test (thesis (4.70)-(4.73)): >0 real, =0 tangent, <0 imaginary. `tol` is relative to
 /// the squared magnitude of Q.
 inline Reality pointPairReality(const Multivector& Q, double tol = 1e-10) {
   detail::requireFinite(Q, "point pair");
@@ -331,13 +331,13 @@ inline Vector3 flatPointLocation(const Multivector& F) {
   return Vector3(n[2 | 16], n[4 | 16], n[8 | 16]) / w;
 }
 
-/// Typed point pair (spec §1.3-1.5): holds the direct 2-blade Q = PA^PB (4.62); its dual
+/// Typed point pair (thesis (4.62)-(4.63)): holds the direct 2-blade Q = PA^PB (4.62); its dual
 /// Q* = Q Ic^{-1} is what meets such as Pi* ^ C* return (4.70).
 struct PointPair {
   Multivector direct;  ///< Q, a grade-2 blade
 
   PointPair() = default;
-  /// Q = up(a) ^ up(b) (4.62); points() returns (a, b) (spec §1.5, claim 5).
+  /// Q = up(a) ^ up(b) (4.62); points() returns (a, b) (thesis (4.63)).
   static PointPair fromPoints(const Vector3& a, const Vector3& b) { return fromDirect(pointPair(a, b)); }
   /// From a direct pair (any scale; a negative scale swaps the two points). Throws unless Q
   /// is a non-zero grade-2 multivector.
@@ -353,9 +353,9 @@ struct PointPair {
   /// From a dual pair Q* (grade 3), e.g. meetPlaneCircle: Q = Q* Ic (undual, (4.51)).
   static PointPair fromDual(const Multivector& Qs) { return fromDirect(Qs.undual()); }
   Multivector dual() const { return direct.dual(); }
-  /// Q^2 = Q.Q (a scalar for a 2-blade): (1/2 |a - b|^2)^2 for Q = up(a)^up(b) (claim 5).
+  /// Q^2 = Q.Q (a scalar for a 2-blade): (1/2 |a - b|^2)^2 for Q = up(a)^up(b) (thesis (4.62)-(4.63)).
   double square() const { return (direct * direct).scalar(); }
-  /// Sign of Q^2 (spec §1.4): real (> 0), tangent (= 0, within tol relative to |Q|^2), imaginary.
+  /// Sign of Q^2 (thesis (4.70)-(4.73)): real (> 0), tangent (= 0, within tol relative to |Q|^2), imaginary.
   Reality reality(double tol = 1e-10) const { return pointPairReality(direct, tol); }
   /// (P-, P+) of (4.63) as Euclidean points, m; throws std::domain_error for an imaginary pair.
   std::pair<Vector3, Vector3> points() const { return pointPairPoints(direct); }
@@ -434,7 +434,7 @@ inline double pointDistance(const Vector3& a, const Vector3& b) {
 }
 /// Signed distance P.Pi* = p.n - delta (4.67): positive on the side the normal points to.
 inline double pointPlaneDistance(const Vector3& x, const Plane& p) { return up(x).inner(p.dual()).scalar(); }
-/// S*.P = 1/2 (r^2 - |p-c|^2) (spec §1.6): > 0 inside, 0 on, < 0 outside.
+/// S*.P = 1/2 (r^2 - |p-c|^2) (Paper 5 eq. (10)): > 0 inside, 0 on, < 0 outside.
 inline double spherePointInner(const Sphere& s, const Vector3& x) { return s.dual().inner(up(x)).scalar(); }
 /// Distance from the sphere's centre, d_c^2 = S.S - 2 S.P (P5(10)).
 inline double pointSphereCenterDistance(const Vector3& x, const Sphere& s) {
@@ -447,10 +447,10 @@ inline double pointSphereDistance(const Vector3& x, const Sphere& s) {
 }
 
 // ---------------------------------------------------------------------------
-// Rotors, translators, motors (spec §1.9, P4 §3.5, P5 (33)-(35))
+// Rotors, translators, motors (Paper 4 §3.5, Paper 5 eqs. (33)-(35))
 // ---------------------------------------------------------------------------
 
-/// Rotor of a unit quaternion (w, x, y, z): R = w - (x e23 + y e31 + z e12) (spec §1.9).
+/// Rotor of a unit quaternion (w, x, y, z): R = w - (x e23 + y e31 + z e12) (Paper 4 §3.5).
 inline Multivector rotorFromQuaternion(const Eigen::Quaterniond& q) {
   const Eigen::Quaterniond u = q.normalized();
   Multivector R(u.w());
@@ -466,14 +466,14 @@ inline Multivector rotor(const Vector3& axis, double angle) {
   if (!(axis.norm() > 1e-12)) throw std::invalid_argument("cga: rotation axis is zero");
   return rotorFromQuaternion(Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis.normalized())));
 }
-/// T = 1 - 1/2 t einf (spec §1.9).
+/// T = 1 - 1/2 t einf (Paper 4 §3.5).
 inline Multivector translator(const Vector3& t) {
   detail::requireFinite(t, "translation");
   return Multivector(1.0) - Multivector::vector(t).outer(Multivector::eInf()) * 0.5;
 }
 
-/// A rigid motion M = T R (spec §1.9) acting by X -> M X ~M; applied to a point it gives
-/// R x + t (claim 10). Stored as the 32-coefficient multivector (8 non-zero, P5(34)).
+/// A rigid motion M = T R (Paper 4 §3.5) acting by X -> M X ~M; applied to a point it gives
+/// R x + t. Stored as the 32-coefficient multivector (8 non-zero, Paper 5 eq. (34)).
 class Motor {
  public:
   Motor() : m_(1.0) {}

@@ -1,4 +1,4 @@
-// The small 5-vector algebra of conformal vectors (thesis spec §1.3, the matrix form
+// The small 5-vector algebra of conformal vectors (Kleppe, PhD thesis, NTNU 2018, (4.54)-(4.66), the matrix form
 // (5.32)): points, dual spheres and dual planes as coefficients on (e1, e2, e3, e∞, e0),
 // without a multivector library. Shared by the RANSAC models (fitting/ransac.hpp) and the
 // inverse kinematics (kinematics/ik.cpp); the general algebra is scanalign/cga/multivector.hpp.
@@ -59,7 +59,7 @@ inline double inner(const Vec5& a, const Vec5& b) {
 /// outer product of four vectors is determined by the five 4x4 minors of the matrix with
 /// rows a, b, c, d; the dual maps it to the vector v with v . x = det[a; b; c; d; x] for
 /// every x, i.e. v = M * cofactors (M^-1 = M). The sign convention reproduces the
-/// verified example of spec §1.3: the dual of up(0,0,1)^up(1,0,1)^up(0,1,1)^e_inf is
+/// worked example (the orientation of (4.64) depends on the dual convention): the dual of up(0,0,1)^up(1,0,1)^up(0,1,1)^e_inf is
 /// -(e3 + e_inf).
 inline Vec5 dualOfOuter4(const Vec5& a, const Vec5& b, const Vec5& c, const Vec5& d) {
   // cof_j = det[a; b; c; d; e_j] = (-1)^(4+j) * minor_j (drop column j).

@@ -1,4 +1,5 @@
-// Deterministic parallel reduction: the seed's "summing tree" (seed 000 §3.2) on CPU cores.
+// Deterministic parallel reduction: the "summing tree" of the eye-in-hand paper
+// (Comput. Electron. Agric. 180 (2021) 105929), §3.2, on CPU cores.
 //
 // The index range is cut into fixed blocks; each block is summed sequentially into its
 // own partial (a thread-local value, so threads never share cache lines while adding),

@@ -1,4 +1,5 @@
-// Surface normals by PCA over a radius neighbourhood (seed 000 §3.5, after Rusu 2009).
+// Surface normals by PCA over a radius neighbourhood (the eye-in-hand paper
+// (Comput. Electron. Agric. 180 (2021) 105929), §3.5, after Rusu 2009).
 #pragma once
 
 #include <Eigen/Core>
@@ -9,7 +10,7 @@
 namespace scanalign {
 
 struct NormalEstimationSettings {
-  /// Neighbourhood radius (m). Seed 000 §3.5: 5 mm.
+  /// Neighbourhood radius (m). Eye-in-hand paper §3.5: 5 mm.
   double radius = 0.005;
   /// Normals are flipped to point towards this point (m, in the cloud's frame), as
   /// pcl::flipNormalTowardsViewpoint; the camera centre for a camera-frame cloud.

@@ -1,7 +1,7 @@
-// Shape factors of a PCA neighbourhood (thesis (6.1)-(6.3), P5(13)-(15), spec §7.2):
+// Shape factors of a PCA neighbourhood (Kleppe, PhD thesis, NTNU 2018, (6.1)-(6.3); Paper 5 eqs. (13)-(15)):
 // C_l = (l1 - l2)/S, C_p = 2 (l2 - l3)/S, C_s = 3 l3/S with S = l1 + l2 + l3 and
 // l1 >= l2 >= l3 >= 0 the covariance eigenvalues (m^2; any common scale cancels).
-// C_l + C_p + C_s = 1 (claim 15). Header-only.
+// C_l + C_p + C_s = 1 (thesis (6.1)-(6.3)). Header-only.
 #pragma once
 
 #include <algorithm>

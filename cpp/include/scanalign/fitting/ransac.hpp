@@ -13,7 +13,7 @@
 //  - degenerate samples (the builder returns false) produce no hypothesis; they count as
 //    iterations (so a cloud with only degenerate samples ends after max_iterations).
 //
-// CGA models use 5-vectors in the basis (e1, e2, e3, e_inf, e0) (spec §1.3):
+// CGA models use 5-vectors in the basis (e1, e2, e3, e_inf, e0) (Kleppe, PhD thesis, NTNU 2018, (4.54)-(4.66)):
 //   point  P  = [p; p^2/2; 1]                (4.54-4.55)
 //   plane  Pi* = [n; delta; 0], |n| = 1       (4.65-4.66), P . Pi* = n.p - delta  (4.67)
 //   sphere S* = [c; (c^2 - r^2)/2; 1]        (4.59-4.60), S* . P = (r^2 - |p-c|^2)/2
@@ -62,7 +62,7 @@ struct SphereModel {
   Eigen::Vector3d center = Eigen::Vector3d::Zero();
   double radius = 0.0;  ///< metres
   /// Distance of p from the surface, |d - r| with d^2 = r^2 - 2 P . S* = |p - c|^2
-  /// (spec §3, paper 2: the natural CGA sphere residual; P5(10)).
+  /// (the natural CGA sphere residual, from S*.P = 1/2 (r^2 - d^2), Paper 5 eq. (10)).
   double surfaceDistance(const Eigen::Vector3d& p) const { return std::abs((p - center).norm() - radius); }
   cga5::Vec5 dual() const {
     cga5::Vec5 v;
@@ -72,7 +72,7 @@ struct SphereModel {
 };
 
 /// Plane through three points: Pi = P_A ^ P_B ^ P_C ^ e_inf (5.35), dualised and
-/// normalised so that |n| = 1 (Pi* / sqrt(Pi*^2), spec §3 reading of (5.36)). Returns
+/// normalised so that |n| = 1 (Pi* / sqrt(Pi*^2): (5.36) read with a normalised dual plane). Returns
 /// false for a degenerate (collinear or repeated) sample, where Pi = 0: |n| below
 /// 1e-12 times the squared largest side. The normal's sign is that of the CGA dual.
 bool planeFromPoints(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c, PlaneModel& out);
@@ -96,7 +96,7 @@ bool fitPlaneLeastSquares(const CloudView<Scalar>& points, const std::vector<std
 /// (5.31), taking the eigenvector of the smallest positive eigenvalue (Q has exactly one
 /// negative one) and rescaling it to e0 coefficient 1. The points are centred and scaled
 /// first (the fit is equivariant under similarity transforms). Returns false for < 4
-/// points, or when the solution is a plane (e0 coefficient ~ 0, spec §2.2).
+/// points, or when the solution is a plane (e0 coefficient ~ 0, thesis (5.26)-(5.34)).
 template <typename Scalar>
 bool fitSphereLeastSquares(const CloudView<Scalar>& points, const std::vector<std::uint32_t>& indices,
                            SphereModel& out);
@@ -181,7 +181,7 @@ RansacResult<SphereModel> ransacSphere(const CloudView<Scalar>& points, const Ra
                                        const SphereLimits& limits = {});
 
 // ---------------------------------------------------------------------------
-// Table segmentation (paper 3 §3.1.2-3.1.3, spec §3)
+// Table segmentation (Paper 3 §3.1.2-3.1.3, thesis §5.2)
 // ---------------------------------------------------------------------------
 
 struct TableSegmentationSettings {

@@ -1,8 +1,8 @@
-// Sphere and circle fitting (thesis spec §2; Dorst's CGA sphere fit, Pratt's circle fit).
+// Sphere and circle fitting (Kleppe, PhD thesis, NTNU 2018, §5.1 and §6.3; Dorst's CGA sphere fit, Pratt's circle fit).
 //
 // This header does not depend on a multivector library: conformal objects are handled as
 // 5-vectors of coefficients on (e1, e2, e3, e∞, e0) together with the 5x5 metric M of
-// spec §1.3, so that X·Y = [X]ᵀ M [Y] (5.32):
+// thesis (4.55), (4.60), (4.66), so that X·Y = [X]ᵀ M [Y] (5.32):
 //
 //   point        [p; ½p²; 1]          (4.55)
 //   dual sphere  [c; ½(c² − r²); 1]   (4.60)
@@ -51,7 +51,7 @@ struct SphereFit {
   std::size_t count = 0;          ///< points used (those with positive weight)
 };
 
-/// CGA sphere fit (spec §2.2, thesis 5.26–5.34; weighted: §2.3, 6.5–6.11).
+/// CGA sphere fit (thesis (5.26)-(5.34); weighted: (6.5)-(6.11)).
 ///
 /// Minimises Σ w_i (S*·P_i)²/S*² / Σ w_i; the minimiser is the eigenvector of the smallest
 /// positive eigenvalue of Q = (1/Σw) Σ w_i [P_i][P_i]ᵀ M (5.31/6.6). Points with weight 0 are
@@ -84,7 +84,7 @@ struct CircleFit {
   std::size_t count = 0;
 };
 
-/// Pratt's algebraic circle fit (spec §2.1, thesis 5.21–5.25) of 2-D points given as n
+/// Pratt's algebraic circle fit (thesis (5.1)-(5.25)) of 2-D points given as n
 /// (x, y) pairs, row-major. Requires at least 3 finite points not on one line; throws
 /// std::invalid_argument otherwise (fewer than 3, non-finite, collinear or coincident).
 CircleFit fitCirclePratt(const double* xy, std::size_t n);

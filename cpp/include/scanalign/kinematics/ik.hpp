@@ -1,21 +1,21 @@
 // Analytic inverse kinematics with conformal geometric algebra (thesis Paper 1, Ch. 5.3;
-// spec §4.3-4.7, with the corrections marked there).
+// Kleppe, PhD thesis, NTNU 2018, Paper 1 §4-5, with the corrections noted below).
 //
 // The solver builds the joint points of the arm as intersections of CGA spheres and planes,
 // exactly as Paper 1 does:
-//   KUKA KR6 R900 sixx (spec §4.3): P_w = p_e - d6 a_e; P1 from S0* ^ Pi1* ^ Pi_c (29);
+//   KUKA KR6 R900 sixx (Paper 1 §4): P_w = p_e - d6 a_e; P1 from S0* ^ Pi1* ^ Pi_c (29);
 //     P2 from S1* ^ S_w* ^ Pi_c (32)-(34); P_wx by the horizon of P_w on S2 (35)-(37).
-//   UR (spec §4.4): P5 = p_e - d6 a_e; P_c by the horizon of the origin on S_c in the
+//   UR (Paper 1 §5): P5 = p_e - d6 a_e; P_c by the horizon of the origin on S_c in the
 //     horizontal plane through P5 (43)-(45); P4 from L45* ^ S5* (49); P3 on L34 (50);
 //     P2 from (P1 - a2²/2 e∞) ^ (P3 - a3²/2 e∞) ^ Pi_c (52)-(53).
 // Conformal objects are 5-vectors on (e1, e2, e3, e∞, e0) with the metric of (5.32), as in
 // fitting/sphere_fit.hpp. Every point pair is tested for reality: Q² < 0 (no real
-// intersection) reports the configuration as unreachable, never as wrong angles (spec §1.4).
-// Joint angles then come from the joint points by the recursive DH extraction of spec §4.5
+// intersection) reports the configuration as unreachable, never as wrong angles (thesis (4.70)-(4.73), Paper 1 §3.4).
+// Joint angles then come from the joint points by a recursive DH extraction that applies Paper 1's rule N* = z_{i-1} (eq. (22))
 // (convention-proof: it implements P1's rule N* = z_{i-1} directly).
 //
 // Configuration labels are geometric, not the CGA point-pair signs (whose meaning depends on
-// object orientation, spec §4.6):
+// object orientation, Paper 1 eqs. (26)-(28), (40)-(42)):
 //   shoulder +1 ("front"): the wrist centre (KUKA P_w; UR: P_c, the projection of P5 onto
 //            the arm plane) lies on the side of the first joint axis that the upper arm
 //            points to at θ2 = 0, i.e. along f = sign(a2)·x1, x1 being the DH x axis of
@@ -30,7 +30,7 @@
 // Solutions are stored at a fixed index, configIndex() = 4*(shoulder<0) + 2*(elbow<0) +
 // (wrist<0), so solution k always has the same configuration.
 //
-// Singularities (spec §4.7) are detected and solved with a documented free angle:
+// Singularities (Paper 1 §4-5, singular configurations) are detected and solved with a documented free angle:
 //   shoulder (KUKA: P_w on the first axis, the arm plane Pi_c undefined): q1 = q_free[0]
 //            (the "back" solutions use q1 + pi);
 //   wrist    (KUKA: a_e parallel to z3, theta5 = 0 or pi; UR: a_e parallel to z1): KUKA
@@ -178,7 +178,7 @@ struct IKConstruction {
   std::array<Eigen::Vector3d, 8> points{};
   int num_points = 0;
   /// Normalised discriminants h²/r² of the shoulder (UR horizon) and elbow point pairs:
-  /// the sign of Q² (spec §1.4).
+  /// the sign of Q² (thesis (4.70)-(4.73)).
   double shoulder_discriminant = std::numeric_limits<double>::quiet_NaN();
   double elbow_discriminant = std::numeric_limits<double>::quiet_NaN();
 };

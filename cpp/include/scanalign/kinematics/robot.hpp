@@ -1,5 +1,5 @@
 // Serial 6R robots in standard Denavit-Hartenberg form, forward kinematics and the
-// built-in arm models (thesis spec §4.1, Paper 1 eq. (1)-(3)).
+// built-in arm models (Kleppe, PhD thesis, NTNU 2018, Paper 1 eqs. (1)-(3)).
 //
 // Frames and units:
 //  - metres and radians;
@@ -82,7 +82,7 @@ struct Robot {
   bool withinLimits(const Vector6d& q, double tol = 0) const;
 
   // ----- built-in models (values and sources documented in robot.cpp) -----
-  /// KUKA KR6 R900 sixx (Agilus): DH of the thesis authors' code (spec §4.1), verified by
+  /// KUKA KR6 R900 sixx (Agilus): DH of the thesis authors' CluCalc code (thesis Table 1 is garbled in print), verified by
   /// the home pose q = (0, -pi/2, pi/2, 0, 0, 0) -> p = (0.525, 0, 0.890) m; limits from
   /// KUKA's data sheet (A1 ±170°, A2 -190°..+45°, A3 -120°..+156°, A4 ±185°, A5 ±120°,
   /// A6 ±350°).
@@ -90,7 +90,7 @@ struct Robot {
   /// UR5 (CB-series) with Universal Robots' published DH table.
   static Robot ur5();
   /// UR5 with the numbers printed in the thesis (Table 2: d1 = 89.2, a2 = -425,
-  /// a3 = -392.43, d4 = 109.15, d5 = 94.65, d6 = 82.3 mm), for reproducing spec claim 23.
+  /// a3 = -392.43, d4 = 109.15, d5 = 94.65, d6 = 82.3 mm), for reproducing thesis Table 2.
   static Robot ur5Thesis();
   static Robot ur3();
   static Robot ur10();

@@ -1,4 +1,5 @@
-// Depth image -> point cloud in the camera frame (the first step of seed 000 Algorithm 1:
+// Depth image -> point cloud in the camera frame (the first step of Algorithm 1 of the eye-in-hand paper
+// (Comput. Electron. Agric. 180 (2021) 105929):
 // every RGB-D capture becomes a coloured cloud S).
 #pragma once
 

@@ -1,4 +1,5 @@
-// Frame-to-model reconstruction (seed 000 §3 and Algorithm 1).
+// Frame-to-model reconstruction (the eye-in-hand paper
+// (Comput. Electron. Agric. 180 (2021) 105929), §3 and Algorithm 1).
 //
 // The model is one accumulated cloud with normals and colours, kept in a fixed model
 // frame (the first camera's frame, or a base frame given at reset). Each new frame is
@@ -31,7 +32,7 @@ namespace scanalign {
 
 /// Where a frame's registration starts when the caller gives no initial guess.
 enum class MotionModel {
-  /// Seed 000 §3.2: the previous registration (the camera is assumed not to move).
+  /// Eye-in-hand paper §3.2: the previous registration (the camera is assumed not to move).
   Previous,
   /// The motion between the last two merged frames, applied once more:
   /// T_k = T_{k-1} (T_{k-2}^-1 T_{k-1}), as a constant-velocity tracker (e.g. KISS-ICP,
@@ -45,20 +46,20 @@ enum class MotionModel {
 const char* toString(MotionModel model);
 
 struct FrameToModelSettings {
-  /// Registration settings (seed §3.3 convergence defaults). The correspondence distance
+  /// Registration settings (eye-in-hand paper §3.3 convergence defaults). The correspondence distance
   /// default is tighter than IcpSettings' because consecutive eye-in-hand frames move
-  /// little (the seed's robot moves at most 0.1 m/s at 10 Hz).
+  /// little (the eye-in-hand paper's robot moves at most 0.1 m/s at 10 Hz).
   IcpSettings icp = [] {
     IcpSettings s;
     s.max_correspondence_distance = 0.02;
     return s;
   }();
-  /// PCA normal radius (m). Seed §3.5: 5 mm.
+  /// PCA normal radius (m). Eye-in-hand paper §3.5: 5 mm.
   double normal_radius = 0.005;
-  /// Voxel edge of the model grid applied after each merge (m). Seed §3.6: 1 mm.
+  /// Voxel edge of the model grid applied after each merge (m). Eye-in-hand paper §3.6: 1 mm.
   double model_voxel_size = 0.001;
   /// Voxel edge applied to each incoming frame before normals and registration (m);
-  /// 0 keeps the frame at full resolution. At the seed's 40 cm range a depth pixel covers
+  /// 0 keeps the frame at full resolution. At the eye-in-hand paper's 40 cm range a depth pixel covers
   /// about 0.7 mm, so a 1 mm frame grid loses little and halves the work.
   double frame_voxel_size = 0.001;
   /// Optional box in the frame's camera coordinates; points outside are dropped before
@@ -70,13 +71,13 @@ struct FrameToModelSettings {
   /// A registration with fitness (inlier fraction) below this is rejected.
   double min_fitness = 0.3;
   /// Reject a registration that did not meet a convergence criterion (hit
-  /// icp.max_iterations). Set false for fixed iteration budgets (seed Figs. 6 and 9).
+  /// icp.max_iterations). Set false for fixed iteration budgets (eye-in-hand paper Figs. 6 and 9).
   bool require_convergence = true;
   /// Largest accepted change from the initial guess: translation (m) and rotation (rad).
   /// A registration that jumps further is taken to have failed.
   double max_translation_change = 0.10;
   double max_rotation_change = 0.5;
-  /// Initial guess of a frame given none (see MotionModel). Default: the seed's.
+  /// Initial guess of a frame given none (see MotionModel). Default: the eye-in-hand paper's.
   MotionModel motion_model = MotionModel::Previous;
   /// OpenMP threads for normals and ICP (overrides icp.num_threads when > 0); 0 = all cores.
   int num_threads = 0;

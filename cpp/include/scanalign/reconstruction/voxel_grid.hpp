@@ -1,4 +1,5 @@
-// Voxel-grid downsampling (seed 000 §3.6): one point per occupied voxel, the centroid of
+// Voxel-grid downsampling (the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929),
+// §3.6): one point per occupied voxel, the centroid of
 // the points inside it, with optional per-point attributes (normals, colours) averaged.
 #pragma once
 

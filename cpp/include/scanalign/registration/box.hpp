@@ -1,4 +1,5 @@
-// Axis-aligned box in the source camera frame for correspondence rejection (seed 000 §3.4).
+// Axis-aligned box in the source camera frame for correspondence rejection (the
+// eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), §3.4).
 #pragma once
 
 #include <Eigen/Core>
@@ -8,7 +9,7 @@ namespace scanalign {
 /// Box (x_min, x_max, y_min, y_max, z_min, z_max) in metres, in the source camera frame
 /// (x right, y down, z towards the object). A correspondence is kept only when its source
 /// point lies inside (bounds inclusive). Because the box is attached to the source frame,
-/// it moves with the transform ICP applies to the source, as in the seed.
+/// it moves with the transform ICP applies to the source, as in the eye-in-hand paper.
 struct Box {
   Eigen::Vector3d min = Eigen::Vector3d::Constant(-1e30);
   Eigen::Vector3d max = Eigen::Vector3d::Constant(1e30);
@@ -24,9 +25,9 @@ struct Box {
   }
   bool valid() const { return (min.array() <= max.array()).all() && min.allFinite() && max.allFinite(); }
 
-  /// Seed 000 §3.4 preset for the free-hand scans: +-0.20 m laterally, 0.1 mm to 10 m deep.
+  /// Eye-in-hand paper §3.4 preset for the free-hand scans: +-0.20 m laterally, 0.1 mm to 10 m deep.
   static Box freeHandPreset() { return Box(-0.20, 0.20, -0.20, 0.20, 0.0001, 10.0); }
-  /// Seed 000 §3.4 preset for the banana scan (the printed y bounds are partly garbled; +-0.1 m).
+  /// Eye-in-hand paper §3.4 preset for the banana scan (the printed y bounds are partly garbled; +-0.1 m).
   static Box bananaPreset() { return Box(-0.05, 0.05, -0.10, 0.10, 0.0001, 10.0); }
 };
 

@@ -1,6 +1,7 @@
 // K-d tree with leaf buckets: the CPU search structure of the ICP engine.
 //
-// The seed's left-balanced tree (kdtree.hpp, seed 000 §3.1) keeps one point per node so
+// The left-balanced tree of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), §3.1
+// (kdtree.hpp) keeps one point per node so
 // that it is one pointer-free array a GPU can walk. On a CPU that layout costs a node
 // visit -- a cache line, a distance and a branch -- per point on the way down. Here the
 // recursion stops at small buckets (8 points by default, as in the FLANN / nanoflann

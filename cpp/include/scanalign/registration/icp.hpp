@@ -1,4 +1,5 @@
-// The fast ICP engine: seed 000 Algorithm 1 written for CPU cores.
+// The fast ICP engine: Algorithm 1 of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)
+// written for CPU cores.
 //
 // One parallel pass per iteration transforms each source point, finds its nearest model
 // point in the left-balanced k-d tree, rejects it by box and distance, and adds its
@@ -23,7 +24,7 @@
 namespace scanalign {
 
 enum class IcpEstimator {
-  PointToPlane,  ///< Low (2004) linear least squares, seed 000 §3.2 (needs target normals)
+  PointToPlane,  ///< Low (2004) linear least squares, eye-in-hand paper §3.2 (needs target normals)
   PointToPoint,  ///< closed form (Horn / Umeyama), for comparison
 };
 
@@ -32,8 +33,8 @@ enum class IcpSearch {
   /// K-d tree with 8-point leaf buckets and tight node boxes (bucket_kdtree.hpp): the
   /// fastest on CPU cores. Always exact.
   BucketKdTree,
-  /// Seed 000 §3.1: the left-balanced tree, one point per node, searched with a fixed
-  /// stack of search_stack_depth entries (the layout the seed copies to a GPU).
+  /// Eye-in-hand paper §3.1: the left-balanced tree, one point per node, searched with a fixed
+  /// stack of search_stack_depth entries (the layout the eye-in-hand paper copies to a GPU).
   LeftBalancedKdTree,
 };
 
@@ -43,7 +44,7 @@ enum class IcpSearch {
 /// least squares, which matters when the correspondence distance is large (sparse scans
 /// with a large initial motion).
 enum class RobustKernel {
-  None,    ///< w = 1: Low's plain least squares (seed 000 §3.2)
+  None,    ///< w = 1: Low's plain least squares (eye-in-hand paper §3.2)
   Huber,   ///< w = 1 for |r| <= k, k / |r| beyond
   Cauchy,  ///< w = 1 / (1 + (r / k)^2)
 };
@@ -62,7 +63,7 @@ const char* toString(IcpEstimator estimator);
 const char* toString(IcpSearch search);
 const char* toString(RobustKernel kernel);
 
-/// ICP settings. Defaults are seed 000's (§3.3) where it gives one. PCL semantics.
+/// ICP settings. Defaults are the eye-in-hand paper's (§3.3) where it gives one. PCL semantics.
 struct IcpSettings {
   IcpEstimator estimator = IcpEstimator::PointToPlane;
   /// Correspondences farther apart than this are rejected (m). Also bounds the search.
@@ -81,16 +82,16 @@ struct IcpSettings {
   /// Converged when |MSE_k - MSE_{k-1}| < this (m^2). PCL's default 1e-12.
   double absolute_mse_epsilon = 1e-12;
   /// Robust kernel on the point-to-plane residual (point-to-plane only). Default: none,
-  /// as the seed.
+  /// as the eye-in-hand paper.
   RobustKernel robust_kernel = RobustKernel::None;
   /// The kernel's scale k (m): residuals up to about k count fully. Set it near the
   /// residual noise after convergence (a few voxel sizes; 0.1 m on a 0.25 m LiDAR grid).
   double robust_scale = 0.01;
-  /// Optional box in the source camera frame (seed 000 §3.4).
+  /// Optional box in the source camera frame (eye-in-hand paper §3.4).
   std::optional<Box> box;
   /// Nearest-neighbour structure built by setTarget (changing it needs a new setTarget).
   IcpSearch search = IcpSearch::BucketKdTree;
-  /// Depth of the fixed search stack of the left-balanced tree (seed 000 §3.1: 20).
+  /// Depth of the fixed search stack of the left-balanced tree (eye-in-hand paper §3.1: 20).
   /// Exact while the tree's height is <= this, i.e. up to 2^21 - 1 model points at depth
   /// 20; deeper trees may approximate, which IcpResult::exact_search reports. The bucket
   /// tree's search is always exact and ignores this.

@@ -1,10 +1,10 @@
 // Left-balanced k-d tree in one flat array, searched with a fixed-size stack.
 //
-// Seed 000 §3.1 (after Qiu et al. 2009): the tree over the model points is built once
+// The eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), §3.1 (after Qiu et al. 2009): the tree over the model points is built once
 // on the CPU; being left-balanced (a complete binary tree) it needs no child pointers --
 // node i has children 2i+1 and 2i+2 -- so it is one dense array that can be copied to a
 // GPU as is. The nearest-neighbour search keeps the far branches it still has to visit
-// on a stack of fixed depth (20 in the seed). Along any root-to-leaf path at most one
+// on a stack of fixed depth (20 in the eye-in-hand paper). Along any root-to-leaf path at most one
 // far branch per level is pending, so a stack as deep as the tree is high makes the
 // search exact; a shallower stack drops branches and the search reports whether a
 // dropped branch could have held a closer point.
@@ -42,7 +42,7 @@ class LeftBalancedKdTree {
   /// Hard upper bound on the search stack; the tree's height never exceeds 31 because
   /// indices are 30-bit, so kMaxStack also makes the radius search always exact.
   static constexpr int kMaxStack = 64;
-  static constexpr int kDefaultStack = 20;  ///< seed 000 §3.1
+  static constexpr int kDefaultStack = 20;  ///< eye-in-hand paper §3.1
 
   /// One node: the point's coordinates and, packed into one word, the index of the point
   /// in the input cloud (high 30 bits) and the split axis (low 2 bits). 16 bytes for float.

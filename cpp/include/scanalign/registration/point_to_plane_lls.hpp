@@ -1,4 +1,5 @@
-// Point-to-plane ICP as a linear least-squares problem (Low 2004), seed 000 §3.2.
+// Point-to-plane ICP as a linear least-squares problem (Low 2004), the eye-in-hand
+// paper (Comput. Electron. Agric. 180 (2021) 105929), §3.2.
 //
 // For a correspondence (s, d, n) -- source point s already moved by the current
 // estimate, target point d with unit normal n -- the small-angle linearisation of

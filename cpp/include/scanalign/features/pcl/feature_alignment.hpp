@@ -1,5 +1,5 @@
 // Stock PCL 1.13 global (coarse) registration baselines for CAD-model pose estimation
-// (thesis spec §7.6, paper 5 §IV-A): local descriptors (FPFH, SHOT, 3D shape context)
+// (Kleppe, PhD thesis, NTNU 2018, Paper 5 §IV-A): local descriptors (FPFH, SHOT, 3D shape context)
 // matched by SampleConsensusPrerejective or SAC-IA, and point-pair features (PPF) with
 // PCL's hash-map voting. The declarations are PCL-free; the PCL templates are compiled in
 // cpp/src/features/pcl_feature_alignment.cpp only.
@@ -32,7 +32,7 @@ enum class PclMatcher {
 const char* toString(PclDescriptor descriptor);
 const char* toString(PclMatcher matcher);
 
-/// Settings of the PCL baselines. Defaults are the thesis preset (spec §7.6: 1 mm voxel
+/// Settings of the PCL baselines. Defaults are the thesis preset (Paper 5 §IV-A: 1 mm voxel
 /// grid, normals and features with a 30 mm radius, RANSAC with 1000 iterations and a 5 mm
 /// inlier threshold), converted to metres.
 struct PclFeatureAlignmentSettings {
