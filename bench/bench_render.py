@@ -4,7 +4,7 @@ Each mesh (the built-in part, about 3000 triangles, and CGAL's Stanford bunny, a
 75000 triangles, scaled to 15 cm) stands alone at the origin and is seen from the
 --frames poses of the default scan loop (40 cm above the table, 20 cm radius) at 640x480
 with the SR300 intrinsics. Reported: the median over --repeats of the mean time per frame
-of scanalign.synthetic.render_depth (all threads, then one), of a whole synthetic scan
+of scanalign.rendering.render_depth (all threads, then one), of a whole synthetic scan
 frame (render + sensor noise + shaded RGB, frames rendered concurrently), and, when Open3D
 is installed, of RaycastingScene.cast_rays on the same mesh, poses and pixels (its BVH is
 built once, outside the timing; ray generation is included, as our renderer projects the
@@ -27,14 +27,14 @@ import time
 
 import numpy as np
 
-from scanalign import datasets, synthetic
+from scanalign import datasets, parts, rendering, se3, synthetic
 from scanalign.camera import Intrinsics
 
 
 def meshes():
-    yield "builtin part", synthetic.builtin_mesh()
+    yield "builtin part", parts.builtin_mesh()
     try:
-        yield "bunny00 (CGAL)", synthetic.normalize_mesh(datasets.load_cgal_mesh("bunny00"), 0.15)
+        yield "bunny00 (CGAL)", parts.normalize_mesh(datasets.load_cgal_mesh("bunny00"), 0.15)
     except datasets.DatasetUnavailableError as exc:
         print(f"skipping the bunny: {exc}", file=sys.stderr)
 
@@ -60,7 +60,7 @@ def main() -> int:
     K = Intrinsics.preset("sr300")
     traj = synthetic.loop_trajectory(args.frames, center=(0.0, 0.0, 0.0), height=0.40, radius=0.20)
     T_base_camera = traj.T_base_camera
-    T_camera_base = np.linalg.inv(T_base_camera)
+    T_camera_base = se3.inverse(T_base_camera)
     try:
         import open3d as o3d
     except ImportError:
@@ -73,7 +73,7 @@ def main() -> int:
         v = np.ascontiguousarray(mesh.vertices)
         f = np.ascontiguousarray(mesh.faces, dtype=np.int32)
         row = {"mesh": name, "triangles": int(len(f))}
-        ours = lambda T, n=0: synthetic.render_depth(v, f, K, T, num_threads=n)  # noqa: E731
+        ours = lambda T, n=0: rendering.render_depth(v, f, K, T, num_threads=n)  # noqa: E731
         ours(T_camera_base[0])  # warm-up
         row["scanalign_ms"] = 1e3 * per_frame(ours, T_camera_base, args.repeats)
         row["scanalign_1thread_ms"] = 1e3 * per_frame(lambda T: ours(T, 1), T_camera_base, args.repeats)

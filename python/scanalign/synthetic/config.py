@@ -1,0 +1,259 @@
+"""A synthetic scan described by one flat configuration (JSON or flat YAML), and the demo scan."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Dict, Mapping, Optional, Union
+
+import numpy as np
+
+from .. import io
+from ..camera import INTRINSICS_PRESETS, Intrinsics, read_camera_file
+from ..parts import builtin_mesh, normalize_mesh
+from .mount import DEFAULT_ROBOT_HEIGHT, as_robot, attach_robot, robot_mount
+from .noise import NOISE_PRESETS
+from .scan import SyntheticScan, render_scan
+from .scene import Scene
+from .trajectories import ScanTrajectory, hemisphere_trajectory, loop_trajectory
+
+__all__ = ["SyntheticConfig", "builtin_scan"]
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _is_number(v: object) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+@dataclass
+class SyntheticConfig:
+    """Everything that defines a synthetic scan; read from JSON or flat YAML (``key: value``).
+
+    Attributes:
+        mesh: ``"builtin"`` (the procedural part, :func:`scanalign.parts.builtin_mesh`), a CGAL
+            demo mesh name (``"bunny00"``, ``"fandisk"``, ... fetched by
+            :mod:`scanalign.datasets`), or a path to a .ply/.off/.stl/.obj file.
+        object_size: largest extent of the object (m) after scaling; None keeps the builtin
+            part's size (80 mm) and scales other meshes to 0.15 m.
+        object_x, object_y: object position on the table, base frame (m).
+        object_yaw: rotation about the vertical (rad).
+        table_size: side of the square table top (m); 0 for no table.
+        trajectory: ``"loop"`` or ``"hemisphere"``.
+        n_frames: number of frames.
+        height: loop: camera height above the table (m).
+        radius: loop: radius of the camera circle (m).
+        distance: hemisphere: camera distance to the object (m); None = sqrt(height^2 + radius^2).
+        rings: hemisphere: number of rings, at elevations evenly spaced in
+            [min_elevation, max_elevation] (rad).
+        start_angle: azimuth of the first frame (rad).
+        intrinsics: a preset name of :data:`scanalign.camera.INTRINSICS_PRESETS` or a mapping
+            width/height/fx/fy/cx/cy.
+        resolution_scale: image resize factor (e.g. 0.5 for 320x240).
+        noise: a preset name of ``NOISE_PRESETS``.
+        seed: noise seed.
+        depth_unit: metres per uint16 depth unit; ``"auto"`` for the sensor's own unit (0.1 mm
+            without one); 0 stores float32 metres.
+        frame_rate: Hz.
+        robot: the arm that moves the camera: a name of :meth:`scanalign.kinematics.Robot.by_name`
+            (default ``"ur5"``), or ``"none"`` for the planned camera poses without an arm.
+        robot_x, robot_y, robot_z: position of the robot's base frame in the scene (m); x, y
+            None (default) = above the object; z default ``DEFAULT_ROBOT_HEIGHT`` (0.9) above
+            the table top.
+        robot_roll, robot_pitch, robot_yaw: orientation of the robot base in the scene (rad,
+            ``Rz(yaw) Ry(pitch) Rx(roll)``); default (pi, 0, 0): hanging, first axis down
+            (see :func:`~scanalign.synthetic.robot_mount` for why).
+        robot_elbow: start configuration: ``"up"`` (default: elbow away from the table),
+            ``"down"`` or ``"any"`` (see :func:`~scanalign.synthetic.attach_robot`).
+    """
+
+    mesh: str = "builtin"
+    object_size: Optional[float] = None
+    object_x: float = 0.5
+    object_y: float = 0.0
+    object_yaw: float = 0.3
+    table_size: float = 0.6
+    trajectory: str = "loop"
+    n_frames: int = 36
+    height: float = 0.40
+    radius: float = 0.20
+    distance: Optional[float] = None
+    rings: int = 3
+    min_elevation: float = math.radians(35.0)
+    max_elevation: float = math.radians(75.0)
+    start_angle: float = 0.0
+    intrinsics: Union[str, Dict[str, Any]] = "sr300"
+    resolution_scale: float = 1.0
+    noise: str = "sr300"
+    seed: int = 0
+    depth_unit: Union[float, str] = "auto"
+    frame_rate: float = 10.0
+    robot: str = "ur5"
+    robot_x: Optional[float] = None
+    robot_y: Optional[float] = None
+    robot_z: float = DEFAULT_ROBOT_HEIGHT
+    robot_roll: float = math.pi
+    robot_pitch: float = 0.0
+    robot_yaw: float = 0.0
+    robot_elbow: str = "up"
+
+    def __post_init__(self) -> None:
+        for name, allowed in (("trajectory", ("loop", "hemisphere")), ("robot_elbow", ("up", "down", "any"))):
+            if getattr(self, name) not in allowed:
+                raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")
+        for name, presets in (("noise", NOISE_PRESETS), ("intrinsics", INTRINSICS_PRESETS)):
+            if isinstance(getattr(self, name), str) and getattr(self, name) not in presets:
+                raise ValueError(f"unknown {name} preset {getattr(self, name)!r}; known: {sorted(presets)}")
+        for name, lowest in (("n_frames", 1), ("rings", 1), ("seed", 0)):
+            v = getattr(self, name)
+            if not _is_number(v) or int(v) != v or v < lowest:
+                raise ValueError(f"{name} must be an integer >= {lowest}, got {v!r}")
+            setattr(self, name, int(v))
+        if isinstance(self.depth_unit, str) and self.depth_unit != "auto":
+            raise ValueError(f"depth_unit must be a length in metres or 'auto', got {self.depth_unit!r}")
+        numeric_unit = () if isinstance(self.depth_unit, str) else ("depth_unit",)
+        checks = [(n, "a positive number", lambda v: _is_number(v) and v > 0)
+                  for n in ("height", "resolution_scale", "frame_rate")]
+        checks += [(n, "a non-negative number", lambda v: _is_number(v) and v >= 0)
+                   for n in ("radius", "table_size") + numeric_unit]
+        checks += [(n, "a positive number or null", lambda v: v is None or (_is_number(v) and v > 0))
+                   for n in ("object_size", "distance")]
+        checks += [(n, "a finite number (m or rad), or null", lambda v: v is None or _is_number(v))
+                   for n in ("robot_x", "robot_y")]
+        checks += [(n, "a finite number (m or rad)", _is_number)
+                   for n in ("robot_z", "robot_roll", "robot_pitch", "robot_yaw")]
+        for name, what, ok in checks:
+            if not ok(getattr(self, name)):
+                raise ValueError(f"{name} must be {what}, got {getattr(self, name)!r}")
+        if not 0 < self.min_elevation <= self.max_elevation <= math.pi / 2:
+            raise ValueError("need 0 < min_elevation <= max_elevation <= pi/2 (radians)")
+        if not isinstance(self.robot, str):
+            raise ValueError(f"robot must be a robot name or 'none', got {self.robot!r}")
+        if self.robot != "none":
+            try:
+                as_robot(self.robot)
+            except ValueError as e:
+                raise ValueError(f"robot: {e} (or 'none' for no robot)") from None
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> "SyntheticConfig":
+        """From a mapping of field names to values; unknown keys raise ValueError."""
+        known = {f.name for f in dataclasses.fields(cls)}
+        unknown = sorted(set(d) - known)
+        if unknown:
+            raise ValueError(f"unknown synthetic config keys {unknown}; known: {sorted(known)}")
+        values = dict(d)
+        for key in ("object_size", "distance", "robot_x", "robot_y"):
+            if isinstance(values.get(key), str) and values[key].lower() in ("null", "none", "~", ""):
+                values[key] = None
+        return cls(**values)
+
+    @classmethod
+    def from_file(cls, path: PathLike) -> "SyntheticConfig":
+        """Reads a JSON file, or flat YAML (``key: value`` lines, ``#`` comments)."""
+        return cls.from_dict(read_camera_file(path))
+
+    def to_dict(self) -> Dict[str, Any]:
+        """A JSON-serialisable dict that :meth:`from_dict` turns back into this config."""
+        return dataclasses.asdict(self)
+
+    def to_json(self, path: PathLike) -> None:
+        """Writes the config as JSON."""
+        Path(path).write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
+
+    def load_mesh(self) -> io.Mesh:
+        """The object mesh in metres, in its own frame (scaled per ``object_size``)."""
+        if self.mesh == "builtin":
+            m = builtin_mesh()
+            return m if self.object_size is None else normalize_mesh(m, self.object_size)
+        if os.path.exists(self.mesh):
+            m = io.read_mesh(self.mesh)
+        elif os.sep in self.mesh or (os.altsep and os.altsep in self.mesh):
+            raise FileNotFoundError(f"mesh file {self.mesh!r} does not exist")
+        else:  # a CGAL demo mesh name, optionally with an extension ("pig.stl")
+            from .. import datasets  # the downloader, only for CGAL mesh names
+
+            m = datasets.load_cgal_mesh(self.mesh)
+        return normalize_mesh(m, 0.15 if self.object_size is None else self.object_size)
+
+    def intrinsics_object(self) -> Intrinsics:
+        """The camera intrinsics after ``resolution_scale``."""
+        K = Intrinsics.preset(self.intrinsics) if isinstance(self.intrinsics, str) else Intrinsics.from_dict(
+            self.intrinsics)
+        return K if self.resolution_scale == 1.0 else K.scaled(self.resolution_scale)
+
+    def build_scene(self) -> Scene:
+        """The table (if any) with the object standing on it."""
+        scene = Scene(table_size=(self.table_size, self.table_size) if self.table_size > 0 else None,
+                      table_center=(self.object_x, self.object_y))
+        name = Path(self.mesh).stem if self.mesh != "builtin" else "builtin"
+        scene.add_object(self.load_mesh(), position=(self.object_x, self.object_y), yaw=self.object_yaw, name=name)
+        return scene
+
+    def T_base_robot(self) -> Optional[np.ndarray]:
+        """The robot's mounting in the scene (robot base -> base, 4x4, m), or None without a robot."""
+        if self.robot == "none":
+            return None
+        return robot_mount(self.object_x if self.robot_x is None else self.robot_x,
+                           self.object_y if self.robot_y is None else self.robot_y,
+                           self.robot_z, self.robot_roll, self.robot_pitch, self.robot_yaw)
+
+    def build_trajectory(self, scene: Scene) -> ScanTrajectory:
+        """The planned camera path; with a robot, followed by the arm (``attach_robot``).
+
+        Raises:
+            ValueError: a pose the robot cannot reach from its mount (naming the frame and the
+                IK status).
+        """
+        if self.trajectory == "loop":
+            traj = loop_trajectory(self.n_frames, center=scene.center, height=self.height, radius=self.radius,
+                                   start_angle=self.start_angle, frame_rate=self.frame_rate)
+        else:
+            distance = self.distance if self.distance is not None else math.hypot(self.height, self.radius)
+            traj = hemisphere_trajectory(self.n_frames, center=scene.center, distance=distance,
+                                         elevations=np.linspace(self.min_elevation, self.max_elevation, self.rings),
+                                         start_angle=self.start_angle, frame_rate=self.frame_rate)
+        if self.robot == "none":
+            return traj
+        return attach_robot(traj, self.robot, T_base_robot=self.T_base_robot(), elbow=self.robot_elbow)
+
+    def build(self, *, keep_ground_truth: bool = False) -> SyntheticScan:
+        """Builds the scene and trajectory and renders the scan."""
+        scene = self.build_scene()
+        unit = self.depth_unit if isinstance(self.depth_unit, str) or self.depth_unit > 0 else None
+        return render_scan(scene, self.build_trajectory(scene), self.intrinsics_object(), self.noise, self.seed,
+                           depth_unit=unit, keep_ground_truth=keep_ground_truth, frame_rate=self.frame_rate)
+
+
+def builtin_scan(
+    n_frames: int = 36,
+    noise: str = "sr300",
+    seed: int = 0,
+    *,
+    trajectory: str = "loop",
+    intrinsics: str = "sr300",
+    resolution_scale: float = 1.0,
+    keep_ground_truth: bool = False,
+    robot: str = "ur5",
+) -> SyntheticScan:
+    """The demo scan, no download needed: the built-in part on a 60 cm table, seen by an
+    SR300-like camera on a loop 40 cm above the table (radius 20 cm), 10 Hz, carried by a UR5
+    hanging 0.9 m above the table (reference poses are its forward kinematics, the joints in
+    ``scan.joints``).
+
+    Args:
+        n_frames: frames around the full loop.
+        noise: preset name (``NOISE_PRESETS``).
+        seed: noise seed.
+        trajectory: ``"loop"`` or ``"hemisphere"``.
+        intrinsics: intrinsics preset name.
+        resolution_scale: image resize factor.
+        keep_ground_truth: store noise-free depth and face ids in each frame's ``meta``.
+        robot: the arm's name, or ``"none"`` for the planned poses without an arm.
+    """
+    return SyntheticConfig(n_frames=n_frames, noise=noise, seed=seed, trajectory=trajectory, intrinsics=intrinsics,
+                           resolution_scale=resolution_scale, robot=robot).build(keep_ground_truth=keep_ground_truth)

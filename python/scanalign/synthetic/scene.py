@@ -1,0 +1,310 @@
+"""Objects on a table in the scene (base) frame, rendered as one mesh, with shaded colour."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from .. import io, se3
+from .._arrays import as_transform
+from ..camera import Intrinsics
+from ..reconstruction import depth_to_cloud
+from ..rendering import RenderResult, as_intrinsics, render_depth
+
+__all__ = ["SceneObject", "Scene"]
+
+
+def _morton_order(points: np.ndarray, bits: int = 10) -> np.ndarray:
+    """Permutation sorting points along a Morton (Z-order) curve of their bounding box."""
+    if len(points) == 0:
+        return np.zeros(0, np.int64)
+    lo = points.min(axis=0)
+    ext = float(np.ptp(points, axis=0).max()) or 1.0
+    q = np.clip(((points - lo) / ext * (2**bits - 1)).astype(np.uint64), 0, 2**bits - 1)
+    code = np.zeros(len(points), dtype=np.uint64)
+    for bit in range(bits):
+        for axis in range(3):
+            code |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
+    return np.argsort(code, kind="stable")
+
+
+def _as_color(color: Sequence[float], name: str = "color") -> np.ndarray:
+    c = np.asarray(color, dtype=np.float64)
+    if c.shape != (3,) or not np.all(np.isfinite(c)) or c.min() < 0 or c.max() > 1:
+        raise ValueError(f"{name}: expected three values in [0, 1] (linear RGB), got {color!r}")
+    return c
+
+
+def _finite(value: object, shape: Tuple[int, ...], name: str, what: str) -> np.ndarray:
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: expected {what}, got {value!r}")
+    return a
+
+
+@dataclass
+class SceneObject:
+    """A mesh placed in the scene.
+
+    Attributes:
+        name: label (e.g. the mesh name).
+        mesh: the mesh in its own (object) frame, metres.
+        T_base_object: 4x4 pose: maps object coordinates into the base frame.
+        color: RGB albedo in [0, 1] used for the shaded colour image.
+    """
+
+    name: str
+    mesh: io.Mesh
+    T_base_object: np.ndarray
+    color: Tuple[float, float, float]
+
+
+class Scene:
+    """Objects on a table, in the robot base frame (z up, table top at ``table_height``).
+
+    The table is a finite rectangle (two triangles, normal +z) with a checker pattern in the
+    colour image. Rendering uses one combined mesh in the base frame, its faces reordered
+    along a Morton curve for cache locality; :attr:`face_object` and :attr:`face_source` map
+    its faces back to the objects.
+
+    Args:
+        table_size: (x, y) size of the table top, metres; None for no table.
+        table_center: (x, y) of the table's centre in the base frame, metres.
+        table_height: z of the table top in the base frame, metres.
+        checker_size: side of a checker square, metres.
+        checker_colors: the two RGB albedos of the checker, in [0, 1].
+        light_direction: direction towards a distant light in the base frame (normalised
+            here); shading is two-sided Lambertian plus ``ambient``.
+        ambient: ambient fraction of the light in [0, 1].
+    """
+
+    def __init__(
+        self,
+        table_size: Optional[Tuple[float, float]] = (0.6, 0.6),
+        table_center: Tuple[float, float] = (0.5, 0.0),
+        table_height: float = 0.0,
+        checker_size: float = 0.05,
+        checker_colors: Tuple[Sequence[float], Sequence[float]] = ((0.80, 0.78, 0.72), (0.45, 0.43, 0.40)),
+        light_direction: Sequence[float] = (0.3, -0.2, 1.0),
+        ambient: float = 0.3,
+    ) -> None:
+        if table_size is not None:
+            ts = _finite(table_size, (2,), "table_size", "two positive lengths in metres")
+            if ts.min() <= 0:
+                raise ValueError(f"table_size: expected two positive lengths in metres, got {table_size!r}")
+            table_size = (float(ts[0]), float(ts[1]))
+        tc = _finite(table_center, (2,), "table_center", "(x, y) in metres")
+        if not math.isfinite(table_height):
+            raise ValueError("table_height must be finite")
+        if not (math.isfinite(checker_size) and checker_size > 0):
+            raise ValueError("checker_size must be a positive length in metres")
+        light = _finite(light_direction, (3,), "light_direction", "a non-zero 3-vector")
+        if np.linalg.norm(light) == 0:
+            raise ValueError("light_direction must be a non-zero 3-vector")
+        if not 0 <= ambient <= 1:
+            raise ValueError("ambient must lie in [0, 1]")
+        self.table_size = table_size
+        self.table_center = (float(tc[0]), float(tc[1]))
+        self.table_height = float(table_height)
+        self.checker_size = float(checker_size)
+        self.checker_colors = tuple(_as_color(c, "checker_colors") for c in checker_colors[:2])
+        self.light_direction = light / np.linalg.norm(light)
+        self.ambient = float(ambient)
+        self.objects: List[SceneObject] = []
+        self._combined: Optional[Dict[str, np.ndarray]] = None
+
+    def add_object(
+        self,
+        mesh: io.Mesh,
+        T_base_object: Optional[np.ndarray] = None,
+        *,
+        position: Optional[Tuple[float, float]] = None,
+        yaw: float = 0.0,
+        color: Sequence[float] = (0.75, 0.45, 0.20),
+        name: Optional[str] = None,
+    ) -> SceneObject:
+        """Places a mesh (metres, its own frame) in the scene.
+
+        Either give ``T_base_object`` (object -> base), or let the object stand on the table:
+        rotated by ``yaw`` (rad) about the vertical, its lowest vertex on the table top, the
+        centre of its bounding box at ``position`` (x, y, base frame, m; default the table centre).
+
+        Returns:
+            The :class:`SceneObject` (its ``T_base_object`` is the pose used).
+        """
+        if not isinstance(mesh, io.Mesh):
+            raise TypeError(f"mesh: expected scanalign.io.Mesh, got {type(mesh)!r}")
+        if mesh.faces.shape[0] == 0:
+            raise ValueError("mesh has no faces")
+        if T_base_object is not None:
+            if position is not None or yaw != 0.0:
+                raise ValueError("give either T_base_object or position/yaw, not both")
+            T = se3.require_rigid(T_base_object, "T_base_object")
+        else:
+            if not math.isfinite(yaw):
+                raise ValueError("yaw must be finite (radians)")
+            xy = _finite(self.table_center if position is None else position, (2,), "position", "(x, y) in metres")
+            used = mesh.vertices[np.unique(mesh.faces)]
+            if not np.all(np.isfinite(used)):
+                raise ValueError("mesh has non-finite vertices")
+            T = se3.rigid([0.0, 0.0, 1.0], yaw, [0.0, 0.0, 0.0])
+            rotated = used @ T[:3, :3].T
+            lo, hi = rotated.min(axis=0), rotated.max(axis=0)
+            T[:3, 3] = [xy[0] - (lo[0] + hi[0]) / 2, xy[1] - (lo[1] + hi[1]) / 2, self.table_height - lo[2]]
+        obj = SceneObject(name=name or f"object{len(self.objects)}", mesh=mesh, T_base_object=T,
+                          color=tuple(float(c) for c in _as_color(color)))  # type: ignore[arg-type]
+        self.objects.append(obj)
+        self._combined = None
+        return obj
+
+    @property
+    def center(self) -> np.ndarray:
+        """(3,) centre of the objects' bounding box in the base frame, at table height (the
+        default target of trajectories); the table centre when there are no objects."""
+        if not self.objects:
+            return np.array([*self.table_center, self.table_height])
+        v = self.object_mesh.vertices
+        lo, hi = v.min(axis=0), v.max(axis=0)
+        return np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, self.table_height])
+
+    def _table(self) -> Tuple[np.ndarray, np.ndarray]:
+        sx, sy = self.table_size
+        cx, cy = self.table_center
+        z = self.table_height
+        v = np.array([[cx - sx / 2, cy - sy / 2, z], [cx + sx / 2, cy - sy / 2, z],
+                      [cx + sx / 2, cy + sy / 2, z], [cx - sx / 2, cy + sy / 2, z]])
+        return v, np.array([[0, 1, 2], [0, 2, 3]])
+
+    def _build(self) -> Dict[str, np.ndarray]:
+        if self._combined is not None:
+            return self._combined
+        verts, faces, owner, source, albedo = [], [], [], [], []
+        offset = 0
+        for k, obj in enumerate(self.objects):
+            v = obj.mesh.vertices @ obj.T_base_object[:3, :3].T + obj.T_base_object[:3, 3]
+            f = obj.mesh.faces
+            # Faces in Morton order of their centroids and vertices in order of first use:
+            # neighbouring faces end up close in memory, which cuts the renderer's cache misses
+            # on meshes stored in random order. Unused vertices are dropped.
+            order = _morton_order(v[f].mean(axis=1)) if len(f) > 1 else np.arange(len(f))
+            f = f[order]
+            used, first = np.unique(f.ravel(), return_index=True)
+            by_first_use = used[np.argsort(first, kind="stable")]
+            remap = np.empty(len(v), dtype=np.int64)
+            remap[by_first_use] = np.arange(len(by_first_use))
+            verts.append(v[by_first_use])
+            faces.append(remap[f] + offset)
+            owner.append(np.full(len(f), k, dtype=np.int32))
+            source.append(order.astype(np.int64))
+            albedo.append(np.tile(obj.color, (len(f), 1)))
+            offset += len(by_first_use)
+        n_object_faces = sum(len(f) for f in faces)
+        if self.table_size is not None:
+            tv, tf = self._table()
+            verts.append(tv)
+            faces.append(tf + offset)
+            owner.append(np.full(2, -1, dtype=np.int32))
+            source.append(np.arange(2))
+            albedo.append(np.tile(self.checker_colors[0], (2, 1)))
+        V = np.concatenate(verts) if verts else np.zeros((0, 3))
+        F = np.concatenate(faces).astype(np.int32) if faces else np.zeros((0, 3), np.int32)
+        corners = V[F]
+        n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        norm = np.linalg.norm(n, axis=1, keepdims=True)
+        self._combined = {
+            "vertices": np.ascontiguousarray(V),
+            "faces": np.ascontiguousarray(F),
+            "owner": np.concatenate(owner) if owner else np.zeros(0, np.int32),
+            "source": np.concatenate(source) if source else np.zeros(0, np.int64),
+            "albedo": np.concatenate(albedo) if albedo else np.zeros((0, 3)),
+            "normals": np.divide(n, norm, out=np.zeros_like(n), where=norm > 0),
+            "n_object_faces": np.array(n_object_faces),
+        }
+        return self._combined
+
+    @property
+    def mesh(self) -> io.Mesh:
+        """The whole scene (objects and table) as one mesh in the base frame, metres. Its face
+        order is the renderer's: ``RenderResult.face_id`` indexes these faces."""
+        c = self._build()
+        return io.Mesh(c["vertices"].copy(), c["faces"].astype(np.int64))
+
+    @property
+    def object_mesh(self) -> io.Mesh:
+        """The objects only (no table) as one mesh in the base frame, metres; its faces are the
+        first ``len(object_mesh.faces)`` faces of :attr:`mesh`."""
+        c = self._build()
+        F = c["faces"][: int(c["n_object_faces"])].astype(np.int64)
+        used = np.unique(F)
+        remap = np.full(len(c["vertices"]), -1, dtype=np.int64)
+        remap[used] = np.arange(len(used))
+        return io.Mesh(c["vertices"][used].copy(), remap[F])
+
+    @property
+    def face_object(self) -> np.ndarray:
+        """(F,) int32: for each face of :attr:`mesh`, its object's index in :attr:`objects`,
+        or -1 for the table."""
+        return self._build()["owner"].copy()
+
+    @property
+    def face_source(self) -> np.ndarray:
+        """(F,) int64: for each face of :attr:`mesh`, its row in its object's own mesh (or in
+        the table's two triangles)."""
+        return self._build()["source"].copy()
+
+    def render(self, T_base_camera: np.ndarray, intrinsics: Union[Intrinsics, str], *, near: float = 0.01,
+               far: float = math.inf, num_threads: int = 0) -> RenderResult:
+        """Noise-free depth, face ids and incidence for a camera at ``T_base_camera``
+        (camera -> base, m). Face ids index :attr:`mesh`."""
+        c = self._build()
+        T = se3.require_rigid(T_base_camera, "T_base_camera")
+        return render_depth(c["vertices"], c["faces"], intrinsics, se3.inverse(T), near=near, far=far,
+                            num_threads=num_threads)
+
+    def _prepare_shading(self) -> None:
+        """Colour of every face under the fixed light, for both checker albedos (they differ
+        on table faces only); the last row is the background (black). Built once."""
+        c = self._build()
+        if "lut" in c:
+            return
+        lambert = np.abs(c["normals"] @ self.light_direction)
+        intensity = (self.ambient + (1.0 - self.ambient) * lambert)[:, None]
+        alt = c["albedo"].copy()
+        alt[c["owner"] < 0] = self.checker_colors[1]
+
+        def to8(a: np.ndarray) -> np.ndarray:
+            return np.vstack([np.clip(a * 255.0 + 0.5, 0, 255).astype(np.uint8), np.zeros((1, 3), np.uint8)])
+
+        c["lut_alt"] = to8(alt * intensity)
+        c["lut"] = to8(c["albedo"] * intensity)
+
+    def shade(self, result: RenderResult, T_base_camera: np.ndarray,
+              intrinsics: Union[Intrinsics, str]) -> np.ndarray:
+        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels): two-sided
+        Lambertian shading of each face's albedo (the object's colour, or the table's checker
+        at the point hit) under :attr:`light_direction`; black where nothing is hit.
+        ``T_base_camera``: camera -> base, m."""
+        c = self._build()
+        K = as_intrinsics(intrinsics)
+        T = as_transform(T_base_camera, "T_base_camera")
+        fid = np.asarray(result.face_id)
+        if fid.shape != K.shape:
+            raise ValueError(f"result has shape {fid.shape}, intrinsics expect {K.shape}")
+        n_faces = len(c["faces"])
+        self._prepare_shading()
+        idx = np.where(fid >= 0, fid, n_faces)
+        rgb = c["lut"][idx]
+        table = (idx >= int(c["n_object_faces"])) & (idx < n_faces)  # the table's faces come last
+        if np.any(table):
+            # Checker parity from the base-frame point hit on the table.
+            p, _, pixel = depth_to_cloud(np.where(table, result.depth, np.nan), K, min_depth=0.0,
+                                         max_depth=math.inf, return_pixels=True)
+            p = p.astype(np.float64) @ T[:2, :3].T + T[:2, 3]
+            cell = np.floor((p[:, 0] - self.table_center[0]) / self.checker_size) + np.floor(
+                (p[:, 1] - self.table_center[1]) / self.checker_size)
+            v, u = np.divmod(pixel[np.mod(cell, 2.0) == 1.0], K.width)
+            rgb[v, u] = c["lut_alt"][idx[v, u]]
+        return rgb
