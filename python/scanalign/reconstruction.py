@@ -445,7 +445,7 @@ class Reconstructor:
             :data:`REGISTRATION_METHODS` for comparison.
         depth_filter: a :class:`DepthFilter` applied to every depth image before
             back-projection (for noisy consumer sensors), or None (default): raw depth, as
-            the seed.
+            the eye-in-hand paper.
     """
 
     def __init__(
