@@ -37,12 +37,12 @@ def dataset_cache() -> Path:
 def _surface(name: str, n_points: int, seed: int) -> Tuple[np.ndarray, np.ndarray]:
     """A CGAL demo mesh scaled to 15 cm and placed 50 cm in front of a camera at the
     origin, sampled area-uniformly with exact face normals (metres)."""
-    from scanalign import datasets
+    from scanalign import datasets, parts
 
     mesh = datasets.load_cgal_mesh(name)
     v = mesh.vertices - mesh.vertices.mean(axis=0)
     v = v * (0.15 / np.ptp(v, axis=0).max()) + np.array([0.0, 0.0, 0.5])
-    points, normals = datasets.sample_mesh((v, mesh.faces), n_points, seed=seed)
+    points, normals = parts.sample_mesh((v, mesh.faces), n_points, seed=seed)
     return points, normals
 
 

@@ -11,6 +11,7 @@ import pytest
 
 from helpers import rigid
 from scanalign import io as sio
+from scanalign import parts, rendering
 from scanalign import synthetic as syn
 from scanalign.camera import Frame, Intrinsics
 from scanalign.trajectory import Trajectory
@@ -96,7 +97,7 @@ def test_plane_depth_equals_analytic_depth():
     T_world_camera[:3, :3] = np.column_stack([x, np.cross(z, x), z]) @ rigid((0, 0, 1), 0.4, (0, 0, 0))[:3, :3]
     T_world_camera[:3, 3] = eye
     T_camera_world = np.linalg.inv(T_world_camera)
-    r = syn.render_depth(v, f, K_SR300, T_camera_world)
+    r = rendering.render_depth(v, f, K_SR300, T_camera_world)
     n_c = T_camera_world[:3, :3] @ n_world
     d_c = n_c @ (T_camera_world[:3, :3] @ p0 + T_camera_world[:3, 3])
     R = rays(K_SR300)
@@ -149,7 +150,7 @@ def test_sphere_silhouette_and_depth_match_ray_casting():
     radius = 0.1
     rings, segments = 90, 180
     v, f = uv_sphere(c, radius, rings, segments)
-    r = syn.render_depth(v, f, K_SR300, np.eye(4))
+    r = rendering.render_depth(v, f, K_SR300, np.eye(4))
     d = rays(K_SR300)
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
     bq = d @ c
@@ -177,7 +178,7 @@ def test_render_depth_near_plane_clips_and_far_limits():
     R = rays(K_SR300)
     with np.errstate(divide="ignore"):
         z_true = np.where(R[..., 1] > 0, 0.1 / R[..., 1], np.inf)
-    r = syn.render_depth(v, f, K_SR300, np.eye(4), near=0.3, far=4.0)
+    r = rendering.render_depth(v, f, K_SR300, np.eye(4), near=0.3, far=4.0)
     clear = (z_true > 0.31) & (z_true < 3.9) & (np.abs(R[..., 0] * z_true) < 2.9)
     assert np.all(r.hit[clear])
     assert np.abs(r.depth[clear] - z_true[clear]).max() < 1e-5
@@ -187,33 +188,33 @@ def test_render_depth_near_plane_clips_and_far_limits():
 def test_render_depth_rejects_bad_input():
     v, f = quad((0, 0, 1), (0, 0, -1), 1.0)
     with pytest.raises(TypeError):
-        syn.render_depth(v.astype(np.int64), f, K_SR300, np.eye(4))
+        rendering.render_depth(v.astype(np.int64), f, K_SR300, np.eye(4))
     with pytest.raises(TypeError):
-        syn.render_depth(v, f.astype(float), K_SR300, np.eye(4))
+        rendering.render_depth(v, f.astype(float), K_SR300, np.eye(4))
     with pytest.raises(TypeError):
-        syn.render_depth(v, f, (640, 480, 500, 500, 320, 240), np.eye(4))
+        rendering.render_depth(v, f, (640, 480, 500, 500, 320, 240), np.eye(4))
     with pytest.raises(ValueError, match="faces"):
-        syn.render_depth(v, f + 2, K_SR300, np.eye(4))
+        rendering.render_depth(v, f + 2, K_SR300, np.eye(4))
     with pytest.raises(ValueError, match="faces"):
-        syn.render_depth(v, f - 1, K_SR300, np.eye(4))
+        rendering.render_depth(v, f - 1, K_SR300, np.eye(4))
     with pytest.raises(ValueError):
-        syn.render_depth(v[:, :2], f, K_SR300, np.eye(4))
+        rendering.render_depth(v[:, :2], f, K_SR300, np.eye(4))
     with pytest.raises(ValueError):
-        syn.render_depth(v, f, K_SR300, np.eye(3))
+        rendering.render_depth(v, f, K_SR300, np.eye(3))
     T = np.eye(4)
     T[0, 3] = np.nan
     with pytest.raises(ValueError):
-        syn.render_depth(v, f, K_SR300, T)
+        rendering.render_depth(v, f, K_SR300, T)
     with pytest.raises(ValueError, match="orthonormal"):
-        syn.render_depth(v, f, K_SR300, np.diag([2.0, 1.0, 1.0, 1.0]))
+        rendering.render_depth(v, f, K_SR300, np.diag([2.0, 1.0, 1.0, 1.0]))
     with pytest.raises(ValueError, match="bottom row"):
-        syn.render_depth(v, f, K_SR300, np.eye(4) + np.eye(4, k=-3))
+        rendering.render_depth(v, f, K_SR300, np.eye(4) + np.eye(4, k=-3))
     with pytest.raises(ValueError, match="near"):
-        syn.render_depth(v, f, K_SR300, np.eye(4), near=0.0)
+        rendering.render_depth(v, f, K_SR300, np.eye(4), near=0.0)
     with pytest.raises(ValueError, match="far"):
-        syn.render_depth(v, f, K_SR300, np.eye(4), near=1.0, far=0.5)
+        rendering.render_depth(v, f, K_SR300, np.eye(4), near=1.0, far=0.5)
     with pytest.raises(ValueError):
-        syn.render_depth(v, f, "no_such_camera", np.eye(4))
+        rendering.render_depth(v, f, "no_such_camera", np.eye(4))
     # The compiled core's own checks: a C++ std::invalid_argument arrives as ValueError.
     from scanalign import _core
 
@@ -224,15 +225,30 @@ def test_render_depth_rejects_bad_input():
         _core.synthetic.render_depth(v, f.astype(np.int32), 64, 48, -50.0, 50.0, 32.0, 24.0, np.eye(4), 0.01,
                                      np.inf, False, 0)
     # An empty mesh is fine: nothing is hit.
-    r = syn.render_depth(v, np.zeros((0, 3), np.int32), K_SR300, np.eye(4))
+    r = rendering.render_depth(v, np.zeros((0, 3), np.int32), K_SR300, np.eye(4))
     assert not r.hit.any() and np.isnan(r.depth).all()
+
+
+def test_production_modules_do_not_import_the_simulator_or_the_downloader():
+    import os
+    import subprocess
+    import sys
+
+    code = ("import sys, scanalign.rendering, scanalign.parts; "
+            "print(sorted(m for m in sys.modules if m.startswith(('scanalign.synthetic', 'scanalign.datasets'))))")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}  # the scanalign under test
+    out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, env=env).stdout
+    assert out.strip() == "[]"
+    # The simulator's names are the production ones, re-exported.
+    assert syn.render_depth is rendering.render_depth and syn.look_at is rendering.look_at
+    assert syn.builtin_mesh is parts.builtin_mesh and syn.normalize_mesh is parts.normalize_mesh
 
 
 # --------------------------------------------------------------------------- meshes and scene
 
 
 def test_builtin_mesh_is_a_closed_part_on_the_analytic_surfaces():
-    m = syn.builtin_mesh()
+    m = parts.builtin_mesh()
     assert 2000 <= len(m.faces) <= 6000
     # Watertight and consistently wound: every directed edge appears once, its reverse once.
     e = np.concatenate([m.faces[:, [0, 1]], m.faces[:, [1, 2]], m.faces[:, [2, 0]]])
@@ -246,7 +262,7 @@ def test_builtin_mesh_is_a_closed_part_on_the_analytic_surfaces():
     assert volume == pytest.approx(analytic, rel=2e-3)  # outward winding: positive volume
     np.testing.assert_allclose(m.vertices.min(0), [-0.04, -0.025, -0.015], atol=1e-12)
     np.testing.assert_allclose(m.vertices.max(0), [0.04, 0.025, 0.030], atol=1e-12)
-    # Every vertex lies on one of the part's analytic surfaces (datasets.builtin_object's).
+    # Every vertex lies on one of the part's analytic surfaces (documented in scanalign.parts).
     p = m.vertices
     on_box = (np.isclose(np.abs(p[:, 0]), 0.04, atol=1e-12) | np.isclose(np.abs(p[:, 1]), 0.025, atol=1e-12)
               | np.isclose(np.abs(p[:, 2]), 0.015, atol=1e-12)) & np.all(np.abs(p) <= [0.04, 0.025, 0.015 + 1e-12], 1)
@@ -260,7 +276,7 @@ def test_builtin_mesh_is_a_closed_part_on_the_analytic_surfaces():
 
 def test_scene_places_objects_on_the_table_and_exposes_the_mesh():
     scene = syn.Scene(table_size=(0.6, 0.4), table_center=(0.5, 0.1))
-    part = syn.builtin_mesh()
+    part = parts.builtin_mesh()
     obj = scene.add_object(part, position=(0.45, 0.05), yaw=0.7, color=(0.2, 0.4, 0.9))
     om = scene.object_mesh
     assert om.vertices[:, 2].min() == pytest.approx(0.0, abs=1e-12)  # standing on the table
@@ -291,11 +307,11 @@ def test_scene_places_objects_on_the_table_and_exposes_the_mesh():
 
 def test_normalize_mesh_scales_and_sets_on_the_table():
     v = np.array([[10.0, 20.0, 30.0], [110.0, 20.0, 30.0], [10.0, 70.0, 30.0], [10.0, 20.0, 80.0]])
-    m = syn.normalize_mesh(sio.Mesh(v, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]), 0.15)
+    m = parts.normalize_mesh(sio.Mesh(v, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]), 0.15)
     np.testing.assert_allclose(np.ptp(m.vertices, axis=0), [0.15, 0.075, 0.075])
     np.testing.assert_allclose(m.vertices.min(0), [-0.075, -0.0375, 0.0])
     with pytest.raises(ValueError):
-        syn.normalize_mesh(m, -1.0)
+        parts.normalize_mesh(m, -1.0)
 
 
 def test_rgb_is_registered_shaded_colour():
@@ -366,7 +382,7 @@ def test_hand_eye_composition():
         assert optical_axis_distance(Tbc, center) < 1e-9
         assert np.linalg.norm(Tbf[:3, 3] - Tbc[:3, 3]) == pytest.approx(np.linalg.norm(T_flange_camera[:3, 3]))
     scene = table_only()
-    scene.add_object(syn.builtin_mesh(), position=(0.5, 0.0))
+    scene.add_object(parts.builtin_mesh(), position=(0.5, 0.0))
     scan = syn.render_scan(scene, traj, "sr300", "none", depth_unit=None, keep_ground_truth=True)
     np.testing.assert_allclose(scan.T_flange_camera, T_flange_camera)
     for k, frame in enumerate(scan.frames):
@@ -407,13 +423,13 @@ def test_hemisphere_trajectory_rings():
 
 
 def test_look_at_and_trajectory_errors():
-    T = syn.look_at([0.0, 0.0, 1.0], [1.0, 0.0, 1.0])
+    T = rendering.look_at([0.0, 0.0, 1.0], [1.0, 0.0, 1.0])
     np.testing.assert_allclose(T[:3, 2], [1, 0, 0], atol=1e-15)
     np.testing.assert_allclose(T[:3, 1], [0, 0, -1], atol=1e-15)  # image down = world down
     with pytest.raises(ValueError):
-        syn.look_at([0, 0, 0], [0, 0, 0])
+        rendering.look_at([0, 0, 0], [0, 0, 0])
     with pytest.raises(ValueError):
-        syn.look_at([0, 0, 1], [0, 0, 0])  # straight down with up = +z: roll undefined
+        rendering.look_at([0, 0, 1], [0, 0, 0])  # straight down with up = +z: roll undefined
     with pytest.raises(ValueError):
         syn.loop_trajectory(0)
     with pytest.raises(ValueError):
@@ -461,7 +477,7 @@ def test_noise_sigma_grows_with_the_square_of_depth():
 def test_dropout_at_grazing_angles():
     # A camera 0.12 m above the table looking at a point 0.6 m away: the incidence goes from
     # moderate (bottom rows) to grazing (top rows).
-    T = syn.look_at([0.0, 0.0, 0.12], [0.6, 0.0, 0.0])
+    T = rendering.look_at([0.0, 0.0, 0.12], [0.6, 0.0, 0.0])
     scene = table_only(4.0)
     model = syn.NOISE_PRESETS["sr300"]
     scan = syn.render_scan(scene, T, "sr300", "sr300", seed=5, keep_ground_truth=True)
@@ -495,7 +511,7 @@ def test_depth_range_is_clipped():
 
 def test_depth_edges_drop_pixels_on_both_sides():
     scene = table_only()
-    scene.add_object(syn.builtin_mesh(), position=(0.5, 0.0))
+    scene.add_object(parts.builtin_mesh(), position=(0.5, 0.0))
     T = downward_camera(0.45)
     model = syn.NOISE_PRESETS["d435"]
     frame = syn.render_scan(scene, T, "sr300", model, keep_ground_truth=True).frames[0]
@@ -575,7 +591,7 @@ def test_scan_frames_and_reference():
     p = scan.points(0, in_base=True)
     assert np.all(p[:, 2] > -0.01) and np.all(p[:, 2] < 0.055)  # the part is 45 mm tall with its boss
     assert scan.T_flange_camera is not None and scan.T_base_flange.shape == (12, 4, 4)
-    assert len(scan.object_mesh.faces) == len(syn.builtin_mesh().faces)
+    assert len(scan.object_mesh.faces) == len(parts.builtin_mesh().faces)
 
 
 def test_depth_storage_float_and_uint16_agree():
@@ -666,7 +682,7 @@ def test_cgal_mesh_scene(name, dataset_cache):
 def test_demo_scan_is_fast():
     import time
 
-    syn.builtin_mesh()  # built once per process
+    parts.builtin_mesh()  # built once per process
     t = time.perf_counter()
     scan = syn.builtin_scan(n_frames=36, noise="sr300", seed=0)
     elapsed = time.perf_counter() - t

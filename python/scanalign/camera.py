@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any, Dict, Mapping, Optional, Union
 
 import numpy as np
@@ -25,12 +25,9 @@ class Intrinsics:
     """Pinhole intrinsics of a depth image (no distortion: rectified images).
 
     Attributes:
-        width: image width, pixels.
-        height: image height, pixels.
-        fx: focal length along x, pixels.
-        fy: focal length along y, pixels.
-        cx: principal point x, pixels (column of the optical axis).
-        cy: principal point y, pixels (row of the optical axis).
+        width, height: image size, pixels.
+        fx, fy: focal lengths along x and y, pixels.
+        cx, cy: principal point (column and row of the optical axis), pixels.
     """
 
     width: int
@@ -75,8 +72,8 @@ class Intrinsics:
                           (self.cy + 0.5) * factor - 0.5)
 
     def to_dict(self) -> Dict[str, Any]:
-        return {"width": self.width, "height": self.height, "fx": self.fx, "fy": self.fy, "cx": self.cx,
-                "cy": self.cy}
+        """The fields as a dict (the keys :meth:`from_dict` reads)."""
+        return asdict(self)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Intrinsics":

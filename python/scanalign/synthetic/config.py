@@ -35,35 +35,30 @@ class SyntheticConfig:
     """Everything that defines a synthetic scan; read from JSON or flat YAML (``key: value``).
 
     Attributes:
-        mesh: ``"builtin"`` (the procedural part, :func:`scanalign.parts.builtin_mesh`), a CGAL
-            demo mesh name (``"bunny00"``, ``"fandisk"``, ... fetched by
-            :mod:`scanalign.datasets`), or a path to a .ply/.off/.stl/.obj file.
+        mesh: ``"builtin"`` (:func:`scanalign.parts.builtin_mesh`), a CGAL demo mesh name
+            (``"bunny00"``, ``"fandisk"``, ... fetched by :mod:`scanalign.datasets`), or a path
+            to a .ply/.off/.stl/.obj file.
         object_size: largest extent of the object (m) after scaling; None keeps the builtin
             part's size (80 mm) and scales other meshes to 0.15 m.
-        object_x, object_y: object position on the table, base frame (m).
-        object_yaw: rotation about the vertical (rad).
+        object_x, object_y, object_yaw: object position on the table (base frame, m) and
+            rotation about the vertical (rad).
         table_size: side of the square table top (m); 0 for no table.
-        trajectory: ``"loop"`` or ``"hemisphere"``.
-        n_frames: number of frames.
-        height: loop: camera height above the table (m).
-        radius: loop: radius of the camera circle (m).
-        distance: hemisphere: camera distance to the object (m); None = sqrt(height^2 + radius^2).
-        rings: hemisphere: number of rings, at elevations evenly spaced in
-            [min_elevation, max_elevation] (rad).
+        trajectory: ``"loop"`` or ``"hemisphere"``; n_frames: number of frames.
+        height, radius: loop: camera height above the table and circle radius (m).
+        distance: hemisphere: camera distance to the object (m); None = hypot(height, radius).
+        rings, min_elevation, max_elevation: hemisphere: number of rings, at elevations evenly
+            spaced in [min_elevation, max_elevation] (rad).
         start_angle: azimuth of the first frame (rad).
         intrinsics: a preset name of :data:`scanalign.camera.INTRINSICS_PRESETS` or a mapping
-            width/height/fx/fy/cx/cy.
-        resolution_scale: image resize factor (e.g. 0.5 for 320x240).
-        noise: a preset name of ``NOISE_PRESETS``.
-        seed: noise seed.
+            width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
+        noise, seed: a preset name of ``NOISE_PRESETS`` and the noise seed.
         depth_unit: metres per uint16 depth unit; ``"auto"`` for the sensor's own unit (0.1 mm
             without one); 0 stores float32 metres.
         frame_rate: Hz.
         robot: the arm that moves the camera: a name of :meth:`scanalign.kinematics.Robot.by_name`
             (default ``"ur5"``), or ``"none"`` for the planned camera poses without an arm.
         robot_x, robot_y, robot_z: position of the robot's base frame in the scene (m); x, y
-            None (default) = above the object; z default ``DEFAULT_ROBOT_HEIGHT`` (0.9) above
-            the table top.
+            None (default) = above the object; z default 0.9 above the table top.
         robot_roll, robot_pitch, robot_yaw: orientation of the robot base in the scene (rad,
             ``Rz(yaw) Ry(pitch) Rx(roll)``); default (pi, 0, 0): hanging, first axis down
             (see :func:`~scanalign.synthetic.robot_mount` for why).

@@ -116,11 +116,8 @@ def attach_robot(
             return tr, math.inf
         return tr, float(np.abs(np.diff(np.vstack([q0[None], tr.q]), axis=0)).max())
 
-    if q_start is not None:
-        q0 = np.asarray(q_start, dtype=np.float64).reshape(-1)
-        if q0.shape != (6,) or not np.all(np.isfinite(q0)):
-            raise ValueError(f"q_start: expected 6 finite joint values (rad), got {q_start!r}")
-        best, _ = run(q0)
+    if q_start is not None:  # Robot.ik_trajectory checks it (6 finite values, naming q_start)
+        best, _ = run(np.asarray(q_start, dtype=np.float64))
     else:
         best = _best_start(model, Tbr, T_robot_flange[0], elbow, run, where)
     if not np.all(best.ok):
@@ -164,4 +161,6 @@ def _best_start(model: Any, Tbr: np.ndarray, T_first: np.ndarray, elbow: str, ru
                 if best is None or step < best_step - 1e-9 or (
                         step == best_step == math.inf and np.count_nonzero(tr.ok) > np.count_nonzero(best.ok)):
                     best, best_step = tr, step
+    if best is None:
+        raise ValueError(f"robot {model.name}: every start for {where(0)} lies outside the joint limits")
     return best

@@ -110,7 +110,9 @@ class Scene:
         self.table_center = (float(tc[0]), float(tc[1]))
         self.table_height = float(table_height)
         self.checker_size = float(checker_size)
-        self.checker_colors = tuple(_as_color(c, "checker_colors") for c in checker_colors[:2])
+        if len(checker_colors) != 2:
+            raise ValueError(f"checker_colors: expected two RGB albedos, got {checker_colors!r}")
+        self.checker_colors = tuple(_as_color(c, "checker_colors") for c in checker_colors)
         self.light_direction = light / np.linalg.norm(light)
         self.ambient = float(ambient)
         self.objects: List[SceneObject] = []
