@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from scanalign import cad, cbd, datasets, fitting, pose, synthetic
+from scanalign import cad, cbd, datasets, features, fitting, pose, synthetic
 
 
 def _pose(seed: int, t_scale: float = 0.05) -> np.ndarray:
@@ -113,7 +113,7 @@ def test_ransac_recovers_the_pose_despite_outliers():
 def test_shape_factors_and_keypoint_rules():
     ev = np.array([[1.0, 0, 0], [1, 1, 0], [1, 1, 1], [1, 0, 0]])
     counts = np.array([300, 300, 300, 100])
-    f = cbd.shape_factors_of(ev)
+    f = features.shape_factors(ev)
     np.testing.assert_allclose(f.sum(axis=1), 1.0)
     np.testing.assert_allclose(np.diag(f[:3]), 1.0)  # line, plane, isotropic (claim 15)
     np.testing.assert_array_equal(cbd.select_keypoints(counts, ev), [0, 2])  # delta_p = 1 disables (claim 16)
@@ -169,7 +169,7 @@ def test_self_alignment_of_a_real_part_is_recovered_after_icp(fandisk_views, var
     scene = _apply(T, pts)
     coarse = pose.align_cbd(pts, scene, min_neighbors=0, variant=variant)
     assert coarse.found, coarse.message
-    assert coarse.details["match_inliers"] > 100
+    assert coarse.match_inliers > 100
     ang, dist = _errors(coarse.T_target_source, T)
     assert ang < 2 and dist < 2
     r = pose.estimate_pose(mesh, scene, views=[5], resolution=300, cbd_settings=cbd.make_settings(variant=variant))
@@ -233,7 +233,7 @@ def test_flags_refuse_a_closed_surface(fandisk_views):
     mesh, _ = fandisk_views
     p, n = datasets.sample_mesh(mesh, 20000, seed=0)
     flag = pose.normal_line_flag(p, n)
-    assert flag["mean_normal_length"] < 0.05  # claim 33
+    assert flag.mean_normal_length < 0.05  # claim 33
     r = pose.align_flags(p, n, p, n)
     assert not r.valid and "closed" in r.message
 
@@ -322,7 +322,7 @@ def test_pcl_baselines_recover_a_displacement(fandisk_views, method):
     assert r.found, r.message
     ang, dist = _errors(r.T_target_source, T)
     assert ang < 5 and dist < 5
-    assert r.fitness > 0.9 and r.details["source_descriptors"] > 100
+    assert r.fitness > 0.9 and r.source_descriptors > 100
 
 
 def test_pcl_baseline_bad_input(fandisk_views):

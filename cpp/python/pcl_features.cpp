@@ -1,6 +1,5 @@
-// Binding of the stock PCL global-registration baselines (thesis spec §7.6): one function
-// that takes every setting explicitly (the Python package supplies the preset) and returns
-// a plain dict, so the baselines' results can be logged without a result class.
+// Binding of the stock PCL global-registration baselines of Kleppe's thesis (§7.6): settings
+// and result bound directly, with the thesis presets from C++.
 #include <pybind11/eigen.h>
 
 #include <cstdint>
@@ -8,92 +7,68 @@
 
 #include "arrays.hpp"
 #include "scanalign/features/pcl/feature_alignment.hpp"
+#include "scanalign/pose/pcl_coarse_aligner.hpp"
 
 namespace scanalign::python {
 
-namespace {
-
-PclDescriptor descriptorFromString(const std::string& s) {
-  for (auto d : {PclDescriptor::FPFH, PclDescriptor::SHOT, PclDescriptor::ShapeContext3D, PclDescriptor::PPF})
-    if (s == toString(d)) return d;
-  throw py::value_error("descriptor must be 'fpfh', 'shot', '3dsc' or 'ppf', got '" + s + "'");
-}
-
-PclMatcher matcherFromString(const std::string& s) {
-  for (auto m : {PclMatcher::Prerejective, PclMatcher::SacIA})
-    if (s == toString(m)) return m;
-  throw py::value_error("matcher must be 'prerejective' or 'sac_ia', got '" + s + "'");
-}
-
-py::dict toDict(const PclFeatureAlignmentResult& r) {
-  py::dict d;
-  d["T_target_source"] = py::cast(r.T_target_source);  // 4x4 float64 array (a copy)
-  d["converged"] = r.converged;
-  d["fitness"] = r.fitness;
-  d["inlier_rmse"] = r.inlier_rmse;
-  d["source_points"] = r.source_points;
-  d["target_points"] = r.target_points;
-  d["source_descriptors"] = r.source_descriptors;
-  d["target_descriptors"] = r.target_descriptors;
-  d["feature_seconds"] = r.feature_seconds;
-  d["seconds"] = r.seconds;
-  d["message"] = r.message;
-  return d;
-}
-
-}  // namespace
-
 void definePclFeatures(py::module_& m) {
+  py::enum_<PclDescriptor>(m, "PclDescriptor", "PCL descriptor of a baseline")
+      .value("fpfh", PclDescriptor::FPFH, "FPFHEstimationOMP, 33 bins (Rusu 2009)")
+      .value("shot", PclDescriptor::SHOT, "SHOTEstimationOMP, 352 bins (Tombari 2010)")
+      .value("3dsc", PclDescriptor::ShapeContext3D, "ShapeContext3DEstimation, 1980 bins (Frome 2004)")
+      .value("ppf", PclDescriptor::PPF, "PPF + PPFRegistration (Drost 2010); no matcher");
+  py::enum_<PclMatcher>(m, "PclMatcher", "PCL feature matcher")
+      .value("prerejective", PclMatcher::Prerejective, "SampleConsensusPrerejective (Buch 2013)")
+      .value("sac_ia", PclMatcher::SacIA, "SampleConsensusInitialAlignment (Rusu 2009), FPFH only");
+  using S = PclFeatureAlignmentSettings;
+  py::class_<S>(m, "PclFeatureAlignmentSettings", "A stock PCL coarse registration (metres, radians)")
+      .def(py::init<>())
+      .def_readwrite("descriptor", &S::descriptor, "PclDescriptor")
+      .def_readwrite("matcher", &S::matcher, "PclMatcher (ignored for PPF)")
+      .def_readwrite("voxel_size", &S::voxel_size, "m; VoxelGrid leaf on both clouds first (0: none)")
+      .def_readwrite("normal_radius", &S::normal_radius, "m; NormalEstimationOMP radius")
+      .def_readwrite("feature_radius", &S::feature_radius, "m; descriptor support radius")
+      .def_readwrite("shot_lrf_radius", &S::shot_lrf_radius, "m; SHOT local reference frame radius (0: feature_radius)")
+      .def_readwrite("shape_context_min_radius", &S::shape_context_min_radius, "m; 3DSC smallest shell")
+      .def_readwrite("shape_context_density_radius", &S::shape_context_density_radius, "m; 3DSC point-density radius")
+      .def_readwrite("max_iterations", &S::max_iterations, "RANSAC iterations (thesis: 1000)")
+      .def_readwrite("inlier_threshold", &S::inlier_threshold, "m; RANSAC inlier distance (thesis: 0.005)")
+      .def_readwrite("num_samples", &S::num_samples, "points per RANSAC hypothesis")
+      .def_readwrite("correspondence_randomness", &S::correspondence_randomness, "k nearest features a sample picks from")
+      .def_readwrite("similarity_threshold", &S::similarity_threshold, "prerejective edge-length similarity in [0, 1)")
+      .def_readwrite("inlier_fraction", &S::inlier_fraction, "prerejective: required inlier fraction of the source")
+      .def_readwrite("min_sample_distance", &S::min_sample_distance, "m; SAC-IA minimum distance between samples")
+      .def_readwrite("ppf_angle_step", &S::ppf_angle_step, "rad; PPF angle discretisation")
+      .def_readwrite("ppf_distance_step", &S::ppf_distance_step, "m; PPF distance step (0: 0.05 x source diameter)")
+      .def_readwrite("ppf_scene_fraction", &S::ppf_scene_fraction, "PPF: fraction of target points used as references")
+      .def_readwrite("seed", &S::seed, "seeds std::srand, which PCL's samplers use")
+      .def_readwrite("num_threads", &S::num_threads, "OpenMP threads, 0 = all cores");
+  m.def("thesis_pcl_preset", &thesisPclPreset, py::arg("descriptor"), py::arg("matcher") = PclMatcher::Prerejective,
+        "the thesis's baseline settings for a descriptor (1 mm voxels, 30 mm radii, 3DSC 40 mm, 1000 iterations, 5 mm)");
+  using R = PclFeatureAlignmentResult;
+  py::class_<R>(m, "PclFeatureAlignmentResult", "Outcome of a PCL baseline")
+      .def_readonly("T_target_source", &R::T_target_source, "(4, 4) maps source into target")
+      .def_readonly("converged", &R::converged, "PCL's hasConverged(): a hypothesis was accepted")
+      .def_property_readonly("found", [](const R& r) { return r.converged; }, "same as converged")
+      .def_readonly("fitness", &R::fitness, "downsampled source points within inlier_threshold of the target")
+      .def_readonly("inlier_rmse", &R::inlier_rmse, "m")
+      .def_readonly("source_points", &R::source_points, "after the voxel grid")
+      .def_readonly("target_points", &R::target_points, "after the voxel grid")
+      .def_readonly("source_descriptors", &R::source_descriptors, "finite descriptors used")
+      .def_readonly("target_descriptors", &R::target_descriptors, "finite descriptors used")
+      .def_readonly("feature_seconds", &R::feature_seconds)
+      .def_readonly("seconds", &R::seconds)
+      .def_readonly("message", &R::message, "why it failed");
   m.def(
       "pcl_feature_alignment",
-      [](const py::array& source, const py::array& target, const std::string& descriptor, const std::string& matcher,
-         double voxel_size, double normal_radius, double feature_radius, double shot_lrf_radius,
-         double shape_context_min_radius, double shape_context_density_radius, int max_iterations,
-         double inlier_threshold, int num_samples, int correspondence_randomness, double similarity_threshold,
-         double inlier_fraction, double min_sample_distance, double ppf_angle_step, double ppf_distance_step,
-         double ppf_scene_fraction, std::uint32_t seed, int num_threads) {
+      [](const py::array& source, const py::array& target, const S& settings) {
         const auto s = cloudView<float>(source, "source");
         const auto t = cloudView<float>(target, "target");
-        PclFeatureAlignmentSettings settings;
-        settings.descriptor = descriptorFromString(descriptor);
-        settings.matcher = matcherFromString(matcher);
-        settings.voxel_size = voxel_size;
-        settings.normal_radius = normal_radius;
-        settings.feature_radius = feature_radius;
-        settings.shot_lrf_radius = shot_lrf_radius;
-        settings.shape_context_min_radius = shape_context_min_radius;
-        settings.shape_context_density_radius = shape_context_density_radius;
-        settings.max_iterations = max_iterations;
-        settings.inlier_threshold = inlier_threshold;
-        settings.num_samples = num_samples;
-        settings.correspondence_randomness = correspondence_randomness;
-        settings.similarity_threshold = similarity_threshold;
-        settings.inlier_fraction = inlier_fraction;
-        settings.min_sample_distance = min_sample_distance;
-        settings.ppf_angle_step = ppf_angle_step;
-        settings.ppf_distance_step = ppf_distance_step;
-        settings.ppf_scene_fraction = ppf_scene_fraction;
-        settings.seed = seed;
-        settings.num_threads = num_threads;
-        PclFeatureAlignmentResult result;
-        {
-          // The arrays stay referenced by the caller's frame while the GIL is released;
-          // std::invalid_argument from here becomes ValueError (pybind11's default).
-          py::gil_scoped_release release;
-          result = pclFeatureAlignment(s, t, settings);
-        }
-        return toDict(result);
+        py::gil_scoped_release release;
+        return pclFeatureAlignment(s, t, settings);
       },
-      py::arg("source"), py::arg("target"), py::arg("descriptor"), py::arg("matcher"), py::arg("voxel_size"),
-      py::arg("normal_radius"), py::arg("feature_radius"), py::arg("shot_lrf_radius"),
-      py::arg("shape_context_min_radius"), py::arg("shape_context_density_radius"), py::arg("max_iterations"),
-      py::arg("inlier_threshold"), py::arg("num_samples"), py::arg("correspondence_randomness"),
-      py::arg("similarity_threshold"), py::arg("inlier_fraction"), py::arg("min_sample_distance"),
-      py::arg("ppf_angle_step"), py::arg("ppf_distance_step"), py::arg("ppf_scene_fraction"), py::arg("seed"),
-      py::arg("num_threads"),
-      "Stock PCL coarse registration of source onto target (metres): descriptor 'fpfh' | 'shot' | '3dsc' | 'ppf', "
-      "matcher 'prerejective' | 'sac_ia' (ignored for 'ppf'). Returns a dict with T_target_source (4x4), "
-      "converged, fitness, inlier_rmse, point and descriptor counts, feature_seconds, seconds and message.");
+      py::arg("source"), py::arg("target"), py::arg("settings"),
+      "Stock PCL coarse registration of source onto target ((N, 3) float32, m)");
 }
 
 }  // namespace scanalign::python

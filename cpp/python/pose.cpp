@@ -1,11 +1,17 @@
-// Bindings of the CAD-pose chain: CBD descriptor, motor estimation, correspondence RANSAC,
-// CBD alignment and paper 4's flag alignment. Validation of user input happens in
-// python/scanalign/{cbd,pose}.py; the C++ layer re-checks and throws std::invalid_argument.
+// Bindings of the CAD-pose chain: model views, CBD descriptor, motor estimation, correspondence
+// RANSAC, CBD alignment, paper 4's flag alignment, and the estimatePose / findObjects
+// pipeline. Settings and results are the C++ structs, documented here once.
 #include <pybind11/eigen.h>
+#include <pybind11/functional.h>
 #include <pybind11/stl.h>
+
+#include <cstring>
 
 #include "arrays.hpp"
 #include "scanalign/features/cbd.hpp"
+#include "scanalign/pose/model_views.hpp"
+#include "scanalign/pose/pcl_coarse_aligner.hpp"
+#include "scanalign/pose/pose_estimation.hpp"
 #include "scanalign/registration/cbd_alignment.hpp"
 #include "scanalign/registration/correspondence_ransac.hpp"
 #include "scanalign/registration/flag_alignment.hpp"
@@ -15,89 +21,47 @@ namespace scanalign::python {
 
 namespace {
 
-template <typename T>
-py::array_t<T> vec(const std::vector<T>& v) {
-  py::array_t<T> a(static_cast<py::ssize_t>(v.size()));
+using F64 = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using U32 = py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>;
+
+template <typename Out, typename In>
+py::array_t<Out> vec(const std::vector<In>& v) {
+  py::array_t<Out> a(static_cast<py::ssize_t>(v.size()));
   std::copy(v.begin(), v.end(), a.mutable_data());
   return a;
 }
 
-py::array_t<double> rows4(const std::vector<Eigen::Vector4d>& v) {
-  py::array_t<double> a({static_cast<py::ssize_t>(v.size()), py::ssize_t{4}});
-  double* d = a.mutable_data();
-  for (std::size_t i = 0; i < v.size(); ++i)
-    for (int k = 0; k < 4; ++k) d[4 * i + k] = v[i](k);
+/// (n, k) copy of row-major data.
+template <typename Out, typename In>
+py::array_t<Out> rows(const std::vector<In>& v, py::ssize_t k) {
+  py::array_t<Out> a({static_cast<py::ssize_t>(v.size()) / k, k});
+  std::copy(v.begin(), v.end(), a.mutable_data());
   return a;
 }
 
-py::dict sphereArrays(const std::vector<CbdSphere>& s) {
-  py::array_t<double> dual({static_cast<py::ssize_t>(s.size()), py::ssize_t{5}});
-  py::array_t<bool> flat(static_cast<py::ssize_t>(s.size()));
-  double* d = dual.mutable_data();
-  bool* f = flat.mutable_data();
-  for (std::size_t i = 0; i < s.size(); ++i) {
-    for (int k = 0; k < 5; ++k) d[5 * i + k] = s[i].dual(k);
-    f[i] = s[i].flat;
+/// (n, k) from a vector of fixed-size Eigen vectors/matrices (k = coefficients, row-major for matrices).
+template <typename E>
+py::array_t<double> stack(const std::vector<E>& v, std::vector<py::ssize_t> tail) {
+  std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(v.size())};
+  shape.insert(shape.end(), tail.begin(), tail.end());
+  py::array_t<double> a(shape);
+  double* d = a.mutable_data();
+  for (const E& e : v) {
+    constexpr int C = E::ColsAtCompileTime;
+    const Eigen::Matrix<double, E::RowsAtCompileTime, C, C == 1 ? Eigen::ColMajor : Eigen::RowMajor> r = e;
+    d = std::copy(r.data(), r.data() + r.size(), d);
   }
-  py::dict out;
-  out["dual"] = dual;
-  out["flat"] = flat;
-  return out;
+  return a;
 }
 
-py::dict featuresDict(const CbdFeatures& f) {
-  py::dict out;
-  out["keypoints"] = vec(f.keypoints);
-  out["descriptors"] = rows4(f.descriptors);
-  out["scalar"] = vec(f.scalar);
-  out["sphere1"] = sphereArrays(f.sphere1);
-  out["sphere2"] = sphereArrays(f.sphere2);
-  py::array_t<double> axes({static_cast<py::ssize_t>(f.axes.size()), py::ssize_t{3}, py::ssize_t{3}});
-  double* a = axes.mutable_data();
-  for (std::size_t i = 0; i < f.axes.size(); ++i)
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) a[9 * i + 3 * r + c] = f.axes[i](r, c);
-  out["axes"] = axes;
-  out["thresholds"] = f.thresholds;
-  out["points_with_min_neighbors"] = f.points_with_min_neighbors;
-  out["min_neighbors"] = f.min_neighbors;
-  out["seconds"] = f.seconds;
-  return out;
+/// Calls f(CloudView<float>) or f(CloudView<double>) by the array's dtype.
+template <typename F>
+auto byDtype(const py::array& a, const char* what, F&& f) {
+  if (a.dtype().is(py::dtype::of<float>())) return f(cloudView<float>(a, what));
+  return f(cloudView<double>(a, what));
 }
 
-template <typename Scalar>
-py::dict cbd(const py::array& points, const CbdSettings& s, const py::object& thresholds) {
-  const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
-  ShapeThresholds t;
-  const bool has = !thresholds.is_none();
-  if (has) t = py::cast<ShapeThresholds>(thresholds);
-  CbdFeatures f;
-  {
-    py::gil_scoped_release release;
-    f = computeCbd(view, s, has ? &t : nullptr);
-  }
-  return featuresDict(f);
-}
-
-template <typename Scalar>
-py::tuple pca(const py::array& points, double radius, int threads) {
-  const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
-  std::vector<NeighbourhoodPca> p;
-  {
-    py::gil_scoped_release release;
-    p = neighbourhoodPca(view, radius, threads);
-  }
-  py::array_t<std::uint32_t> count(static_cast<py::ssize_t>(p.size()));
-  py::array_t<double> ev({static_cast<py::ssize_t>(p.size()), py::ssize_t{3}});
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    count.mutable_data()[i] = p[i].count;
-    for (int k = 0; k < 3; ++k) ev.mutable_data()[3 * i + k] = p[i].eigenvalues(k);
-  }
-  return py::make_tuple(count, ev);
-}
-
-std::vector<NeighbourhoodPca> pcaFrom(const py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>& count,
-                                      const py::array_t<double, py::array::c_style | py::array::forcecast>& ev) {
+std::vector<NeighbourhoodPca> pcaFrom(const U32& count, const F64& ev) {
   if (ev.ndim() != 2 || ev.shape(1) != 3 || count.ndim() != 1 || count.shape(0) != ev.shape(0))
     throw py::value_error("expected counts (N,) and eigenvalues (N, 3)");
   std::vector<NeighbourhoodPca> p(static_cast<std::size_t>(count.shape(0)));
@@ -108,260 +72,540 @@ std::vector<NeighbourhoodPca> pcaFrom(const py::array_t<std::uint32_t, py::array
   return p;
 }
 
-CbdFeatures featuresFrom(const py::array_t<double, py::array::c_style | py::array::forcecast>& desc,
-                         const py::array_t<double, py::array::c_style | py::array::forcecast>& scalar) {
-  if (desc.ndim() != 2 || desc.shape(1) != 4 || scalar.ndim() != 1 || scalar.shape(0) != desc.shape(0))
-    throw py::value_error("expected descriptors (N, 4) and scalar descriptors (N,)");
-  CbdFeatures f;
-  const std::size_t n = static_cast<std::size_t>(desc.shape(0));
-  f.keypoints.resize(n);
-  f.descriptors.resize(n);
-  f.scalar.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    f.keypoints[i] = static_cast<std::uint32_t>(i);
-    f.descriptors[i] = Eigen::Vector4d(desc.data()[4 * i], desc.data()[4 * i + 1], desc.data()[4 * i + 2],
-                                       desc.data()[4 * i + 3]);
-    f.scalar[i] = scalar.data()[i];
-  }
-  return f;
+const double* optionalWeights(const py::object& w, const F64& held, std::size_t n) {
+  if (w.is_none()) return nullptr;
+  if (held.ndim() != 1 || static_cast<std::size_t>(held.shape(0)) != n)
+    throw py::value_error("weights: expected shape (" + std::to_string(n) + ",)");
+  return held.data();
 }
 
-py::dict motorDict(const MotorEstimate& e) {
-  py::dict out;
-  out["T_target_source"] = e.T_target_source;
-  out["motor"] = Eigen::VectorXd(e.motor);
-  out["rmse"] = e.rmse;
-  out["count"] = e.count;
-  out["valid"] = e.valid;
-  out["message"] = e.message;
-  return out;
-}
-
-py::array_t<double, py::array::c_style | py::array::forcecast> optWeights(const py::object& w, std::size_t n) {
-  if (w.is_none()) return py::array_t<double, py::array::c_style | py::array::forcecast>();
-  auto a = py::cast<py::array_t<double, py::array::c_style | py::array::forcecast>>(w);
-  if (a.ndim() != 1 || static_cast<std::size_t>(a.shape(0)) != n) throw py::value_error("weights must have shape (N,)");
-  return a;
-}
-
-template <typename Scalar>
-py::dict alignCbdPy(const py::array& source, const py::array& target, const CbdAlignmentSettings& s) {
-  const CloudView<Scalar> src = cloudView<Scalar>(source, "source"), tgt = cloudView<Scalar>(target, "target");
-  CbdAlignmentResult r;
-  {
-    py::gil_scoped_release release;
-    r = alignCbd(src, tgt, s);
-  }
-  py::dict out;
-  out["T_target_source"] = r.T_target_source;
-  out["found"] = r.found;
-  out["fitness"] = r.fitness;
-  out["inlier_rmse"] = r.inlier_rmse;
-  out["source_keypoints"] = r.source_keypoints;
-  out["target_keypoints"] = r.target_keypoints;
-  out["matches"] = r.matches;
-  out["match_inliers"] = r.match_inliers;
-  out["feature_seconds"] = r.feature_seconds;
-  out["match_seconds"] = r.match_seconds;
-  out["ransac_seconds"] = r.ransac_seconds;
-  out["seconds"] = r.seconds;
-  out["message"] = r.message;
-  return out;
-}
-
-py::dict flagDict(const NormalLineFlag& f) {
-  py::dict d;
-  d["centroid"] = f.centroid;
-  d["direction"] = f.direction;
-  d["foot"] = f.foot;
-  d["mean_normal_length"] = f.mean_normal_length;
-  d["pitch"] = f.pitch;
-  d["count"] = f.count;
-  return d;
-}
-
-template <typename Scalar>
-py::dict alignFlagsPy(const py::array& source, const py::array& source_normals, const py::array& target,
-                      const py::array& target_normals, const FlagAlignmentSettings& s) {
-  const auto a = cloudView<Scalar>(source, "source"), an = cloudView<Scalar>(source_normals, "source_normals");
-  const auto b = cloudView<Scalar>(target, "target"), bn = cloudView<Scalar>(target_normals, "target_normals");
-  FlagAlignmentResult r;
-  {
-    py::gil_scoped_release release;
-    r = alignFlags(a, an, b, bn, s);
-  }
-  py::dict out;
-  out["T_target_source"] = r.T_target_source;
-  out["valid"] = r.valid;
-  out["iterations"] = r.iterations;
-  out["cost"] = r.cost;
-  out["source_flag"] = flagDict(r.source_flag);
-  out["target_flag"] = flagDict(r.target_flag);
-  out["message"] = r.message;
-  return out;
-}
-
-template <typename Scalar>
-py::dict flagPy(const py::array& points, const py::array& normals) {
-  return flagDict(normalLineFlag(cloudView<Scalar>(points, "points"), cloudView<Scalar>(normals, "normals")));
-}
-
-}  // namespace
-
-void definePose(py::module_& m) {
-  py::enum_<CbdKeypointMode>(m, "CbdKeypointMode")
-      .value("thresholds", CbdKeypointMode::Thresholds)
-      .value("automatic", CbdKeypointMode::Automatic);
-  py::enum_<CbdDescriptorVariant>(m, "CbdDescriptorVariant")
-      .value("radius_distance", CbdDescriptorVariant::RadiusDistance)
-      .value("scalar", CbdDescriptorVariant::Scalar);
-  py::class_<ShapeThresholds>(m, "ShapeThresholds")
+void bindCbd(py::module_& m) {
+  py::enum_<CbdKeypointMode>(m, "CbdKeypointMode", "How CBD keypoints are chosen")
+      .value("thresholds", CbdKeypointMode::Thresholds, "(6.4) with the given deltas and n_min")
+      .value("automatic", CbdKeypointMode::Automatic, "the num_keypoints lowest-score points (paper 5, §III-B4)");
+  py::enum_<CbdDescriptorVariant>(m, "CbdDescriptorVariant", "Which descriptor the matcher compares")
+      .value("radius_distance", CbdDescriptorVariant::RadiusDistance, "(r1, d1, r2, d2), paper 5 (29)-(32)")
+      .value("scalar", CbdDescriptorVariant::Scalar, "F = (S1 + S2).P, thesis (6.17)-(6.18)");
+  py::class_<ShapeThresholds>(m, "ShapeThresholds", "delta_l, delta_p, delta_s of (6.4); a value >= 1 disables its factor")
       .def(py::init([](double l, double p, double s) { return ShapeThresholds{l, p, s}; }), py::arg("linear") = 0.3,
            py::arg("planar") = 1.0, py::arg("spherical") = 0.3)
-      .def_readwrite("linear", &ShapeThresholds::linear)
-      .def_readwrite("planar", &ShapeThresholds::planar)
-      .def_readwrite("spherical", &ShapeThresholds::spherical)
+      .def_readwrite("linear", &ShapeThresholds::linear, "delta_l (thesis Fig 6.3: 0.3)")
+      .def_readwrite("planar", &ShapeThresholds::planar, "delta_p (thesis: 1, planar points are never keypoints)")
+      .def_readwrite("spherical", &ShapeThresholds::spherical, "delta_s (thesis: 0.3)")
       .def("__repr__", [](const ShapeThresholds& t) {
         return "ShapeThresholds(linear=" + std::to_string(t.linear) + ", planar=" + std::to_string(t.planar) +
                ", spherical=" + std::to_string(t.spherical) + ")";
       });
-  py::class_<CbdSettings>(m, "CbdSettings")
+  py::class_<CbdSettings>(m, "CbdSettings", "Settings of the curvature-based descriptor (thesis values by default)")
       .def(py::init<>())
-      .def_readwrite("radius", &CbdSettings::radius)
-      .def_readwrite("gamma", &CbdSettings::gamma)
-      .def_readwrite("min_neighbors", &CbdSettings::min_neighbors)
-      .def_readwrite("keypoint_mode", &CbdSettings::keypoint_mode)
-      .def_readwrite("num_keypoints", &CbdSettings::num_keypoints)
-      .def_readwrite("thresholds", &CbdSettings::thresholds)
-      .def_readwrite("max_keypoints", &CbdSettings::max_keypoints)
-      .def_readwrite("max_sphere_radius", &CbdSettings::max_sphere_radius)
-      .def_readwrite("variant", &CbdSettings::variant)
-      .def_readwrite("num_threads", &CbdSettings::num_threads);
-  py::class_<CorrespondenceRansacSettings>(m, "CorrespondenceRansacSettings")
-      .def(py::init<>())
-      .def_readwrite("max_iterations", &CorrespondenceRansacSettings::max_iterations)
-      .def_readwrite("inlier_threshold", &CorrespondenceRansacSettings::inlier_threshold)
-      .def_readwrite("edge_similarity", &CorrespondenceRansacSettings::edge_similarity)
-      .def_readwrite("min_edge", &CorrespondenceRansacSettings::min_edge)
-      .def_readwrite("confidence", &CorrespondenceRansacSettings::confidence)
-      .def_readwrite("refine_iterations", &CorrespondenceRansacSettings::refine_iterations)
-      .def_readwrite("seed", &CorrespondenceRansacSettings::seed)
-      .def_readwrite("num_threads", &CorrespondenceRansacSettings::num_threads);
-  py::class_<CbdAlignmentSettings>(m, "CbdAlignmentSettings")
-      .def(py::init<>())
-      .def_readwrite("cbd", &CbdAlignmentSettings::cbd)
-      .def_readwrite("ransac", &CbdAlignmentSettings::ransac)
-      .def_readwrite("matches_per_keypoint", &CbdAlignmentSettings::matches_per_keypoint)
-      .def_readwrite("target_thresholds_from_source", &CbdAlignmentSettings::target_thresholds_from_source);
-  py::class_<FlagAlignmentSettings>(m, "FlagAlignmentSettings")
-      .def(py::init<>())
-      .def_readwrite("min_mean_normal_length", &FlagAlignmentSettings::min_mean_normal_length)
-      .def_readwrite("min_centroid_offset", &FlagAlignmentSettings::min_centroid_offset)
-      .def_readwrite("max_iterations", &FlagAlignmentSettings::max_iterations)
-      .def_readwrite("tolerance", &FlagAlignmentSettings::tolerance);
+      .def_readwrite("radius", &CbdSettings::radius, "neighbourhood radius r, m (paper 5 §IV-A: 0.0063)")
+      .def_readwrite("gamma", &CbdSettings::gamma, "plane-distance weight exp(-gamma |d|), 1/m (paper 5: 0.2/mm = 200)")
+      .def_readwrite("min_neighbors", &CbdSettings::min_neighbors,
+                     "n_min, neighbours (the point included) to be a keypoint (paper 5: 200); 0 = half the median "
+                     "neighbour count")
+      .def_readwrite("keypoint_mode", &CbdSettings::keypoint_mode, "CbdKeypointMode (default thresholds)")
+      .def_readwrite("num_keypoints", &CbdSettings::num_keypoints, "k of the automatic mode (paper 5: 2000)")
+      .def_readwrite("thresholds", &CbdSettings::thresholds, "ShapeThresholds of the thresholds mode")
+      .def_readwrite("max_keypoints", &CbdSettings::max_keypoints, "cap in the thresholds mode, lowest scores kept (0: none)")
+      .def_readwrite("max_sphere_radius", &CbdSettings::max_sphere_radius,
+                     "m; larger spheres and planes count as flat (r = d = this, F term 0)")
+      .def_readwrite("variant", &CbdSettings::variant, "CbdDescriptorVariant used for matching")
+      .def_readwrite("num_threads", &CbdSettings::num_threads, "OpenMP threads, 0 = all cores");
+  py::class_<CbdFeatures>(m, "CbdFeatures", "CBD keypoints and descriptors of one cloud (arrays indexed by keypoint)")
+      .def_property_readonly(
+          "keypoints", [](const CbdFeatures& f) { return vec<std::int64_t>(f.keypoints); }, "(K,) indices into the cloud")
+      .def_property_readonly(
+          "descriptors", [](const CbdFeatures& f) { return stack(f.descriptors, {4}); }, "(K, 4) (r1, d1, r2, d2), m")
+      .def_property_readonly(
+          "scalar", [](const CbdFeatures& f) { return vec<double>(f.scalar); }, "(K,) F, m^2 (6.16)")
+      .def_property_readonly(
+          "sphere1",
+          [](const CbdFeatures& f) {
+            std::vector<Eigen::Matrix<double, 5, 1>> d;
+            for (const auto& s : f.sphere1) d.push_back(s.dual);
+            return stack(d, {5});
+          },
+          "(K, 5) dual sphere [c; (c^2 - r^2)/2; 1] on (e1, e2, e3, e_inf, e0) fitted with the plane normal to v2 "
+          "(flat ones as dual planes [n; delta; 0])")
+      .def_property_readonly(
+          "sphere2",
+          [](const CbdFeatures& f) {
+            std::vector<Eigen::Matrix<double, 5, 1>> d;
+            for (const auto& s : f.sphere2) d.push_back(s.dual);
+            return stack(d, {5});
+          },
+          "(K, 5) the sphere fitted with the plane normal to v1")
+      .def_property_readonly(
+          "flat1",
+          [](const CbdFeatures& f) {
+            py::array_t<bool> a(static_cast<py::ssize_t>(f.sphere1.size()));
+            for (std::size_t i = 0; i < f.sphere1.size(); ++i) a.mutable_data()[i] = f.sphere1[i].flat;
+            return a;
+          },
+          "(K,) sphere1 was a plane or larger than max_sphere_radius")
+      .def_property_readonly(
+          "flat2",
+          [](const CbdFeatures& f) {
+            py::array_t<bool> a(static_cast<py::ssize_t>(f.sphere2.size()));
+            for (std::size_t i = 0; i < f.sphere2.size(); ++i) a.mutable_data()[i] = f.sphere2[i].flat;
+            return a;
+          },
+          "(K,) sphere2 was flat")
+      .def_property_readonly(
+          "axes", [](const CbdFeatures& f) { return stack(f.axes, {3, 3}); }, "(K, 3, 3) PCA eigenvectors v1, v2, v3 as columns")
+      .def_readonly("thresholds", &CbdFeatures::thresholds, "the (6.4) deltas used (derived ones in the automatic mode)")
+      .def_readonly("min_neighbors", &CbdFeatures::min_neighbors, "n_min used")
+      .def_readonly("points_with_min_neighbors", &CbdFeatures::points_with_min_neighbors,
+                    "points with at least n_min neighbours")
+      .def_readonly("seconds", &CbdFeatures::seconds, "wall time")
+      .def("__len__", [](const CbdFeatures& f) { return f.keypoints.size(); });
 
-  m.def("cbd_f32", &cbd<float>, py::arg("points"), py::arg("settings"), py::arg("thresholds") = py::none());
-  m.def("cbd_f64", &cbd<double>, py::arg("points"), py::arg("settings"), py::arg("thresholds") = py::none());
-  m.def("neighbourhood_pca_f32", &pca<float>, py::arg("points"), py::arg("radius"), py::arg("num_threads"));
-  m.def("neighbourhood_pca_f64", &pca<double>, py::arg("points"), py::arg("radius"), py::arg("num_threads"));
+  m.def(
+      "compute_cbd",
+      [](const py::array& points, const CbdSettings& s, std::optional<ShapeThresholds> t) {
+        return byDtype(points, "points", [&](auto view) {
+          py::gil_scoped_release release;
+          return computeCbd(view, s, t ? &*t : nullptr);
+        });
+      },
+      py::arg("points"), py::arg("settings"), py::arg("thresholds") = py::none(),
+      "CBD keypoints and descriptors of an (N, 3) float32/float64 cloud (m); `thresholds` forces (6.4) with these "
+      "deltas (inclusive)");
+  m.def(
+      "neighbourhood_pca",
+      [](const py::array& points, double radius, int threads) {
+        const auto p = byDtype(points, "points", [&](auto view) {
+          py::gil_scoped_release release;
+          return neighbourhoodPca(view, radius, threads);
+        });
+        py::array_t<std::int64_t> count(static_cast<py::ssize_t>(p.size()));
+        py::array_t<double> ev({static_cast<py::ssize_t>(p.size()), py::ssize_t{3}});
+        for (std::size_t i = 0; i < p.size(); ++i) {
+          count.mutable_data()[i] = p[i].count;
+          for (int k = 0; k < 3; ++k) ev.mutable_data()[3 * i + k] = p[i].eigenvalues(k);
+        }
+        return py::make_tuple(count, ev);
+      },
+      py::arg("points"), py::arg("radius"), py::arg("num_threads") = 0,
+      "Neighbour counts (N,) and covariance eigenvalues (N, 3), descending, m^2, of each point's ball of `radius` m");
   m.def(
       "select_keypoints",
-      [](const py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>& count,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& ev, const ShapeThresholds& t,
-         int min_neighbors, bool inclusive) { return vec(selectKeypoints(pcaFrom(count, ev), t, min_neighbors, inclusive)); },
+      [](const U32& count, const F64& ev, const ShapeThresholds& t, int min_neighbors, bool inclusive) {
+        return vec<std::int64_t>(selectKeypoints(pcaFrom(count, ev), t, min_neighbors, inclusive));
+      },
       py::arg("counts"), py::arg("eigenvalues"), py::arg("thresholds"), py::arg("min_neighbors"), py::arg("inclusive"));
   m.def(
       "automatic_keypoints",
-      [](const py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>& count,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& ev, int k, int min_neighbors) {
+      [](const U32& count, const F64& ev, int k, int min_neighbors) {
         ShapeThresholds t;
         auto keys = automaticKeypoints(pcaFrom(count, ev), k, min_neighbors, &t);
-        return py::make_tuple(vec(keys), t);
+        return py::make_tuple(vec<std::int64_t>(keys), t);
       },
       py::arg("counts"), py::arg("eigenvalues"), py::arg("k"), py::arg("min_neighbors"));
   m.def(
       "keypoint_scores",
-      [](const py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>& count,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& ev, int min_neighbors) {
+      [](const U32& count, const F64& ev, int min_neighbors) {
         const auto p = pcaFrom(count, ev);
         std::vector<double> s(p.size());
         for (std::size_t i = 0; i < p.size(); ++i) s[i] = keypointScore(p[i], min_neighbors);
-        return vec(s);
+        return vec<double>(s);
       },
       py::arg("counts"), py::arg("eigenvalues"), py::arg("min_neighbors"));
   m.def(
       "match_cbd",
-      [](const py::array_t<double, py::array::c_style | py::array::forcecast>& sd,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& ss,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& td,
-         const py::array_t<double, py::array::c_style | py::array::forcecast>& ts, CbdDescriptorVariant variant, int k,
-         int threads) {
-        const CbdFeatures a = featuresFrom(sd, ss), b = featuresFrom(td, ts);
+      [](const CbdFeatures& a, const CbdFeatures& b, CbdDescriptorVariant variant, int k, int threads) {
         CbdMatches mm;
         {
           py::gil_scoped_release release;
           mm = matchCbd(a, b, variant, k, threads);
         }
-        return py::make_tuple(vec(mm.source), vec(mm.target), vec(mm.error));
+        py::array_t<std::int64_t> pairs({static_cast<py::ssize_t>(mm.source.size()), py::ssize_t{2}});
+        for (std::size_t i = 0; i < mm.source.size(); ++i) {
+          pairs.mutable_data()[2 * i] = a.keypoints[mm.source[i]];
+          pairs.mutable_data()[2 * i + 1] = b.keypoints[mm.target[i]];
+        }
+        return py::make_tuple(pairs, vec<double>(mm.error));
       },
-      py::arg("source_descriptors"), py::arg("source_scalar"), py::arg("target_descriptors"),
-      py::arg("target_scalar"), py::arg("variant"), py::arg("k"), py::arg("num_threads"));
+      py::arg("source"), py::arg("target"), py::arg("variant"), py::arg("k"), py::arg("num_threads"),
+      "(pairs (M, 2) point indices source/target, errors (M,)): each source keypoint with its k nearest target "
+      "keypoints in descriptor space");
+}
 
+void bindMotors(py::module_& m) {
+  py::class_<MotorEstimate>(m, "MotorEstimate", "A rigid motion estimated from point pairs")
+      .def_readonly("T_target_source", &MotorEstimate::T_target_source, "(4, 4) y = R x + t")
+      .def_property_readonly(
+          "motor", [](const MotorEstimate& e) { return Eigen::VectorXd(e.motor); },
+          "(8,) coefficients on (1, e23, e31, e12, e1inf, e2inf, e3inf, e123inf), M ~M = 1")
+      .def_readonly("rmse", &MotorEstimate::rmse, "weighted RMS pair residual, m")
+      .def_readonly("count", &MotorEstimate::count, "pairs used")
+      .def_readonly("valid", &MotorEstimate::valid, "False for fewer than 3 pairs or collinear data")
+      .def_readonly("message", &MotorEstimate::message, "why not valid");
   m.def(
       "estimate_motor",
       [](const py::array& s, const py::array& t, const py::object& w, bool normalize) {
         const auto a = cloudView<double>(s, "source"), b = cloudView<double>(t, "target");
-        const auto wa = optWeights(w, a.size);
-        return motorDict(estimateMotor(a, b, w.is_none() ? nullptr : wa.data(), normalize));
+        const F64 held = w.is_none() ? F64() : py::cast<F64>(w);
+        return estimateMotor(a, b, optionalWeights(w, held, a.size), normalize);
       },
-      py::arg("source"), py::arg("target"), py::arg("weights"), py::arg("normalize"));
+      py::arg("source"), py::arg("target"), py::arg("weights") = py::none(), py::arg("normalize") = true,
+      "Valkenburg-Dorst motor from paired (N, 3) float64 points (thesis (36)-(44) of paper 5)");
   m.def(
       "estimate_rigid_svd",
       [](const py::array& s, const py::array& t, const py::object& w) {
         const auto a = cloudView<double>(s, "source"), b = cloudView<double>(t, "target");
-        const auto wa = optWeights(w, a.size);
-        return motorDict(estimateRigidSvd(a, b, w.is_none() ? nullptr : wa.data()));
+        const F64 held = w.is_none() ? F64() : py::cast<F64>(w);
+        return estimateRigidSvd(a, b, optionalWeights(w, held, a.size));
       },
-      py::arg("source"), py::arg("target"), py::arg("weights"));
+      py::arg("source"), py::arg("target"), py::arg("weights") = py::none(), "Kabsch/Umeyama (SVD) from the same pairs");
   m.def(
-      "motor_to_matrix", [](const Eigen::Matrix<double, 8, 1>& mv) { return motorToMatrix(mv); }, py::arg("motor"));
+      "motor_to_matrix", [](const Eigen::Matrix<double, 8, 1>& mv) { return motorToMatrix(mv); }, py::arg("motor"),
+      "(4, 4) transform of an 8-coefficient motor (normalised first)");
+
+  py::class_<CorrespondenceRansacSettings>(m, "CorrespondenceRansacSettings", "RANSAC over putative point pairs")
+      .def(py::init<>())
+      .def_readwrite("max_iterations", &CorrespondenceRansacSettings::max_iterations, "hypotheses (thesis baselines: 1000)")
+      .def_readwrite("inlier_threshold", &CorrespondenceRansacSettings::inlier_threshold, "m (thesis: 0.005)")
+      .def_readwrite("edge_similarity", &CorrespondenceRansacSettings::edge_similarity,
+                     "prerejection: sample triangles' edge-length ratios must exceed this, in [0, 1)")
+      .def_readwrite("min_edge", &CorrespondenceRansacSettings::min_edge, "m; shortest sample edge")
+      .def_readwrite("confidence", &CorrespondenceRansacSettings::confidence, "early stop, in (0, 1)")
+      .def_readwrite("refine_iterations", &CorrespondenceRansacSettings::refine_iterations, "motor refits on the inliers")
+      .def_readwrite("seed", &CorrespondenceRansacSettings::seed, "random seed (results do not depend on threads)")
+      .def_readwrite("num_threads", &CorrespondenceRansacSettings::num_threads, "0 = all cores");
+  py::class_<CorrespondenceRansacResult>(m, "CorrespondenceRansacResult", "Outcome of ransac_rigid_motion")
+      .def_readonly("T_target_source", &CorrespondenceRansacResult::T_target_source, "(4, 4), identity when not found")
+      .def_readonly("found", &CorrespondenceRansacResult::found, "a hypothesis with at least 3 inlier pairs")
+      .def_property_readonly(
+          "inliers", [](const CorrespondenceRansacResult& r) { return vec<std::int64_t>(r.inliers); },
+          "(K,) indices into the pair list")
+      .def_readonly("inlier_rmse", &CorrespondenceRansacResult::inlier_rmse, "m, over the inlier pairs")
+      .def_readonly("iterations", &CorrespondenceRansacResult::iterations, "hypotheses drawn")
+      .def_readonly("message", &CorrespondenceRansacResult::message, "why nothing was found");
   m.def(
       "ransac_rigid_motion",
-      [](const py::array& s, const py::array& t,
-         const py::array_t<std::uint32_t, py::array::c_style | py::array::forcecast>& pairs,
+      [](const py::array& s, const py::array& t, const py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>& pairs,
          const CorrespondenceRansacSettings& settings) {
-        if (pairs.ndim() != 2 || pairs.shape(1) != 2) throw py::value_error("pairs must have shape (K, 2)");
         const auto a = cloudView<double>(s, "source"), b = cloudView<double>(t, "target");
-        CorrespondenceRansacResult r;
-        {
-          py::gil_scoped_release release;
-          r = ransacRigidMotion(a, b, pairs.data(), static_cast<std::size_t>(pairs.shape(0)), settings);
+        if (pairs.ndim() != 2 || pairs.shape(1) != 2) throw py::value_error("pairs: expected an integer (K, 2) array");
+        std::vector<std::uint32_t> p(static_cast<std::size_t>(pairs.size()));
+        for (std::size_t i = 0; i < p.size(); ++i) {
+          const std::int64_t v = pairs.data()[i];
+          if (v < 0 || static_cast<std::size_t>(v) >= (i % 2 ? b.size : a.size))
+            throw py::value_error("pairs: index out of range");
+          p[i] = static_cast<std::uint32_t>(v);
         }
-        py::dict out;
-        out["T_target_source"] = r.T_target_source;
-        out["found"] = r.found;
-        out["inliers"] = vec(r.inliers);
-        out["inlier_rmse"] = r.inlier_rmse;
-        out["iterations"] = r.iterations;
-        out["message"] = r.message;
-        return out;
+        py::gil_scoped_release release;
+        return ransacRigidMotion(a, b, p.data(), p.size() / 2, settings);
       },
       py::arg("source"), py::arg("target"), py::arg("pairs"), py::arg("settings"));
-  m.def("align_cbd_f32", &alignCbdPy<float>, py::arg("source"), py::arg("target"), py::arg("settings"));
-  m.def("align_cbd_f64", &alignCbdPy<double>, py::arg("source"), py::arg("target"), py::arg("settings"));
+}
+
+void bindAlignment(py::module_& m) {
+  py::class_<CbdAlignmentSettings>(m, "CbdAlignmentSettings", "CBD coarse alignment")
+      .def(py::init<>())
+      .def_readwrite("cbd", &CbdAlignmentSettings::cbd, "CbdSettings for both clouds")
+      .def_readwrite("ransac", &CbdAlignmentSettings::ransac, "CorrespondenceRansacSettings (10000 hypotheses)")
+      .def_readwrite("matches_per_keypoint", &CbdAlignmentSettings::matches_per_keypoint,
+                     "k nearest target descriptors per source keypoint")
+      .def_readwrite("target_thresholds_from_source", &CbdAlignmentSettings::target_thresholds_from_source,
+                     "derive the deltas from the source's automatic keypoints and apply them to the target");
+  py::class_<CbdAlignmentResult>(m, "CbdAlignmentResult", "Outcome of align_cbd")
+      .def_readonly("T_target_source", &CbdAlignmentResult::T_target_source, "(4, 4) maps source into target")
+      .def_readonly("found", &CbdAlignmentResult::found, "RANSAC found a consistent set of matches")
+      .def_readonly("fitness", &CbdAlignmentResult::fitness, "source points within the inlier threshold of the target")
+      .def_readonly("inlier_rmse", &CbdAlignmentResult::inlier_rmse, "m, over those points")
+      .def_readonly("source_keypoints", &CbdAlignmentResult::source_keypoints)
+      .def_readonly("target_keypoints", &CbdAlignmentResult::target_keypoints)
+      .def_readonly("matches", &CbdAlignmentResult::matches, "descriptor matches fed to RANSAC")
+      .def_readonly("match_inliers", &CbdAlignmentResult::match_inliers, "matches consistent with the pose")
+      .def_readonly("feature_seconds", &CbdAlignmentResult::feature_seconds)
+      .def_readonly("match_seconds", &CbdAlignmentResult::match_seconds)
+      .def_readonly("ransac_seconds", &CbdAlignmentResult::ransac_seconds)
+      .def_readonly("seconds", &CbdAlignmentResult::seconds)
+      .def_readonly("message", &CbdAlignmentResult::message, "why nothing was found");
   m.def(
-      "alignment_fitness_f64",
+      "align_cbd",
+      [](const py::array& source, const py::array& target, const CbdAlignmentSettings& s) {
+        if (!source.dtype().is(target.dtype())) throw py::type_error("source and target must have the same dtype");
+        if (source.dtype().is(py::dtype::of<float>())) {
+          const auto a = cloudView<float>(source, "source"), b = cloudView<float>(target, "target");
+          py::gil_scoped_release release;
+          return alignCbd(a, b, s);
+        }
+        const auto a = cloudView<double>(source, "source"), b = cloudView<double>(target, "target");
+        py::gil_scoped_release release;
+        return alignCbd(a, b, s);
+      },
+      py::arg("source"), py::arg("target"), py::arg("settings"));
+  m.def(
+      "alignment_fitness",
       [](const py::array& s, const py::array& t, const Eigen::Matrix4d& T, double thr, int threads) {
         const auto f = alignmentFitness(cloudView<double>(s, "source"), cloudView<double>(t, "target"), T, thr, threads);
         return py::make_tuple(f.first, f.second);
       },
-      py::arg("source"), py::arg("target"), py::arg("T"), py::arg("threshold"), py::arg("num_threads"));
-  m.def("normal_line_flag_f32", &flagPy<float>, py::arg("points"), py::arg("normals"));
-  m.def("normal_line_flag_f64", &flagPy<double>, py::arg("points"), py::arg("normals"));
-  m.def("align_flags_f32", &alignFlagsPy<float>, py::arg("source"), py::arg("source_normals"), py::arg("target"),
-        py::arg("target_normals"), py::arg("settings"));
-  m.def("align_flags_f64", &alignFlagsPy<double>, py::arg("source"), py::arg("source_normals"), py::arg("target"),
-        py::arg("target_normals"), py::arg("settings"));
+      py::arg("source"), py::arg("target"), py::arg("T_target_source"), py::arg("threshold"), py::arg("num_threads") = 0,
+      "(fitness, inlier_rmse): finite source points whose nearest target point is within threshold (m) after "
+      "T_target_source, and their RMS distance (m)");
+
+  py::class_<NormalLineFlag>(m, "NormalLineFlag", "A cloud's flag (paper 4): centroid and average normal line")
+      .def_readonly("centroid", &NormalLineFlag::centroid, "(3,) m")
+      .def_readonly("direction", &NormalLineFlag::direction, "(3,) unit direction of the average normal line")
+      .def_readonly("foot", &NormalLineFlag::foot, "(3,) m, the line's point nearest the centroid")
+      .def_readonly("mean_normal_length", &NormalLineFlag::mean_normal_length, "|mean unit normal|, ~0 on a closed surface")
+      .def_readonly("pitch", &NormalLineFlag::pitch, "m")
+      .def_readonly("count", &NormalLineFlag::count, "points used");
+  py::class_<FlagAlignmentSettings>(m, "FlagAlignmentSettings", "Paper 4 initial alignment")
+      .def(py::init<>())
+      .def_readwrite("min_mean_normal_length", &FlagAlignmentSettings::min_mean_normal_length,
+                     "refuse when |mean unit normal| of either cloud is below this (closed surfaces)")
+      .def_readwrite("min_centroid_offset", &FlagAlignmentSettings::min_centroid_offset,
+                     "m; refuse when the centroid lies this close to the average line")
+      .def_readwrite("max_iterations", &FlagAlignmentSettings::max_iterations, "Levenberg-Marquardt iterations")
+      .def_readwrite("tolerance", &FlagAlignmentSettings::tolerance, "convergence tolerance");
+  py::class_<FlagAlignmentResult>(m, "FlagAlignmentResult", "Outcome of align_flags")
+      .def_readonly("T_target_source", &FlagAlignmentResult::T_target_source, "(4, 4) the motor, f_target = M f_source ~M")
+      .def_readonly("valid", &FlagAlignmentResult::valid, "False when refused")
+      .def_readonly("iterations", &FlagAlignmentResult::iterations)
+      .def_readonly("cost", &FlagAlignmentResult::cost, "(delta^2 + sin^2(theta/2) + d^2)/2 at the solution")
+      .def_readonly("source_flag", &FlagAlignmentResult::source_flag)
+      .def_readonly("target_flag", &FlagAlignmentResult::target_flag)
+      .def_readonly("message", &FlagAlignmentResult::message, "why refused");
+  m.def(
+      "normal_line_flag",
+      [](const py::array& p, const py::array& n) {
+        return normalLineFlag(cloudView<double>(p, "points"), cloudView<double>(n, "normals"));
+      },
+      py::arg("points"), py::arg("normals"));
+  m.def(
+      "align_flags",
+      [](const py::array& a, const py::array& an, const py::array& b, const py::array& bn, const FlagAlignmentSettings& s) {
+        const auto sa = cloudView<double>(a, "source"), sn = cloudView<double>(an, "source_normals");
+        const auto ta = cloudView<double>(b, "target"), tn = cloudView<double>(bn, "target_normals");
+        py::gil_scoped_release release;
+        return alignFlags(sa, sn, ta, tn, s);
+      },
+      py::arg("source"), py::arg("source_normals"), py::arg("target"), py::arg("target_normals"), py::arg("settings"));
+}
+
+void bindViews(py::module_& m) {
+  m.def(
+      "tessellated_sphere",
+      [](int level) {
+        const TessellatedSphere s = tessellatedSphere(level);
+        py::array_t<std::int64_t> f({static_cast<py::ssize_t>(s.faces.size()), py::ssize_t{3}});
+        for (std::size_t i = 0; i < s.faces.size(); ++i)
+          for (int k = 0; k < 3; ++k) f.mutable_data()[3 * i + k] = s.faces[i][k];
+        return py::make_tuple(stack(s.vertices, {3}), f);
+      },
+      py::arg("level") = 1,
+      "(vertices (V, 3) unit length, faces (F, 3) counter-clockwise) of an icosahedron subdivided `level` times: "
+      "10 4^level + 2 vertices, 20 4^level faces");
+  m.def("view_intrinsics", &viewIntrinsics, py::arg("resolution"), py::arg("view_angle") = kDefaultViewAngle,
+        "square pinhole camera with field of view view_angle (rad) across resolution pixels");
+  m.def("look_at", &lookAt, py::arg("eye"), py::arg("target"), py::arg("up") = Eigen::Vector3d::UnitZ(),
+        "T_model_camera of a camera at eye (m) whose optical axis (z) points at target, image up (-y) near up");
+  m.attr("DEFAULT_VIEW_ANGLE") = kDefaultViewAngle;
+  py::class_<ModelViewSettings>(m, "ModelViewSettings", "How a CAD model is rendered into partial views")
+      .def(py::init<>())
+      .def_readwrite("resolution", &ModelViewSettings::resolution, "image width and height, pixels (thesis: 90 to 400)")
+      .def_readwrite("view_angle", &ModelViewSettings::view_angle, "field of view, rad (PCL's 57 degrees)")
+      .def_readwrite("level", &ModelViewSettings::level, "icosahedron subdivisions; 1 gives the thesis's 42 views")
+      .def_readwrite("distance", &ModelViewSettings::distance,
+                     "camera distance from center, m; 0 = the bounding sphere fills 90 % of the field of view")
+      .def_readwrite("center", &ModelViewSettings::center, "(3,) what the cameras look at, m; None = bounding-box centre")
+      .def_readwrite("num_threads", &ModelViewSettings::num_threads, "rasteriser threads, 0 = all cores");
+  py::class_<ModelView>(m, "ModelView", "One virtual depth camera's view of a model (model frame, m)")
+      .def(py::init([](const F64& points, const F64& normals) {
+             if (points.ndim() != 2 || points.shape(1) != 3 || normals.ndim() != 2 || normals.shape(1) != 3 ||
+                 normals.shape(0) != points.shape(0))
+               throw py::value_error("points and normals: expected two (N, 3) arrays of the same length");
+             ModelView v;
+             v.points.assign(points.data(), points.data() + points.size());
+             v.normals.assign(normals.data(), normals.data() + normals.size());
+             v.face_id.assign(static_cast<std::size_t>(points.shape(0)), -1);
+             v.pixels.assign(2 * static_cast<std::size_t>(points.shape(0)), -1);
+             return v;
+           }),
+           py::arg("points"), py::arg("normals"), "a view made of a model cloud and its normals (no camera)")
+      .def_property_readonly(
+          "points", [](const ModelView& v) { return rows<double>(v.points, 3); }, "(N, 3) visible surface points, m")
+      .def_property_readonly(
+          "normals", [](const ModelView& v) { return rows<double>(v.normals, 3); },
+          "(N, 3) unit normals of their triangles, oriented towards the camera")
+      .def_property_readonly(
+          "face_id", [](const ModelView& v) { return vec<std::int64_t>(v.face_id); }, "(N,) triangle index in the mesh")
+      .def_property_readonly(
+          "pixels", [](const ModelView& v) { return rows<std::int64_t>(v.pixels, 2); }, "(N, 2) (column, row) in the image")
+      .def_readonly("T_model_camera", &ModelView::T_model_camera, "(4, 4) camera -> model (OpenCV camera axes)")
+      .def_readonly("intrinsics", &ModelView::intrinsics, "the view's pinhole camera")
+      .def_property_readonly(
+          "viewpoint", [](const ModelView& v) { return Eigen::Vector3d(v.T_model_camera.topRightCorner<3, 1>()); },
+          "(3,) camera centre, model frame, m")
+      .def(
+          "points_in_camera",
+          [](const ModelView& v) {
+            const Eigen::Matrix3d Rt = v.T_model_camera.topLeftCorner<3, 3>().transpose();
+            const Eigen::Vector3d t = v.T_model_camera.topRightCorner<3, 1>();
+            std::vector<double> out(v.points.size());
+            for (std::size_t i = 0; i < v.size(); ++i) {
+              const Eigen::Vector3d p = Rt * (Eigen::Vector3d(&v.points[3 * i]) - t);
+              std::copy(p.data(), p.data() + 3, &out[3 * i]);
+            }
+            return rows<double>(out, 3);
+          },
+          "(N, 3) the points in the camera frame (z = depth), m")
+      .def("__len__", &ModelView::size);
+  m.def(
+      "render_model_views",
+      [](const py::array& vertices, const py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>& faces,
+         const ModelViewSettings& s) {
+        const auto V = cloudView<double>(vertices, "mesh vertices");
+        if (faces.ndim() != 2 || faces.shape(1) != 3) throw py::value_error("mesh faces: expected an (F, 3) integer array");
+        std::vector<std::int32_t> f(static_cast<std::size_t>(faces.size()));
+        for (std::size_t i = 0; i < f.size(); ++i) {
+          const std::int64_t v = faces.data()[i];
+          if (v < 0 || static_cast<std::size_t>(v) >= V.size) throw py::value_error("mesh faces: vertex index out of range");
+          f[i] = static_cast<std::int32_t>(v);
+        }
+        py::gil_scoped_release release;
+        return renderModelViews(V, f.data(), f.size() / 3, s);
+      },
+      py::arg("vertices"), py::arg("faces"), py::arg("settings"),
+      "the views of a mesh (vertices (V, 3) m, faces (F, 3)) from the vertices of the tessellated sphere, in order");
+}
+
+PoseProgress progressOf(const py::object& callback) {
+  if (callback.is_none()) return {};
+  return [callback](std::size_t done, std::size_t total) {
+    py::gil_scoped_acquire acquire;
+    callback(done, total);
+  };
+}
+
+CoarseAligner alignerOf(const py::object& pcl) {
+  if (pcl.is_none()) return {};
+  return pclCoarseAligner(py::cast<PclFeatureAlignmentSettings>(pcl));
+}
+
+void bindPipeline(py::module_& m) {
+  py::enum_<CoarseMethod>(m, "CoarseMethod", "How each model view is brought near the object before ICP")
+      .value("cbd", CoarseMethod::Cbd, "curvature-based descriptor + RANSAC + motor refit (paper 5)")
+      .value("flags", CoarseMethod::Flags, "centroid + average normal line (paper 4)")
+      .value("external", CoarseMethod::External, "a PCL baseline (pcl_settings)");
+  py::class_<PoseSettings>(m, "PoseSettings", "Settings of estimate_pose / find_objects (metres)")
+      .def(py::init<>())
+      .def_readwrite("method", &PoseSettings::method, "CoarseMethod")
+      .def_readwrite("inlier_threshold", &PoseSettings::inlier_threshold,
+                     "m; fitness/coverage distance and the CBD RANSAC inlier threshold (thesis: 0.005)")
+      .def_readwrite("icp_distance", &PoseSettings::icp_distance, "m; ICP maximum correspondence distance")
+      .def_readwrite("normal_radius", &PoseSettings::normal_radius, "m; scene normals for point-to-plane ICP and flags")
+      .def_readwrite("cbd", &PoseSettings::cbd, "CbdAlignmentSettings (min_neighbors 0: automatic)")
+      .def_readwrite("flags", &PoseSettings::flags, "FlagAlignmentSettings")
+      .def_readwrite("num_threads", &PoseSettings::num_threads, "0 = all cores");
+  py::class_<PoseCandidate>(m, "PoseCandidate", "Per-view summary of estimate_pose")
+      .def_readonly("view", &PoseCandidate::view, "index into the model views")
+      .def_readonly("found", &PoseCandidate::found, "the coarse alignment produced a pose")
+      .def_readonly("coarse_fitness", &PoseCandidate::coarse_fitness, "fitness after the coarse alignment alone")
+      .def_readonly("fitness", &PoseCandidate::fitness, "after ICP")
+      .def_readonly("coverage", &PoseCandidate::coverage, "after ICP")
+      .def_readonly("inlier_rmse", &PoseCandidate::inlier_rmse, "m, after ICP")
+      .def_readonly("score", &PoseCandidate::score, "2 fitness coverage / (fitness + coverage)");
+  py::class_<PoseResult>(m, "PoseResult", "Pose of a model in an object cloud")
+      .def(py::init<>())
+      .def_readwrite("T_scene_model", &PoseResult::T_scene_model, "(4, 4) maps model (CAD) coordinates into the scene")
+      .def_readwrite("found", &PoseResult::found, "a coarse alignment succeeded and ICP refined it")
+      .def_readwrite("fitness", &PoseResult::fitness, "fraction of the view's points within inlier_threshold of the object")
+      .def_readwrite("coverage", &PoseResult::coverage, "fraction of the object's points within inlier_threshold of the model")
+      .def_readwrite("inlier_rmse", &PoseResult::inlier_rmse, "m, fitness inliers")
+      .def_readwrite("method", &PoseResult::method, "coarse method used")
+      .def_property(
+          "view", [](const PoseResult& r) -> py::object { return r.view < 0 ? py::object(py::none()) : py::object(py::int_(r.view)); },
+          [](PoseResult& r, const py::object& v) { r.view = v.is_none() ? -1 : v.cast<int>(); },
+          "index of the best model view (None when nothing was found or the model was a cloud)")
+      .def_readwrite("seconds", &PoseResult::seconds, "wall time, all views")
+      .def_readwrite("coarse_seconds", &PoseResult::coarse_seconds, "the part in coarse alignment")
+      .def_readonly("candidates", &PoseResult::candidates, "PoseCandidate per view tried")
+      .def_readwrite("message", &PoseResult::message, "why nothing was found")
+      .def(
+          "as_dict",
+          [](const PoseResult& r) {
+            py::dict d;
+            d["found"] = r.found;
+            d["fitness"] = r.fitness;
+            d["coverage"] = r.coverage;
+            d["inlier_rmse"] = r.inlier_rmse;
+            d["method"] = r.method;
+            d["view"] = r.view < 0 ? py::object(py::none()) : py::object(py::int_(r.view));
+            d["seconds"] = r.seconds;
+            d["coarse_seconds"] = r.coarse_seconds;
+            d["message"] = r.message;
+            py::list T;
+            for (int i = 0; i < 4; ++i) {
+              py::list row;
+              for (int j = 0; j < 4; ++j) row.append(r.T_scene_model(i, j));
+              T.append(row);
+            }
+            d["T_scene_model"] = T;
+            return d;
+          },
+          "a JSON-ready summary (candidates left out)");
+  py::class_<FindObjectsSettings>(m, "FindObjectsSettings", "Settings of find_objects")
+      .def(py::init<>())
+      .def_readwrite("table", &FindObjectsSettings::table, "TableSegmentationSettings (m)")
+      .def_readwrite("max_objects", &FindObjectsSettings::max_objects, "clusters tried, largest first")
+      .def_readwrite("pose", &FindObjectsSettings::pose, "PoseSettings per cluster");
+  py::class_<ObjectPoses>(m, "ObjectPoses", "Result of find_objects")
+      .def_readonly("poses", &ObjectPoses::poses, "PoseResult per object cluster, largest first")
+      .def_property_readonly(
+          "objects",
+          [](const ObjectPoses& o) {
+            py::list l;
+            for (const auto& idx : o.table.objects) l.append(vec<std::int64_t>(idx));
+            return l;
+          },
+          "the clusters as int64 index arrays into the scene")
+      .def_property_readonly(
+          "plane", [](const ObjectPoses& o) { return o.table.plane; }, "the table plane (PlaneResult)")
+      .def_readonly("table", &ObjectPoses::table, "the whole TableSegmentation")
+      .def_readonly("seconds", &ObjectPoses::seconds, "wall time");
+  m.def(
+      "estimate_pose",
+      [](const std::vector<ModelView>& views, const py::array& scene, const PoseSettings& s, const std::vector<int>& ids,
+         const py::object& pcl, const py::object& progress) {
+        const auto view = cloudView<double>(scene, "scene");
+        const CoarseAligner aligner = alignerOf(pcl);
+        const PoseProgress cb = progressOf(progress);
+        py::gil_scoped_release release;
+        return estimatePose(views, view, s, ids, aligner, cb);
+      },
+      py::arg("views"), py::arg("scene"), py::arg("settings"), py::arg("view_ids") = std::vector<int>{},
+      py::arg("pcl_settings") = py::none(), py::arg("progress") = py::none(),
+      "Pose of the model (its views) in one object cloud (N, 3) float64, m; pcl_settings (a "
+      "PclFeatureAlignmentSettings) with method external; progress(done, total) after each view");
+  m.def(
+      "find_objects",
+      [](const std::vector<ModelView>& views, const py::array& scene, const FindObjectsSettings& s,
+         const std::vector<int>& ids, const py::object& pcl, const py::object& progress) {
+        const auto view = cloudView<double>(scene, "scene");
+        const CoarseAligner aligner = alignerOf(pcl);
+        const PoseProgress cb = progressOf(progress);
+        py::gil_scoped_release release;
+        return findObjects(views, view, s, ids, aligner, cb);
+      },
+      py::arg("views"), py::arg("scene"), py::arg("settings"), py::arg("view_ids") = std::vector<int>{},
+      py::arg("pcl_settings") = py::none(),
+      py::arg("progress") = py::none(), "Poses of the model in a table scene: table plane, clusters, estimate_pose each");
+}
+
+}  // namespace
+
+void definePose(py::module_& m) {
+  bindCbd(m);
+  bindMotors(m);
+  bindAlignment(m);
+  bindViews(m);
+  bindPipeline(m);
 }
 
 }  // namespace scanalign::python

@@ -92,7 +92,13 @@ void defineReconstruction(py::module_& m) {
              k.validate();
              return k;
            }),
-           py::arg("width"), py::arg("height"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"));
+           py::arg("width"), py::arg("height"), py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"))
+      .def_readonly("width", &PinholeIntrinsics::width, "pixels")
+      .def_readonly("height", &PinholeIntrinsics::height, "pixels")
+      .def_readonly("fx", &PinholeIntrinsics::fx, "focal length along x, pixels")
+      .def_readonly("fy", &PinholeIntrinsics::fy, "focal length along y, pixels")
+      .def_readonly("cx", &PinholeIntrinsics::cx, "principal point column, pixels")
+      .def_readonly("cy", &PinholeIntrinsics::cy, "principal point row, pixels");
   py::class_<DepthToCloudSettings>(m, "DepthToCloudSettings")
       .def(py::init<>())
       .def_readwrite("depth_scale", &DepthToCloudSettings::depth_scale)

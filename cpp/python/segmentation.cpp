@@ -186,6 +186,25 @@ void defineSegmentation(py::module_& m) {
           "status", [](const TableSegmentation& t) { return std::string(toString(t.status)); },
           "the table plane RANSAC's status")
       .def_property_readonly("success", &TableSegmentation::success, "the table plane was found");
+  py::class_<RansacSettings>(m, "RansacSettings", "RANSAC settings of a plane/sphere fit")
+      .def(py::init<>())
+      .def_readwrite("threshold", &RansacSettings::threshold, "inlier distance, m")
+      .def_readwrite("max_iterations", &RansacSettings::max_iterations, "most hypotheses drawn")
+      .def_readwrite("confidence", &RansacSettings::confidence, "adaptive stop; outside (0, 1) disables it")
+      .def_readwrite("seed", &RansacSettings::seed, "sample k is drawn from a generator seeded by (seed, k)")
+      .def_readwrite("num_threads", &RansacSettings::num_threads, "0 = all cores; never changes the result")
+      .def_readwrite("refine", &RansacSettings::refine, "least-squares refit of the winner over its inliers");
+  py::class_<TableSegmentationSettings>(m, "TableSegmentationSettings", "Table plane and object clusters (metres)")
+      .def(py::init<>())
+      .def_readwrite("crop", &TableSegmentationSettings::crop, "apply the pass-through box crop_min..crop_max")
+      .def_readwrite("crop_min", &TableSegmentationSettings::crop_min, "(3,) m")
+      .def_readwrite("crop_max", &TableSegmentationSettings::crop_max, "(3,) m")
+      .def_readwrite("plane", &TableSegmentationSettings::plane, "RansacSettings of the table plane")
+      .def_readwrite("viewpoint", &TableSegmentationSettings::viewpoint, "(3,) camera centre the normal faces, m")
+      .def_readwrite("up", &TableSegmentationSettings::up, "(3,) up direction (zero: use viewpoint)")
+      .def_readwrite("cluster_tolerance", &TableSegmentationSettings::cluster_tolerance, "m; linked points")
+      .def_readwrite("min_cluster_size", &TableSegmentationSettings::min_cluster_size, "points")
+      .def_readwrite("max_cluster_size", &TableSegmentationSettings::max_cluster_size, "points");
   m.def("ransac_plane_f32", &plane<float>);
   m.def("ransac_plane_f64", &plane<double>);
   m.def("ransac_sphere_f32", &sphere<float>);

@@ -48,3 +48,14 @@ def as_transform(T: object, name: str = "init") -> np.ndarray:
     if not np.all(np.isfinite(m)):
         raise ValueError(f"{name}: transform has non-finite entries")
     return m
+
+
+def set_fields(obj: object, values: dict, what: str) -> object:
+    """Sets fields of a bound C++ settings struct by name and returns it; TypeError names an
+    unknown field (the C++ type converters raise TypeError for a wrong value type)."""
+    for name, value in values.items():
+        if name.startswith("_") or not isinstance(getattr(type(obj), name, None), property):
+            known = sorted(k for k in dir(type(obj)) if isinstance(getattr(type(obj), k), property))
+            raise TypeError(f"unknown {what} setting {name!r}; known: {', '.join(known)}")
+        setattr(obj, name, value)
+    return obj

@@ -1,4 +1,5 @@
-"""Point features: surface normals (seed 000 §3.5) and PCA shape factors (thesis (6.1)-(6.3))."""
+"""Point features: surface normals (the eye-in-hand paper, Comput. Electron. Agric. 180 (2021)
+105929, §3.5) and PCA shape factors (Kleppe, PhD thesis, NTNU 2018, (6.1)-(6.3))."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ def estimate_normals(
 
     Args:
         points: (N, 3) float32/float64 points, metres.
-        radius: neighbourhood radius, metres (seed 000 §3.5: 5 mm).
+        radius: neighbourhood radius, metres (eye-in-hand paper §3.5: 5 mm).
         viewpoint: point the normals face, metres, in the cloud's frame (the camera
             centre, i.e. the origin, for a cloud in its camera frame).
         min_neighbors: fewer neighbours (the point included) give a NaN normal.
@@ -53,7 +54,7 @@ def estimate_normals(
 
 
 def shape_factors(eigenvalues) -> np.ndarray:
-    """Shape factors (C_l, C_p, C_s) of PCA eigenvalues (thesis (6.1)-(6.3), spec §7.2).
+    """Shape factors (C_l, C_p, C_s) of PCA eigenvalues (thesis (6.1)-(6.3)).
 
     With l1 >= l2 >= l3 >= 0 and S = l1 + l2 + l3:
     ``C_l = (l1 - l2)/S``, ``C_p = 2 (l2 - l3)/S``, ``C_s = 3 l3/S``; they sum to 1
@@ -72,14 +73,5 @@ def shape_factors(eigenvalues) -> np.ndarray:
     a = np.asarray(eigenvalues, dtype=np.float64)
     if a.shape[-1:] != (3,) or a.ndim not in (1, 2):
         raise ValueError(f"eigenvalues: expected shape (3,) or (N, 3), got {a.shape}")
-    if not np.all(np.isfinite(a)):
-        raise ValueError("eigenvalues: contains NaN or Inf")
-    if np.any(a < 0):
-        raise ValueError("eigenvalues: must be >= 0")
-    lam = -np.sort(-a, axis=-1)  # descending
-    s = lam.sum(axis=-1, keepdims=True)
-    if np.any(s <= 0):
-        raise ValueError("eigenvalues: zero sum (no spread), shape factors undefined")
-    l1, l2, l3 = lam[..., 0:1], lam[..., 1:2], lam[..., 2:3]
-    out = np.concatenate([(l1 - l2), 2.0 * (l2 - l3), 3.0 * l3], axis=-1) / s
-    return out
+    out = _core.features.shape_factors(a.reshape(-1, 3))
+    return out.reshape(a.shape)

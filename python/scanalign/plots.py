@@ -18,7 +18,8 @@ import numpy as np
 
 from .trajectory import Trajectory
 
-__all__ = ["plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory"]
+__all__ = ["plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory",
+           "pose_overlay"]
 
 PathLike = Union[str, os.PathLike]
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -70,7 +71,8 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Trajectory, path: P
                             title: Optional[str] = None, aligned: bool = True, plane: Optional[str] = None,
                             units: str = "auto", with_scale: bool = False, associate: bool = False,
                             max_difference: float = 0.02, dpi: int = 150) -> Path:
-    """Top-down view of estimated vs reference camera centres, like seed Fig. 4.
+    """Top-down view of estimated vs reference camera centres, like Fig. 4 of the eye-in-hand
+    paper (Comput. Electron. Agric. 180 (2021) 105929).
 
     The reference is a black line, the estimate a coloured one, and thin grey segments join
     corresponding poses (their lengths are the ATE errors when ``aligned``).  Circles mark
@@ -240,7 +242,7 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
                 xlabel: str = "", ylabel: str = "", title: Optional[str] = None, logx: bool = False,
                 logy: bool = False, errors: Optional[Mapping[str, Sequence[float]]] = None,
                 markers: bool = True, dpi: int = 150) -> Path:
-    """Benchmark curves: one line per label over shared x values (seed Figs. 5, 6, 7, 9:
+    """Benchmark curves: one line per label over shared x values (eye-in-hand paper Figs. 5, 6, 7, 9:
     time or ATE vs number of images or iteration cap).
 
     Args:
@@ -388,4 +390,21 @@ def plot_joint_trajectory(t: Sequence[float], q: np.ndarray, path: PathLike, *,
         ax.set_xlabel("time [s]", fontsize=8)
     if title:
         fig.suptitle(title, fontsize=10)
+    return _save(fig, path, dpi)
+
+
+def pose_overlay(obj: np.ndarray, placed: np.ndarray, result: Any, path: PathLike, *, dpi: int = 110) -> Path:
+    """Three orthographic projections (mm) of an object's scan points (orange) and the model
+    placed at ``result.T_scene_model`` (blue), titled with the pose's quality figures."""
+    fig = _figure((13, 4.4))
+    axes = fig.subplots(1, 3)
+    for ax, (i, j, name) in zip(axes, ((0, 1, "x-y"), (0, 2, "x-z"), (1, 2, "y-z"))):
+        ax.scatter(1000 * obj[::3, i], 1000 * obj[::3, j], s=0.3, c="tab:orange", label="object (scan)")
+        ax.scatter(1000 * placed[::3, i], 1000 * placed[::3, j], s=0.3, c="tab:blue", alpha=0.4,
+                   label="model at T_scene_model")
+        ax.set_title(f"{name} (mm)")
+        ax.set_aspect("equal")
+    axes[0].legend(loc="upper right", markerscale=12, fontsize=8)
+    fig.suptitle(f"{result.method}: fitness {result.fitness:.3f}, coverage {result.coverage:.3f}, "
+                 f"inlier RMSE {1000 * result.inlier_rmse:.3f} mm, {result.seconds:.2f} s")
     return _save(fig, path, dpi)

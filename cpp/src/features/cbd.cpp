@@ -222,10 +222,10 @@ std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, 
 }
 
 features::ShapeFactors shapeFactorsOf(const NeighbourhoodPca& pca) {
-  const Eigen::Vector3d& l = pca.eigenvalues;
-  const double s = l.sum();
-  if (!(s > 0)) return {};
-  return {(l(0) - l(1)) / s, 2.0 * (l(1) - l(2)) / s, 3.0 * l(2) / s};  // (6.1)-(6.3)
+  // A neighbourhood without spread (one point, or duplicates) has no shape: all zeros, so
+  // it is never a keypoint. Everything else uses the one definition of (6.1)-(6.3).
+  if (!(pca.eigenvalues.sum() > 0)) return {};
+  return features::shapeFactors(pca.eigenvalues);
 }
 
 double keypointScore(const NeighbourhoodPca& pca, int min_neighbors) {

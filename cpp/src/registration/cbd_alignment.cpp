@@ -50,15 +50,11 @@ std::pair<double, double> alignmentFitness(const CloudView<Scalar>& source, cons
 }
 
 template <typename Scalar>
-CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CloudView<Scalar>& target,
-                            const CbdAlignmentSettings& s) {
+CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CbdFeatures& fs, const CloudView<Scalar>& target,
+                            const CbdFeatures& ft, const CbdAlignmentSettings& s) {
   if (s.matches_per_keypoint < 1) throw std::invalid_argument("alignCbd: matches_per_keypoint must be >= 1");
   const auto t0 = std::chrono::steady_clock::now();
   CbdAlignmentResult out;
-  const CbdFeatures fs = computeCbd(source, s.cbd);
-  const CbdFeatures ft = s.target_thresholds_from_source ? computeCbd(target, s.cbd, &fs.thresholds)
-                                                         : computeCbd(target, s.cbd);
-  out.feature_seconds = since(t0);
   out.source_keypoints = fs.keypoints.size();
   out.target_keypoints = ft.keypoints.size();
   if (fs.keypoints.size() < 3 || ft.keypoints.size() < 3) {
@@ -68,10 +64,9 @@ CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CloudView<Sca
     out.seconds = since(t0);
     return out;
   }
-  const auto t1 = std::chrono::steady_clock::now();
   const CbdMatches m = matchCbd(fs, ft, s.cbd.variant, s.matches_per_keypoint, s.cbd.num_threads);
   out.matches = m.source.size();
-  out.match_seconds = since(t1);
+  out.match_seconds = since(t0);
   // Pairs as indices into keypoint coordinate arrays (double).
   std::vector<double> xs(3 * fs.keypoints.size()), ys(3 * ft.keypoints.size());
   for (std::size_t i = 0; i < fs.keypoints.size(); ++i)
@@ -103,8 +98,24 @@ CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CloudView<Sca
   return out;
 }
 
+template <typename Scalar>
+CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CloudView<Scalar>& target,
+                            const CbdAlignmentSettings& s) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const CbdFeatures fs = computeCbd(source, s.cbd);
+  const CbdFeatures ft = s.target_thresholds_from_source ? computeCbd(target, s.cbd, &fs.thresholds)
+                                                         : computeCbd(target, s.cbd);
+  const double feature_seconds = since(t0);
+  CbdAlignmentResult out = alignCbd(source, fs, target, ft, s);
+  out.feature_seconds = feature_seconds;
+  out.seconds = since(t0);
+  return out;
+}
+
 #define SCANALIGN_INSTANTIATE(S)                                                                              \
   template CbdAlignmentResult alignCbd<S>(const CloudView<S>&, const CloudView<S>&, const CbdAlignmentSettings&); \
+  template CbdAlignmentResult alignCbd<S>(const CloudView<S>&, const CbdFeatures&, const CloudView<S>&,         \
+                                          const CbdFeatures&, const CbdAlignmentSettings&);                      \
   template std::pair<double, double> alignmentFitness<S>(const CloudView<S>&, const CloudView<S>&,               \
                                                          const Eigen::Matrix4d&, double, int);
 SCANALIGN_INSTANTIATE(float)

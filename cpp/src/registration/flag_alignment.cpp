@@ -50,7 +50,10 @@ Eigen::Matrix3d frameOf(const Eigen::Vector3d& d, const Eigen::Vector3d& u) {
 
 template <typename Scalar>
 NormalLineFlag normalLineFlag(const CloudView<Scalar>& points, const CloudView<Scalar>& normals) {
-  if (points.size != normals.size) throw std::invalid_argument("normalLineFlag: points and normals differ in size");
+  if (points.size != normals.size)
+    throw std::invalid_argument("normalLineFlag: points and normals differ in shape (" + std::to_string(points.size) +
+                                " vs " + std::to_string(normals.size) + " rows)");
+  if (points.size == 0) throw std::invalid_argument("normalLineFlag: empty cloud");
   NormalLineFlag f;
   Eigen::Vector3d sx = Eigen::Vector3d::Zero(), sn = Eigen::Vector3d::Zero(), sm = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < points.size; ++i) {

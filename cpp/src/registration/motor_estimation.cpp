@@ -72,7 +72,7 @@ void checkInputs(const CloudView<double>& source, const CloudView<double>& targe
       throw std::invalid_argument(std::string(who) + ": weight " + std::to_string(i) + " is negative or not finite");
     if (weights && weights[i] == 0) continue;
     if (!source.isFinite(i) || !target.isFinite(i))
-      throw std::invalid_argument(std::string(who) + ": pair " + std::to_string(i) + " is not finite");
+      throw std::invalid_argument(std::string(who) + ": pair " + std::to_string(i) + " has NaN or infinite coordinates");
   }
 }
 

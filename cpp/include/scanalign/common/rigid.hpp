@@ -46,6 +46,15 @@ inline void requireRigid(const Eigen::Matrix4d& T, const std::string& what) {
     throw std::invalid_argument(what + " is not a rigid transform: " + problem);
 }
 
+/// Inverse of a rigid transform, [R^T, -R^T t]: exact for rigid input, unlike a general
+/// 4x4 inverse, and cheaper.
+inline Eigen::Matrix4d rigidInverse(const Eigen::Matrix4d& T) {
+  Eigen::Matrix4d inv = Eigen::Matrix4d::Identity();
+  inv.topLeftCorner<3, 3>() = T.topLeftCorner<3, 3>().transpose();
+  inv.topRightCorner<3, 1>() = -(inv.topLeftCorner<3, 3>() * T.topRightCorner<3, 1>());
+  return inv;
+}
+
 /// The rotation R maximising tr(R^T H) for a cross-covariance H = sum w (y - y_mean)
 /// (x - x_mean)^T, i.e. the best rotation taking the centred x onto the centred y:
 /// H = U S V^T, R = U diag(1, 1, d) V^T with d = sign(det(U V^T)) so that det R = +1

@@ -48,6 +48,14 @@ template <typename Scalar>
 CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CloudView<Scalar>& target,
                             const CbdAlignmentSettings& settings = {});
 
+/// The same with both clouds' features computed beforehand (computeCbd with settings.cbd), so
+/// that a scene's features serve every model view. settings.target_thresholds_from_source is
+/// not used here (the caller chose the thresholds).
+template <typename Scalar>
+CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CbdFeatures& source_features,
+                            const CloudView<Scalar>& target, const CbdFeatures& target_features,
+                            const CbdAlignmentSettings& settings);
+
 /// Fraction of finite source points whose nearest target point, after T_target_source, is
 /// closer than `threshold` (m), and the RMS distance of those points (m).
 template <typename Scalar>

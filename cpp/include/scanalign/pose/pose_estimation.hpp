@@ -1,0 +1,123 @@
+// Pose of a known part in a scan from its CAD model: the pipeline of Kleppe, PhD thesis,
+// NTNU 2018, ch. 6-7 (papers 3 and 5). Every model view (model_views.hpp) is coarsely
+// aligned to the object (CBD + RANSAC with a motor refit, paper 4's flags, or an external
+// aligner such as the PCL baselines), refined with scanalign's point-to-plane ICP, and scored
+// by the harmonic mean of fitness (model points near the object) and coverage (object
+// points near the placed model). findObjects first finds the table plane and the object
+// clusters (paper 3's segmentation, fitting/ransac.hpp) and estimates a pose per cluster.
+//
+// Frames and units: metres. T_scene_model maps model (CAD) coordinates into the scene frame.
+#pragma once
+
+#include <cstddef>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "scanalign/common/cloud_view.hpp"
+#include "scanalign/features/cbd.hpp"
+#include "scanalign/fitting/ransac.hpp"
+#include "scanalign/pose/model_views.hpp"
+#include "scanalign/registration/cbd_alignment.hpp"
+#include "scanalign/registration/flag_alignment.hpp"
+
+namespace scanalign {
+
+/// How each model view is brought near the object before ICP.
+enum class CoarseMethod {
+  Cbd,       ///< curvature-based descriptor matches + RANSAC + motor refit (paper 5)
+  Flags,     ///< centroid + average normal line, motor by Levenberg-Marquardt (paper 4)
+  External,  ///< a caller-supplied CoarseAligner (e.g. the PCL baselines of scanalign::pcl)
+};
+const char* toString(CoarseMethod method);
+
+struct PoseSettings {
+  CoarseMethod method = CoarseMethod::Cbd;
+  double inlier_threshold = 0.005;  ///< m; fitness/coverage distance and the CBD RANSAC inlier threshold (thesis: 5 mm)
+  double icp_distance = 0.01;       ///< m; ICP maximum correspondence distance
+  double normal_radius = 0.005;     ///< m; scene normals for point-to-plane ICP and flags
+  /// CBD settings. min_neighbors defaults to 0 (automatic) here, since scan density varies;
+  /// ransac.inlier_threshold is replaced by inlier_threshold.
+  CbdAlignmentSettings cbd = [] {
+    CbdAlignmentSettings s;
+    s.cbd.min_neighbors = 0;
+    return s;
+  }();
+  FlagAlignmentSettings flags;      ///< paper 4 settings
+  int num_threads = 0;              ///< OpenMP threads for every step; 0 = all cores
+};
+void validate(const PoseSettings& settings);
+
+/// A scene cloud prepared once for every model view: its finite points, normals and (for
+/// CBD) descriptors.
+struct PreparedScene {
+  std::vector<double> points;   ///< finite scene points, N x 3, m
+  std::vector<double> normals;  ///< N x 3 unit normals (PCA, radius normal_radius)
+  std::vector<double> oriented_points, oriented_normals;  ///< the points whose normal is finite, with it
+  CbdFeatures cbd;              ///< CBD keypoints/descriptors (method Cbd only)
+  CloudView<double> cloud() const { return {points.data(), points.size() / 3}; }
+};
+PreparedScene prepareScene(const CloudView<double>& scene, const PoseSettings& settings);
+
+/// Outcome of a coarse aligner for one view.
+struct CoarseResult {
+  Eigen::Matrix4d T_scene_model = Eigen::Matrix4d::Identity();
+  bool found = false;
+  std::string message;
+};
+/// An external coarse aligner: view (model frame) -> scene.
+using CoarseAligner = std::function<CoarseResult(const ModelView& view, const PreparedScene& scene)>;
+/// Called after each view with (views done, views in all).
+using PoseProgress = std::function<void(std::size_t, std::size_t)>;
+
+/// Per-view summary.
+struct PoseCandidate {
+  int view = -1;               ///< index into the model views
+  bool found = false;          ///< the coarse alignment produced a pose
+  double coarse_fitness = 0;   ///< fitness after the coarse alignment alone
+  double fitness = 0, coverage = 0, inlier_rmse = 0, score = 0;  ///< after ICP (when found)
+};
+
+struct PoseResult {
+  Eigen::Matrix4d T_scene_model = Eigen::Matrix4d::Identity();  ///< model -> scene
+  bool found = false;          ///< some view aligned and ICP refined it
+  double fitness = 0;          ///< fraction of the view's points within inlier_threshold of the object
+  double coverage = 0;         ///< fraction of the object's points within inlier_threshold of the placed view
+  double inlier_rmse = 0;      ///< m, over the fitness inliers
+  std::string method;          ///< coarse method used
+  int view = -1;               ///< index of the best view (-1 when nothing was found)
+  double seconds = 0;          ///< wall time, all views
+  double coarse_seconds = 0;   ///< the part spent in coarse alignment
+  std::vector<PoseCandidate> candidates;  ///< one per view tried
+  std::string message;         ///< why nothing was found
+};
+
+/// Pose of the model in one object cloud (scene frame, m; non-finite rows ignored).
+/// `views`: the model's views (renderModelViews, or one view built from a model cloud);
+/// `view_ids`: which to try (empty: all). `aligner` is required for CoarseMethod::External.
+/// @throws std::invalid_argument for bad settings, an index out of range or a missing aligner.
+PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<double>& scene,
+                        const PoseSettings& settings = {}, const std::vector<int>& view_ids = {},
+                        const CoarseAligner& aligner = {}, const PoseProgress& progress = {});
+
+struct FindObjectsSettings {
+  TableSegmentationSettings table;  ///< table plane and object clusters (m)
+  std::size_t max_objects = 5;      ///< clusters tried, largest first
+  PoseSettings pose;
+};
+
+struct ObjectPoses {
+  std::vector<PoseResult> poses;     ///< one per object cluster, largest first
+  TableSegmentation table;           ///< plane, clusters (indices into the scene) and counts
+  double seconds = 0;                ///< wall time
+};
+
+/// Poses of a part in a table scene: table plane, clusters, estimatePose per cluster.
+/// `view_ids`, `aligner` and `progress` as for estimatePose.
+ObjectPoses findObjects(const std::vector<ModelView>& views, const CloudView<double>& scene,
+                        const FindObjectsSettings& settings = {}, const std::vector<int>& view_ids = {},
+                        const CoarseAligner& aligner = {}, const PoseProgress& progress = {});
+
+}  // namespace scanalign

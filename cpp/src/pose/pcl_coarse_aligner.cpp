@@ -1,0 +1,33 @@
+// PCL baselines as a coarse aligner. See pcl_coarse_aligner.hpp.
+#include "scanalign/pose/pcl_coarse_aligner.hpp"
+
+#include <vector>
+
+namespace scanalign {
+
+namespace {
+std::vector<float> toFloat(const std::vector<double>& v) { return std::vector<float>(v.begin(), v.end()); }
+}  // namespace
+
+PclFeatureAlignmentSettings thesisPclPreset(PclDescriptor descriptor, PclMatcher matcher) {
+  PclFeatureAlignmentSettings s;  // the defaults are the FPFH/SHOT/PPF preset
+  s.descriptor = descriptor;
+  s.matcher = matcher;
+  if (descriptor == PclDescriptor::ShapeContext3D) s.normal_radius = s.feature_radius = 0.04;
+  return s;
+}
+
+CoarseAligner pclCoarseAligner(const PclFeatureAlignmentSettings& settings) {
+  return [settings](const ModelView& view, const PreparedScene& scene) {
+    const std::vector<float> src = toFloat(view.points), dst = toFloat(scene.points);
+    const PclFeatureAlignmentResult r = pclFeatureAlignment(CloudView<float>(src.data(), src.size() / 3),
+                                                            CloudView<float>(dst.data(), dst.size() / 3), settings);
+    CoarseResult out;
+    out.T_scene_model = r.T_target_source;
+    out.found = r.converged;
+    out.message = r.message;
+    return out;
+  };
+}
+
+}  // namespace scanalign

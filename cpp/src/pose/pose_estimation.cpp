@@ -1,0 +1,195 @@
+// CAD pose pipeline. See pose_estimation.hpp.
+#include "scanalign/pose/pose_estimation.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "scanalign/common/rigid.hpp"
+#include "scanalign/features/normals.hpp"
+#include "scanalign/registration/icp.hpp"
+
+namespace scanalign {
+
+namespace {
+
+double since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+void requirePositive(double v, const char* name) {
+  if (!(std::isfinite(v) && v > 0))
+    throw std::invalid_argument(std::string(name) + " must be a finite positive distance in metres, got " +
+                                std::to_string(v));
+}
+
+CbdAlignmentSettings cbdSettings(const PoseSettings& s) {
+  CbdAlignmentSettings c = s.cbd;
+  c.ransac.inlier_threshold = s.inlier_threshold;
+  if (c.cbd.num_threads == 0) c.cbd.num_threads = s.num_threads;
+  if (c.ransac.num_threads == 0) c.ransac.num_threads = s.num_threads;
+  return c;
+}
+
+// Coarse pose of one view, or found = false with the reason.
+CoarseResult coarse(const ModelView& view, const PreparedScene& scene, const PoseSettings& s,
+                    const CoarseAligner& aligner) {
+  CoarseResult out;
+  if (s.method == CoarseMethod::External) return aligner(view, scene);
+  if (s.method == CoarseMethod::Flags) {
+    const std::size_t n = scene.oriented_points.size() / 3;
+    const FlagAlignmentResult r = alignFlags(view.cloud(), view.normalCloud(), CloudView<double>(scene.oriented_points.data(), n),
+                                             CloudView<double>(scene.oriented_normals.data(), n), s.flags);
+    out.T_scene_model = r.T_target_source;
+    out.found = r.valid;
+    out.message = r.message;
+    return out;
+  }
+  const CbdAlignmentSettings c = cbdSettings(s);
+  const CbdFeatures f = computeCbd(view.cloud(), c.cbd);
+  if (f.keypoints.size() < 3) {
+    out.message = "too few model keypoints";
+    return out;
+  }
+  const CbdAlignmentResult r = alignCbd(view.cloud(), f, scene.cloud(), scene.cbd, c);
+  out.T_scene_model = r.T_target_source;
+  out.found = r.found;
+  out.message = r.message;
+  return out;
+}
+
+// ICP refinement of one view and its score 2 fitness coverage / (fitness + coverage).
+void refine(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, const Eigen::Matrix4d& init,
+            PoseCandidate& c, Eigen::Matrix4d& T) {
+  IcpSettings is;
+  is.max_correspondence_distance = s.icp_distance;
+  is.num_threads = s.num_threads;
+  Icp<double> icp(is);
+  const std::size_t n = scene.oriented_points.size() / 3;
+  icp.setTarget(CloudView<double>(scene.oriented_points.data(), n), CloudView<double>(scene.oriented_normals.data(), n));
+  T = icp.align(view.cloud(), init).T_target_source;
+  const auto fit = alignmentFitness(view.cloud(), scene.cloud(), T, s.inlier_threshold, s.num_threads);
+  const auto cov = alignmentFitness(scene.cloud(), view.cloud(), rigidInverse(T), s.inlier_threshold, s.num_threads);
+  c.fitness = fit.first;
+  c.inlier_rmse = fit.second;
+  c.coverage = cov.first;
+  c.score = c.fitness + c.coverage > 0 ? 2 * c.fitness * c.coverage / (c.fitness + c.coverage) : 0.0;
+}
+
+}  // namespace
+
+const char* toString(CoarseMethod method) {
+  switch (method) {
+    case CoarseMethod::Cbd: return "cbd";
+    case CoarseMethod::Flags: return "flags";
+    case CoarseMethod::External: return "external";
+  }
+  return "?";
+}
+
+void validate(const PoseSettings& s) {
+  requirePositive(s.inlier_threshold, "inlier_threshold");
+  requirePositive(s.icp_distance, "icp_distance");
+  requirePositive(s.normal_radius, "normal_radius");
+  if (s.num_threads < 0) throw std::invalid_argument("num_threads must be >= 0 (0 = all cores)");
+}
+
+PreparedScene prepareScene(const CloudView<double>& scene, const PoseSettings& s) {
+  validate(s);
+  PreparedScene p;
+  for (std::size_t i = 0; i < scene.size; ++i)
+    if (scene.isFinite(i)) p.points.insert(p.points.end(), scene.ptr(i), scene.ptr(i) + 3);
+  const std::size_t n = p.points.size() / 3;
+  p.normals.resize(p.points.size());
+  if (n == 0) return p;
+  NormalEstimationSettings ns;
+  ns.radius = s.normal_radius;
+  ns.num_threads = s.num_threads;
+  estimateNormals(p.cloud(), ns, p.normals.data());
+  for (std::size_t i = 0; i < n; ++i)
+    if (std::isfinite(p.normals[3 * i]) && std::isfinite(p.normals[3 * i + 1]) && std::isfinite(p.normals[3 * i + 2])) {
+      p.oriented_points.insert(p.oriented_points.end(), &p.points[3 * i], &p.points[3 * i] + 3);
+      p.oriented_normals.insert(p.oriented_normals.end(), &p.normals[3 * i], &p.normals[3 * i] + 3);
+    }
+  if (s.method == CoarseMethod::Cbd && n >= 10) p.cbd = computeCbd(p.cloud(), cbdSettings(s).cbd);
+  return p;
+}
+
+PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<double>& scene, const PoseSettings& s,
+                        const std::vector<int>& view_ids, const CoarseAligner& aligner, const PoseProgress& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  validate(s);
+  if (s.method == CoarseMethod::External && !aligner)
+    throw std::invalid_argument("estimatePose: CoarseMethod::External needs a coarse aligner");
+  std::vector<int> ids = view_ids;
+  if (ids.empty())
+    for (std::size_t i = 0; i < views.size(); ++i) ids.push_back(static_cast<int>(i));
+  for (int i : ids)
+    if (i < 0 || static_cast<std::size_t>(i) >= views.size())
+      throw std::invalid_argument("views: index " + std::to_string(i) + " out of range 0.." +
+                                  std::to_string(static_cast<long>(views.size()) - 1));
+  PoseResult best;
+  best.method = s.method == CoarseMethod::External ? "external" : toString(s.method);
+  const PreparedScene prepared = prepareScene(scene, s);
+  const std::size_t n = prepared.points.size() / 3;
+  if (n < 10) {
+    best.message = "scene has " + std::to_string(n) + " finite points; need at least 10";
+  } else if (s.method == CoarseMethod::Cbd && prepared.cbd.keypoints.size() < 3) {
+    best.message = "the object has " + std::to_string(prepared.cbd.keypoints.size()) +
+                   " CBD keypoints (need 3): too few points or no curved/edge regions at radius " +
+                   std::to_string(s.cbd.cbd.radius) + " m";
+  } else {
+    double best_score = -1;
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      const ModelView& view = views[ids[k]];
+      PoseCandidate c;
+      c.view = ids[k];
+      const auto tc = std::chrono::steady_clock::now();
+      const CoarseResult cr = view.size() ? coarse(view, prepared, s, aligner) : CoarseResult{};
+      best.coarse_seconds += since(tc);
+      c.found = cr.found;
+      if (cr.found) {
+        c.coarse_fitness = alignmentFitness(view.cloud(), prepared.cloud(), cr.T_scene_model, s.inlier_threshold,
+                                            s.num_threads).first;
+        Eigen::Matrix4d T;
+        refine(view, prepared, s, cr.T_scene_model, c, T);
+        if (c.score > best_score) {
+          best_score = c.score;
+          best.T_scene_model = T;
+          best.found = true;
+          best.fitness = c.fitness;
+          best.coverage = c.coverage;
+          best.inlier_rmse = c.inlier_rmse;
+          best.view = c.view;
+        }
+      }
+      best.candidates.push_back(c);
+      if (progress) progress(k + 1, ids.size());
+    }
+    if (!best.found) best.message = "no model view aligned with " + best.method + " (coarse alignment found no consensus)";
+  }
+  best.seconds = since(t0);
+  return best;
+}
+
+ObjectPoses findObjects(const std::vector<ModelView>& views, const CloudView<double>& scene,
+                        const FindObjectsSettings& s, const std::vector<int>& view_ids, const CoarseAligner& aligner,
+                        const PoseProgress& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  if (s.max_objects < 1) throw std::invalid_argument("max_objects must be >= 1");
+  validate(s.pose);
+  ObjectPoses out;
+  out.table = segmentTable(scene, s.table);
+  if (out.table.objects.size() > s.max_objects) out.table.objects.resize(s.max_objects);
+  std::vector<double> object;
+  for (const auto& idx : out.table.objects) {
+    object.clear();
+    for (std::uint32_t i : idx) object.insert(object.end(), scene.ptr(i), scene.ptr(i) + 3);
+    out.poses.push_back(estimatePose(views, CloudView<double>(object.data(), idx.size()), s.pose, view_ids, aligner, progress));
+  }
+  out.seconds = since(t0);
+  return out;
+}
+
+}  // namespace scanalign
