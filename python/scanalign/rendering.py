@@ -13,8 +13,8 @@ from typing import Sequence, Union
 
 import numpy as np
 
-from . import _core, se3
-from ._arrays import as_points
+from . import _core
+from ._arrays import as_points, as_transform
 from .camera import Intrinsics
 
 __all__ = ["RenderResult", "render_depth", "look_at", "as_intrinsics"]
@@ -110,7 +110,7 @@ def render_depth(
     """
     K = as_intrinsics(intrinsics)
     v = as_points(vertices, "vertices")
-    T = se3.require_rigid(T_camera_world, "T_camera_world")
+    T = as_transform(T_camera_world, "T_camera_world")  # rigidity: checked in C++, naming T_camera_world
     depth, face_id, cos = _core.synthetic.render_depth(v, _as_faces(faces, v.shape[0]), K.width, K.height, K.fx,
                                                        K.fy, K.cx, K.cy, T, float(near), float(far),
                                                        bool(cull_backfaces), num_threads)

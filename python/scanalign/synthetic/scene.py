@@ -304,9 +304,9 @@ class Scene:
             # Checker parity from the base-frame point hit on the table.
             p, _, pixel = depth_to_cloud(np.where(table, result.depth, np.nan), K, min_depth=0.0,
                                          max_depth=math.inf, return_pixels=True)
-            p = p.astype(np.float64) @ T[:2, :3].T + T[:2, 3]
-            cell = np.floor((p[:, 0] - self.table_center[0]) / self.checker_size) + np.floor(
-                (p[:, 1] - self.table_center[1]) / self.checker_size)
+            x, y, z = p.astype(np.float64).T
+            cell = sum(np.floor((T[i, 0] * x + T[i, 1] * y + T[i, 2] * z + T[i, 3] - self.table_center[i])
+                                / self.checker_size) for i in (0, 1))
             v, u = np.divmod(pixel[np.mod(cell, 2.0) == 1.0], K.width)
             rgb[v, u] = c["lut_alt"][idx[v, u]]
         return rgb
