@@ -196,8 +196,8 @@ def _builtin(segments: int) -> Tuple[io.Mesh, np.ndarray]:
     """The part's mesh and, per face, the surface it lies on (_PLANE, _BOSS or _CAP)."""
     hx, hy, hz = (float(x) for x in _BOX_HALF)
     b = _MeshBuilder()
-    ring = np.column_stack([np.cos(2 * np.pi * np.arange(segments) / segments),
-                            np.sin(2 * np.pi * np.arange(segments) / segments)])
+    phi = 2 * np.pi * np.arange(segments) / segments
+    ring = np.column_stack([np.cos(phi), np.sin(phi)])
 
     # Boss: a cylinder on the top face, its bottom ring shared with the face's hole.
     boss_xy = _BOSS_CENTER + _BOSS_RADIUS * ring
@@ -265,7 +265,8 @@ def _builtin(segments: int) -> Tuple[io.Mesh, np.ndarray]:
 
 
 def builtin_mesh(segments: int = 96) -> io.Mesh:
-    """The built-in part (see the module docstring) as a closed triangle mesh, metres.
+    """The built-in part (see the module docstring) as a closed triangle mesh, in metres in
+    the part's own frame (origin at the box centre, z up).
 
     Watertight (every edge shared by exactly two faces), wound counter-clockwise seen from
     outside, about 3000 triangles for ``segments=96``; the curved surfaces are inscribed
@@ -294,7 +295,8 @@ def builtin_object(n_points: int = 20000, seed: int = 0) -> Tuple[np.ndarray, np
         seed: random seed; equal seeds give identical output.
 
     Returns:
-        ``points (n_points, 3)`` and ``normals (n_points, 3)``, float64, metres.
+        ``points (n_points, 3)`` and ``normals (n_points, 3)``, float64, metres, in the frame
+        of :func:`builtin_mesh`.
     """
     if n_points < 0:
         raise ValueError(f"n_points must be non-negative, got {n_points}")

@@ -120,21 +120,14 @@ def render_depth(
 def look_at(eye: Sequence[float], target: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0)) -> np.ndarray:
     """The camera pose ``T_world_camera`` (camera -> world, 4x4, metres) at ``eye`` whose
     optical axis (camera z) points at ``target``, with the image's up direction (camera -y)
-    as close as possible to ``up`` (world frame).
+    as close as possible to ``up`` (world frame). The C++ core's ``lookAt``.
 
     Raises:
-        ValueError: eye == target, or the viewing direction parallel to ``up``.
+        ValueError: not three finite coordinates each, eye == target, or the viewing
+            direction parallel to ``up``.
     """
-    eye, target, up = (np.asarray(x, dtype=np.float64) for x in (eye, target, up))
-    z = target - eye
-    if not np.linalg.norm(z) > 0:
-        raise ValueError("look_at: eye and target coincide")
-    z /= np.linalg.norm(z)
-    up_perp = up - (up @ z) * z
-    if np.linalg.norm(up_perp) < 1e-9 * max(1.0, np.linalg.norm(up)):
-        raise ValueError("look_at: viewing direction parallel to up; give another up vector")
-    y = -up_perp / np.linalg.norm(up_perp)
-    T = np.eye(4)
-    T[:3, :3] = np.column_stack([np.cross(y, z), y, z])
-    T[:3, 3] = eye
-    return T
+    points = [np.asarray(p, dtype=np.float64) for p in (eye, target, up)]
+    for name, p in zip(("eye", "target", "up"), points):
+        if p.shape != (3,) or not np.all(np.isfinite(p)):  # the C++ side assumes finite 3-vectors
+            raise ValueError(f"{name}: expected three finite coordinates (m), got {p.tolist()!r}")
+    return _core.pose.look_at(*points)
