@@ -388,7 +388,7 @@ def write_pose_outputs(model: object, scene: np.ndarray, result: PoseResult, pre
         object_indices: the object's points in ``scene`` (default all).
     """
     from . import io as _io
-    from .datasets import sample_mesh
+    from .parts import sample_mesh
 
     prefix = Path(prefix)
     prefix.parent.mkdir(parents=True, exist_ok=True)

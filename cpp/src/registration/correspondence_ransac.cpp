@@ -3,16 +3,13 @@
 
 #include "scanalign/common/rigid.hpp"
 
-#include <omp.h>
-
 #include <algorithm>
 #include <cmath>
-#include <limits>
-#include <random>
 #include <stdexcept>
 
 #include <Eigen/Dense>
 
+#include "scanalign/fitting/ransac.hpp"
 #include "scanalign/registration/motor_estimation.hpp"
 
 namespace scanalign {
@@ -77,68 +74,38 @@ CorrespondenceRansacResult ransacRigidMotion(const CloudView<double>& source, co
     for (std::size_t k = 0; k < n; ++k) c += (ys[k] - (R * xs[k] + t)).squaredNorm() < thr2;
     return c;
   };
-
-  // Iterations run in blocks; after each block the early-stop bound is re-evaluated with the
-  // best inlier ratio so far (standard adaptive RANSAC, made deterministic per block).
-  const int threads = s.num_threads > 0 ? s.num_threads : omp_get_max_threads();
-  std::size_t best_count = 0;
-  int best_iter = std::numeric_limits<int>::max();
+  // A 3-pair hypothesis: prerejected unless the two triangles' edges agree (a rigid motion
+  // preserves lengths, so dissimilar triangles cannot both be inlier triples), then Kabsch.
+  auto build = [&](const std::uint32_t* sample, Eigen::Matrix4d& T) {
+    const Eigen::Vector3d x[3] = {xs[sample[0]], xs[sample[1]], xs[sample[2]]};
+    const Eigen::Vector3d y[3] = {ys[sample[0]], ys[sample[1]], ys[sample[2]]};
+    for (int e = 0; e < 3; ++e) {
+      const double lx = (x[(e + 1) % 3] - x[e]).squaredNorm(), ly = (y[(e + 1) % 3] - y[e]).squaredNorm();
+      if (lx < min_edge2 || ly < min_edge2) return false;
+      if (std::sqrt(std::min(lx, ly) / std::max(std::max(lx, ly), 1e-300)) < s.edge_similarity) return false;
+    }
+    return kabsch3(x, y, T);
+  };
+  auto error = [&](const Eigen::Matrix4d& T, std::size_t k) {
+    return (ys[k] - (T.topLeftCorner<3, 3>() * xs[k] + T.topRightCorner<3, 1>())).norm();
+  };
+  // The generic loop of fitting/ransac.hpp: deterministic samples per (seed, iteration),
+  // adaptive stop at `confidence`, ties to the earlier hypothesis.
+  RansacSettings loop;
+  loop.threshold = s.inlier_threshold;
+  loop.max_iterations = s.max_iterations;
+  loop.confidence = s.confidence;
+  loop.seed = s.seed;
+  loop.num_threads = s.num_threads;
+  loop.refine = false;
   Eigen::Matrix4d best_T = Eigen::Matrix4d::Identity();
-  int needed = s.max_iterations, done = 0;
-  const int block = 64 * threads;
-  while (done < needed) {
-    const int end = std::min(needed, done + block);
-#pragma omp parallel num_threads(threads)
-    {
-      std::size_t local_count = 0;
-      int local_iter = std::numeric_limits<int>::max();
-      Eigen::Matrix4d local_T = Eigen::Matrix4d::Identity();
-#pragma omp for schedule(static)
-      for (int it = done; it < end; ++it) {
-        std::mt19937_64 rng(s.seed * 0x9E3779B97F4A7C15ull + static_cast<std::uint64_t>(it) + 1);
-        std::uniform_int_distribution<std::size_t> pick(0, n - 1);
-        std::size_t a = pick(rng), b = pick(rng), c = pick(rng);
-        if (a == b || a == c || b == c) continue;
-        const Eigen::Vector3d x[3] = {xs[a], xs[b], xs[c]}, y[3] = {ys[a], ys[b], ys[c]};
-        bool ok = true;
-        for (int e = 0; e < 3 && ok; ++e) {
-          const double lx = (x[(e + 1) % 3] - x[e]).squaredNorm(), ly = (y[(e + 1) % 3] - y[e]).squaredNorm();
-          if (lx < min_edge2 || ly < min_edge2) ok = false;
-          // Prerejection: a rigid motion preserves lengths, so dissimilar triangles cannot
-          // both be inlier triples.
-          const double ratio = std::sqrt(std::min(lx, ly) / std::max(std::max(lx, ly), 1e-300));
-          if (ratio < s.edge_similarity) ok = false;
-        }
-        Eigen::Matrix4d T;
-        if (!ok || !kabsch3(x, y, T)) continue;
-        const std::size_t cnt = countInliers(T);
-        if (cnt > local_count || (cnt == local_count && it < local_iter)) {
-          local_count = cnt;
-          local_iter = it;
-          local_T = T;
-        }
-      }
-#pragma omp critical
-      if (local_count > best_count || (local_count == best_count && local_count > 0 && local_iter < best_iter)) {
-        best_count = local_count;
-        best_iter = local_iter;
-        best_T = local_T;
-      }
-    }
-    done = end;
-    if (best_count >= 3) {
-      const double w = static_cast<double>(best_count) / static_cast<double>(n);
-      const double p_good = std::max(w * w * w, 1e-12);
-      const double k = std::log(1.0 - s.confidence) / std::log(std::max(1.0 - p_good, 1e-300));
-      if (std::isfinite(k)) needed = std::min(needed, std::max(done, static_cast<int>(std::ceil(k))));
-    }
-  }
-  out.iterations = done;
-  if (best_count < 3) {
+  const RansacLoopStats st = ransacLoop(n, 3, build, error, loop, best_T);
+  out.iterations = st.iterations;
+  if (st.status != RansacStatus::kSuccess || st.best_inliers < 3) {
     out.message = "no hypothesis with 3 or more inliers (matches are inconsistent or degenerate)";
     return out;
   }
-  // Least-squares refit on the inliers with the motor estimator (spec §7.5), re-collecting them.
+  // Least-squares refit on the inliers with the motor estimator (Valkenburg and Dorst; thesis paper 5, (36)-(44)), re-collecting them.
   Eigen::Matrix4d T = best_T;
   for (int r = 0; r < s.refine_iterations; ++r) {
     std::vector<double> xi, yi;

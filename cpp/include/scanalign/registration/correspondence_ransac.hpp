@@ -1,11 +1,12 @@
 // Robust rigid motion from putative point correspondences (e.g. descriptor matches): RANSAC
 // with a prerejection test on the sample's edge lengths (after Buch et al. 2013, the idea of
 // PCL's SampleConsensusPrerejective), minimal 3-point Kabsch hypotheses, and a final
-// least-squares refit on the inliers with the Valkenburg–Dorst motor estimator (spec §7.5).
-// The thesis's own method puts all matches into the least squares (spec §7.5 "no outlier
-// rejection"); descriptor matches always contain outliers, hence this wrapper.
+// least-squares refit on the inliers with the Valkenburg–Dorst motor estimator (Kleppe, PhD
+// thesis, NTNU 2018, paper 5 (36)-(44)). The thesis's own method puts all matches into the
+// least squares without outlier rejection; descriptor matches always contain outliers,
+// hence this wrapper. The loop is the generic ransacLoop of fitting/ransac.hpp.
 //
-// Deterministic: hypotheses are generated from (seed, iteration) and the best one is chosen
+// Deterministic: samples are drawn from (seed, iteration) and the best hypothesis is chosen
 // by (inlier count, lowest iteration), so the answer does not depend on the thread count.
 #pragma once
 
