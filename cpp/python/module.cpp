@@ -15,6 +15,7 @@ void defineCga(py::module_& m);
 void defineKinematics(py::module_& m);
 void definePose(py::module_& m);
 void definePclFeatures(py::module_& m);
+void defineEvaluation(py::module_& m);
 }  // namespace scanalign::python
 
 PYBIND11_MODULE(_core, m) {
@@ -37,4 +38,6 @@ PYBIND11_MODULE(_core, m) {
   auto pose = m.def_submodule("pose", "CBD descriptor, motor estimation, correspondence RANSAC, flag alignment");
   scanalign::python::definePose(pose);
   scanalign::python::definePclFeatures(pose);
+  auto evaluation = m.def_submodule("evaluation", "exact point-to-mesh distance");
+  scanalign::python::defineEvaluation(evaluation);
 }
