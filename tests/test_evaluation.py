@@ -19,7 +19,7 @@ from scanalign.evaluation import (
     relative_pose_error,
     umeyama_alignment,
 )
-from scanalign.trajectory import Trajectory, associate_timestamps
+from scanalign.trajectory import Trajectory, associate_timestamps, matrix_from_quaternion, quaternion_from_matrix
 
 
 # --------------------------------------------------------------------------------------
@@ -275,6 +275,57 @@ def test_association_nearest_matches_evo(seed):
             np.testing.assert_array_equal(a_ref.timestamps, e_ref.timestamps)
             np.testing.assert_array_equal(a_est.poses, np.array(e_est.poses_se3))
             np.testing.assert_array_equal(a_ref.poses, np.array(e_ref.poses_se3))
+
+
+# --------------------------------------------------------------------------------------
+# trajectories: quaternions and interpolation against scipy, the TUM file round trip
+# --------------------------------------------------------------------------------------
+
+def test_quaternions_match_scipy_over_the_whole_rotation_group():
+    Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
+    rng = np.random.default_rng(20)
+    rot = Rotation.random(500, random_state=21)
+    R = rot.as_matrix()
+    R[:4] = [np.eye(3), np.diag([1.0, -1, -1]), np.diag([-1.0, 1, -1]), np.diag([-1.0, -1, 1])]  # angle 0 and pi
+    expect = Rotation.from_matrix(R).as_quat()  # (x, y, z, w)
+    expect[expect[:, 3] < 0] *= -1
+    q = quaternion_from_matrix(R.reshape(50, 10, 3, 3)).reshape(-1, 4)
+    assert np.all(q[:, 3] >= 0)
+    np.testing.assert_allclose(np.abs(np.sum(q * expect, axis=1)), 1.0, atol=1e-12)  # same up to sign at qw = 0
+    np.testing.assert_allclose(matrix_from_quaternion(q), R, atol=1e-12)
+    scaled = rng.uniform(0.1, 10, (500, 1)) * rot.as_quat()
+    np.testing.assert_allclose(matrix_from_quaternion(scaled), rot.as_matrix(), atol=1e-12)
+    with pytest.raises(ValueError, match="non-zero"):
+        matrix_from_quaternion([0.0, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="finite"):
+        matrix_from_quaternion([np.nan, 0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="3, 3"):
+        quaternion_from_matrix(np.eye(4))
+
+
+def test_interpolation_matches_scipy_slerp_and_linear_positions(tmp_path):
+    transform = pytest.importorskip("scipy.spatial.transform")
+    rng = np.random.default_rng(22)
+    traj = random_trajectory(rng, 40, step=0.05)
+    traj.poses[5, :3, :3] = traj.poses[4, :3, :3] @ rigid([0, 0, 1], 3.0, np.zeros(3))[:3, :3]  # near pi apart
+    t = np.sort(rng.uniform(traj.timestamps[0], traj.timestamps[-1], 300))
+    t[:3] = traj.timestamps[[0, 7, -1]]  # exact hits return the stored pose
+    out = traj.interpolate(t)
+    slerp = transform.Slerp(traj.timestamps, transform.Rotation.from_matrix(traj.rotations))
+    np.testing.assert_allclose(out.rotations, slerp(t).as_matrix(), atol=1e-12)
+    for k in range(3):
+        np.testing.assert_allclose(out.positions[:, k], np.interp(t, traj.timestamps, traj.positions[:, k]),
+                                   atol=1e-14)
+    np.testing.assert_allclose(out.poses[:3], traj.poses[[0, 7, -1]], atol=1e-14)
+    with pytest.raises(ValueError, match="span"):
+        traj.interpolate([traj.timestamps[-1] + 1.0])
+    with pytest.raises(ValueError, match="gap"):
+        traj.interpolate([0.05], max_gap=0.01)
+    # TUM text round trip keeps full precision
+    traj.write_tum(tmp_path / "t.txt", header="test")
+    back = Trajectory.read_tum(tmp_path / "t.txt")
+    np.testing.assert_allclose(back.poses, traj.poses, atol=1e-14)
+    np.testing.assert_allclose(back.timestamps, traj.timestamps, atol=1e-6)
 
 
 # --------------------------------------------------------------------------------------

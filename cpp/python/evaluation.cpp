@@ -10,6 +10,7 @@
 
 #include "arrays.hpp"
 #include "scanalign/evaluation/mesh_distance.hpp"
+#include "scanalign/evaluation/pose_interpolation.hpp"
 
 namespace scanalign::python {
 
@@ -71,6 +72,48 @@ std::tuple<py::array_t<double>, py::array_t<double>, py::array_t<std::int64_t>> 
   return {d, q, tri};
 }
 
+using Stack = py::array_t<double, py::array::c_style | py::array::forcecast>;
+
+/// A C-contiguous float64 stack of shape (N, rows[, cols]).
+Stack stackOf(const py::array& a, const char* what, py::ssize_t rows, py::ssize_t cols) {
+  const Stack s = Stack::ensure(a);
+  if (!s || s.ndim() != (cols ? 3 : 2) || s.shape(1) != rows || (cols && s.shape(2) != cols))
+    throw py::value_error(std::string(what) + ": expected shape (N, " + std::to_string(rows) +
+                          (cols ? ", " + std::to_string(cols) : std::string()) + "), got " + shapeOf(a));
+  return s;
+}
+
+py::array_t<double> quaternionsFromRotations(const py::array& rotations) {
+  const Stack R = stackOf(rotations, "rotations", 3, 3);
+  py::array_t<double> out({R.shape(0), py::ssize_t{4}});
+  for (py::ssize_t i = 0; i < R.shape(0); ++i)
+    Eigen::Map<Eigen::Vector4d>(out.mutable_data(i, 0)) =
+        quaternionFromRotation(Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R.data(i, 0, 0)));
+  return out;
+}
+
+py::array_t<double> rotationsFromQuaternions(const py::array& quaternions) {
+  const Stack q = stackOf(quaternions, "quaternions", 4, 0);
+  py::array_t<double> out({q.shape(0), py::ssize_t{3}, py::ssize_t{3}});
+  for (py::ssize_t i = 0; i < q.shape(0); ++i)
+    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(out.mutable_data(i, 0, 0)) =
+        rotationFromQuaternion(Eigen::Map<const Eigen::Vector4d>(q.data(i, 0)));
+  return out;
+}
+
+py::array_t<double> interpolatePoses(const py::array& from, const py::array& to, const py::array& fraction) {
+  const Stack T0 = stackOf(from, "from", 4, 4), T1 = stackOf(to, "to", 4, 4);
+  const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(fraction);
+  if (T1.shape(0) != T0.shape(0) || !a || a.ndim() != 1 || a.shape(0) != T0.shape(0))
+    throw py::value_error("interpolate_poses: from, to and fraction must hold the same number of poses");
+  using M4 = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
+  py::array_t<double> out({T0.shape(0), py::ssize_t{4}, py::ssize_t{4}});
+  for (py::ssize_t i = 0; i < T0.shape(0); ++i)
+    Eigen::Map<M4>(out.mutable_data(i, 0, 0)) =
+        interpolatePose(Eigen::Map<const M4>(T0.data(i, 0, 0)), Eigen::Map<const M4>(T1.data(i, 0, 0)), a.at(i));
+  return out;
+}
+
 }  // namespace
 
 void defineEvaluation(py::module_& m) {
@@ -114,6 +157,15 @@ Nearest surface points: ``(distances (N,) float64 m, points (N, 3) float64 in th
 frame, triangles (N,) int64 rows of faces)``. Rows of ``points`` with NaN/Inf give
 distance NaN, point NaN and triangle -1.
 )doc");
+
+  m.def("quaternions_from_rotations", &quaternionsFromRotations, py::arg("rotations"),
+        "(N, 4) unit quaternions (qx, qy, qz, qw), qw >= 0, of (N, 3, 3) rotation matrices");
+  m.def("rotations_from_quaternions", &rotationsFromQuaternions, py::arg("quaternions"),
+        "(N, 3, 3) rotation matrices of (N, 4) quaternions (qx, qy, qz, qw), normalised first; "
+        "ValueError for a zero or non-finite one");
+  m.def("interpolate_poses", &interpolatePoses, py::arg("from"), py::arg("to"), py::arg("fraction"),
+        "(N, 4, 4) poses a fraction (N,) of the way from (N, 4, 4) `from` to `to`: translation "
+        "linear, rotation spherical-linear along the shorter arc (metres)");
 }
 
 }  // namespace scanalign::python

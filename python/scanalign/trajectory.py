@@ -16,6 +16,8 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
+from . import _core
+
 __all__ = [
     "Trajectory",
     "quaternion_from_matrix",
@@ -28,40 +30,11 @@ __all__ = [
 
 
 def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions (..., 4) as (qx, qy, qz, qw), qw >= 0, from rotation matrices (..., 3, 3).
-
-    Shepperd's method: picks the numerically largest of the four candidates per matrix.
-    """
+    """Unit quaternions (..., 4) as (qx, qy, qz, qw), qw >= 0, from rotation matrices (..., 3, 3)."""
     R = np.asarray(R, dtype=np.float64)
     if R.shape[-2:] != (3, 3):
         raise ValueError(f"expected rotation matrices of shape (..., 3, 3), got {R.shape}")
-    m = R.reshape(-1, 3, 3)
-    t = np.trace(m, axis1=1, axis2=2)
-    d = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], t], axis=1)
-    k = np.argmax(d, axis=1)
-    q = np.empty((m.shape[0], 4))
-    # case w largest
-    for case in range(4):
-        sel = k == case
-        if not np.any(sel):
-            continue
-        a = m[sel]
-        if case == 3:
-            s = np.sqrt(1.0 + t[sel]) * 2.0
-            q[sel] = np.stack([(a[:, 2, 1] - a[:, 1, 2]) / s, (a[:, 0, 2] - a[:, 2, 0]) / s,
-                               (a[:, 1, 0] - a[:, 0, 1]) / s, 0.25 * s], axis=1)
-        else:
-            i, j, l = case, (case + 1) % 3, (case + 2) % 3
-            s = np.sqrt(1.0 + a[:, i, i] - a[:, j, j] - a[:, l, l]) * 2.0
-            v = np.empty((a.shape[0], 4))
-            v[:, i] = 0.25 * s
-            v[:, j] = (a[:, j, i] + a[:, i, j]) / s
-            v[:, l] = (a[:, l, i] + a[:, i, l]) / s
-            v[:, 3] = (a[:, l, j] - a[:, j, l]) / s
-            q[sel] = v
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    q[q[:, 3] < 0] *= -1.0
-    return q.reshape(R.shape[:-2] + (4,))
+    return _core.evaluation.quaternions_from_rotations(R.reshape(-1, 3, 3)).reshape(R.shape[:-2] + (4,))
 
 
 def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
@@ -72,16 +45,7 @@ def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=np.float64)
     if q.shape[-1] != 4:
         raise ValueError(f"expected quaternions of shape (..., 4), got {q.shape}")
-    n = np.linalg.norm(q, axis=-1, keepdims=True)
-    if not np.all(np.isfinite(q)) or np.any(n < 1e-12):
-        raise ValueError("quaternions must be finite and non-zero")
-    x, y, z, w = np.moveaxis(q / n, -1, 0)
-    R = np.stack([
-        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
-    ], axis=-1)
-    return R.reshape(q.shape[:-1] + (3, 3))
+    return _core.evaluation.rotations_from_quaternions(q.reshape(-1, 4)).reshape(q.shape[:-1] + (3, 3))
 
 
 def pose_from_tum(values: np.ndarray) -> np.ndarray:
@@ -195,21 +159,7 @@ class Trajectory:
             raise ValueError(f"a query falls in a gap of {gap.max():.3f} s > max_gap {max_gap} s")
         with np.errstate(invalid="ignore", divide="ignore"):
             a = np.where(gap > 0, (t - ts[lo]) / gap, 0.0)
-        q0 = quaternion_from_matrix(self.rotations[lo])
-        q1 = quaternion_from_matrix(self.rotations[hi])
-        dot = np.sum(q0 * q1, axis=1)
-        q1[dot < 0] *= -1.0
-        dot = np.abs(dot)
-        theta = np.arccos(np.clip(dot, -1.0, 1.0))
-        s = np.sin(theta)
-        small = s < 1e-9
-        w0 = np.where(small, 1.0 - a, np.sin((1.0 - a) * theta) / np.where(small, 1.0, s))
-        w1 = np.where(small, a, np.sin(a * theta) / np.where(small, 1.0, s))
-        q = w0[:, None] * q0 + w1[:, None] * q1
-        T = np.zeros((t.shape[0], 4, 4))
-        T[:, :3, :3] = matrix_from_quaternion(q)
-        T[:, :3, 3] = (1.0 - a)[:, None] * self.positions[lo] + a[:, None] * self.positions[hi]
-        T[:, 3, 3] = 1.0
+        T = _core.evaluation.interpolate_poses(self.poses[lo], self.poses[hi], a)
         return Trajectory(t, T)
 
 
