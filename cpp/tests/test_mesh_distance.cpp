@@ -15,8 +15,8 @@ using Eigen::Vector3d;
 
 namespace {
 
-/// Ericson, Real-Time Collision Detection (2005), §5.1.5, ClosestPtPointTriangle, verbatim in
-/// structure: the reference the index is checked against (non-degenerate triangles).
+/// Closest point by the barycentric case analysis of Ericson, Real-Time Collision Detection
+/// (2005), §5.1.5: the reference the index is checked against (non-degenerate triangles).
 Vector3d ericsonClosest(const Vector3d& p, const Vector3d& a, const Vector3d& b, const Vector3d& c) {
   const Vector3d ab = b - a, ac = c - a, ap = p - a;
   const double d1 = ab.dot(ap), d2 = ac.dot(ap);

@@ -1,4 +1,7 @@
-"""Trajectory and reconstruction accuracy: ATE, RPE (Sturm et al. 2012), cloud-to-mesh distance.
+"""Trajectory and reconstruction accuracy: ATE, RPE, cloud-to-mesh distance.
+
+ATE and RPE are those of Sturm, Engelhard, Endres, Burgard and Cremers, "A Benchmark for the
+Evaluation of RGB-D SLAM Systems", IROS 2012 (Sturm et al. 2012 below).
 
 Conventions (see the package README): metres, radians for inputs; a pose ``T_world_camera``
 maps camera coordinates into the trajectory's world frame.  Error statistics report
@@ -47,9 +50,7 @@ __all__ = [
 TrajectoryLike = Union[Trajectory, np.ndarray]
 
 
-# --------------------------------------------------------------------------------------
-# Inputs
-# --------------------------------------------------------------------------------------
+# -------------------------------------------------------------------------------- Inputs
 
 def _as_trajectory(x: TrajectoryLike, name: str) -> Trajectory:
     if isinstance(x, Trajectory):
@@ -70,9 +71,7 @@ def _check_same_length(est: Trajectory, ref: Trajectory, minimum: int, what: str
         raise ValueError(f"{what} needs at least {minimum} poses, got {len(est)}")
 
 
-# --------------------------------------------------------------------------------------
-# Umeyama / Horn alignment
-# --------------------------------------------------------------------------------------
+# -------------------------------------------------------------- Umeyama / Horn alignment
 
 def umeyama_alignment(source: np.ndarray, target: np.ndarray,
                       with_scale: bool = False) -> Tuple[np.ndarray, np.ndarray, float]:
@@ -102,9 +101,7 @@ def umeyama_alignment(source: np.ndarray, target: np.ndarray,
     return np.asarray(R), np.asarray(t), float(s)
 
 
-# --------------------------------------------------------------------------------------
-# Timestamp association
-# --------------------------------------------------------------------------------------
+# ----------------------------------------------------------------- Timestamp association
 
 def associate(estimate: Trajectory, reference: Trajectory, max_difference: float = 0.02,
               offset: float = 0.0, method: str = "greedy",
@@ -182,9 +179,7 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
     return est_m, ref_m
 
 
-# --------------------------------------------------------------------------------------
-# Error statistics and results
-# --------------------------------------------------------------------------------------
+# ---------------------------------------------------------- Error statistics and results
 
 @dataclass
 class ErrorStats:
@@ -279,9 +274,7 @@ class RpeResult:
                 "delta": self.delta, "delta_unit": self.delta_unit, "all_pairs": self.all_pairs}
 
 
-# --------------------------------------------------------------------------------------
-# ATE
-# --------------------------------------------------------------------------------------
+# ----------------------------------------------------------------------------------- ATE
 
 def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLike, align: bool = True,
                               with_scale: bool = False, associate: bool = False,
@@ -336,35 +329,19 @@ def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLik
 _associate = associate  # absolute_trajectory_error / relative_pose_error shadow the name
 
 
-# --------------------------------------------------------------------------------------
-# RPE
-# --------------------------------------------------------------------------------------
+# ----------------------------------------------------------------------------------- RPE
 
 _DELTA_UNITS = ("frames", "seconds", "meters")
 
 
 def _pairs_consecutive(s: np.ndarray, delta: float) -> np.ndarray:
     """Chain 0 = i_0 < i_1 < ...: i_{k+1} is the first index with s[i_{k+1}] - s[i_k] >= delta."""
-    n = s.shape[0]
-    nxt = np.searchsorted(s, s + delta, side="left")
-    # searchsorted on rounded sums can land one off; fix so that nxt is exactly the first
-    # j > i with (s[j] - s[i]) >= delta as computed in floating point.
-    nxt = np.maximum(nxt, np.arange(n) + 1)
-    for _ in range(2):
-        prev = np.maximum(nxt - 1, 0)
-        step_back = (nxt - 1 > np.arange(n)) & (s[prev] - s >= delta)
-        nxt = np.where(step_back, nxt - 1, nxt)
-        cur = np.minimum(nxt, n - 1)
-        step_fwd = (nxt < n) & (s[cur] - s < delta)
-        nxt = np.where(step_fwd, nxt + 1, nxt)
-    ids = [0]
-    i = 0
-    nxt_list = nxt.tolist()
-    while nxt_list[i] < n:  # walks the chain only (one step per pair)
-        i = nxt_list[i]
-        ids.append(i)
-    ids_a = np.asarray(ids, dtype=np.intp)
-    return np.stack([ids_a[:-1], ids_a[1:]], axis=1)
+    ids, values = [0], s.tolist()
+    for j in range(1, len(values)):
+        if values[j] - values[ids[-1]] >= delta:
+            ids.append(j)
+    chain = np.asarray(ids, dtype=np.intp)
+    return np.stack([chain[:-1], chain[1:]], axis=1)
 
 
 def _pairs_all(s: np.ndarray, delta: float, tol: float) -> np.ndarray:
@@ -463,9 +440,7 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
                      pairs=pairs.astype(np.intp), delta=delta_out, delta_unit=delta_unit, all_pairs=bool(all_pairs))
 
 
-# --------------------------------------------------------------------------------------
-# Report helper
-# --------------------------------------------------------------------------------------
+# ------------------------------------------------------------------------- Report helper
 
 def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike, *, associate: bool = False,
                             max_difference: float = 0.02, offset: float = 0.0, with_scale: bool = False,

@@ -16,7 +16,7 @@ from typing import Optional, Sequence, Union
 
 import numpy as np
 
-from . import _core
+from . import _core, se3
 
 __all__ = [
     "Trajectory",
@@ -114,7 +114,7 @@ class Trajectory:
         """Expressed in the first camera's frame: the first pose becomes the identity."""
         if len(self) == 0:
             return Trajectory(self.timestamps.copy(), self.poses.copy())
-        return self.transformed(np.linalg.inv(self.poses[0]))
+        return self.transformed(se3.inverse(self.poses[0]))
 
     def to_tum_rows(self) -> np.ndarray:
         """(N, 8) rows ``timestamp tx ty tz qx qy qz qw``."""
