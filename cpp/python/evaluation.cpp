@@ -20,8 +20,16 @@ using Rows = py::array_t<double, py::array::c_style | py::array::forcecast>;
 
 std::string shapeOf(const py::array& a) { return std::string(py::str(a.attr("shape"))); }
 
+/// Any array-like as a NumPy array (lists are accepted like numpy.asarray accepts them).
+py::array asArray(const py::object& o, const char* what) {
+  py::array a = py::array::ensure(o);
+  if (!a) throw py::type_error(std::string(what) + ": expected an array");
+  return a;
+}
+
 /// (N, 3) float32 / float64 array as a C-contiguous float64 copy or view.
-Rows float64Rows(const py::array& a, const char* what, const char* shape) {
+Rows float64Rows(const py::object& o, const char* what, const char* shape) {
+  const py::array a = asArray(o, what);
   const char kind = a.dtype().kind();
   if (kind != 'f' || (a.itemsize() != 4 && a.itemsize() != 8))
     throw py::type_error(std::string(what) + ": expected a float32 or float64 array, got dtype " +
@@ -32,8 +40,9 @@ Rows float64Rows(const py::array& a, const char* what, const char* shape) {
   return Rows::ensure(a);
 }
 
-std::unique_ptr<MeshDistanceIndex> makeIndex(const py::array& vertices, const py::array& faces, int leaf_size) {
+std::unique_ptr<MeshDistanceIndex> makeIndex(const py::object& vertices, const py::object& faces_like, int leaf_size) {
   const Rows v = float64Rows(vertices, "vertices", "(V, 3)");
+  const py::array faces = asArray(faces_like, "faces");
   const char kind = faces.dtype().kind();
   if (kind != 'i' && kind != 'u')
     throw py::type_error("faces: expected an integer array, got dtype " + std::string(py::str(faces.dtype())));
@@ -46,7 +55,7 @@ std::unique_ptr<MeshDistanceIndex> makeIndex(const py::array& vertices, const py
   return std::make_unique<MeshDistanceIndex>(view, f.data(), static_cast<std::size_t>(f.shape(0)), leaf_size);
 }
 
-py::array_t<double> distance(const MeshDistanceIndex& index, const py::array& points, int num_threads) {
+py::array_t<double> distance(const MeshDistanceIndex& index, const py::object& points, int num_threads) {
   const Rows p = float64Rows(points, "points", "(N, 3)");
   py::array_t<double> out(p.shape(0));
   const CloudView<double> view(p.data(), static_cast<std::size_t>(p.shape(0)));
@@ -57,7 +66,7 @@ py::array_t<double> distance(const MeshDistanceIndex& index, const py::array& po
 }
 
 std::tuple<py::array_t<double>, py::array_t<double>, py::array_t<std::int64_t>> closestPoints(
-    const MeshDistanceIndex& index, const py::array& points, int num_threads) {
+    const MeshDistanceIndex& index, const py::object& points, int num_threads) {
   const Rows p = float64Rows(points, "points", "(N, 3)");
   const py::ssize_t n = p.shape(0);
   py::array_t<double> d(n), q({n, py::ssize_t{3}});
