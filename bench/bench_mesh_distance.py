@@ -72,7 +72,7 @@ def main() -> None:
     ap.add_argument("--far", type=float, default=0.05, help="fraction of points anywhere in the doubled box")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--threads", type=int, default=0, help="OpenMP threads for the C++ index (0 = all)")
-    ap.add_argument("--numpy-rev", default="00ce9e2", help="git revision holding the NumPy implementation")
+    ap.add_argument("--numpy-rev", default="e7fb466", help="git revision holding the NumPy implementation")
     args = ap.parse_args()
 
     mesh = datasets.load_cgal_mesh(args.mesh)

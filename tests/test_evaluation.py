@@ -779,6 +779,9 @@ def test_mesh_distance_inputs_and_stats():
         point_to_mesh_distance(P, V_bad, F)
     V_extra = np.concatenate([V, [[np.nan, 0, 0]]])  # unused vertex: ignored
     np.testing.assert_array_equal(point_to_mesh_distance(P, V_extra, F), d)
+    np.testing.assert_array_equal(point_to_mesh_distance(P.tolist(), V.tolist(), F.tolist()), d)  # array-likes
+    with pytest.raises(TypeError, match="vertices"):
+        point_to_mesh_distance(P, V.astype(int).tolist(), F)  # integer coordinates are rejected
 
 
 def test_mesh_distance_far_points_threads_and_reuse():
