@@ -60,6 +60,7 @@ CAMERA_FILE_NAMES = ("camera.json", "camera.yaml", "camera.yml", "intrinsics.jso
 
 PathLike = Union[str, "os.PathLike[str]"]
 
+
 class TumFormatError(ValueError):
     """A sequence folder or one of its files does not follow the TUM layout.
 
