@@ -1,5 +1,6 @@
-"""scanalign.evaluation and scanalign.plots against independent truth: evo (the reference
-implementation of the TUM metrics), brute-force oracles and analytic cases."""
+"""scanalign.evaluation, scanalign.trajectory and scanalign.plots against independent truth:
+evo (the reference implementation of the TUM metrics), scipy's rotations, Open3D's mesh
+distance, brute-force oracles and analytic cases."""
 
 from __future__ import annotations
 

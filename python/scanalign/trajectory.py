@@ -5,6 +5,8 @@ into the trajectory's world frame; metres) with timestamps in seconds.  The TUM 
 text format has one pose per line, ``timestamp tx ty tz qx qy qz qw``, where (tx, ty, tz)
 is the camera centre in the world frame and (qx, qy, qz, qw) the unit quaternion of the
 camera's orientation in the world frame (Hamilton convention, scalar last).
+:func:`associate_timestamps` is the package's one rule for pairing two timestamp streams
+(depth with colour images, an estimate with its ground truth).
 """
 
 from __future__ import annotations
