@@ -1,5 +1,6 @@
-"""scanalign.evaluation and scanalign.plots against independent truth: evo (the reference
-implementation of the TUM metrics), brute-force oracles and analytic cases."""
+"""scanalign.evaluation, scanalign.trajectory and scanalign.plots against independent truth:
+evo (the reference implementation of the TUM metrics), scipy's rotations, Open3D's mesh
+distance, brute-force oracles and analytic cases."""
 
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from scanalign.evaluation import (
     relative_pose_error,
     umeyama_alignment,
 )
-from scanalign.trajectory import Trajectory
+from scanalign.trajectory import Trajectory, associate_timestamps, matrix_from_quaternion, quaternion_from_matrix
 
 
 # --------------------------------------------------------------------------------------
@@ -278,21 +279,98 @@ def test_association_nearest_matches_evo(seed):
 
 
 # --------------------------------------------------------------------------------------
-# association (TUM greedy) against a brute-force oracle
+# trajectories: quaternions and interpolation against scipy, the TUM file round trip
 # --------------------------------------------------------------------------------------
 
-def _tum_oracle(t_est, t_ref, max_difference, offset):
-    """TUM associate.py, written out: every pair under max_difference, best first, greedy."""
-    cands = sorted((abs(r - (e + offset)), r, e, j, i)
-                   for i, e in enumerate(t_est) for j, r in enumerate(t_ref) if abs(r - (e + offset)) < max_difference)
-    used_e, used_r, matches = set(), set(), []
-    for _, r, e, j, i in cands:
-        if i not in used_e and j not in used_r:
-            used_e.add(i)
-            used_r.add(j)
-            matches.append((r, e, i, j))
-    matches.sort()
-    return [m[2] for m in matches], [m[3] for m in matches]
+def test_quaternions_match_scipy_over_the_whole_rotation_group():
+    Rotation = pytest.importorskip("scipy.spatial.transform").Rotation
+    rng = np.random.default_rng(20)
+    rot = Rotation.random(500, random_state=21)
+    R = rot.as_matrix()
+    R[:4] = [np.eye(3), np.diag([1.0, -1, -1]), np.diag([-1.0, 1, -1]), np.diag([-1.0, -1, 1])]  # angle 0 and pi
+    expect = Rotation.from_matrix(R).as_quat()  # (x, y, z, w)
+    expect[expect[:, 3] < 0] *= -1
+    q = quaternion_from_matrix(R.reshape(50, 10, 3, 3)).reshape(-1, 4)
+    assert np.all(q[:, 3] >= 0)
+    np.testing.assert_allclose(np.abs(np.sum(q * expect, axis=1)), 1.0, atol=1e-12)  # same up to sign at qw = 0
+    np.testing.assert_allclose(matrix_from_quaternion(q), R, atol=1e-12)
+    scaled = rng.uniform(0.1, 10, (500, 1)) * rot.as_quat()
+    np.testing.assert_allclose(matrix_from_quaternion(scaled), rot.as_matrix(), atol=1e-12)
+    with pytest.raises(ValueError, match="non-zero"):
+        matrix_from_quaternion([0.0, 0.0, 0.0, 0.0])
+    with pytest.raises(ValueError, match="finite"):
+        matrix_from_quaternion([np.nan, 0.0, 0.0, 1.0])
+    with pytest.raises(ValueError, match="3, 3"):
+        quaternion_from_matrix(np.eye(4))
+
+
+def test_interpolation_matches_scipy_slerp_and_linear_positions(tmp_path):
+    transform = pytest.importorskip("scipy.spatial.transform")
+    rng = np.random.default_rng(22)
+    traj = random_trajectory(rng, 40, step=0.05)
+    traj.poses[5, :3, :3] = traj.poses[4, :3, :3] @ rigid([0, 0, 1], 3.0, np.zeros(3))[:3, :3]  # near pi apart
+    t = np.sort(rng.uniform(traj.timestamps[0], traj.timestamps[-1], 300))
+    t[:3] = traj.timestamps[[0, 7, -1]]  # exact hits return the stored pose
+    out = traj.interpolate(t)
+    slerp = transform.Slerp(traj.timestamps, transform.Rotation.from_matrix(traj.rotations))
+    np.testing.assert_allclose(out.rotations, slerp(t).as_matrix(), atol=1e-12)
+    for k in range(3):
+        np.testing.assert_allclose(out.positions[:, k], np.interp(t, traj.timestamps, traj.positions[:, k]),
+                                   atol=1e-14)
+    np.testing.assert_allclose(out.poses[:3], traj.poses[[0, 7, -1]], atol=1e-14)
+    with pytest.raises(ValueError, match="span"):
+        traj.interpolate([traj.timestamps[-1] + 1.0])
+    with pytest.raises(ValueError, match="gap"):
+        traj.interpolate([0.05], max_gap=0.01)
+    # TUM text round trip keeps full precision
+    traj.write_tum(tmp_path / "t.txt", header="test")
+    back = Trajectory.read_tum(tmp_path / "t.txt")
+    np.testing.assert_allclose(back.poses, traj.poses, atol=1e-14)
+    np.testing.assert_allclose(back.timestamps, traj.timestamps, atol=1e-6)
+
+
+# --------------------------------------------------------------------------------------
+# association: the one greedy rule, against a brute-force oracle
+# --------------------------------------------------------------------------------------
+
+def _greedy_oracle(t_first, t_second, max_difference, offset=0.0):
+    """The documented rule written out over every pair of sorted streams: candidates with
+    |dt| <= max_difference (inclusive), closest first, ties by first then second index,
+    each index used once; pairs returned by first index."""
+    cands = sorted((abs(a - (b + offset)), i, j) for i, a in enumerate(t_first) for j, b in enumerate(t_second)
+                   if abs(a - (b + offset)) <= max_difference)
+    used_i, used_j, pairs = set(), set(), []
+    for _, i, j in cands:
+        if i not in used_i and j not in used_j:
+            used_i.add(i)
+            used_j.add(j)
+            pairs.append((i, j))
+    return sorted(pairs)
+
+
+def test_associate_timestamps_matches_oracle_and_keeps_the_bound():
+    rng = np.random.default_rng(3)
+    for trial in range(300):
+        a = np.sort(np.round(rng.uniform(0, 1, rng.integers(0, 30)), 2))  # coarse: ties and repeats
+        b = np.sort(np.round(rng.uniform(0, 1, rng.integers(0, 30)), 2))
+        md = float(rng.choice([0.0, 0.01, 0.02, 0.05, 0.5]))
+        got = associate_timestamps(a, b, md)
+        assert got.dtype == np.int64 and got.shape == (len(got), 2)
+        assert [tuple(p) for p in got.tolist()] == _greedy_oracle(a, b, md), trial
+    # |dt| == max_difference exactly (binary fractions): inclusive, like evo's matcher
+    assert associate_timestamps([0.0, 1.0], [0.5, 1.25], 0.25).tolist() == [[1, 1]]
+    assert associate_timestamps([0.0, 1.0], [0.5, 1.25], 0.5).tolist() == [[0, 0], [1, 1]]
+    assert associate_timestamps([1.0], [1.0], 0.0).tolist() == [[0, 0]]
+    # closest first: 1.0 takes 1.01 (0.01) although 1.02 is also within reach of 1.01
+    assert associate_timestamps([1.0, 1.02], [1.01, 1.015], 0.02).tolist() == [[0, 0], [1, 1]]
+    assert associate_timestamps([], [1.0], 0.1).shape == (0, 2)
+    with pytest.raises(ValueError, match="sorted"):
+        associate_timestamps([2.0, 1.0], [1.0], 0.1)
+    with pytest.raises(ValueError, match="non-finite"):
+        associate_timestamps([1.0, np.nan], [1.0], 0.1)
+    for bad in (-1.0, np.inf, np.nan):
+        with pytest.raises(ValueError, match="max_difference"):
+            associate_timestamps([1.0], [1.0], bad)
 
 
 @pytest.mark.parametrize("seed", range(8))
@@ -309,23 +387,36 @@ def test_association_greedy_matches_oracle(seed):
             t_e = np.arange(n_e) * 0.05 + 0.026
         offset = float(rng.uniform(-0.1, 0.1))
         md = float(rng.uniform(0.005, 0.3))
-        ie, ir = _tum_oracle(t_e, t_r, md, offset)
-        if not ie:
+        if trial % 5 == 2:  # a pair exactly at the bound is kept
+            t_e, t_r, offset, md = np.array([0.0, 0.5]), np.array([0.25, 1.0]), 0.0, 0.25
+        pairs = _greedy_oracle(t_r, t_e, md, offset)
+        if not pairs:
             with pytest.raises(ValueError, match="no timestamps match"):
                 associate(stamps(t_e), stamps(t_r), md, offset)
             continue
+        ir, ie = (list(x) for x in zip(*pairs))
         est, ref, a, b = associate(stamps(t_e), stamps(t_r), md, offset, return_indices=True)
         assert a.tolist() == ie and b.tolist() == ir
         np.testing.assert_array_equal(est.timestamps, t_e[ie])
         np.testing.assert_array_equal(ref.timestamps, t_r[ir])
 
 
+def test_association_of_unsorted_trajectories_maps_back_to_rows():
+    rng = np.random.default_rng(9)
+    t_r = np.sort(rng.uniform(0, 5, 60))
+    t_e = np.sort(t_r[rng.choice(60, 40, replace=False)] + rng.normal(0, 0.004, 40))
+    pe, pr = rng.permutation(40), rng.permutation(60)
+    _, _, a, b = associate(stamps(t_e[pe]), stamps(t_r[pr]), 0.01, return_indices=True)
+    _, _, a0, b0 = associate(stamps(t_e), stamps(t_r), 0.01, return_indices=True)
+    assert len(a0) > 30 and sorted(zip(pe[a], pr[b])) == sorted(zip(a0, b0))
+
+
 def test_association_long_drift_chain():
-    # every estimate stamp has two candidates whose quality decays monotonically: the
-    # worst case for vectorised rounds, finished sequentially
+    # every estimate stamp has two candidates whose quality decays monotonically along the
+    # sequence: a long chain in which each choice depends on the previous one
     t_r = np.arange(600) * 0.1 * (1 + 2e-4)
     t_e = np.arange(600) * 0.1 + 0.05
-    ie, ir = _tum_oracle(t_e, t_r, 0.08, 0.0)
+    ir, ie = (list(x) for x in zip(*_greedy_oracle(t_r, t_e, 0.08)))
     _, _, a, b = associate(stamps(t_e), stamps(t_r), 0.08, return_indices=True)
     assert a.tolist() == ie and b.tolist() == ir
 
@@ -689,18 +780,63 @@ def test_mesh_distance_inputs_and_stats():
         point_to_mesh_distance(P, V_bad, F)
     V_extra = np.concatenate([V, [[np.nan, 0, 0]]])  # unused vertex: ignored
     np.testing.assert_array_equal(point_to_mesh_distance(P, V_extra, F), d)
+    np.testing.assert_array_equal(point_to_mesh_distance(P.tolist(), V.tolist(), F.tolist()), d)  # array-likes
+    with pytest.raises(TypeError, match="vertices"):
+        point_to_mesh_distance(P, V.astype(int).tolist(), F)  # integer coordinates are rejected
 
 
-def test_mesh_distance_far_points_split_blocks():
-    # points far from a fine mesh keep many candidate nodes: a tiny pair cap forces the
-    # block splitting path, results must not change
+def test_mesh_distance_far_points_threads_and_reuse():
+    # points far from a fine mesh keep many boxes in reach: still the exact minimum, and
+    # the same bits whatever the thread count or entry point
     V, F = _torus(80, 40)
     rng = np.random.default_rng(15)
     P = rng.normal(size=(64, 3))
-    idx = MeshDistanceIndex(V, F)
+    idx = MeshDistanceIndex(V, F, leaf_size=2)
     d = idx.distance(P)
-    np.testing.assert_allclose(idx.distance(P, chunk=64, max_pairs=256), d, rtol=0, atol=0)
     np.testing.assert_allclose(d, _ericson_oracle(P, V, F), rtol=1e-10)
+    np.testing.assert_array_equal(idx.distance(P, num_threads=1), d)
+    np.testing.assert_array_equal(idx(P), d)
+    assert idx.n_faces == len(F)
+    assert idx.distance(np.zeros((0, 3))).shape == (0,)
+    with pytest.raises(ValueError, match="leaf_size"):
+        MeshDistanceIndex(V, F, leaf_size=0)
+    with pytest.raises(ValueError, match="num_threads"):
+        idx.distance(P, num_threads=-1)
+
+
+def test_mesh_closest_points_lie_on_their_triangles():
+    V, F = _torus(30, 15)
+    rng = np.random.default_rng(17)
+    P = rng.normal(0, 0.1, (200, 3))
+    P[7] = np.nan
+    d, Q, tri = MeshDistanceIndex(V, F).closest_points(P)
+    ok = np.arange(200) != 7
+    np.testing.assert_allclose(d[ok], _ericson_oracle(P[ok], V, F), rtol=1e-10, atol=1e-13)
+    np.testing.assert_allclose(np.linalg.norm(Q - P, axis=1)[ok], d[ok], rtol=1e-12)
+    # the returned point is on the returned triangle: its distance to that triangle is 0
+    on_own = [_ericson_oracle(Q[k:k + 1], V, F[tri[k]:tri[k] + 1])[0] for k in np.flatnonzero(ok)]
+    assert max(on_own) < 1e-12
+    assert np.isnan(d[7]) and tri[7] == -1 and np.all(np.isnan(Q[7]))
+
+
+@pytest.mark.data
+def test_mesh_distance_matches_open3d_on_the_cgal_bunny(dataset_cache):
+    o3d = pytest.importorskip("open3d")
+    from scanalign import datasets
+
+    mesh = datasets.load_cgal_mesh("bunny00")
+    # Open3D computes in float32: give both the same float32-rounded inputs
+    V = mesh.vertices.astype(np.float32)
+    F = np.asarray(mesh.faces)
+    rng = np.random.default_rng(18)
+    P = (V[rng.choice(len(V), 5000)] + rng.normal(0, 0.02, (5000, 3))).astype(np.float32)
+    P = np.concatenate([P, rng.uniform(-1, 1, (500, 3)).astype(np.float32)])  # far from the surface too
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(o3d.core.Tensor(V), o3d.core.Tensor(F.astype(np.uint32)))
+    expect = scene.compute_distance(o3d.core.Tensor(P)).numpy()
+    d = point_to_mesh_distance(P, V, F)
+    assert d.dtype == np.float64
+    np.testing.assert_allclose(d, expect, rtol=0, atol=1e-6)  # the bunny spans about 1 unit
 
 
 # --------------------------------------------------------------------------------------

@@ -642,3 +642,26 @@ def test_read_ply_points_needs_xyz(tmp_path: Path) -> None:
     path.write_text("ply\nformat ascii 1.0\nelement vertex 1\nproperty float a\nend_header\n1\n")
     with pytest.raises(ValueError, match="x, y, z"):
         io.read_ply_points(path)
+
+
+@pytest.mark.parametrize("data", ["ascii", "binary", "binary_compressed"])
+def test_pcd_header_claiming_more_data_than_the_file_holds(tmp_path: Path, data: str) -> None:
+    # A trillion points: refused from the sizes alone (a clear error, not MemoryError).
+    n = 10**12
+    path = tmp_path / "huge.pcd"
+    header = f"FIELDS x\nSIZE 4\nTYPE F\nWIDTH {n}\nPOINTS {n}\nDATA {data}\n".encode()
+    payload = b"1.0\n" if data == "ascii" else bytes(4)
+    if data == "binary_compressed":  # a consistent-looking size header over 4 bytes
+        header = header.replace(str(n).encode(), b"1000000000")
+        payload = struct.pack("<II", 4, 4_000_000_000) + b"\x02abc"
+    path.write_bytes(header + payload)
+    with pytest.raises(ValueError, match="truncated|cannot decompress") as info:
+        io.read_pcd(path)
+    assert str(path) in str(info.value)
+
+
+def test_lzf_refuses_an_output_size_no_stream_of_that_length_reaches() -> None:
+    with pytest.raises(ValueError, match="cannot decompress"):
+        io.lzf_decompress(b"\x02abc", 1 << 40)
+    with pytest.raises(ValueError, match="expected_size"):
+        io.lzf_decompress(b"", -1)

@@ -21,8 +21,8 @@ import pytest
 from helpers import rigid
 from scanalign import tum
 from scanalign.camera import INTRINSICS_PRESETS, Frame, Intrinsics
-from scanalign.trajectory import Trajectory
-from scanalign.tum import TumFormatError, TumSequence, associate_timestamps, is_tum_folder, write_tum_sequence
+from scanalign.trajectory import Trajectory, associate_timestamps
+from scanalign.tum import TumFormatError, TumSequence, is_tum_folder, write_tum_sequence
 
 SMALL = Intrinsics(16, 12, 20.0, 21.0, 7.5, 5.5)  # (H, W) = (12, 16)
 T0 = 1305031102.175304  # a real TUM timestamp (freiburg1_xyz)
@@ -734,8 +734,14 @@ def test_depth_decoded_as_32_bit_mode_by_older_pillow(tmp_path, monkeypatch):
     real_open = Image.open
 
     def open_as_int32(path, *args, **kwargs):
+        # What Pillow 9 hands out for such a file: mode "I", while its format and raw mode
+        # (the stored layout) still say 16-bit greyscale PNG.
         with real_open(path, *args, **kwargs) as im:
-            return im.convert("I") if im.mode.startswith("I;16") else im.copy()
+            if not im.mode.startswith("I;16"):
+                return im.copy()
+            tile, out = im.tile, im.convert("I")
+        out.format, out.tile = "PNG", tile
+        return out
 
     monkeypatch.setattr(Image, "open", open_as_int32)
     frame = TumSequence(folder)[0]

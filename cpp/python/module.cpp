@@ -15,6 +15,8 @@ void defineCga(py::module_& m);
 void defineKinematics(py::module_& m);
 void definePose(py::module_& m);
 void definePclFeatures(py::module_& m);
+void defineEvaluation(py::module_& m);
+void defineIo(py::module_& m);
 }  // namespace scanalign::python
 
 PYBIND11_MODULE(_core, m) {
@@ -37,4 +39,8 @@ PYBIND11_MODULE(_core, m) {
   auto pose = m.def_submodule("pose", "CBD descriptor, motor estimation, correspondence RANSAC, flag alignment");
   scanalign::python::definePose(pose);
   scanalign::python::definePclFeatures(pose);
+  auto io = m.def_submodule("io", "PCD reading, LZF decompression");
+  scanalign::python::defineIo(io);
+  auto evaluation = m.def_submodule("evaluation", "exact point-to-mesh distance");
+  scanalign::python::defineEvaluation(evaluation);
 }

@@ -1,12 +1,13 @@
-"""Readers and writers for point clouds and meshes (pure Python + numpy).
+"""Readers and writers for point clouds and meshes.
 
 Formats:
 
 - **PCD** (PCL Point Cloud Data, v0.5-v0.7): :func:`read_pcd`, :func:`read_pcd_points`,
-  with ``DATA ascii``, ``binary`` and ``binary_compressed`` (LZF) payloads.
+  with ``DATA ascii``, ``binary`` and ``binary_compressed`` (LZF) payloads, parsed by the
+  C++ core (``scanalign/io/pcd.hpp``).
 - **Meshes**: :func:`read_mesh` for ``.off``, ``.ply``, ``.stl`` and ``.obj``; polygons
-  are fan-triangulated into a :class:`Mesh`.
-- **PLY point clouds**: :func:`write_ply` and :func:`read_ply_points`.
+  are fan-triangulated into a :class:`Mesh`.  PLY goes through the ``plyfile`` library.
+- **PLY point clouds**: :func:`write_ply` and :func:`read_ply_points` (``plyfile``).
 
 Units: the library works in metres, but files store coordinates in whatever unit they
 were written in (CAD meshes are often in millimetres).  The readers return the stored
@@ -22,11 +23,15 @@ import dataclasses
 import os
 import re
 import struct
+import warnings
 from pathlib import Path
-from typing import NamedTuple, Union
+from typing import Union
 
 import numpy as np
 import numpy.typing as npt
+from plyfile import PlyData, PlyElement, PlyElementParseError, PlyHeaderParseError
+
+from ._core import io as _io
 
 __all__ = [
     "Mesh",
@@ -46,16 +51,11 @@ def _error(path: PathLike, message: str) -> ValueError:
     return ValueError(f"{os.fspath(path)}: {message}")
 
 
-# --------------------------------------------------------------------------- LZF
+# --------------------------------------------------------------------------- PCD
 
 
 def lzf_decompress(data: bytes, expected_size: int) -> bytes:
     """Decompress an LZF stream (the liblzf format PCL uses for ``binary_compressed``).
-
-    The stream is a sequence of tokens.  A control byte ``c < 32`` starts a literal run
-    of ``c + 1`` bytes copied from the input.  Otherwise ``c >> 5`` is the match length
-    minus 2 (7 means "add the next byte"), and ``((c & 31) << 8) + next byte + 1`` is
-    the distance back into the output; the match may overlap the bytes it produces.
 
     Args:
         data: the compressed bytes.
@@ -66,225 +66,10 @@ def lzf_decompress(data: bytes, expected_size: int) -> bytes:
 
     Raises:
         ValueError: the stream is truncated, refers before the start of the output,
-            or does not decompress to exactly ``expected_size`` bytes.
+            does not decompress to exactly ``expected_size`` bytes, or is too short to
+            ever reach ``expected_size`` (checked before allocating the output).
     """
-    src = memoryview(data)
-    n_in = len(src)
-    out = bytearray(expected_size)
-    ip = 0
-    op = 0
-    while ip < n_in:
-        ctrl = src[ip]
-        ip += 1
-        if ctrl < 32:  # literal run
-            length = ctrl + 1
-            if ip + length > n_in:
-                raise ValueError(f"LZF literal run at input byte {ip - 1} is truncated")
-            if op + length > expected_size:
-                raise ValueError("LZF output exceeds the expected size")
-            out[op : op + length] = src[ip : ip + length]
-            ip += length
-            op += length
-            continue
-        length = ctrl >> 5
-        if length == 7:
-            if ip >= n_in:
-                raise ValueError("LZF back-reference is truncated")
-            length += src[ip]
-            ip += 1
-        if ip >= n_in:
-            raise ValueError("LZF back-reference is truncated")
-        distance = ((ctrl & 31) << 8) + src[ip] + 1
-        ip += 1
-        length += 2
-        start = op - distance
-        if start < 0:
-            raise ValueError(f"LZF back-reference at output byte {op} points before the start")
-        if op + length > expected_size:
-            raise ValueError("LZF output exceeds the expected size")
-        if distance >= length:
-            out[op : op + length] = out[start : start + length]
-        else:  # overlapping copy: the last `distance` bytes repeat periodically
-            period = bytes(out[start:op])
-            out[op : op + length] = (period * (length // distance + 1))[:length]
-        op += length
-    if op != expected_size:
-        raise ValueError(f"LZF stream decompressed to {op} bytes, expected {expected_size}")
-    return bytes(out)
-
-
-# --------------------------------------------------------------------------- PCD
-
-_PCD_TYPES = {
-    ("F", 4): np.float32,
-    ("F", 8): np.float64,
-    ("I", 1): np.int8,
-    ("I", 2): np.int16,
-    ("I", 4): np.int32,
-    ("I", 8): np.int64,
-    ("U", 1): np.uint8,
-    ("U", 2): np.uint16,
-    ("U", 4): np.uint32,
-    ("U", 8): np.uint64,
-}
-
-
-class _PcdField(NamedTuple):
-    name: str
-    dtype: np.dtype
-    count: int
-
-    @property
-    def nbytes(self) -> int:
-        return self.dtype.itemsize * self.count
-
-
-def _parse_pcd_header(path: PathLike, raw: bytes) -> tuple[list[_PcdField], int, str, int]:
-    """Return (fields, number of points, DATA kind, offset of the payload)."""
-    header: dict[str, list[str]] = {}
-    pos = 0
-    while True:
-        end = raw.find(b"\n", pos)
-        if end < 0:
-            raise _error(path, "PCD header has no DATA line (truncated or not a PCD file)")
-        line = raw[pos:end].decode("ascii", errors="replace").strip()
-        pos = end + 1
-        if not line or line.startswith("#"):
-            continue
-        key, *values = line.split()
-        header[key.upper()] = values
-        if key.upper() == "DATA":
-            break
-
-    def get(key: str) -> list[str]:
-        if key not in header:
-            raise _error(path, f"PCD header lacks {key}")
-        return header[key]
-
-    names = get("FIELDS")
-    sizes = get("SIZE")
-    types = get("TYPE")
-    counts = header.get("COUNT", ["1"] * len(names))
-    if not (len(names) == len(sizes) == len(types) == len(counts)):
-        raise _error(
-            path,
-            f"PCD header FIELDS/SIZE/TYPE/COUNT lengths differ "
-            f"({len(names)}, {len(sizes)}, {len(types)}, {len(counts)})",
-        )
-    fields = []
-    for name, size, kind, count in zip(names, sizes, types, counts):
-        try:
-            dtype = np.dtype(_PCD_TYPES[(kind.upper(), int(size))])
-            n = int(count)
-        except (KeyError, ValueError):
-            raise _error(
-                path, f"PCD field {name!r} has unsupported TYPE {kind} SIZE {size} COUNT {count}"
-            ) from None
-        if n < 1:
-            raise _error(path, f"PCD field {name!r} has COUNT {n}")
-        fields.append(_PcdField(name, dtype.newbyteorder("<"), n))
-
-    try:
-        width = int(get("WIDTH")[0])
-        height = int(header.get("HEIGHT", ["1"])[0])
-        n_points = int(header["POINTS"][0]) if "POINTS" in header else width * height
-    except (IndexError, ValueError):
-        raise _error(path, "PCD header has a malformed WIDTH, HEIGHT or POINTS") from None
-    if n_points < 0 or n_points != width * height:
-        raise _error(path, f"PCD POINTS {n_points} does not equal WIDTH*HEIGHT {width}*{height}")
-    data = get("DATA")
-    kind = data[0].lower() if data else ""
-    if kind not in ("ascii", "binary", "binary_compressed"):
-        raise _error(path, f"unknown PCD DATA type {' '.join(data)!r}")
-    return fields, n_points, kind, pos
-
-
-def _parse_pcd_ascii(
-    path: PathLike, payload: bytes, fields: list[_PcdField], n_points: int
-) -> dict[str, np.ndarray]:
-    tokens = payload.split()
-    per_point = sum(f.count for f in fields)
-    if len(tokens) < n_points * per_point:
-        raise _error(
-            path,
-            f"PCD ascii data is truncated: {len(tokens)} values for "
-            f"{n_points} points x {per_point} values",
-        )
-    table = np.array(tokens[: n_points * per_point]).reshape(n_points, per_point)
-    result: dict[str, np.ndarray] = {}
-    column = 0
-    for field in fields:
-        text = table[:, column : column + field.count]
-        column += field.count
-        try:
-            if (
-                field.name in ("rgb", "rgba")
-                and field.dtype.kind == "f"
-                and bool(np.char.isdigit(text).all())
-            ):
-                # Newer PCL writes packed colours as their integer bit pattern.
-                values = text.astype(np.uint32).view(np.float32)
-            else:
-                values = text.astype(field.dtype)
-        except (ValueError, OverflowError) as exc:
-            raise _error(path, f"PCD ascii field {field.name!r}: {exc}") from None
-        result[field.name] = values[:, 0] if field.count == 1 else values
-    return result
-
-
-def _parse_pcd_binary(
-    path: PathLike, payload: bytes, fields: list[_PcdField], n_points: int
-) -> dict[str, np.ndarray]:
-    point_size = sum(f.nbytes for f in fields)
-    if len(payload) < n_points * point_size:
-        raise _error(
-            path,
-            f"PCD binary data is truncated: {len(payload)} bytes for "
-            f"{n_points} points x {point_size} bytes",
-        )
-    record = np.dtype(
-        {
-            "names": [f"f{i}" for i in range(len(fields))],
-            "formats": [(f.dtype, (f.count,)) for f in fields],
-        }
-    )
-    table = np.frombuffer(payload, dtype=record, count=n_points)
-    return {
-        f.name: table[f"f{i}"][:, 0] if f.count == 1 else table[f"f{i}"]
-        for i, f in enumerate(fields)
-    }
-
-
-def _parse_pcd_compressed(
-    path: PathLike, payload: bytes, fields: list[_PcdField], n_points: int
-) -> dict[str, np.ndarray]:
-    if len(payload) < 8:
-        raise _error(path, "PCD binary_compressed data is truncated (no size header)")
-    compressed_size, uncompressed_size = struct.unpack_from("<II", payload)
-    point_size = sum(f.nbytes for f in fields)
-    if uncompressed_size != n_points * point_size:
-        raise _error(
-            path,
-            f"PCD binary_compressed uncompressed size {uncompressed_size} does not match "
-            f"{n_points} points x {point_size} bytes",
-        )
-    if len(payload) < 8 + compressed_size:
-        raise _error(
-            path,
-            f"PCD binary_compressed data is truncated: {len(payload) - 8} of "
-            f"{compressed_size} compressed bytes",
-        )
-    try:
-        raw = lzf_decompress(payload[8 : 8 + compressed_size], uncompressed_size)
-    except ValueError as exc:
-        raise _error(path, f"corrupt PCD binary_compressed data: {exc}") from None
-    result: dict[str, np.ndarray] = {}
-    offset = 0
-    for field in fields:  # structure of arrays: one block per field
-        values = np.frombuffer(raw, dtype=field.dtype, count=n_points * field.count, offset=offset)
-        offset += n_points * field.nbytes
-        result[field.name] = values if field.count == 1 else values.reshape(n_points, field.count)
-    return result
+    return _io.lzf_decompress(bytes(data), int(expected_size))
 
 
 def read_pcd(path: PathLike) -> dict[str, np.ndarray]:
@@ -304,19 +89,15 @@ def read_pcd(path: PathLike) -> dict[str, np.ndarray]:
         PCL's padding fields named ``_`` are dropped.
 
     Raises:
-        ValueError: malformed header, unknown DATA type, truncated or corrupt payload.
+        ValueError: malformed header, unknown DATA type, truncated or corrupt payload,
+            or a header claiming more data than the file holds.
     """
     raw = Path(path).read_bytes()
-    fields, n_points, kind, offset = _parse_pcd_header(path, raw)
-    payload = raw[offset:]
-    if kind == "ascii":
-        result = _parse_pcd_ascii(path, payload, fields, n_points)
-    elif kind == "binary":
-        result = _parse_pcd_binary(path, payload, fields, n_points)
-    else:
-        result = _parse_pcd_compressed(path, payload, fields, n_points)
-    # Own, contiguous, writable arrays rather than views into the file buffer.
-    return {name: np.array(values) for name, values in result.items() if name != "_"}
+    try:
+        _header, fields = _io.parse_pcd(raw)
+    except ValueError as exc:
+        raise _error(path, str(exc)) from None
+    return fields
 
 
 def read_pcd_points(
@@ -481,240 +262,41 @@ def _read_off(path: PathLike) -> Mesh:
     return Mesh(vertices, _fan_triangulate(path, counts, indices, n_vertices))
 
 
-# PLY ------------------------------------------------------------------------
+# PLY (through plyfile) ---------------------------------------------------------
 
-_PLY_TYPES = {
-    "char": "i1",
-    "int8": "i1",
-    "uchar": "u1",
-    "uint8": "u1",
-    "short": "i2",
-    "int16": "i2",
-    "ushort": "u2",
-    "uint16": "u2",
-    "int": "i4",
-    "int32": "i4",
-    "uint": "u4",
-    "uint32": "u4",
-    "float": "f4",
-    "float32": "f4",
-    "double": "f8",
-    "float64": "f8",
-}
+# Triangle meshes first: a known list length lets plyfile read faces with one array
+# read instead of row by row; files with other polygons are read again without it.
+_TRIANGLES = {"face": {"vertex_indices": 3, "vertex_index": 3}}
 
 
-class _PlyList(NamedTuple):
-    """A PLY list property: per-row lengths and all values concatenated."""
-
-    counts: np.ndarray
-    values: np.ndarray
-
-
-class _PlyProperty(NamedTuple):
-    name: str
-    dtype: np.dtype
-    count_dtype: np.dtype | None  # None for scalar properties
-
-
-class _PlyElement(NamedTuple):
-    name: str
-    count: int
-    properties: list[_PlyProperty]
-
-
-def _parse_ply_header(path: PathLike, raw: bytes) -> tuple[str, list[_PlyElement], int]:
-    """Return (format, elements, offset of the body)."""
-    end = raw.find(b"end_header")
-    if not raw.startswith(b"ply") or end < 0:
-        raise _error(path, "not a PLY file (missing 'ply' magic or 'end_header')")
-    body_start = raw.find(b"\n", end)
-    if body_start < 0:
-        raise _error(path, "PLY file is truncated after end_header")
-    lines = raw[:end].decode("ascii", errors="replace").splitlines()[1:]
-    fmt = ""
-    elements: list[_PlyElement] = []
-    for line in lines:
-        tokens = line.split()
-        if not tokens or tokens[0] in ("comment", "obj_info"):
-            continue
+def _read_ply(path: PathLike) -> PlyData:
+    for known in (_TRIANGLES, {}):
         try:
-            if tokens[0] == "format":
-                fmt = tokens[1]
-            elif tokens[0] == "element":
-                elements.append(_PlyElement(tokens[1], int(tokens[2]), []))
-            elif tokens[0] == "property" and tokens[1] == "list":
-                count_type, item_type = _PLY_TYPES[tokens[2]], _PLY_TYPES[tokens[3]]
-                elements[-1].properties.append(
-                    _PlyProperty(tokens[4], np.dtype(item_type), np.dtype(count_type))
-                )
-            elif tokens[0] == "property":
-                elements[-1].properties.append(
-                    _PlyProperty(tokens[2], np.dtype(_PLY_TYPES[tokens[1]]), None)
-                )
-            else:
-                raise ValueError(f"unknown keyword {tokens[0]!r}")
-        except (IndexError, KeyError, ValueError) as exc:
-            raise _error(path, f"malformed PLY header line {line!r} ({exc})") from None
-    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
-        raise _error(path, f"unsupported PLY format {fmt!r}")
-    return fmt, elements, body_start + 1
+            with warnings.catch_warnings():  # numpy warns about empty ascii elements
+                warnings.simplefilter("ignore", UserWarning)
+                return PlyData.read(os.fspath(path), known_list_len=known)
+        except PlyHeaderParseError as exc:
+            message = str(exc)
+            what = ("not a PLY file" if "expected 'ply'" in message
+                    else "unsupported PLY format" if "format" in message else "malformed PLY header")
+            raise _error(path, f"{what} ({message})") from None
+        except PlyElementParseError as exc:
+            if known and "unexpected list length" in str(exc):
+                continue
+            what = "PLY element is truncated" if "end-of-file" in str(exc) else "malformed PLY element"
+            raise _error(path, f"{what} ({exc})") from None
+    raise AssertionError("unreachable")
 
 
-def _ply_ascii_element(
-    path: PathLike, element: _PlyElement, tokens: list[bytes], pos: int
-) -> tuple[dict[str, np.ndarray | _PlyList], int]:
-    props = element.properties
-    if all(p.count_dtype is None for p in props):
-        n = element.count * len(props)
-        if pos + n > len(tokens):
-            raise _error(path, f"PLY element {element.name!r} is truncated")
-        table = np.array(tokens[pos : pos + n]).reshape(element.count, len(props))
-        try:
-            columns: dict[str, np.ndarray | _PlyList] = {
-                p.name: table[:, j].astype(p.dtype) for j, p in enumerate(props)
-            }
-        except ValueError as exc:
-            raise _error(path, f"malformed PLY element {element.name!r}: {exc}") from None
-        return columns, pos + n
-    # Rows of varying length: walk the tokens.
-    scalars: dict[str, list[bytes]] = {p.name: [] for p in props if p.count_dtype is None}
-    lists: dict[str, tuple[list[int], list[bytes]]] = {
-        p.name: ([], []) for p in props if p.count_dtype is not None
-    }
-    try:
-        for _ in range(element.count):
-            for p in props:
-                if p.count_dtype is None:
-                    scalars[p.name].append(tokens[pos])
-                    pos += 1
-                else:
-                    k = int(tokens[pos])
-                    if k < 0 or pos + 1 + k > len(tokens):
-                        raise IndexError
-                    lists[p.name][0].append(k)
-                    lists[p.name][1].extend(tokens[pos + 1 : pos + 1 + k])
-                    pos += 1 + k
-        result: dict[str, np.ndarray | _PlyList] = {}
-        for p in props:
-            if p.count_dtype is None:
-                result[p.name] = np.array(scalars[p.name]).astype(p.dtype)
-            else:
-                counts, values = lists[p.name]
-                result[p.name] = _PlyList(
-                    np.array(counts, dtype=np.int64), np.array(values).astype(p.dtype)
-                )
-    except IndexError:
-        raise _error(path, f"PLY element {element.name!r} is truncated") from None
-    except ValueError as exc:
-        raise _error(path, f"malformed PLY element {element.name!r}: {exc}") from None
-    return result, pos
-
-
-def _ply_binary_element(
-    path: PathLike, element: _PlyElement, raw: bytes, pos: int, order: str
-) -> tuple[dict[str, np.ndarray | _PlyList], int]:
-    props = element.properties
-
-    def truncated() -> ValueError:
-        return _error(path, f"PLY element {element.name!r} is truncated")
-
-    def read_length(prop: _PlyProperty, at: int) -> int:
-        assert prop.count_dtype is not None
-        if at + prop.count_dtype.itemsize > len(raw):
-            raise truncated()
-        return int(np.frombuffer(raw, prop.count_dtype.newbyteorder(order), 1, at)[0])
-
-    # Fast path: assume every row has the list lengths of the first row (true for
-    # triangle meshes), read all rows with one structured dtype, then verify.
-    lengths: dict[int, int] = {}
-    at = pos
-    for j, p in enumerate(props):
-        if p.count_dtype is None:
-            at += p.dtype.itemsize
-        else:
-            lengths[j] = read_length(p, at) if element.count else 0
-            at += p.count_dtype.itemsize + lengths[j] * p.dtype.itemsize
-    names: list[str] = []
-    formats: list[object] = []
-    for j, p in enumerate(props):
-        item = p.dtype.newbyteorder(order)
-        if p.count_dtype is None:
-            names.append(f"p{j}")
-            formats.append(item)
-        else:
-            names += [f"n{j}", f"p{j}"]
-            formats += [p.count_dtype.newbyteorder(order), (item, (lengths[j],))]
-    record = np.dtype({"names": names, "formats": formats})
-    end = pos + element.count * record.itemsize
-    if end <= len(raw):
-        table = np.frombuffer(raw, record, element.count, pos)
-        if all((table[f"n{j}"] == k).all() for j, k in lengths.items()):
-            result: dict[str, np.ndarray | _PlyList] = {}
-            for j, p in enumerate(props):
-                column = table[f"p{j}"].astype(p.dtype)
-                if p.count_dtype is None:
-                    result[p.name] = column
-                else:
-                    counts = np.full(element.count, lengths[j], dtype=np.int64)
-                    result[p.name] = _PlyList(counts, column.reshape(-1))
-            return result, end
-    elif not lengths:
-        raise truncated()
-
-    # Slow path: rows whose lists vary in length.
-    chunks: dict[int, list[bytes]] = {j: [] for j in range(len(props))}
-    list_lengths: dict[int, list[int]] = {j: [] for j in lengths}
-    for _ in range(element.count):
-        for j, p in enumerate(props):
-            if p.count_dtype is None:
-                size = p.dtype.itemsize
-            else:
-                k = read_length(p, pos)
-                list_lengths[j].append(k)
-                pos += p.count_dtype.itemsize
-                size = k * p.dtype.itemsize
-            if pos + size > len(raw):
-                raise truncated()
-            chunks[j].append(raw[pos : pos + size])
-            pos += size
-    result = {}
-    for j, p in enumerate(props):
-        values = np.frombuffer(b"".join(chunks[j]), p.dtype.newbyteorder(order)).astype(p.dtype)
-        if p.count_dtype is None:
-            result[p.name] = values
-        else:
-            result[p.name] = _PlyList(np.array(list_lengths[j], dtype=np.int64), values)
-    return result, pos
-
-
-def _read_ply(path: PathLike) -> dict[str, dict[str, np.ndarray | _PlyList]]:
-    """Parse a PLY file into element name -> property name -> values."""
-    raw = Path(path).read_bytes()
-    fmt, elements, pos = _parse_ply_header(path, raw)
-    result: dict[str, dict[str, np.ndarray | _PlyList]] = {}
-    if fmt == "ascii":
-        tokens = raw[pos:].split()
-        token_pos = 0
-        for element in elements:
-            result[element.name], token_pos = _ply_ascii_element(path, element, tokens, token_pos)
-    else:
-        order = "<" if fmt == "binary_little_endian" else ">"
-        for element in elements:
-            result[element.name], pos = _ply_binary_element(path, element, raw, pos, order)
-    return result
-
-
-def _ply_vertex_columns(
-    path: PathLike, ply: dict[str, dict[str, np.ndarray | _PlyList]], names: tuple[str, ...]
-) -> np.ndarray | None:
+def _ply_vertex_columns(path: PathLike, ply: PlyData, names: tuple[str, ...]) -> np.ndarray | None:
     """Stack scalar vertex properties ``names`` into ``(N, len(names))``, or None."""
-    vertex = ply.get("vertex", {})
-    columns = [vertex.get(name) for name in names]
-    if any(c is None for c in columns):
+    if "vertex" not in ply or any(name not in ply["vertex"].data.dtype.names for name in names):
         return None
-    if any(isinstance(c, _PlyList) for c in columns):
+    columns = [ply["vertex"][name] for name in names]
+    if any(c.dtype == object for c in columns):
         raise _error(path, f"PLY vertex properties {names} must be scalars")
-    return np.stack(columns, axis=1)  # type: ignore[arg-type]
+    stacked = np.stack(columns, axis=1)
+    return stacked.astype(stacked.dtype.newbyteorder("="))
 
 
 def _read_ply_mesh(path: PathLike) -> Mesh:
@@ -722,15 +304,19 @@ def _read_ply_mesh(path: PathLike) -> Mesh:
     vertices = _ply_vertex_columns(path, ply, ("x", "y", "z"))
     if vertices is None:
         raise _error(path, "PLY file has no vertex element with x, y, z")
-    faces_element = ply.get("face", {})
-    polygons = faces_element.get("vertex_indices", faces_element.get("vertex_index"))
-    if polygons is None:
-        if faces_element:
-            raise _error(path, "PLY face element has no vertex_indices/vertex_index list")
+    if "face" not in ply:
         return Mesh(vertices, np.empty((0, 3), dtype=np.int64))
-    if not isinstance(polygons, _PlyList):
-        raise _error(path, "PLY face vertex_indices is not a list property")
-    return Mesh(vertices, _fan_triangulate(path, polygons.counts, polygons.values, len(vertices)))
+    names = ply["face"].data.dtype.names
+    key = next((k for k in ("vertex_indices", "vertex_index") if k in names), None)
+    if key is None:
+        raise _error(path, "PLY face element has no vertex_indices/vertex_index list")
+    polygons = ply["face"][key]
+    if polygons.dtype != object:  # fixed length, read in one go
+        counts, flat = np.full(len(polygons), polygons.shape[1]), polygons.reshape(-1)
+    else:
+        counts = np.fromiter(map(len, polygons), dtype=np.int64, count=len(polygons))
+        flat = np.concatenate(polygons) if len(polygons) else np.empty(0, np.int64)
+    return Mesh(vertices, _fan_triangulate(path, counts, flat, len(vertices)))
 
 
 # STL / OBJ --------------------------------------------------------------------
@@ -857,6 +443,7 @@ def write_ply(
     The vertex element has ``float x y z``, then optionally ``float nx ny nz``, then
     optionally ``uchar red green blue``.  Binary output uses ``binary_little_endian 1.0``;
     ASCII output prints floats with 9 significant digits, so float32 values survive.
+    (A short numpy writer: plyfile's ASCII writer is ten times slower.)
 
     Args:
         path: output file.

@@ -5,15 +5,20 @@ into the trajectory's world frame; metres) with timestamps in seconds.  The TUM 
 text format has one pose per line, ``timestamp tx ty tz qx qy qz qw``, where (tx, ty, tz)
 is the camera centre in the world frame and (qx, qy, qz, qw) the unit quaternion of the
 camera's orientation in the world frame (Hamilton convention, scalar last).
+:func:`associate_timestamps` is the package's one rule for pairing two timestamp streams
+(depth with colour images, an estimate with its ground truth).
 """
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
 from typing import Optional, Sequence, Union
 
 import numpy as np
+
+from . import _core, se3
 
 __all__ = [
     "Trajectory",
@@ -22,44 +27,16 @@ __all__ = [
     "pose_from_tum",
     "read_tum_trajectory",
     "write_tum_trajectory",
+    "associate_timestamps",
 ]
 
 
 def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions (..., 4) as (qx, qy, qz, qw), qw >= 0, from rotation matrices (..., 3, 3).
-
-    Shepperd's method: picks the numerically largest of the four candidates per matrix.
-    """
+    """Unit quaternions (..., 4) as (qx, qy, qz, qw), qw >= 0, from rotation matrices (..., 3, 3)."""
     R = np.asarray(R, dtype=np.float64)
     if R.shape[-2:] != (3, 3):
         raise ValueError(f"expected rotation matrices of shape (..., 3, 3), got {R.shape}")
-    m = R.reshape(-1, 3, 3)
-    t = np.trace(m, axis1=1, axis2=2)
-    d = np.stack([m[:, 0, 0], m[:, 1, 1], m[:, 2, 2], t], axis=1)
-    k = np.argmax(d, axis=1)
-    q = np.empty((m.shape[0], 4))
-    # case w largest
-    for case in range(4):
-        sel = k == case
-        if not np.any(sel):
-            continue
-        a = m[sel]
-        if case == 3:
-            s = np.sqrt(1.0 + t[sel]) * 2.0
-            q[sel] = np.stack([(a[:, 2, 1] - a[:, 1, 2]) / s, (a[:, 0, 2] - a[:, 2, 0]) / s,
-                               (a[:, 1, 0] - a[:, 0, 1]) / s, 0.25 * s], axis=1)
-        else:
-            i, j, l = case, (case + 1) % 3, (case + 2) % 3
-            s = np.sqrt(1.0 + a[:, i, i] - a[:, j, j] - a[:, l, l]) * 2.0
-            v = np.empty((a.shape[0], 4))
-            v[:, i] = 0.25 * s
-            v[:, j] = (a[:, j, i] + a[:, i, j]) / s
-            v[:, l] = (a[:, l, i] + a[:, i, l]) / s
-            v[:, 3] = (a[:, l, j] - a[:, j, l]) / s
-            q[sel] = v
-    q /= np.linalg.norm(q, axis=1, keepdims=True)
-    q[q[:, 3] < 0] *= -1.0
-    return q.reshape(R.shape[:-2] + (4,))
+    return _core.evaluation.quaternions_from_rotations(R.reshape(-1, 3, 3)).reshape(R.shape[:-2] + (4,))
 
 
 def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
@@ -70,16 +47,7 @@ def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
     q = np.asarray(q, dtype=np.float64)
     if q.shape[-1] != 4:
         raise ValueError(f"expected quaternions of shape (..., 4), got {q.shape}")
-    n = np.linalg.norm(q, axis=-1, keepdims=True)
-    if not np.all(np.isfinite(q)) or np.any(n < 1e-12):
-        raise ValueError("quaternions must be finite and non-zero")
-    x, y, z, w = np.moveaxis(q / n, -1, 0)
-    R = np.stack([
-        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
-    ], axis=-1)
-    return R.reshape(q.shape[:-1] + (3, 3))
+    return _core.evaluation.rotations_from_quaternions(q.reshape(-1, 4)).reshape(q.shape[:-1] + (3, 3))
 
 
 def pose_from_tum(values: np.ndarray) -> np.ndarray:
@@ -148,7 +116,7 @@ class Trajectory:
         """Expressed in the first camera's frame: the first pose becomes the identity."""
         if len(self) == 0:
             return Trajectory(self.timestamps.copy(), self.poses.copy())
-        return self.transformed(np.linalg.inv(self.poses[0]))
+        return self.transformed(se3.inverse(self.poses[0]))
 
     def to_tum_rows(self) -> np.ndarray:
         """(N, 8) rows ``timestamp tx ty tz qx qy qz qw``."""
@@ -193,21 +161,7 @@ class Trajectory:
             raise ValueError(f"a query falls in a gap of {gap.max():.3f} s > max_gap {max_gap} s")
         with np.errstate(invalid="ignore", divide="ignore"):
             a = np.where(gap > 0, (t - ts[lo]) / gap, 0.0)
-        q0 = quaternion_from_matrix(self.rotations[lo])
-        q1 = quaternion_from_matrix(self.rotations[hi])
-        dot = np.sum(q0 * q1, axis=1)
-        q1[dot < 0] *= -1.0
-        dot = np.abs(dot)
-        theta = np.arccos(np.clip(dot, -1.0, 1.0))
-        s = np.sin(theta)
-        small = s < 1e-9
-        w0 = np.where(small, 1.0 - a, np.sin((1.0 - a) * theta) / np.where(small, 1.0, s))
-        w1 = np.where(small, a, np.sin(a * theta) / np.where(small, 1.0, s))
-        q = w0[:, None] * q0 + w1[:, None] * q1
-        T = np.zeros((t.shape[0], 4, 4))
-        T[:, :3, :3] = matrix_from_quaternion(q)
-        T[:, :3, 3] = (1.0 - a)[:, None] * self.positions[lo] + a[:, None] * self.positions[hi]
-        T[:, 3, 3] = 1.0
+        T = _core.evaluation.interpolate_poses(self.poses[lo], self.poses[hi], a)
         return Trajectory(t, T)
 
 
@@ -243,3 +197,56 @@ def write_tum_trajectory(path: Union[str, os.PathLike], trajectory: Trajectory, 
         f.write("# timestamp tx ty tz qx qy qz qw\n")
         for r in trajectory.to_tum_rows():
             f.write(f"{r[0]:.6f} " + " ".join(f"{v:.17g}" for v in r[1:]) + "\n")
+
+
+def associate_timestamps(first: Sequence[float], second: Sequence[float], max_difference: float) -> np.ndarray:
+    """Pairs two timestamp streams one-to-one, closest pairs first: the package's one rule.
+
+    Every pair ``(i, j)`` with ``|first[i] - second[j]| <= max_difference`` is a candidate;
+    candidates are taken greedily by increasing ``|dt|`` (ties: smaller ``i``, then smaller
+    ``j``), skipping those whose ``i`` or ``j`` is already taken.  This is the TUM RGB-D
+    benchmark's ``associate.py`` (Sturm et al., IROS 2012) except for the bound, which is
+    inclusive as in ``evo``'s ``matching_time_indices``: the two differ only for pairs
+    exactly at the bound, and ``max_difference=0`` then means "identical timestamps".
+
+    Args:
+        first, second: timestamps (s), each sorted ascending (repeats allowed).
+        max_difference: largest accepted time difference (s), finite and >= 0.
+
+    Returns:
+        (K, 2) int64 index pairs ``(i, j)``, sorted by ``i``.
+
+    Raises:
+        ValueError: a negative or non-finite ``max_difference``, unsorted or non-finite
+            timestamps.
+    """
+    a = np.asarray(first, dtype=np.float64).reshape(-1)
+    b = np.asarray(second, dtype=np.float64).reshape(-1)
+    if not (max_difference >= 0 and math.isfinite(max_difference)):
+        raise ValueError(f"max_difference must be a finite number >= 0 (s), got {max_difference!r}")
+    for name, t in (("first", a), ("second", b)):
+        if not np.all(np.isfinite(t)):
+            raise ValueError(f"associate_timestamps: {name} has non-finite timestamps")
+        if np.any(np.diff(t) < 0):
+            raise ValueError(f"associate_timestamps: {name} timestamps must be sorted ascending")
+    if a.size == 0 or b.size == 0:
+        return np.zeros((0, 2), dtype=np.int64)
+    # Candidate windows are widened so that rounding in t +- max_difference never loses a
+    # pair; the exact criterion is applied afterwards.
+    margin = max_difference * (1 + 1e-9) + 1e-9 * max(np.abs(a).max(), np.abs(b).max())
+    lo = np.searchsorted(b, a - margin, side="left")
+    counts = np.searchsorted(b, a + margin, side="right") - lo
+    ii = np.repeat(np.arange(a.size), counts)
+    jj = np.arange(ii.size) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(lo, counts)
+    d = np.abs(a[ii] - b[jj])
+    keep = d <= max_difference
+    ii, jj = ii[keep], jj[keep]
+    order = np.lexsort((jj, ii, d[keep]))
+    used_a = np.zeros(a.size, dtype=bool)
+    used_b = np.zeros(b.size, dtype=bool)
+    pairs = []
+    for i, j in zip(ii[order].tolist(), jj[order].tolist()):
+        if not (used_a[i] or used_b[j]):
+            used_a[i] = used_b[j] = True
+            pairs.append((i, j))
+    return np.array(sorted(pairs), dtype=np.int64).reshape(-1, 2)

@@ -21,8 +21,8 @@ part of the robot's base frame.
 
 :class:`TumSequence` reads such a folder lazily (PNGs are decoded when a frame is
 requested) and :func:`write_tum_sequence` writes frames into the same layout, so
-synthetic data can be stored and replayed like a real recording.  Reading and writing
-need Pillow.
+synthetic data can be stored and replayed like a real recording.  Images go through
+Pillow, camera files through PyYAML / json.
 """
 
 from __future__ import annotations
@@ -31,21 +31,21 @@ import json
 import math
 import os
 import re
-import struct
 from pathlib import Path
-from typing import Any, Dict, Iterable, Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
+import yaml
+from PIL import Image
 
-from .camera import INTRINSICS_PRESETS, Frame, Intrinsics, read_camera_file
-from .trajectory import Trajectory, read_tum_trajectory, write_tum_trajectory
+from .camera import INTRINSICS_PRESETS, Frame, Intrinsics
+from .trajectory import Trajectory, associate_timestamps, read_tum_trajectory, write_tum_trajectory
 
 __all__ = [
     "TumSequence",
     "TumFormatError",
     "write_tum_sequence",
     "is_tum_folder",
-    "associate_timestamps",
     "read_timestamp_list",
     "TUM_DEPTH_SCALE",
     "CAMERA_FILE_NAMES",
@@ -59,9 +59,6 @@ CAMERA_FILE_NAMES = ("camera.json", "camera.yaml", "camera.yml", "intrinsics.jso
                      "intrinsics.yml")
 
 PathLike = Union[str, "os.PathLike[str]"]
-
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-_PNG_COLOUR_TYPES = {0: "greyscale", 2: "RGB", 3: "palette", 4: "greyscale+alpha", 6: "RGBA"}
 
 
 class TumFormatError(ValueError):
@@ -85,14 +82,6 @@ def _is_number(v: Any) -> bool:
     """A finite real number (not a bool)."""
     return (not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, float, np.integer, np.floating))
             and math.isfinite(float(v)))
-
-
-def _pil():
-    try:
-        from PIL import Image
-    except ImportError as e:  # pragma: no cover - Pillow is a declared dependency
-        raise ImportError("scanalign.tum needs Pillow to read and write PNG images: pip install Pillow") from e
-    return Image
 
 
 # --------------------------------------------------------------------------- lists
@@ -150,141 +139,76 @@ def read_timestamp_list(path: PathLike) -> Tuple[np.ndarray, List[str], List[int
     return ts, names, lines
 
 
-def associate_timestamps(first: Sequence[float], second: Sequence[float], max_difference: float) -> np.ndarray:
-    """Pairs two sorted timestamp streams like the TUM benchmark's ``associate.py``.
-
-    All pairs ``(i, j)`` with ``|first[i] - second[j]| <= max_difference`` are candidates;
-    they are taken greedily in order of increasing ``|first[i] - second[j]|`` (ties broken
-    by ``i``, then ``j``), skipping pairs whose ``i`` or ``j`` is already used, so each
-    timestamp is matched at most once.  The bound is inclusive (``associate.py`` uses a
-    strict ``<``; the two differ only for pairs exactly at the bound, and the inclusive
-    bound lets ``max_difference=0`` mean "identical timestamps").
-
-    Args:
-        first, second: timestamps (s), each sorted ascending.
-        max_difference: largest accepted time difference (s), >= 0.
-
-    Returns:
-        (K, 2) int64 index pairs ``(i, j)``, sorted by ``i``.
-    """
-    a = np.asarray(first, dtype=np.float64).reshape(-1)
-    b = np.asarray(second, dtype=np.float64).reshape(-1)
-    if not (max_difference >= 0 and math.isfinite(max_difference)):
-        raise ValueError(f"max_difference must be a finite number >= 0, got {max_difference!r}")
-    if np.any(np.diff(a) < 0) or np.any(np.diff(b) < 0):
-        raise ValueError("associate_timestamps: timestamps must be sorted ascending")
-    if a.size == 0 or b.size == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    # Candidate windows, widened by a margin so that rounding in t +- max_difference can
-    # never lose a pair; the exact criterion is applied afterwards.
-    margin = 1e-3 + max_difference
-    lo = np.searchsorted(b, a - margin, side="left")
-    hi = np.searchsorted(b, a + margin, side="right")
-    counts = hi - lo
-    ii = np.repeat(np.arange(a.size), counts)
-    jj = (np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)) + np.repeat(lo, counts)
-    d = np.abs(a[ii] - b[jj])
-    keep = d <= max_difference
-    ii, jj, d = ii[keep], jj[keep], d[keep]
-    order = np.lexsort((jj, ii, d))
-    used_a = np.zeros(a.size, dtype=bool)
-    used_b = np.zeros(b.size, dtype=bool)
-    pairs = []
-    for k in order:
-        i, j = ii[k], jj[k]
-        if not used_a[i] and not used_b[j]:
-            used_a[i] = used_b[j] = True
-            pairs.append((i, j))
-    out = np.array(sorted(pairs), dtype=np.int64).reshape(-1, 2)
-    return out
-
-
 # --------------------------------------------------------------------------- images
 
-
-def _png_header(path: PathLike) -> Optional[Tuple[int, int, int, int]]:
-    """(width, height, bit depth, colour type) from a PNG's IHDR chunk, or None when the
-    file is not a PNG."""
-    with open(path, "rb") as f:
-        head = f.read(33)
-    if len(head) < 8 or head[:8] != _PNG_SIGNATURE:
-        return None
-    if len(head) < 33 or head[12:16] != b"IHDR":
-        raise TumFormatError("unreadable PNG: truncated or missing IHDR header", path)
-    width, height, bit_depth, colour_type = struct.unpack(">IIBB", head[16:26])
-    return width, height, bit_depth, colour_type
+# Pillow's raw mode names the stored pixel layout ("I;16B", "RGB;16B", "LA;16B"); its
+# mode alone does not (16-bit RGB and greyscale+alpha PNGs are reduced to 8 bits).
+_LAYOUTS = {"1": "greyscale", "L": "greyscale", "I": "greyscale", "LA": "greyscale+alpha", "RGB": "RGB",
+            "RGBA": "RGBA", "P": "palette", "PA": "palette+alpha"}
 
 
-def _describe_png(bit_depth: int, colour_type: int) -> str:
-    return f"{bit_depth}-bit {_PNG_COLOUR_TYPES.get(colour_type, f'colour type {colour_type}')}"
+def _open_image(path: PathLike, what: str):
+    """Opens an image with Pillow (header only); TumFormatError when it is no image."""
+    try:
+        return Image.open(path)
+    except OSError as e:  # UnidentifiedImageError included
+        kind = "a PNG file" if what == "depth image" else "an image file"
+        raise TumFormatError(f"{what} is not {kind}, or one truncated before its header ends "
+                             f"({type(e).__name__}: {e})", path) from None
 
 
-def _check_depth_header(path: PathLike) -> Tuple[int, int]:
-    """Validates a depth PNG's header; returns (width, height)."""
-    header = _png_header(path)
-    if header is None:
-        raise TumFormatError("depth image is not a PNG file", path)
-    w, h, bit_depth, colour_type = header
-    if bit_depth != 16 or colour_type != 0:
-        raise TumFormatError(f"depth PNG must be 16-bit single-channel greyscale, this one is "
-                             f"{_describe_png(bit_depth, colour_type)}", path)
-    return w, h
+def _layout(im) -> Tuple[int, str]:
+    """(bits per channel, colour layout) of an opened image, from Pillow's raw mode."""
+    tile = getattr(im, "tile", None)  # absent once decoded
+    raw = tile[0][3] if tile and isinstance(tile[0][3], str) else im.mode
+    base, _, bits = raw.partition(";")
+    bit_depth = int(re.match(r"\d*", bits).group() or (1 if base == "1" else 8))
+    return bit_depth, _LAYOUTS.get(base, f"mode {im.mode}")
+
+
+def _decode(im, path: PathLike, mode: Optional[str] = None) -> np.ndarray:
+    try:
+        im.load()
+        return np.array(im if mode is None or im.mode == mode else im.convert(mode))
+    except Exception as e:  # PIL raises OSError, SyntaxError, ValueError, zlib errors...
+        raise TumFormatError(f"unreadable PNG ({type(e).__name__}: {e})", path) from e
+
+
+def _checked(path: PathLike, what: str):
+    """The opened image, its header validated: a 16-bit greyscale PNG for depth, 8 bits
+    per channel for colour."""
+    im = _open_image(path, f"{what} image")
+    bit_depth, layout = _layout(im)
+    if what == "depth" and (im.format != "PNG" or bit_depth != 16 or layout != "greyscale"):
+        message = (f"depth image must be a 16-bit single-channel greyscale PNG, this one is {bit_depth}-bit "
+                   f"{layout} {im.format}")
+    elif what == "colour" and bit_depth != 8 and im.mode != "1":
+        message = f"colour image must have 8 bits per channel, this one is {bit_depth}-bit {layout} {im.format}"
+    else:
+        return im
+    im.close()
+    raise TumFormatError(message, path)
+
+
+def _image_size(path: PathLike, what: str) -> Tuple[int, int]:
+    """(width, height) of a depth or colour image, header checked."""
+    with _checked(path, what) as im:
+        return im.size
 
 
 def _load_depth_png(path: PathLike) -> np.ndarray:
     """A 16-bit greyscale PNG as an (H, W) uint16 array, bit-exact."""
-    _check_depth_header(path)
-    Image = _pil()
-    try:
-        with Image.open(path) as im:
-            im.load()
-            mode = im.mode
-            arr = np.array(im)
-    except Exception as e:  # PIL raises OSError, SyntaxError, ValueError, zlib errors...
-        raise TumFormatError(f"unreadable PNG ({type(e).__name__}: {e})", path) from e
-    if mode in ("I;16", "I;16L", "I;16B", "I;16N"):
-        return arr.astype(np.uint16, copy=False)
-    if mode == "I":  # older Pillow decodes 16-bit greyscale PNGs into 32-bit integers
-        if arr.size and (arr.min() < 0 or arr.max() > 0xFFFF):
-            raise TumFormatError("depth PNG decoded to values outside 0..65535", path)
-        return arr.astype(np.uint16)
-    raise TumFormatError(f"depth PNG decoded in Pillow mode {mode!r}, expected a 16-bit mode", path)
-
-
-_RGB_CONVERTIBLE = ("RGB", "RGBA", "RGBX", "L", "LA", "P", "PA", "1")
-
-
-def _rgb_size(path: PathLike) -> Tuple[int, int]:
-    header = _png_header(path)
-    if header is not None:
-        w, h, bit_depth, colour_type = header
-        if bit_depth == 16:
-            raise TumFormatError(f"colour image must have 8 bits per channel, this PNG is "
-                                 f"{_describe_png(bit_depth, colour_type)}", path)
-        return w, h
-    Image = _pil()
-    try:
-        with Image.open(path) as im:
-            return im.size
-    except Exception as e:
-        raise TumFormatError(f"unreadable image ({type(e).__name__}: {e})", path) from e
+    with _checked(path, "depth") as im:
+        arr = _decode(im, path)
+    if arr.dtype != np.uint16 and arr.size and (arr.min() < 0 or arr.max() > 0xFFFF):  # Pillow's 32-bit "I"
+        raise TumFormatError("depth PNG decoded to values outside 0..65535", path)
+    return arr.astype(np.uint16)
 
 
 def _load_rgb(path: PathLike) -> np.ndarray:
     """An 8-bit colour image as (H, W, 3) uint8 (greyscale / palette / alpha converted)."""
-    _rgb_size(path)
-    Image = _pil()
-    try:
-        with Image.open(path) as im:
-            im.load()
-            if im.mode not in _RGB_CONVERTIBLE:
-                raise TumFormatError(f"colour image in Pillow mode {im.mode!r}, expected 8-bit RGB", path)
-            arr = np.array(im if im.mode == "RGB" else im.convert("RGB"))
-    except TumFormatError:
-        raise
-    except Exception as e:
-        raise TumFormatError(f"unreadable image ({type(e).__name__}: {e})", path) from e
-    return np.ascontiguousarray(arr, dtype=np.uint8)
+    with _checked(path, "colour") as im:
+        return np.ascontiguousarray(_decode(im, path, "RGB"), dtype=np.uint8)
 
 
 # --------------------------------------------------------------------------- intrinsics
@@ -297,10 +221,32 @@ def _find_camera_file(folder: Path) -> Optional[Path]:
     return found[0] if found else None
 
 
+# YAML 1.1 (PyYAML) reads exponent notation without a dot ("1e-3") as text.
+_EXPONENT_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+
+
+def _camera_mapping(path: PathLike) -> Dict[str, Any]:
+    """A camera file's ``key: value`` entries: JSON, or YAML (OpenCV's ``%YAML:1.0`` line,
+    which YAML parsers reject as a directive, is skipped)."""
+    text = Path(path).read_text(encoding="utf-8")
+    try:
+        if str(path).lower().endswith(".json") or text.lstrip().startswith("{"):
+            d = json.loads(text)
+        else:
+            d = yaml.safe_load(re.sub(r"\A%YAML:1\.0[^\n]*", "", text))
+    except json.JSONDecodeError as e:
+        raise ValueError(f"not valid JSON: {e}") from None
+    except yaml.YAMLError as e:
+        raise ValueError(f"not valid YAML: {e}") from None
+    if not isinstance(d, dict):
+        raise ValueError(f"expected 'key: value' entries, got {type(d).__name__} {d!r:.60}")
+    return {k: float(v) if isinstance(v, str) and _EXPONENT_NUMBER.fullmatch(v) else v for k, v in d.items()}
+
+
 def _read_camera(path: PathLike) -> Tuple[Intrinsics, Optional[float]]:
     """Intrinsics and optional depth_scale (m per unit) from a camera file."""
     try:
-        d = read_camera_file(path)
+        d = _camera_mapping(path)
     except OSError as e:
         raise TumFormatError(f"cannot read camera file ({e})", path) from e
     except ValueError as e:
@@ -332,7 +278,8 @@ class TumSequence:
 
     Frames are the depth images listed in ``depth.txt``, in increasing time.  When
     ``rgb.txt`` lists at least one image, every depth image is paired with the colour
-    image closest in time within ``max_time_difference`` (:func:`associate_timestamps`,
+    image closest in time within ``max_time_difference``
+    (:func:`scanalign.trajectory.associate_timestamps`,
     the benchmark's greedy ``associate.py`` rule, each image used at most once) and depth
     images without a partner are dropped (counted in :attr:`dropped_depth_frames`), so
     every frame has colour.  Without ``rgb.txt`` (or with an empty one) the sequence is
@@ -456,9 +403,9 @@ class TumSequence:
                 if not p.is_file():
                     raise FileNotFoundError(f"{rgb_list}:{line}: listed colour image {p} does not exist")
         if len(self) > 0:  # early, cheap check of the first frame's headers
-            self._check_size(self._depth_files[0], _check_depth_header(self._depth_files[0]), "depth")
+            self._check_size(self._depth_files[0], _image_size(self._depth_files[0], "depth"), "depth")
             if self._rgb_files is not None:
-                self._check_size(self._rgb_files[0], _rgb_size(self._rgb_files[0]), "colour")
+                self._check_size(self._rgb_files[0], _image_size(self._rgb_files[0], "colour"), "colour")
 
         # Ground truth.
         self.groundtruth: Optional[Trajectory] = None
@@ -772,7 +719,6 @@ def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Op
     if any(has_rgb):
         (out / "rgb").mkdir(exist_ok=True)
 
-    Image = _pil()
     depth_lines, rgb_lines, gt_t, gt_T = [], [], [], []
     for k, label in zip(order, labels):
         f = frames[k]
