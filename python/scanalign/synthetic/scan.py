@@ -69,7 +69,8 @@ class SyntheticScan:
 
     def points(self, index: int, in_base: bool = False) -> np.ndarray:
         """(N, 3) float64 points of frame ``index``'s valid depth pixels (metres), in the
-        camera frame, or in the base frame with ``in_base``."""
+        camera frame, or in the base frame with ``in_base``. Back-projected by the C++
+        ``depth_to_cloud``, so camera-frame coordinates carry its float32 rounding (~1e-7 m)."""
         frame = self.frames[index]
         p, _ = depth_to_cloud(frame.depth, self.intrinsics, depth_scale=frame.depth_scale, min_depth=0.0,
                               max_depth=math.inf)
