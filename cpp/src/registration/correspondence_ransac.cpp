@@ -90,7 +90,7 @@ CorrespondenceRansacResult ransacRigidMotion(const CloudView<double>& source, co
     return (ys[k] - (T.topLeftCorner<3, 3>() * xs[k] + T.topRightCorner<3, 1>())).norm();
   };
   // The generic loop of fitting/ransac.hpp: deterministic samples per (seed, iteration),
-  // adaptive stop at `confidence`, ties to the earlier hypothesis.
+  // adaptive stop at `confidence`, MSAC ranking, ties to the earlier hypothesis.
   RansacSettings loop;
   loop.threshold = s.inlier_threshold;
   loop.max_iterations = s.max_iterations;
@@ -98,6 +98,7 @@ CorrespondenceRansacResult ransacRigidMotion(const CloudView<double>& source, co
   loop.seed = s.seed;
   loop.num_threads = s.num_threads;
   loop.refine = false;
+  loop.msac = true;
   Eigen::Matrix4d best_T = Eigen::Matrix4d::Identity();
   const RansacLoopStats st = ransacLoop(n, 3, build, error, loop, best_T);
   out.iterations = st.iterations;

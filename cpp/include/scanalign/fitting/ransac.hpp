@@ -119,6 +119,10 @@ struct RansacSettings {
   std::uint64_t seed = 0;        ///< sample k is drawn from a generator seeded by (seed, k)
   int num_threads = 0;           ///< OpenMP threads for scoring, 0 = all; never changes the result
   bool refine = true;            ///< least-squares refit of the winner over its inliers
+  /// Rank hypotheses by the MSAC cost sum min(e^2, threshold^2) (Torr and Zisserman 2000)
+  /// instead of the inlier count: among hypotheses with about as many inliers it prefers the
+  /// one that fits them closely (near-symmetric shapes, inexact correspondences).
+  bool msac = false;
 };
 
 /// Outcome of the generic loop: the index of the winning hypothesis' model in the
@@ -252,6 +256,9 @@ RansacLoopStats ransacLoop(std::size_t n, int sample_size, Build&& build, Error&
   std::vector<Model> models(batch);
   std::vector<char> valid(batch);
   std::vector<std::size_t> counts(batch);
+  std::vector<double> costs(batch);
+  const double t2 = threshold * threshold;
+  double best_cost = std::numeric_limits<double>::infinity();
   std::vector<std::uint32_t> samples(static_cast<std::size_t>(batch) * sample_size);
   double required = max_it;
   int k0 = 0;
@@ -264,9 +271,15 @@ RansacLoopStats ransacLoop(std::size_t n, int sample_size, Build&& build, Error&
       ransacSample(settings.seed, static_cast<std::uint64_t>(k0 + j), static_cast<std::uint32_t>(n), sample_size, s);
       valid[j] = build(static_cast<const std::uint32_t*>(s), models[j]) ? 1 : 0;
       std::size_t c = 0;
+      double cost = 0;
       if (valid[j])
-        for (std::size_t i = 0; i < n; ++i) c += error(models[j], i) < threshold ? 1 : 0;
+        for (std::size_t i = 0; i < n; ++i) {
+          const double e = error(models[j], i);
+          c += e < threshold ? 1 : 0;
+          if (settings.msac) cost += std::min(e * e, t2);
+        }
       counts[j] = c;
+      costs[j] = cost;
     }
     for (int j = 0; j < m; ++j) {
       if (k0 + j >= required) break;  // the sequential algorithm would have stopped here
@@ -275,8 +288,10 @@ RansacLoopStats ransacLoop(std::size_t n, int sample_size, Build&& build, Error&
         ++st.degenerate_samples;
         continue;
       }
-      if (!have || counts[j] > st.best_inliers) {
+      const bool better = settings.msac ? costs[j] < best_cost : counts[j] > st.best_inliers;
+      if (!have || better) {
         have = true;
+        best_cost = costs[j];
         best = models[j];
         st.best_inliers = counts[j];
         st.best_iteration = k0 + j;

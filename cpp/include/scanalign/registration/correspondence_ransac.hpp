@@ -6,6 +6,10 @@
 // least squares without outlier rejection; descriptor matches always contain outliers,
 // hence this wrapper. The loop is the generic ransacLoop of fitting/ransac.hpp.
 //
+// Hypotheses are ranked by the MSAC cost (Torr and Zisserman 2000), not the bare inlier count:
+// on near-symmetric parts a slightly wrong pose can collect as many matches within the
+// threshold as the true one, but fits them less closely.
+//
 // Deterministic: samples are drawn from (seed, iteration) and the best hypothesis is chosen
 // by (inlier count, lowest iteration), so the answer does not depend on the thread count.
 #pragma once
