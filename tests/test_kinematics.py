@@ -1,7 +1,7 @@
 """scanalign.kinematics: forward kinematics and analytic CGA inverse kinematics of the KUKA
-KR6 R900 sixx and the UR arms (thesis Paper 1, spec §4, claims 22-28).
+KR6 R900 sixx and the UR arms (Kleppe, PhD thesis, NTNU 2018, Ch. 5.3 and Paper 1 §4-5).
 
-Independent truth: the spec's DH table typed in here and a numpy DH chain written here;
+Independent truth: the thesis authors' DH table typed in here and a numpy DH chain written here;
 `eaik` (general analytic 6R IK) and `ur_analytic_ik` (Universal Robots' published DH
 tables); a numeric IK (scipy least squares from many seeds); the thesis's CGA construction
 written literally with `clifford` (g3c); plain geometry for labels and singularities.
@@ -22,8 +22,9 @@ from scanalign.kinematics import Robot
 
 TWO_PI = 2 * pi
 UR_MODELS = ("ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e")
-# Spec §4.1 (the authors' code, VERIFIED there): rows [a (m), alpha, d (m), theta offset].
-KUKA_SPEC_DH = np.array([[0.025, -pi / 2, 0.400, 0], [0.455, 0, 0, 0], [0.035, -pi / 2, 0, -pi / 2],
+# The DH table of the thesis authors' code (Paper 1 Table 1 is garbled in print; this one
+# closes the loop and gives KUKA's home pose): rows [a (m), alpha, d (m), theta offset].
+KUKA_AUTHORS_DH = np.array([[0.025, -pi / 2, 0.400, 0], [0.455, 0, 0, 0], [0.035, -pi / 2, 0, -pi / 2],
                          [0, pi / 2, 0.420, 0], [0, -pi / 2, 0, 0], [0, 0, 0.080, 0]])
 
 
@@ -140,21 +141,21 @@ def test_builtin_robots_and_geometry():
         Robot.by_name("ur42")
 
 
-def test_kuka_dh_table_is_the_spec_table(kuka):
-    np.testing.assert_allclose(kuka.dh, KUKA_SPEC_DH, atol=1e-15)
+def test_kuka_dh_table_is_the_authors_table(kuka):
+    np.testing.assert_allclose(kuka.dh, KUKA_AUTHORS_DH, atol=1e-15)
     # KUKA data sheet limits (degrees): A1 +-170, A2 -190..45, A3 -120..156, A4 +-185, A5 +-120, A6 +-350
     np.testing.assert_allclose(np.rad2deg(kuka.limits),
                                [[-170, 170], [-190, 45], [-120, 156], [-185, 185], [-120, 120], [-350, 350]])
 
 
-def test_claim22_agilus_home_pose(kuka):
+def test_agilus_home_pose(kuka):  # Paper 1 Fig. 2b
     T = kuka.fk([0, -pi / 2, pi / 2, 0, 0, 0])
     np.testing.assert_allclose(T[:3, 3], [0.525, 0, 0.890], atol=1e-12)
     np.testing.assert_allclose(T[:3, 2], [1, 0, 0], atol=1e-12)                 # approach a_e = +x
     np.testing.assert_allclose(T[:3, :3], [[0, 0, 1], [0, -1, 0], [1, 0, 0]], atol=1e-12)
 
 
-def test_claim23_ur5_thesis_zero_pose():
+def test_ur5_thesis_zero_pose():  # thesis numbers of Paper 1 Table 2
     T = kin.ur5_thesis().fk(np.zeros(6))
     np.testing.assert_allclose(T[:3, 3], [-0.81743, -0.19145, -0.00545], atol=1e-12)
 
@@ -170,12 +171,12 @@ def test_ur_tables_match_published_tables(model):
 
 
 def test_kuka_fk_matches_eaik(kuka):
-    # eaik built from the spec table (not ours); it takes DH theta = q + offsets
-    ref = DhRobot(KUKA_SPEC_DH[:, 1], KUKA_SPEC_DH[:, 0], KUKA_SPEC_DH[:, 2])
+    # eaik built from the table typed in above (not ours); it takes DH theta = q + offsets
+    ref = DhRobot(KUKA_AUTHORS_DH[:, 1], KUKA_AUTHORS_DH[:, 0], KUKA_AUTHORS_DH[:, 2])
     q = random_q(kuka, np.random.default_rng(2), 100)
     ours = kuka.fk(q)
     for i in range(len(q)):
-        np.testing.assert_allclose(ours[i], ref.fwdKin(q[i] + KUKA_SPEC_DH[:, 3]), atol=1e-12, rtol=0)
+        np.testing.assert_allclose(ours[i], ref.fwdKin(q[i] + KUKA_AUTHORS_DH[:, 3]), atol=1e-12, rtol=0)
 
 
 @pytest.mark.parametrize("name", kin.BUILTIN_ROBOTS)
@@ -254,7 +255,7 @@ def _roundtrip(robot, q, tol_fk=1e-10, tol_q=1e-7, respect_limits=True):
 
 
 @pytest.mark.parametrize("name", ROBOTS)
-def test_fk_ik_roundtrip_random_poses(name):  # claim 24
+def test_fk_ik_roundtrip_random_poses(name):  # Paper 1 §4-5: FK(IK(T)) = T
     robot = Robot.by_name(name)
     q = random_q(robot, np.random.default_rng(6), 4000)
     res = _roundtrip(robot, q)
@@ -318,7 +319,7 @@ def test_roundtrip_kuka_wrist_centre_near_first_axis(kuka):
     res = kuka.ik_batch(T, respect_limits=False)
     assert np.all(res.count_ok == 8) and np.all(res.singular == 0)
     assert fk_error(kuka, res.q.reshape(-1, 6), np.repeat(T, 8, axis=0)) < 1e-10
-    # front and back differ in q1 by pi (claim 27) even this close to the axis
+    # front and back differ in q1 by pi (Paper 1 §4, eq. (26)) even this close to the axis
     for s in range(2):
         np.testing.assert_allclose(np.abs(wrap(res.q[:, s, 0] - res.q[:, 4 + s, 0])), pi, atol=1e-8)
 
@@ -340,8 +341,8 @@ def test_roundtrip_ur_wrist_point_near_horizon(ur5):
 
 # ----------------------------------------------------------------------------- number of solutions
 
-@pytest.mark.parametrize("name,band,spec", [("kr6_r900_sixx", (0.84, 0.95), 0.899), ("ur5", (0.70, 0.86), 0.779)])
-def test_number_of_distinct_solutions(name, band, spec):  # claim 24
+@pytest.mark.parametrize("name,band,reference", [("kr6_r900_sixx", (0.84, 0.95), 0.899), ("ur5", (0.70, 0.86), 0.779)])
+def test_number_of_distinct_solutions(name, band, reference):
     robot = Robot.by_name(name)
     rng = np.random.default_rng(12)
     q = random_q(robot, rng, 1000, inside=False)                  # uniform joints, limits ignored
@@ -350,9 +351,9 @@ def test_number_of_distinct_solutions(name, band, spec):  # claim 24
     assert np.all(n == res.count_ok)                              # generic: no duplicates
     assert np.all(n % 2 == 0) and np.all(n <= 8) and np.all(n >= 2)
     frac8 = np.mean(n == 8)
-    assert band[0] <= frac8 <= band[1], f"{frac8} poses with 8 solutions (spec: {spec})"
+    assert band[0] <= frac8 <= band[1], f"{frac8} poses with 8 solutions (independent re-implementation: {reference})"
     if name == "kr6_r900_sixx":
-        assert set(np.unique(n)) <= {4, 8}                        # spec: otherwise 4
+        assert set(np.unique(n)) <= {4, 8}                        # otherwise 4
     else:
         assert set(np.unique(n)) <= {2, 4, 6, 8} and len(set(np.unique(n))) >= 3
     # IKSolutions.distinct agrees
@@ -429,7 +430,7 @@ def test_numeric_ik_finds_only_our_solutions():
 # ----------------------------------------------------------------------------- CGA oracle (clifford)
 
 class _CGA:
-    """The thesis construction written literally in clifford's G(4,1) (spec §4.3/§4.4)."""
+    """The thesis construction written literally in clifford's G(4,1) (Paper 1 §4 and §5)."""
 
     def __init__(self):
         from clifford.g3c import e1, e2, e3, einf, eo
@@ -472,7 +473,7 @@ def _match(points, x, tol=1e-9):
 def test_construction_points_are_the_clifford_point_pairs():
     """For each configuration our construction's points are points of the thesis's point
     pairs computed with clifford; both points of each pair are used by some configuration
-    (sets, not labels: spec §4.6); Q^2 < 0 exactly when our discriminant is negative."""
+    (sets, not labels: their signs depend on blade orientation, Paper 1 eqs. (26)-(28), (40)-(42)); Q^2 < 0 exactly when our discriminant is negative."""
     c = _CGA()
     e3, einf, eo = c.e3, c.einf, c.eo
     rng = np.random.default_rng(16)
@@ -491,7 +492,7 @@ def test_construction_points_are_the_clifford_point_pairs():
         for idx in range(8):
             s, e, w = (int(v) for v in kin.CONFIGS[idx])
             con = kuka.ik_construction(T, s, e, w)
-            pts = con["points"]
+            pts = con.points
             # ik.hpp: points not reached are NaN, the discriminant gives the sign of Q^2
             assert {"p_e", "P_w", "P1", "P2", "P_wx"} <= set(pts), (k, idx, con)
             assert _match(P1s, pts["P1"])
@@ -499,10 +500,10 @@ def test_construction_points_are_the_clifford_point_pairs():
             used["P1"].append(pts["P1"])
             P1 = c.up(pts["P1"])
             P2s, q2 = c.pair((c.sphere(P1, a2 * a2) ^ c.sphere(Pw, d4 * d4 + a3 * a3)) | Pi_c)   # (32)-(34)
-            disc = con["elbow_discriminant"]
+            disc = con.elbow_discriminant
             assert np.isfinite(disc) and (q2 < 0) == (disc < 0), (k, idx, q2, disc)
             if q2 < 0:
-                assert con["solution"].status == "unreachable"
+                assert con.solution.status == "unreachable"
                 assert np.all(np.isnan(pts["P2"])) and np.all(np.isnan(pts["P_wx"]))
                 checked["unreachable"] += 1
                 continue
@@ -539,13 +540,13 @@ def test_construction_points_are_the_clifford_point_pairs():
         for idx in range(8):
             s, e, w = (int(v) for v in kin.CONFIGS[idx])
             con = ur.ik_construction(T, s, e, w)
-            pts = con["points"]
+            pts = con.points
             assert {"p_e", "P5", "P_c", "P4", "P3", "P2", "P1"} <= set(pts), (k, idx, con)
-            disc_c = con["shoulder_discriminant"]
+            disc_c = con.shoulder_discriminant
             assert np.isfinite(disc_c) and (qc < 0) == (disc_c < 0), (k, idx, qc, disc_c)
             if qc < 0:
-                assert con["solution"].status == "unreachable"
-                assert con["solution"].unreachable_step == "shoulder" and np.all(np.isnan(pts["P_c"]))
+                assert con.solution.status == "unreachable"
+                assert con.solution.unreachable_step == "shoulder" and np.all(np.isnan(pts["P_c"]))
                 checked["unreachable"] += 1
                 continue
             assert _match(Pcs, pts["P_c"])
@@ -565,10 +566,10 @@ def test_construction_points_are_the_clifford_point_pairs():
             assert _match(P3s, pts["P3"])
             np.testing.assert_allclose(pts["P1"], [0, 0, d1], atol=1e-15)   # (51)
             P2s, q2 = c.pair((c.sphere(P1, a2 * a2) ^ c.sphere(c.up(pts["P3"]), a3 * a3)) | Pi_c)  # (52)-(53)
-            disc = con["elbow_discriminant"]
+            disc = con.elbow_discriminant
             assert np.isfinite(disc) and (q2 < 0) == (disc < 0), (k, idx, q2, disc)
             if q2 < 0:
-                assert con["solution"].status == "unreachable" and np.all(np.isnan(pts["P2"]))
+                assert con.solution.status == "unreachable" and np.all(np.isnan(pts["P2"]))
                 checked["unreachable"] += 1
                 continue
             assert _match(P2s, pts["P2"])
@@ -580,7 +581,7 @@ def test_construction_points_are_the_clifford_point_pairs():
 
 # ----------------------------------------------------------------------------- unreachable, singular
 
-def test_unreachable_poses_give_no_angles(kuka, ur5):  # claim 25
+def test_unreachable_poses_give_no_angles(kuka, ur5):  # Q^2 < 0: thesis (4.70)-(4.73)
     rng = np.random.default_rng(17)
     R = Rotation.random(random_state=rng).as_matrix()
     for robot in (kuka, ur5):
@@ -604,7 +605,7 @@ def test_unreachable_poses_give_no_angles(kuka, ur5):  # claim 25
     assert sol.status == ("unreachable",) * 8 and sol.unreachable_step == ("elbow",) * 8
 
 
-def test_kuka_wrist_singularity_free_angle(kuka):  # claim 28
+def test_kuka_wrist_singularity_free_angle(kuka):  # Paper 1 §4-5, singular configurations
     rng = np.random.default_rng(18)
     for q in random_q(kuka, rng, 20):
         q[4] = 0.0                                             # theta5 = 0: a_e parallel to z3
@@ -623,7 +624,7 @@ def test_kuka_wrist_singularity_free_angle(kuka):  # claim 28
                 assert among(sol.valid_q(), q, 1e-8)
 
 
-def test_kuka_shoulder_singularity_free_angle(kuka):  # claim 28
+def test_kuka_shoulder_singularity_free_angle(kuka):  # Paper 1 §4-5, singular configurations
     rng = np.random.default_rng(19)
     for k in range(20):
         R = Rotation.random(random_state=rng).as_matrix()
@@ -652,7 +653,7 @@ def _ur_elbow_reaches(robot, T, z1, theta6):
     return abs(a2 - a3) - 1e-12 <= dist <= a2 + a3 + 1e-12
 
 
-def test_ur_wrist_singularity_free_angle(ur5):  # claim 28
+def test_ur_wrist_singularity_free_angle(ur5):  # Paper 1 §4-5, singular configurations
     rng = np.random.default_rng(20)
     moved = 0
     for q in random_q(ur5, rng, 30):
@@ -684,7 +685,7 @@ def test_ur_wrist_singularity_free_angle(ur5):  # claim 28
 
 
 @pytest.mark.parametrize("name", ROBOTS)
-def test_elbow_stretched_sets_elbow_flag(name):  # claim 28
+def test_elbow_stretched_sets_elbow_flag(name):  # Paper 1 §4-5, singular configurations
     robot, rng = Robot.by_name(name), np.random.default_rng(21)
     for q in _stretched_q(robot, rng, 20, 0.0):
         T = robot.fk(q)
@@ -700,7 +701,7 @@ def test_elbow_stretched_sets_elbow_flag(name):  # claim 28
         assert len(sol.distinct(tol=1e-6)) == len(sol) - len(flagged) // 2
 
 
-def test_ur_shoulder_singularity(ur5):  # claim 28: P_c on the first axis
+def test_ur_shoulder_singularity(ur5):  # Paper 1 §5: P_c on the first axis
     rng = np.random.default_rng(22)
     for k in range(20):
         R = Rotation.random(random_state=rng).as_matrix()
@@ -718,10 +719,10 @@ def test_ur_shoulder_singularity(ur5):  # claim 28: P_c on the first axis
         assert len(sol.distinct(tol=1e-6)) == len(sol) // 2
 
 
-# ----------------------------------------------------------------------------- claims 26, 27, labels
+# ----------------------------------------------------------------------------- flag pairs, labels
 
 @pytest.mark.parametrize("name", ROBOTS)
-def test_claim26_wrist_flip_and_claim27_pairs(name):
+def test_wrist_flip_and_label_pairs(name):  # Paper 1 eqs. (26)-(28)
     robot = Robot.by_name(name)
     rng = np.random.default_rng(23)
     q = random_q(robot, rng, 300, inside=False)
@@ -925,18 +926,18 @@ def test_ik_trajectory_follows_a_smooth_path(name):
 def test_ik_construction_reports_points(kuka, ur5):
     q = np.array([0.3, -1.2, 1.4, 0.4, 0.9, -0.3])
     con = kuka.ik_construction(kuka.fk(q), 1, 1, 1)
-    assert set(con["points"]) == {"p_e", "P_w", "P1", "P2", "P_wx"} and con["config"] == (1, 1, 1)
-    assert con["solution"].status in ("ok", "outside_limits") and con["elbow_discriminant"] > 0
+    assert set(con.points) == {"p_e", "P_w", "P1", "P2", "P_wx"} and con.config == (1, 1, 1)
+    assert con.solution.status in ("ok", "outside_limits") and con.elbow_discriminant > 0
     sol = kuka.ik(kuka.fk(q))
-    np.testing.assert_allclose(con["solution"].q, sol.q[0], atol=1e-12)
-    F = kuka.joint_frames(con["solution"].q)                            # points = joint origins
+    np.testing.assert_allclose(con.solution.q, sol.q[0], atol=1e-12)
+    F = kuka.joint_frames(con.solution.q)                            # points = joint origins
     for name, i in (("P1", 1), ("P2", 2), ("P_wx", 3), ("P_w", 4)):
-        np.testing.assert_allclose(con["points"][name], F[i][:3, 3], atol=1e-10)
+        np.testing.assert_allclose(con.points[name], F[i][:3, 3], atol=1e-10)
     con = ur5.ik_construction(ur5.fk(q), -1, 1, -1)
-    assert set(con["points"]) == {"p_e", "P5", "P_c", "P4", "P3", "P2", "P1"}
-    F = ur5.joint_frames(con["solution"].q)
+    assert set(con.points) == {"p_e", "P5", "P_c", "P4", "P3", "P2", "P1"}
+    F = ur5.joint_frames(con.solution.q)
     for name, i in (("P1", 1), ("P2", 2), ("P3", 3), ("P4", 4), ("P5", 5)):
-        np.testing.assert_allclose(con["points"][name], F[i][:3, 3], atol=1e-10)
+        np.testing.assert_allclose(con.points[name], F[i][:3, 3], atol=1e-10)
     with pytest.raises(ValueError):
         ur5.ik_construction(ur5.fk(q), 2, 1, 1)
 
@@ -1001,6 +1002,35 @@ def test_bad_input_raises(kuka):
         kuka.with_tool(np.diag([2.0, 1, 1, 1]))
     with pytest.raises(TypeError):
         Robot(object())
+
+
+def test_results_and_robots_are_values(ur5):
+    """Bound C++ structs: read-only results, robots that copy and pickle exactly."""
+    import pickle
+
+    q = np.array([0.3, -1.2, 1.4, -1.0, 1.2, 0.3])
+    T = ur5.fk(q)
+    sol, near = ur5.ik(T), ur5.ik_closest(T, q)
+    batch, traj = ur5.ik_batch(np.stack([T, T])), ur5.ik_trajectory(T[None], q)
+    for a in (sol.q, sol.config, near.q, batch.q, batch.status, traj.q, kin.CONFIGS, ur5.limits):
+        with pytest.raises(ValueError):
+            a[0] = 1
+    assert bool(sol) and len(sol) == 8 and sol.status == ("ok",) * 8 and traj.status == ("ok",)
+    np.testing.assert_array_equal(batch.solutions(-1).q, batch.solutions(1).q)
+    with pytest.raises(IndexError):
+        batch.solutions(2)
+    Tt = np.eye(4)
+    Tt[:3, 3] = [0.01, 0.02, 0.15]
+    moved = ur5.with_tool(Tt).with_base(T)
+    for copy in (Robot(moved), pickle.loads(pickle.dumps(moved))):
+        assert copy.name == moved.name and repr(copy) == repr(moved)
+        for field in ("dh", "limits", "T_base_dh0", "T_flange_tool"):
+            np.testing.assert_array_equal(getattr(copy, field), getattr(moved, field))
+        np.testing.assert_array_equal(copy.fk(q), moved.fk(q))
+    with pytest.raises(ValueError, match="reach_tolerance"):
+        ur5.ik(T, reach_tolerance=-1.0)
+    with pytest.raises(ValueError, match="tol"):
+        sol.distinct(tol=np.nan)
 
 
 def test_unsupported_geometry():

@@ -11,8 +11,9 @@
 // Conformal objects are 5-vectors on (e1, e2, e3, e∞, e0) with the metric of (5.32), as in
 // fitting/sphere_fit.hpp. Every point pair is tested for reality: Q² < 0 (no real
 // intersection) reports the configuration as unreachable, never as wrong angles (thesis (4.70)-(4.73), Paper 1 §3.4).
-// Joint angles then come from the joint points by a recursive DH extraction that applies Paper 1's rule N* = z_{i-1} (eq. (22))
-// (convention-proof: it implements P1's rule N* = z_{i-1} directly).
+// Joint angles then come from the joint points by a recursive DH extraction that applies
+// Paper 1's rule N* = z_{i-1} (eq. (22)) directly, so it does not depend on the blade sign
+// conventions.
 //
 // Configuration labels are geometric, not the CGA point-pair signs (whose meaning depends on
 // object orientation, Paper 1 eqs. (26)-(28), (40)-(42)):
@@ -49,11 +50,14 @@
 // The solution's `singular` bit mask says which applied.
 #pragma once
 
+#include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -116,6 +120,23 @@ struct IKResult {
     return n;
   }
 };
+
+/// The Ok solutions of r without duplicates, in index order: a solution repeats an earlier one
+/// when every joint differs from it by a multiple of 2π within tol rad (e.g. the two elbow
+/// labels at the elbow singularity give the same angles). The first of each group is kept.
+inline std::vector<Vector6d> distinctSolutions(const IKResult& r, double tol = 1e-9) {
+  std::vector<Vector6d> out;
+  for (const IKSolution& s : r.solutions) {
+    if (!s.ok()) continue;
+    const auto repeats = [&](const Vector6d& q) {
+      for (int j = 0; j < 6; ++j)
+        if (!(std::abs(std::remainder(s.q[j] - q[j], 2 * M_PI)) <= tol)) return false;
+      return true;
+    };
+    if (std::none_of(out.begin(), out.end(), repeats)) out.push_back(s.q);
+  }
+  return out;
+}
 
 struct IKOptions {
   /// Free angles used at singularities (rad): q_free[0] for the KUKA shoulder, q_free[3] for
