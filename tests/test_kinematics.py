@@ -1031,6 +1031,9 @@ def test_results_and_robots_are_values(ur5):
         ur5.ik(T, reach_tolerance=-1.0)
     with pytest.raises(ValueError, match="tol"):
         sol.distinct(tol=np.nan)
+    for call in (lambda: ur5.fk(np.zeros((2, 6)), num_threads=-1), lambda: ur5.ik_batch(T[None], num_threads=-1)):
+        with pytest.raises(ValueError, match="num_threads"):
+            call()
 
 
 def test_unsupported_geometry():

@@ -104,6 +104,12 @@ double tolerance(double v, const char* name) {
   return v;
 }
 
+int threadCount(int num_threads) {
+  if (num_threads < 0)
+    throw py::value_error("num_threads: expected >= 0 (0 = all cores), got " + std::to_string(num_threads));
+  return num_threads;
+}
+
 void requireIk(const Robot& r) {
   if (r.geometry() == ArmGeometry::Unsupported)
     throw py::value_error(
@@ -468,6 +474,7 @@ Robot fromDh(const py::object& a, const py::object& alpha, const py::object& d, 
 
 py::object fk(const Robot& r, const py::object& q, int num_threads) {
   const F64 a = joints(q);
+  threadCount(num_threads);
   if (a.ndim() == 1) return py::cast(Eigen::Matrix4d(r.forward(Eigen::Map<const Vector6d>(a.data())).matrix()));
   const py::ssize_t n = a.shape(0);
   py::array_t<double> out({n, py::ssize_t{4}, py::ssize_t{4}});
@@ -510,6 +517,7 @@ IKBatch ikBatchMany(const Robot& r, const py::object& T, const py::object& q_fre
   const IKOptions o = options(r, vector6Or(q_free, "q_free", Vector6d::Zero()), reach_tolerance, singular_tolerance,
                               respect_limits);
   const F64 p = poses(T, "T_base_tool", false);
+  threadCount(num_threads);
   std::vector<IKResult> res(static_cast<std::size_t>(p.shape(0)));
   {
     py::gil_scoped_release release;
