@@ -14,7 +14,7 @@ from scanalign.reconstruction import Reconstructor, frame_to_cloud
 def regrid(points, normals, colors, leaf):
     """Today's merge written out in NumPy around the (PCL-identical) voxel grid."""
     attrs = np.hstack([normals.astype(np.float64), colors.astype(np.float64)])
-    centroids, a, _ = _core.reconstruction.voxel_grid_f32(np.ascontiguousarray(points, np.float32), leaf, attrs, 1)
+    centroids, a, _ = _core.reconstruction.voxel_grid(np.ascontiguousarray(points, np.float32), leaf, attrs, 1)
     n = a[:, :3]
     length = np.sqrt(n[:, 0] * n[:, 0] + n[:, 1] * n[:, 1] + n[:, 2] * n[:, 2])
     with np.errstate(invalid="ignore", divide="ignore"):

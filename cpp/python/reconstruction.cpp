@@ -1,19 +1,27 @@
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
 #include <sstream>
+#include <string>
+#include <utility>
 
 #include "arrays.hpp"
+#include "scanalign/common/rigid.hpp"
 #include "scanalign/reconstruction/depth_image.hpp"
 #include "scanalign/reconstruction/frame_to_model.hpp"
 #include "scanalign/reconstruction/voxel_grid.hpp"
+#include "scanalign/registration/pcl/baselines.hpp"
 
 namespace scanalign::python {
 
 namespace {
 template <typename Scalar>
-py::tuple voxel(const py::array& points, double leaf_size, const py::object& attributes, unsigned min_points) {
-  const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
+py::tuple voxel(const CloudView<Scalar>& view, double leaf_size, const py::object& attributes, int min_points) {
+  if (min_points < 1) throw py::value_error("min_points_per_voxel must be >= 1");
   py::array_t<double, py::array::c_style> attrs;
   std::size_t dim = 0;
   if (!attributes.is_none()) {
@@ -25,10 +33,10 @@ py::tuple voxel(const py::array& points, double leaf_size, const py::object& att
   VoxelGridResult r;
   {
     py::gil_scoped_release release;
-    r = voxelGrid(view, leaf_size, dim ? attrs.data() : nullptr, dim, min_points);
+    r = voxelGrid(view, leaf_size, dim ? attrs.data() : nullptr, dim, static_cast<std::uint32_t>(min_points));
   }
   const auto m = static_cast<py::ssize_t>(r.size());
-  py::array_t<double> pts({m, py::ssize_t{3}});
+  py::array_t<Scalar> pts({m, py::ssize_t{3}});
   std::copy(r.points.begin(), r.points.end(), pts.mutable_data());
   py::array_t<double> att({m, static_cast<py::ssize_t>(dim)});
   std::copy(r.attributes.begin(), r.attributes.end(), att.mutable_data());
@@ -36,6 +44,7 @@ py::tuple voxel(const py::array& points, double leaf_size, const py::object& att
   std::copy(r.counts.begin(), r.counts.end(), counts.mutable_data());
   return py::make_tuple(pts, att, counts);
 }
+
 template <typename T>
 py::array_t<T> toArray(const std::vector<T>& v, py::ssize_t cols) {
   py::array_t<T> a({static_cast<py::ssize_t>(v.size()) / cols, cols});
@@ -43,28 +52,113 @@ py::array_t<T> toArray(const std::vector<T>& v, py::ssize_t cols) {
   return a;
 }
 
-template <typename DepthT>
-py::tuple depthToCloudPy(const py::array_t<DepthT, py::array::c_style>& depth, const PinholeIntrinsics& K,
-                         const DepthToCloudSettings& s, const py::object& rgb_obj) {
-  if (depth.ndim() != 2 || depth.shape(0) != K.height || depth.shape(1) != K.width)
-    throw py::value_error("depth: expected shape (" + std::to_string(K.height) + ", " + std::to_string(K.width) +
-                          ") for these intrinsics");
+void checkImage(const py::array& depth, const PinholeIntrinsics& K) {
+  if (depth.ndim() != 2) throw py::value_error("depth: expected a 2-D image, got " + std::to_string(depth.ndim()) + "-D");
+  if (depth.shape(0) != K.height || depth.shape(1) != K.width)
+    throw py::value_error("depth image is " + std::to_string(depth.shape(1)) + "x" + std::to_string(depth.shape(0)) +
+                          " (WxH) but the intrinsics are " + std::to_string(K.width) + "x" + std::to_string(K.height));
+}
+
+/// uint16 depth as is; other integers when they fit uint16; floats as float32 metres.
+/// Returns the (possibly converted) C-contiguous image and whether it is float.
+std::pair<py::array, bool> depthImage(const py::array& depth) {
+  const char kind = depth.dtype().kind();
+  if (kind == 'f') return {py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(depth), true};
+  if (kind != 'u' && kind != 'i')
+    throw py::type_error("depth: expected uint16 or float, got dtype " + std::string(py::str(depth.dtype())));
+  if (!depth.dtype().is(py::dtype::of<std::uint16_t>()) && depth.size() > 0) {
+    const auto wide = py::array_t<std::int64_t, py::array::forcecast>::ensure(depth);
+    const auto* d = wide.data();
+    for (py::ssize_t i = 0; i < wide.size(); ++i)
+      if (d[i] < 0 || d[i] > 65535) throw py::value_error("depth: integer depth must fit uint16 (0..65535)");
+  }
+  return {py::array_t<std::uint16_t, py::array::c_style | py::array::forcecast>::ensure(depth), false};
+}
+
+py::tuple depthToCloudPy(const py::array& depth_in, const PinholeIntrinsics& K, const DepthToCloudSettings& s,
+                         const py::object& rgb_obj) {
+  checkImage(depth_in, K);
+  const auto [depth, is_float] = depthImage(depth_in);
   py::array_t<std::uint8_t, py::array::c_style> rgb;
   if (!rgb_obj.is_none()) {
-    rgb = py::array_t<std::uint8_t, py::array::c_style>::ensure(rgb_obj);
-    if (!rgb || rgb.ndim() != 3 || rgb.shape(0) != K.height || rgb.shape(1) != K.width || rgb.shape(2) != 3)
-      throw py::value_error("rgb: expected a uint8 array of shape (height, width, 3) matching the depth image");
+    const auto a = py::cast<py::array>(rgb_obj);
+    if (a.ndim() != 3 || a.shape(0) != K.height || a.shape(1) != K.width || a.shape(2) != 3)
+      throw py::value_error("rgb: expected shape (" + std::to_string(K.height) + ", " + std::to_string(K.width) +
+                            ", 3) matching the depth image");
+    if (!a.dtype().is(py::dtype::of<std::uint8_t>()))
+      throw py::type_error("rgb: expected uint8, got " + std::string(py::str(a.dtype())));
+    rgb = py::array_t<std::uint8_t, py::array::c_style>::ensure(a);
   }
-  DepthCloud c;
+  const std::uint8_t* c = rgb_obj.is_none() ? nullptr : rgb.data();
+  DepthCloud cloud;
   {
     py::gil_scoped_release release;
-    c = depthToCloud(depth.data(), K, s, rgb_obj.is_none() ? nullptr : rgb.data());
+    cloud = is_float ? depthToCloud(static_cast<const float*>(depth.data()), K, s, c)
+                     : depthToCloud(static_cast<const std::uint16_t*>(depth.data()), K, s, c);
   }
   py::object colors = py::none();
-  if (!rgb_obj.is_none()) colors = toArray(c.colors, 3);
-  py::array_t<std::int32_t> pixels(static_cast<py::ssize_t>(c.pixels.size()));
-  std::copy(c.pixels.begin(), c.pixels.end(), pixels.mutable_data());
-  return py::make_tuple(toArray(c.points, 3), colors, pixels);
+  if (c) colors = toArray(cloud.colors, 3);
+  py::array_t<std::int32_t> pixels(static_cast<py::ssize_t>(cloud.pixels.size()));
+  std::copy(cloud.pixels.begin(), cloud.pixels.end(), pixels.mutable_data());
+  return py::make_tuple(toArray(cloud.points, 3), colors, pixels);
+}
+
+/// Float metres with NaN for invalid pixels: float images as they are, integer images
+/// times depth_scale with 0 = invalid.
+py::array_t<float, py::array::c_style> depthMetres(const py::array& depth, double depth_scale) {
+  if (depth.ndim() != 2) throw py::value_error("depth: expected a 2-D image, got " + std::to_string(depth.ndim()) + "-D");
+  const auto [image, is_float] = depthImage(depth);
+  if (is_float) return py::array_t<float, py::array::c_style>::ensure(image);
+  if (!(std::isfinite(depth_scale) && depth_scale > 0.0))
+    throw py::value_error("depth_scale must be a positive number of metres per unit");
+  py::array_t<float, py::array::c_style> out({image.shape(0), image.shape(1)});
+  const auto* d = static_cast<const std::uint16_t*>(image.data());
+  float* o = out.mutable_data();
+  for (py::ssize_t i = 0; i < image.size(); ++i)
+    o[i] = d[i] == 0 ? std::numeric_limits<float>::quiet_NaN() : static_cast<float>(d[i]) * static_cast<float>(depth_scale);
+  return out;
+}
+
+/// "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls", ...: the stock PCL ICP variant.
+PclIcpVariant pclVariant(const std::string& registration) {
+  for (auto v : {PclIcpVariant::Svd, PclIcpVariant::DualQuaternion, PclIcpVariant::PointToPlaneLLS,
+                 PclIcpVariant::ScanalignPointToPlaneLLS})
+    if (registration == std::string("pcl_") + toString(v)) return v;
+  throw py::value_error("registration must be 'scanalign' or 'pcl_' + a PCL ICP variant, got '" + registration + "'");
+}
+
+/// Runs a stock PCL ICP where FrameToModel::integrate runs the engine: prepare, register
+/// to the model from the guess, check, merge (the pipeline's PCL baselines).
+FrameReport integrateWithPcl(FrameToModel& self, const CloudView<float>& points, const std::uint8_t* colors,
+                             const std::optional<Eigen::Matrix4d>& guess, PclIcpVariant variant) {
+  FrameReport r;
+  r.T_model_camera = guess ? *guess : self.predictedPose();
+  requireRigid(r.T_model_camera, "guess");
+  const PreparedFrame frame = self.prepare(points, colors);
+  r.frame_points = frame.size();
+  r.model_points = self.model().size();
+  r.prepare_seconds = frame.seconds;
+  if (frame.size() == 0) return r;
+  if (frame.size() < static_cast<std::size_t>(self.settings().min_frame_points)) {
+    r.status = FrameStatus::SkippedTooFewPoints;
+    return r;
+  }
+  using Clock = std::chrono::steady_clock;
+  auto t0 = Clock::now();
+  const Model& m = self.model();
+  const bool plane = variant == PclIcpVariant::PointToPlaneLLS || variant == PclIcpVariant::ScanalignPointToPlaneLLS;
+  r.icp = pclIcp(frame.view(), CloudView<float>(m.points.data(), m.size()),
+                 plane ? CloudView<float>(m.normals.data(), m.size()) : CloudView<float>(), r.T_model_camera,
+                 self.settings().icp, variant);
+  r.register_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  r.status = self.check(r.icp, r.T_model_camera);
+  if (r.status == FrameStatus::Registered) {
+    t0 = Clock::now();
+    r.T_model_camera = r.icp.T_target_source;
+    r.model_points = self.merge(frame, r.T_model_camera);
+    r.merge_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
+  }
+  return r;
 }
 
 const std::uint8_t* colorPointer(const py::object& colors, std::size_t n, py::array_t<std::uint8_t, py::array::c_style>& keep) {
@@ -86,7 +180,7 @@ std::string describe(const FrameReport& r) {
 }  // namespace
 
 void defineReconstruction(py::module_& m) {
-  py::class_<PinholeIntrinsics>(m, "PinholeIntrinsics")
+  py::class_<PinholeIntrinsics>(m, "PinholeIntrinsics", "Pinhole intrinsics of a depth image (OpenCV convention)")
       .def(py::init([](int w, int h, double fx, double fy, double cx, double cy) {
              PinholeIntrinsics k{w, h, fx, fy, cx, cy};
              k.validate();
@@ -101,43 +195,64 @@ void defineReconstruction(py::module_& m) {
       .def_readonly("cy", &PinholeIntrinsics::cy, "principal point row, pixels");
   py::class_<DepthToCloudSettings>(m, "DepthToCloudSettings")
       .def(py::init<>())
-      .def_readwrite("depth_scale", &DepthToCloudSettings::depth_scale)
-      .def_readwrite("min_depth", &DepthToCloudSettings::min_depth)
-      .def_readwrite("max_depth", &DepthToCloudSettings::max_depth)
-      .def_readwrite("stride", &DepthToCloudSettings::stride);
+      .def_readwrite("depth_scale", &DepthToCloudSettings::depth_scale,
+                     "metres per unit of an integer image (1e-3: millimetres; TUM: 1/5000); float images are metres")
+      .def_readwrite("min_depth", &DepthToCloudSettings::min_depth, "nearer pixels are dropped, m along z (0.1)")
+      .def_readwrite("max_depth", &DepthToCloudSettings::max_depth, "farther pixels are dropped, m (2.0)")
+      .def_readwrite("stride", &DepthToCloudSettings::stride, "use every stride-th pixel in both directions (1)");
   m.def(
       "bilateral_filter_depth",
-      [](const py::array_t<float, py::array::c_style | py::array::forcecast>& depth, int radius, double sigma_space,
-         double sigma_depth, int num_threads) {
-        if (depth.ndim() != 2) throw py::value_error("depth: expected a 2-D float image in metres");
-        const int h = static_cast<int>(depth.shape(0)), w = static_cast<int>(depth.shape(1));
-        py::array_t<float> out({depth.shape(0), depth.shape(1)});
+      [](const py::array& depth, int radius, double sigma_space, double sigma_depth, double depth_scale,
+         int num_threads) {
+        const auto d = depthMetres(depth, depth_scale);
+        const int h = static_cast<int>(d.shape(0)), w = static_cast<int>(d.shape(1));
+        py::array_t<float> out({d.shape(0), d.shape(1)});
         float* o = out.mutable_data();
         {
           py::gil_scoped_release release;
-          bilateralFilterDepth(depth.data(), w, h, o, radius, sigma_space, sigma_depth, num_threads);
+          bilateralFilterDepth(d.data(), w, h, o, radius, sigma_space, sigma_depth, num_threads);
         }
         return out;
       },
-      py::arg("depth"), py::arg("radius"), py::arg("sigma_space"), py::arg("sigma_depth"), py::arg("num_threads"));
-  m.def("depth_to_cloud_u16", &depthToCloudPy<std::uint16_t>, py::arg("depth"), py::arg("intrinsics"),
-        py::arg("settings"), py::arg("rgb"));
-  m.def("depth_to_cloud_f32", &depthToCloudPy<float>, py::arg("depth"), py::arg("intrinsics"), py::arg("settings"),
-        py::arg("rgb"));
+      py::arg("depth"), py::arg("radius"), py::arg("sigma_space"), py::arg("sigma_depth"), py::arg("depth_scale"),
+      py::arg("num_threads"),
+      "(H, W) float32 metres (NaN = invalid) of a uint16 (units of depth_scale m, 0 = invalid) or float (m) image");
+  m.def("depth_to_cloud", &depthToCloudPy, py::arg("depth"), py::arg("intrinsics"), py::arg("settings"),
+        py::arg("rgb"), "(points (N, 3) float32 m, colors (N, 3) uint8 or None, pixels (N,) int32 row * W + column)");
 
-  py::class_<FrameToModelSettings>(m, "FrameToModelSettings")
+  // Field order is the report's order (scanalign.pipeline.settings_to_dict).
+  py::class_<FrameToModelSettings>(m, "FrameToModelSettings",
+                                   "Settings of the frame-to-model pipeline (eye-in-hand paper (Comput. Electron. "
+                                   "Agric. 180 (2021) 105929), §3). FrameToModelSettings(other) copies; validate() "
+                                   "raises ValueError naming a bad field.")
       .def(py::init<>())
-      .def_readwrite("icp", &FrameToModelSettings::icp)
-      .def_readwrite("normal_radius", &FrameToModelSettings::normal_radius)
-      .def_readwrite("model_voxel_size", &FrameToModelSettings::model_voxel_size)
-      .def_readwrite("frame_voxel_size", &FrameToModelSettings::frame_voxel_size)
-      .def_readwrite("crop_box", &FrameToModelSettings::crop_box)
-      .def_readwrite("min_frame_points", &FrameToModelSettings::min_frame_points)
-      .def_readwrite("min_fitness", &FrameToModelSettings::min_fitness)
-      .def_readwrite("require_convergence", &FrameToModelSettings::require_convergence)
-      .def_readwrite("max_translation_change", &FrameToModelSettings::max_translation_change)
-      .def_readwrite("max_rotation_change", &FrameToModelSettings::max_rotation_change)
-      .def_readwrite("num_threads", &FrameToModelSettings::num_threads)
+      .def(py::init<const FrameToModelSettings&>(), py::arg("other"))
+      .def("__copy__", [](const FrameToModelSettings& s) { return s; })
+      .def_readwrite("normal_radius", &FrameToModelSettings::normal_radius,
+                     "PCA normal radius, m (eye-in-hand paper §3.5: 0.005)")
+      .def_readwrite("model_voxel_size", &FrameToModelSettings::model_voxel_size,
+                     "voxel edge of the grid applied to the model after every merge, m (eye-in-hand paper §3.6: 0.001)")
+      .def_readwrite("frame_voxel_size", &FrameToModelSettings::frame_voxel_size,
+                     "voxel edge applied to each frame before normals and registration, m; 0 keeps full resolution "
+                     "(default 0.001)")
+      .def_property(
+          "crop_box", [](const FrameToModelSettings& s) { return s.crop_box; },
+          [](FrameToModelSettings& s, const py::object& v) {
+            s.crop_box = v.is_none() ? std::nullopt : std::optional<Box>(py::type::of<Box>()(v).cast<Box>());
+          },
+          "optional Box (or 6 numbers, m) in the frame's camera coordinates; points outside are dropped before "
+          "anything, so they are neither registered nor merged (bounds the model to the workspace)")
+      .def_readwrite("min_frame_points", &FrameToModelSettings::min_frame_points,
+                     "frames with fewer points after crop and downsampling are skipped (default 200)")
+      .def_readwrite("min_fitness", &FrameToModelSettings::min_fitness,
+                     "registrations whose inlier fraction is below this are rejected (default 0.3)")
+      .def_readwrite("require_convergence", &FrameToModelSettings::require_convergence,
+                     "reject registrations that hit the iteration cap (default True; False for fixed iteration "
+                     "budgets as in eye-in-hand paper Figs. 6 and 9)")
+      .def_readwrite("max_translation_change", &FrameToModelSettings::max_translation_change,
+                     "largest accepted distance of the result from the initial guess, m (0.10; inf = off)")
+      .def_readwrite("max_rotation_change", &FrameToModelSettings::max_rotation_change,
+                     "largest accepted rotation of the result from the initial guess, rad (0.5; inf = off)")
       .def_property(
           "motion_model", [](const FrameToModelSettings& s) { return std::string(toString(s.motion_model)); },
           [](FrameToModelSettings& s, const std::string& v) {
@@ -147,37 +262,52 @@ void defineReconstruction(py::module_& m) {
               s.motion_model = MotionModel::ConstantVelocity;
             else
               throw py::value_error("motion_model must be 'previous' or 'constant_velocity', got '" + v + "'");
-          })
+          },
+          "initial guess of a frame integrated without one: 'previous' (eye-in-hand paper §3.2: the previous "
+          "registration; default) or 'constant_velocity' (the motion between the last two merged frames applied "
+          "once more; fewer ICP iterations on a smooth scan path)")
+      .def_readwrite("num_threads", &FrameToModelSettings::num_threads,
+                     "OpenMP threads for normals and ICP (overrides icp.num_threads when > 0), 0 = all cores")
+      .def_readwrite("icp", &FrameToModelSettings::icp,
+                     "IcpSettings of the registration (eye-in-hand paper §3.3 convergence defaults; "
+                     "max_correspondence_distance 0.02 m here, as consecutive eye-in-hand frames move little; "
+                     "optional box rejector in the frame's camera coordinates, §3.4)")
       .def("validate", [](const FrameToModelSettings& s) { validate(s); });
 
-  py::class_<FrameReport>(m, "FrameReport")
-      .def_readonly("index", &FrameReport::index)
-      .def_property_readonly("status", [](const FrameReport& r) { return std::string(toString(r.status)); })
-      .def_property_readonly("merged", &FrameReport::merged)
-      .def_property_readonly("T_model_camera", [](const FrameReport& r) { return r.T_model_camera; })
-      .def_readonly("icp", &FrameReport::icp)
-      .def_readonly("frame_points", &FrameReport::frame_points)
-      .def_readonly("model_points", &FrameReport::model_points)
-      .def_readonly("prepare_seconds", &FrameReport::prepare_seconds)
-      .def_readonly("register_seconds", &FrameReport::register_seconds)
-      .def_readonly("merge_seconds", &FrameReport::merge_seconds)
-      .def_readonly("total_seconds", &FrameReport::total_seconds)
+  py::class_<FrameReport>(m, "FrameReport", "What the pipeline did with one frame")
+      .def_readonly("index", &FrameReport::index, "0-based count of frames given to the pipeline")
+      .def_property_readonly(
+          "status", [](const FrameReport& r) { return std::string(toString(r.status)); },
+          "'initialized', 'registered' or 'skipped_*' (empty, too_few_points, not_converged, "
+          "too_few_correspondences, low_fitness, motion)")
+      .def_property_readonly("merged", &FrameReport::merged, "the frame was added to the model")
+      .def_property_readonly(
+          "T_model_camera", [](const FrameReport& r) { return r.T_model_camera; },
+          "4x4 camera -> model pose; for a skipped frame the initial guess it was tried from")
+      .def_readonly("icp", &FrameReport::icp, "IcpResult of the registration (defaults for the first frame)")
+      .def_readonly("frame_points", &FrameReport::frame_points, "points after crop, downsampling and normals")
+      .def_readonly("model_points", &FrameReport::model_points, "model size after this frame")
+      .def_readonly("prepare_seconds", &FrameReport::prepare_seconds, "crop + downsample + normals, s")
+      .def_readonly("register_seconds", &FrameReport::register_seconds, "tree build + ICP, s")
+      .def_readonly("merge_seconds", &FrameReport::merge_seconds, "transform + merge + voxel grid, s")
+      .def_readonly("total_seconds", &FrameReport::total_seconds, "s")
       .def("__repr__", py::overload_cast<const FrameReport&>(&describe));
 
-  py::class_<PreparedFrame>(m, "PreparedFrame")
-      .def_property_readonly("points", [](const PreparedFrame& f) { return toArray(f.points, 3); })
-      .def_property_readonly("normals", [](const PreparedFrame& f) { return toArray(f.normals, 3); })
+  py::class_<PreparedFrame>(m, "PreparedFrame", "A frame ready to register (camera frame, after crop and downsampling)")
+      .def_property_readonly("points", [](const PreparedFrame& f) { return toArray(f.points, 3); }, "(N, 3) float32 m")
+      .def_property_readonly("normals", [](const PreparedFrame& f) { return toArray(f.normals, 3); }, "(N, 3) unit")
       .def_property_readonly("colors", [](const PreparedFrame& f) -> py::object {
         if (f.colors.empty()) return py::none();
         return toArray(f.colors, 3);
-      })
-      .def_readonly("input_points", &PreparedFrame::input_points)
-      .def_readonly("seconds", &PreparedFrame::seconds)
+      }, "(N, 3) uint8 or None")
+      .def_readonly("input_points", &PreparedFrame::input_points, "points given to prepare()")
+      .def_readonly("seconds", &PreparedFrame::seconds, "time to crop, downsample and estimate normals, s")
       .def("__len__", &PreparedFrame::size);
 
-  py::class_<FrameToModel>(m, "FrameToModel")
+  py::class_<FrameToModel>(m, "FrameToModel", "Frame-to-model reconstruction (eye-in-hand paper, Algorithm 1)")
       .def(py::init<FrameToModelSettings>(), py::arg("settings"))
-      .def("reset", &FrameToModel::reset, py::arg("T_model_camera0"))
+      .def("reset", &FrameToModel::reset, py::arg("T_model_camera0"),
+           "Empties the model; the next accepted frame is placed at T_model_camera0 (4x4 rigid)")
       .def(
           "prepare",
           [](const FrameToModel& self, const py::array& points, const py::object& colors) {
@@ -190,14 +320,22 @@ void defineReconstruction(py::module_& m) {
           py::arg("points"), py::arg("colors"))
       .def(
           "integrate",
-          [](FrameToModel& self, const py::array& points, const py::object& colors, const std::optional<Eigen::Matrix4d>& guess) {
+          [](FrameToModel& self, const py::array& points, const py::object& colors,
+             const std::optional<Eigen::Matrix4d>& guess, const std::string& registration) {
             const auto p = cloudView<float>(points, "points");
             py::array_t<std::uint8_t, py::array::c_style> keep;
             const std::uint8_t* c = colorPointer(colors, p.size, keep);
+            if (registration == "scanalign" || !self.hasModel()) {
+              py::gil_scoped_release release;
+              return self.integrate(p, c, guess ? &*guess : nullptr);
+            }
+            const PclIcpVariant v = pclVariant(registration);
             py::gil_scoped_release release;
-            return self.integrate(p, c, guess ? &*guess : nullptr);
+            return integrateWithPcl(self, p, c, guess, v);
           },
-          py::arg("points"), py::arg("colors"), py::arg("guess"))
+          py::arg("points"), py::arg("colors"), py::arg("guess"), py::arg("registration") = "scanalign",
+          "One camera-frame cloud (float32 m, uint8 colours or None) registered from guess (T_model_camera or "
+          "None: the motion model) by 'scanalign' or a stock PCL ICP 'pcl_<variant>', checked and merged")
       .def(
           "integrate_prepared",
           [](FrameToModel& self, const PreparedFrame& f, const std::optional<Eigen::Matrix4d>& guess) {
@@ -211,12 +349,12 @@ void defineReconstruction(py::module_& m) {
             py::gil_scoped_release release;
             return self.merge(f, T);
           },
-          py::arg("frame"), py::arg("T_model_camera"))
+          py::arg("frame"), py::arg("T_model_camera"), "Merges a frame at a pose found elsewhere; returns the model size")
       .def(
           "check", [](const FrameToModel& self, const IcpResult& r, const Eigen::Matrix4d& guess) {
             return std::string(toString(self.check(r, guess)));
           },
-          py::arg("result"), py::arg("guess"))
+          py::arg("result"), py::arg("guess"), "The acceptance checks of integrate() on an external IcpResult")
       .def("model_points", [](const FrameToModel& self) { return toArray(self.model().points, 3); })
       .def("model_normals", [](const FrameToModel& self) { return toArray(self.model().normals, 3); })
       .def("model_colors", [](const FrameToModel& self) -> py::object {
@@ -224,8 +362,10 @@ void defineReconstruction(py::module_& m) {
         return toArray(self.model().colors, 3);
       })
       .def_property_readonly("model_size", [](const FrameToModel& self) { return self.model().size(); })
-      .def_property_readonly("last_pose", [](const FrameToModel& self) { return self.lastPose(); })
-      .def_property_readonly("predicted_pose", [](const FrameToModel& self) { return self.predictedPose(); })
+      .def_property_readonly("last_pose", [](const FrameToModel& self) { return self.lastPose(); },
+                             "the last accepted T_model_camera (T_model_camera0 before any frame)")
+      .def_property_readonly("predicted_pose", [](const FrameToModel& self) { return self.predictedPose(); },
+                             "the initial guess T_model_camera of the next frame given none (motion_model)")
       .def_property_readonly("frames_seen", &FrameToModel::framesSeen)
       .def_property_readonly("frames_merged", &FrameToModel::framesMerged)
       .def_property(
@@ -235,10 +375,16 @@ void defineReconstruction(py::module_& m) {
             self.settings() = s;
           });
 
-  m.def("voxel_grid_f32", &voxel<float>, py::arg("points"), py::arg("leaf_size"), py::arg("attributes"),
-        py::arg("min_points_per_voxel"));
-  m.def("voxel_grid_f64", &voxel<double>, py::arg("points"), py::arg("leaf_size"), py::arg("attributes"),
-        py::arg("min_points_per_voxel"));
+  m.def(
+      "voxel_grid",
+      [](const py::array& points, double leaf_size, const py::object& attributes, int min_points_per_voxel) {
+        if (points.dtype().is(py::dtype::of<float>()))
+          return voxel(cloudView<float>(points, "points"), leaf_size, attributes, min_points_per_voxel);
+        return voxel(cloudView<double>(points, "points"), leaf_size, attributes, min_points_per_voxel);
+      },
+      py::arg("points"), py::arg("leaf_size"), py::arg("attributes"), py::arg("min_points_per_voxel"),
+      "(centroids (M, 3) in the points' dtype, m; attribute means (M, k) float64; counts (M,)): pcl::VoxelGrid "
+      "voxel for voxel");
 }
 
 }  // namespace scanalign::python

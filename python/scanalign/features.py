@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from typing import Optional, Sequence, Tuple, Union
+from typing import Sequence, Tuple, Union
 
 import numpy as np
 
@@ -41,15 +41,13 @@ def estimate_normals(
     Returns:
         (N, 3) normals in the input dtype (NaN rows for non-finite points or too few
         neighbours), and the (N,) curvature when asked for.
+
+    Raises:
+        TypeError: non-float points. ValueError: shape, non-positive radius, a viewpoint
+        that is not 3 finite numbers, min_neighbors < 3.
     """
-    p = as_points(points, "points")
-    vp = np.asarray(viewpoint, dtype=np.float64)
-    if vp.shape != (3,) or not np.all(np.isfinite(vp)):
-        raise ValueError("viewpoint: expected 3 finite coordinates")
-    if not (np.isfinite(radius) and radius > 0):
-        raise ValueError("radius must be a finite positive distance in metres")
-    fn = _core.features.estimate_normals_f64 if p.dtype == np.float64 else _core.features.estimate_normals_f32
-    normals, curvature = fn(p, float(radius), vp, int(min_neighbors), int(num_threads))
+    normals, curvature = _core.features.estimate_normals(as_points(points, "points"), float(radius), viewpoint,
+                                                         int(min_neighbors), int(num_threads))
     return (normals, curvature) if return_curvature else normals
 
 
@@ -70,8 +68,4 @@ def shape_factors(eigenvalues) -> np.ndarray:
     Raises:
         ValueError: wrong shape, NaN/Inf or negative eigenvalues, or a zero sum.
     """
-    a = np.asarray(eigenvalues, dtype=np.float64)
-    if a.shape[-1:] != (3,) or a.ndim not in (1, 2):
-        raise ValueError(f"eigenvalues: expected shape (3,) or (N, 3), got {a.shape}")
-    out = _core.features.shape_factors(a.reshape(-1, 3))
-    return out.reshape(a.shape)
+    return _core.features.shape_factors(eigenvalues)

@@ -1,22 +1,19 @@
 """The reconstruction job end to end: frames in, model + trajectory + report out.
 
 :func:`reconstruct` runs :class:`scanalign.reconstruction.Reconstructor` over a sequence
-of :class:`scanalign.camera.Frame` (a synthetic scan, a TUM RGB-D folder, or any
-iterable), with a progress bar, and evaluates the estimated trajectory against the
-frames' reference poses (``Frame.T_base_camera``, e.g. the robot's forward kinematics
-and hand-eye calibration) when they have them. :meth:`ReconstructionResult.save` writes
-what people look at:
-
-- ``model.ply``: the model with colours and normals (model frame);
-- ``trajectory.txt``: estimated camera poses, TUM format (model frame);
-- ``reference.txt``: reference camera poses of the same frames, TUM format (base frame);
-- ``frames.csv``: per-frame statistics (status, time, iterations, fitness, RMSE, sizes);
-- ``report.json``: settings, ATE, RPE, per-frame times, model size and quality;
-- ``joints.csv``: when the frames carry robot joints (``Frame.meta["joints"]``, e.g. a
-  synthetic scan moved by a UR5), per frame: index, timestamp (s), q1 ... q6 (rad);
-- ``trajectory.png``: top-down estimated vs reference trajectory with error segments
-  (like Fig. 4 of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)); ``frames.png``: per-frame time and model size; ``joints.png``:
-  the robot's joint angles over time with its limits (when joints are known).
+of :class:`scanalign.camera.Frame` (a synthetic scan, a TUM RGB-D folder, any iterable)
+with a progress bar, and evaluates the estimated trajectory against the frames'
+reference poses (``Frame.T_base_camera``, e.g. the robot's forward kinematics and
+hand-eye calibration) when they have them. :meth:`ReconstructionResult.save` writes
+``model.ply`` (model frame, colours and normals), ``trajectory.txt`` (estimated poses,
+TUM format, model frame), ``reference.txt`` (reference poses of the same frames, base
+frame), ``frames.csv`` (per-frame status, times, iterations, fitness, RMSE, sizes),
+``report.json`` (settings, ATE, RPE, times, model size), ``joints.csv`` when the frames
+carry robot joints (``Frame.meta["joints"]``: index, timestamp (s), q1 ... q6 (rad)),
+and plots: ``trajectory.png`` (top-down estimate vs reference with error segments, like
+Fig. 4 of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)),
+``frames.png`` (per-frame time and model size) and ``joints.png`` (joint angles with
+the robot's limits).
 """
 
 from __future__ import annotations
@@ -26,7 +23,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Optional, Union
 
@@ -40,20 +37,19 @@ __all__ = ["ReconstructionResult", "reconstruct", "settings_to_dict", "write_joi
 
 
 def settings_to_dict(settings: FrameToModelSettings) -> Dict[str, Any]:
-    """A JSON-able view of reconstruction settings (lengths in metres, angles in radians)."""
-    from .reconstruction import _RECON_FIELDS
-    from .registration import _SETTING_FIELDS
+    """A JSON-able view of reconstruction settings (lengths in metres, angles in radians),
+    field by field in declaration order (the bound C++ struct's properties)."""
 
     def plain(v: Any) -> Any:
         if v is None or isinstance(v, (bool, int, float, str)):
             return v
         if hasattr(v, "as_tuple"):
             return list(v.as_tuple())
+        if any(isinstance(p, property) for p in vars(type(v)).values()):
+            return {k: plain(getattr(v, k)) for k, p in vars(type(v)).items() if isinstance(p, property)}
         return str(v)
 
-    d = {name: plain(getattr(settings, name)) for name in _RECON_FIELDS}
-    d["icp"] = {name: plain(getattr(settings.icp, name)) for name in _SETTING_FIELDS}
-    return d
+    return plain(settings)
 
 
 @dataclass
@@ -125,18 +121,13 @@ class ReconstructionResult:
         paths written."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        paths: Dict[str, Path] = {}
-        paths["model"] = out / "model.ply"
+        paths = {"model": out / "model.ply", "trajectory": out / "trajectory.txt", "frames": out / "frames.csv"}
         self.model.write_ply(paths["model"])
-        paths["trajectory"] = out / "trajectory.txt"
         self.estimate.write_tum(paths["trajectory"], header="scanalign estimate: T_model_camera (camera -> model frame)")
         if self.reference is not None:
             paths["reference"] = out / "reference.txt"
             self.reference.write_tum(paths["reference"], header="reference: T_base_camera (camera -> robot base frame)")
-        paths["frames"] = out / "frames.csv"
-        cols = ["index", "timestamp", "status", "merged", "converged", "icp_status", "iterations", "fitness",
-                "inlier_rmse", "correspondences", "input_points", "frame_points", "model_points", "prepare_seconds",
-                "register_seconds", "merge_seconds", "total_seconds", "message"]
+        cols = [f.name for f in fields(FrameRecord) if f.name != "T_model_camera"]
         with open(paths["frames"], "w", newline="", encoding="utf-8") as f:
             w = csv.writer(f)
             w.writerow(cols)
@@ -170,14 +161,12 @@ class ReconstructionResult:
             paths["frames_png"] = _plots.plot_frame_stats(rows, out / "frames.png",
                                                           title="per-frame time and model size")
             if self.joints is not None and len(self.records) >= 2:
-                limits = None
-                if self.robot is not None:
-                    from . import kinematics as _kin
+                from .kinematics import Robot
 
-                    try:
-                        limits = _kin.Robot.by_name(self.robot).limits
-                    except ValueError:  # a custom robot: no limits to draw
-                        limits = None
+                try:
+                    limits = Robot.by_name(self.robot).limits if self.robot is not None else None
+                except ValueError:  # a custom robot: no limits to draw
+                    limits = None
                 paths["joints_png"] = _plots.plot_joint_trajectory(
                     [r.timestamp for r in self.records], self.joints, out / "joints.png", limits=limits,
                     title=f"{self.robot or 'robot'} joint trajectory (inverse kinematics, closest to previous)")
@@ -242,45 +231,18 @@ def _jsonable(v: Any) -> Any:
     return v
 
 
-class _Progress:
-    """A tqdm progress bar on stderr when tqdm is available and enabled; else silent."""
+def _progress_bar(total: Optional[int], enabled: bool) -> Any:
+    """A tqdm bar on stderr (tqdm is a dependency), or None."""
+    from tqdm.auto import tqdm
 
-    def __init__(self, total: Optional[int], enabled: bool, desc: str) -> None:
-        self.bar = None
-        if enabled:
-            try:
-                from tqdm.auto import tqdm
-
-                self.bar = tqdm(total=total, desc=desc, unit="frame", file=sys.stderr, dynamic_ncols=True)
-            except ImportError:  # pragma: no cover - tqdm is a dependency
-                self.bar = None
-
-    def update(self, record: FrameRecord) -> None:
-        if self.bar is not None:
-            self.bar.set_postfix_str(f"{record.status} fit={record.fitness:.2f} model={record.model_points}",
-                                     refresh=False)
-            self.bar.update(1)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+    return tqdm(total=total, desc="reconstruct", unit="frame", file=sys.stderr, dynamic_ncols=True) if enabled else None
 
 
-def reconstruct(
-    frames: Iterable[Frame],
-    settings: Optional[FrameToModelSettings] = None,
-    *,
-    registration: str = "scanalign",
-    model_frame: str = "auto",
-    initial_guess: str = "previous",
-    min_depth: float = 0.1,
-    max_depth: float = 2.0,
-    pixel_stride: int = 1,
-    depth_filter: Optional[Any] = None,
-    progress: Union[bool, Callable[[FrameRecord], None]] = True,
-    evaluate: bool = True,
-    **overrides: Any,
-) -> ReconstructionResult:
+def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings] = None, *,
+                registration: str = "scanalign", model_frame: str = "auto", initial_guess: str = "previous",
+                min_depth: float = 0.1, max_depth: float = 2.0, pixel_stride: int = 1, depth_filter: Optional[Any] = None,
+                progress: Union[bool, Callable[[FrameRecord], None]] = True, evaluate: bool = True,
+                **overrides: Any) -> ReconstructionResult:
     """Reconstructs a sequence of RGB-D frames frame-to-model (Algorithm 1 of the eye-in-hand paper).
 
     Args:
@@ -319,7 +281,7 @@ def reconstruct(
     t_start = time.perf_counter()
     total = len(frames) if hasattr(frames, "__len__") else None  # type: ignore[arg-type]
     rec: Optional[Reconstructor] = None
-    bar = _Progress(total, progress is True, "reconstruct")
+    bar = _progress_bar(total, progress is True)
     callback = progress if callable(progress) else None
     ref_of: Dict[int, np.ndarray] = {}
     last_ref: Optional[np.ndarray] = None
@@ -355,11 +317,15 @@ def reconstruct(
                 ref_of[record.index] = np.asarray(frame.T_base_camera, dtype=np.float64)
                 if record.merged:
                     last_ref = ref_of[record.index]
-            bar.update(record)
+            if bar is not None:
+                bar.set_postfix_str(f"{record.status} fit={record.fitness:.2f} model={record.model_points}",
+                                    refresh=False)
+                bar.update(1)
             if callback is not None:
                 callback(record)
     finally:
-        bar.close()
+        if bar is not None:
+            bar.close()
     if rec is None:
         raise ValueError("no frames to reconstruct")
     merged = [r for r in rec.records if r.merged]
@@ -386,8 +352,10 @@ def trajectory_metrics(estimate: Trajectory, reference: Trajectory) -> Dict[str,
 
     ate = absolute_trajectory_error(estimate, reference)
     rpe = relative_pose_error(estimate, reference, delta=1)
+
     def stats(s: Any) -> Dict[str, float]:
         return {k: float(getattr(s, k)) for k in ("rmse", "mean", "median", "std", "min", "max")}
+
     return {"ate_m": stats(ate.translation), "rpe_translation_m": stats(rpe.translation),
             "rpe_rotation_deg": stats(rpe.rotation), "path_length_m": reference.path_length()}
 

@@ -6,11 +6,12 @@ Frames: a frame's points are in its camera frame (x right, y down, z forward, me
 The model lives in the *model frame*: the first camera's frame by default, or any frame
 given as ``T_model_camera0`` (e.g. the robot base frame via the first frame's
 ``T_base_camera``). Every estimated pose is ``T_model_camera`` (camera -> model).
+:class:`FrameToModelSettings` is the C++ struct; its fields carry their docs.
 
 Example::
 
     from scanalign.reconstruction import Reconstructor
-    rec = Reconstructor()                       # seed defaults: 5 mm normals, 1 mm grid
+    rec = Reconstructor()                       # defaults: 5 mm normals, 1 mm grid
     for frame in frames:                        # scanalign.camera.Frame objects
         record = rec.integrate(frame)
         if not record.merged:
@@ -21,7 +22,6 @@ Example::
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import asdict, dataclass
 from typing import Any, Dict, List, Optional, Union
@@ -29,25 +29,14 @@ from typing import Any, Dict, List, Optional, Union
 import numpy as np
 
 from . import _core
-from ._arrays import as_points, as_transform
+from ._arrays import as_points, as_transform, set_fields
 from .camera import Frame, Intrinsics
-from .registration import IcpSettings, _as_box, make_settings, pcl_icp
+from .registration import IcpSettings, make_settings
 from .trajectory import Trajectory
 
-__all__ = [
-    "VoxelGridResult",
-    "voxel_grid",
-    "depth_to_cloud",
-    "frame_to_cloud",
-    "DepthFilter",
-    "bilateral_filter_depth",
-    "FrameToModelSettings",
-    "make_reconstruction_settings",
-    "FrameRecord",
-    "Model",
-    "Reconstructor",
-    "REGISTRATION_METHODS",
-]
+__all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "frame_to_cloud", "DepthFilter", "bilateral_filter_depth",
+           "FrameToModelSettings", "make_reconstruction_settings", "FrameRecord", "Model", "Reconstructor",
+           "REGISTRATION_METHODS"]
 
 
 @dataclass(frozen=True)
@@ -67,14 +56,8 @@ class VoxelGridResult:
     counts: np.ndarray
 
 
-def voxel_grid(
-    points: np.ndarray,
-    leaf_size: float = 0.001,
-    *,
-    normals: Optional[np.ndarray] = None,
-    colors: Optional[np.ndarray] = None,
-    min_points_per_voxel: int = 1,
-) -> VoxelGridResult:
+def voxel_grid(points: np.ndarray, leaf_size: float = 0.001, *, normals: Optional[np.ndarray] = None,
+               colors: Optional[np.ndarray] = None, min_points_per_voxel: int = 1) -> VoxelGridResult:
     """Downsamples a cloud to one centroid per cubic voxel, like ``pcl::VoxelGrid``.
 
     Voxels are aligned to the cloud's minimum corner exactly as PCL does, and output in
@@ -90,55 +73,30 @@ def voxel_grid(
 
     Raises:
         ValueError: non-positive leaf, a leaf too small for the cloud's extent (more than
-        2**21 voxels along an axis), or attribute arrays with the wrong number of rows.
+        2**21 voxels along an axis), min_points_per_voxel < 1, or attribute arrays with
+        the wrong number of rows.
     """
     p = as_points(points, "points")
-    if not (np.isfinite(leaf_size) and leaf_size > 0):
-        raise ValueError("leaf_size must be a finite positive length in metres")
-    if int(min_points_per_voxel) < 1:
-        raise ValueError("min_points_per_voxel must be >= 1")
-    blocks = []
+    attributes = []
     for name, a in (("normals", normals), ("colors", colors)):
-        if a is None:
-            continue
-        arr = np.asarray(a)
-        if arr.shape != (p.shape[0], 3):
-            raise ValueError(f"{name}: expected shape ({p.shape[0]}, 3), got {arr.shape}")
-        blocks.append(arr.astype(np.float64))
-    attributes = np.hstack(blocks) if blocks else None
-    fn = _core.reconstruction.voxel_grid_f64 if p.dtype == np.float64 else _core.reconstruction.voxel_grid_f32
-    centroids, attrs, counts = fn(p, float(leaf_size), attributes, int(min_points_per_voxel))
-    col = 0
+        if a is not None and np.shape(a) != (p.shape[0], 3):
+            raise ValueError(f"{name}: expected shape ({p.shape[0]}, 3), got {np.shape(a)}")
+        attributes += [] if a is None else [np.asarray(a, dtype=np.float64)]
+    centroids, means, counts = _core.reconstruction.voxel_grid(
+        p, float(leaf_size), np.hstack(attributes) if attributes else None, int(min_points_per_voxel))
     out_normals = out_colors = None
-    if normals is not None:
-        n = attrs[:, col : col + 3]
-        col += 3
+    if normals is not None:  # the mean normal re-normalised (NaN where the normals cancel)
         with np.errstate(invalid="ignore", divide="ignore"):
-            n = n / np.linalg.norm(n, axis=1, keepdims=True)
-        out_normals = n.astype(p.dtype)
+            out_normals = (means[:, :3] / np.linalg.norm(means[:, :3], axis=1, keepdims=True)).astype(p.dtype)
     if colors is not None:
-        c = attrs[:, col : col + 3]
-        cdtype = np.asarray(colors).dtype
+        c, cdtype = means[:, -3:], np.asarray(colors).dtype
         out_colors = np.clip(np.rint(c), 0, 255).astype(cdtype) if np.issubdtype(cdtype, np.integer) else c.astype(cdtype)
-    return VoxelGridResult(centroids.astype(p.dtype), out_normals, out_colors, counts)
+    return VoxelGridResult(centroids, out_normals, out_colors, counts)
 
 
-# ---------------------------------------------------------------------------------------
-# Depth images -> clouds
-# ---------------------------------------------------------------------------------------
-
-
-def depth_to_cloud(
-    depth: np.ndarray,
-    intrinsics: Intrinsics,
-    *,
-    rgb: Optional[np.ndarray] = None,
-    depth_scale: float = 0.001,
-    min_depth: float = 0.1,
-    max_depth: float = 2.0,
-    stride: int = 1,
-    return_pixels: bool = False,
-):
+def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[np.ndarray] = None,
+                   depth_scale: float = 0.001, min_depth: float = 0.1, max_depth: float = 2.0, stride: int = 1,
+                   return_pixels: bool = False):
     """Back-projects a depth image into a cloud in the camera frame.
 
     ``p = (z (u - cx) / fx, z (v - cy) / fy, z)`` for every valid pixel ``(u, v)``
@@ -164,43 +122,11 @@ def depth_to_cloud(
     """
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.camera.Intrinsics")
-    d = np.asarray(depth)
-    if d.ndim != 2:
-        raise ValueError(f"depth: expected a 2-D image, got shape {d.shape}")
-    if d.shape != intrinsics.shape:
-        raise ValueError(f"depth image is {d.shape[1]}x{d.shape[0]} (WxH) but the intrinsics are "
-                         f"{intrinsics.width}x{intrinsics.height}")
-    if rgb is not None:
-        c = np.asarray(rgb)
-        if c.shape != intrinsics.shape + (3,):
-            raise ValueError(f"rgb: expected shape {intrinsics.shape + (3,)}, got {c.shape}")
-        if c.dtype != np.uint8:
-            raise TypeError(f"rgb: expected uint8, got {c.dtype}")
-        rgb = np.ascontiguousarray(c)
-    if not (math.isfinite(min_depth) and min_depth >= 0 and max_depth > min_depth):
-        raise ValueError("need 0 <= min_depth < max_depth (metres)")
-    if int(stride) != stride or stride < 1:
-        raise ValueError("stride must be a positive integer")
-    if not (math.isfinite(depth_scale) and depth_scale > 0):
-        raise ValueError("depth_scale must be a positive number of metres per unit")
     K = _core.reconstruction.PinholeIntrinsics(intrinsics.width, intrinsics.height, intrinsics.fx, intrinsics.fy,
                                                intrinsics.cx, intrinsics.cy)
-    s = _core.reconstruction.DepthToCloudSettings()
-    s.depth_scale, s.min_depth, s.max_depth, s.stride = float(depth_scale), float(min_depth), float(max_depth), int(stride)
-    if d.dtype == np.uint16:
-        fn = _core.reconstruction.depth_to_cloud_u16
-        d = np.ascontiguousarray(d)
-    elif np.issubdtype(d.dtype, np.floating):
-        fn = _core.reconstruction.depth_to_cloud_f32
-        d = np.ascontiguousarray(d, dtype=np.float32)
-    elif np.issubdtype(d.dtype, np.integer) and d.size and (d.min() < 0 or d.max() > 65535):
-        raise ValueError("integer depth must fit uint16")
-    elif np.issubdtype(d.dtype, np.integer):
-        fn = _core.reconstruction.depth_to_cloud_u16
-        d = np.ascontiguousarray(d, dtype=np.uint16)
-    else:
-        raise TypeError(f"depth: expected uint16 or float, got dtype {d.dtype}")
-    points, colors, pixels = fn(d, K, s, rgb)
+    s = set_fields(_core.reconstruction.DepthToCloudSettings(), dict(
+        depth_scale=float(depth_scale), min_depth=float(min_depth), max_depth=float(max_depth), stride=stride), "depth")
+    points, colors, pixels = _core.reconstruction.depth_to_cloud(np.asarray(depth), K, s, rgb)
     return (points, colors, pixels) if return_pixels else (points, colors)
 
 
@@ -242,19 +168,9 @@ def bilateral_filter_depth(depth: np.ndarray, depth_filter: DepthFilter = DepthF
     Returns:
         (H, W) float32 metres, NaN where the input was invalid.
     """
-    d = np.asarray(depth)
-    if d.ndim != 2:
-        raise ValueError(f"depth: expected a 2-D image, got shape {d.shape}")
-    if np.issubdtype(d.dtype, np.integer):
-        m = d.astype(np.float32) * np.float32(depth_scale)
-        m[d == 0] = np.nan
-    elif np.issubdtype(d.dtype, np.floating):
-        m = d.astype(np.float32)
-    else:
-        raise TypeError(f"depth: expected uint16 or float, got dtype {d.dtype}")
-    return _core.reconstruction.bilateral_filter_depth(np.ascontiguousarray(m), int(depth_filter.radius),
-                                                       float(depth_filter.sigma_space),
-                                                       float(depth_filter.sigma_depth), int(num_threads))
+    f = depth_filter
+    return _core.reconstruction.bilateral_filter_depth(np.asarray(depth), int(f.radius), float(f.sigma_space),
+                                                       float(f.sigma_depth), float(depth_scale), int(num_threads))
 
 
 def frame_to_cloud(frame: Frame, *, min_depth: float = 0.1, max_depth: float = 2.0, stride: int = 1):
@@ -264,96 +180,31 @@ def frame_to_cloud(frame: Frame, *, min_depth: float = 0.1, max_depth: float = 2
                           min_depth=min_depth, max_depth=max_depth, stride=stride)
 
 
-# ---------------------------------------------------------------------------------------
-# Frame-to-model reconstruction
-# ---------------------------------------------------------------------------------------
-
 FrameToModelSettings = _core.reconstruction.FrameToModelSettings
-FrameToModelSettings.__doc__ = """Settings of the frame-to-model pipeline (eye-in-hand paper §3).
-
-Fields:
-    icp: :class:`scanalign.registration.IcpSettings` of the registration (eye-in-hand paper §3.3
-        convergence defaults; ``max_correspondence_distance`` 0.02 m here, because
-        consecutive eye-in-hand frames move little; optional ``box`` rejector in the
-        frame's camera coordinates, eye-in-hand paper §3.4).
-    normal_radius: PCA normal radius, metres (eye-in-hand paper §3.5: 0.005).
-    model_voxel_size: voxel edge of the grid applied to the model after every merge,
-        metres (eye-in-hand paper §3.6: 0.001).
-    frame_voxel_size: voxel edge applied to each frame before normals and registration,
-        metres; 0 keeps full resolution (default 0.001).
-    crop_box: optional :class:`scanalign.registration.Box` in the frame's camera
-        coordinates; points outside are dropped before anything, so they are neither
-        registered nor merged (bounds the model to the workspace).
-    min_frame_points: frames with fewer points (after crop and downsampling) are skipped
-        (default 200).
-    min_fitness: registrations whose inlier fraction is below this are rejected (0.3).
-    require_convergence: reject registrations that hit the iteration cap (default True;
-        False for fixed iteration budgets as in eye-in-hand paper Figs. 6 and 9).
-    max_translation_change, max_rotation_change: largest accepted distance of the result
-        from the initial guess, metres (0.10) and radians (0.5); farther means failure.
-    motion_model: initial guess of a frame integrated without one: ``"previous"`` (seed
-        §3.2: the previous registration; the default) or ``"constant_velocity"`` (the
-        motion between the last two merged frames applied once more; fewer ICP
-        iterations on a smooth scan path).
-    num_threads: OpenMP threads for normals and ICP, 0 = all cores."""
-
-_RECON_FIELDS = (
-    "normal_radius",
-    "model_voxel_size",
-    "frame_voxel_size",
-    "crop_box",
-    "min_frame_points",
-    "min_fitness",
-    "require_convergence",
-    "max_translation_change",
-    "max_rotation_change",
-    "motion_model",
-    "num_threads",
-)
 
 #: Registration methods of the pipeline: scanalign's engine (its estimator set in
 #: ``settings.icp.estimator``) and stock PCL ICP variants for comparison (eye-in-hand paper §3.7).
 REGISTRATION_METHODS = ("scanalign", "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls")
 
 
-def make_reconstruction_settings(
-    settings: Optional[FrameToModelSettings] = None,
-    *,
-    icp: Union[IcpSettings, Dict[str, Any], None] = None,
-    **overrides: Any,
-) -> FrameToModelSettings:
-    """Copies ``settings`` (or the defaults) and applies overrides by field name.
-
-    ``icp`` is an :class:`IcpSettings` or a dict of ICP overrides applied to the current
-    ICP settings; ``crop_box`` accepts a :class:`Box` or a 6-sequence (metres).
+def make_reconstruction_settings(settings: Optional[FrameToModelSettings] = None, *,
+                                 icp: Union[IcpSettings, Dict[str, Any], None] = None,
+                                 **overrides: Any) -> FrameToModelSettings:
+    """A copy of ``settings`` (or the defaults) with :class:`FrameToModelSettings` fields
+    overridden by keyword (``crop_box`` also takes 6 numbers, metres). ``icp`` is an
+    :class:`IcpSettings` or a dict of overrides of the current ICP settings.
 
     Raises:
-        TypeError: unknown field. ValueError: invalid values.
+        TypeError: an unknown field or a value of the wrong type.
+        ValueError: an invalid value (the message names the field).
     """
-    s = FrameToModelSettings()
-    if settings is not None:
-        s.icp = make_settings(settings.icp)
-        for name in _RECON_FIELDS:
-            setattr(s, name, getattr(settings, name))
-    if isinstance(icp, IcpSettings):
-        s.icp = make_settings(icp)
-    elif isinstance(icp, dict):
-        s.icp = make_settings(s.icp, **icp)
-    elif icp is not None:
-        raise TypeError("icp must be an IcpSettings or a dict of ICP settings")
-    for name, value in overrides.items():
-        if name not in _RECON_FIELDS:
-            raise TypeError(f"unknown reconstruction setting {name!r}; valid: {', '.join(('icp',) + _RECON_FIELDS)}")
-        if name == "crop_box":
-            value = _as_box(value)
-        try:
-            setattr(s, name, value)
-        except TypeError as e:
-            raise TypeError(f"reconstruction setting {name}: {e}") from None
-    try:
-        s.validate()
-    except Exception as e:  # the C++ message names the field
-        raise ValueError(str(e)) from None
+    s = set_fields(FrameToModelSettings() if settings is None else FrameToModelSettings(settings), overrides,
+                   "reconstruction")
+    if icp is not None:
+        if not isinstance(icp, (IcpSettings, dict)):
+            raise TypeError("icp must be an IcpSettings or a dict of ICP settings")
+        s.icp = make_settings(icp) if isinstance(icp, IcpSettings) else make_settings(s.icp, **icp)
+    s.validate()
     return s
 
 
@@ -448,29 +299,20 @@ class Reconstructor:
             the eye-in-hand paper.
     """
 
-    def __init__(
-        self,
-        settings: Optional[FrameToModelSettings] = None,
-        *,
-        T_model_camera0: Optional[np.ndarray] = None,
-        min_depth: float = 0.1,
-        max_depth: float = 2.0,
-        pixel_stride: int = 1,
-        registration: str = "scanalign",
-        depth_filter: Optional[DepthFilter] = None,
-        **overrides: Any,
-    ) -> None:
+    def __init__(self, settings: Optional[FrameToModelSettings] = None, *, T_model_camera0: Optional[np.ndarray] = None,
+                 min_depth: float = 0.1, max_depth: float = 2.0, pixel_stride: int = 1, registration: str = "scanalign",
+                 depth_filter: Optional[DepthFilter] = None, **overrides: Any) -> None:
         if depth_filter is not None and not isinstance(depth_filter, DepthFilter):
             raise TypeError("depth_filter must be a DepthFilter or None")
-        self.depth_filter = depth_filter
-        self.settings = make_reconstruction_settings(settings, **overrides)
         if registration not in REGISTRATION_METHODS:
             raise ValueError(f"registration must be one of {REGISTRATION_METHODS}, got {registration!r}")
-        if not (0 <= min_depth < max_depth):
+        self.depth_filter, self.registration = depth_filter, registration
+        self.settings = make_reconstruction_settings(settings, **overrides)
+        # Checked here (C++ sees them only with the first depth image).
+        if not 0 <= min_depth < max_depth:
             raise ValueError("need 0 <= min_depth < max_depth (metres)")
         if int(pixel_stride) != pixel_stride or pixel_stride < 1:
             raise ValueError("pixel_stride must be a positive integer")
-        self.registration = registration
         self.min_depth, self.max_depth, self.pixel_stride = float(min_depth), float(max_depth), int(pixel_stride)
         self._core = _core.reconstruction.FrameToModel(self.settings)
         self.records: List[FrameRecord] = []
@@ -478,23 +320,19 @@ class Reconstructor:
 
     def reset(self, T_model_camera0: Optional[np.ndarray] = None) -> None:
         """Empties the model and the records; the next accepted frame is placed at
-        ``T_model_camera0`` (identity by default)."""
+        ``T_model_camera0`` (4x4 rigid, identity by default)."""
         T0 = np.eye(4) if T_model_camera0 is None else as_transform(T_model_camera0, "T_model_camera0")
-        try:
-            self._core.reset(T0)
-        except ValueError as e:
-            raise ValueError(str(e)) from None
+        self._core.reset(T0)
         self.T_model_camera0 = T0
         self.records = []
 
-    # -- per frame -----------------------------------------------------------------------
     def integrate(self, frame: Frame, guess: Optional[np.ndarray] = None) -> FrameRecord:
         """Back-projects and integrates one RGB-D frame.
 
         Args:
             frame: the capture; its depth image must match its intrinsics.
             guess: optional initial pose ``T_model_camera`` (e.g. from the robot's
-                kinematics); default the last accepted pose (seed: previous registration).
+                kinematics); default ``settings.motion_model`` (the last accepted pose).
 
         Raises:
             ValueError / TypeError: a malformed frame (wrong image size for the
@@ -505,92 +343,37 @@ class Reconstructor:
             raise TypeError("integrate() takes a scanalign.camera.Frame; use integrate_points() for clouds")
         depth = frame.depth
         if self.depth_filter is not None:
-            d = np.asarray(depth)
-            if d.shape != frame.intrinsics.shape:
-                raise ValueError(f"depth image is {d.shape[1] if d.ndim > 1 else '?'}x{d.shape[0]} (WxH) but the "
-                                 f"intrinsics are {frame.intrinsics.width}x{frame.intrinsics.height}")
-            depth = bilateral_filter_depth(d, self.depth_filter, depth_scale=frame.depth_scale,
+            depth = bilateral_filter_depth(depth, self.depth_filter, depth_scale=frame.depth_scale,
                                            num_threads=self.settings.num_threads)
         points, colors = depth_to_cloud(depth, frame.intrinsics, rgb=frame.rgb, depth_scale=frame.depth_scale,
                                         min_depth=self.min_depth, max_depth=self.max_depth, stride=self.pixel_stride)
         return self.integrate_points(points, colors, guess=guess, timestamp=frame.timestamp)
 
-    def integrate_points(
-        self,
-        points: np.ndarray,
-        colors: Optional[np.ndarray] = None,
-        *,
-        guess: Optional[np.ndarray] = None,
-        timestamp: Optional[float] = None,
-    ) -> FrameRecord:
-        """Integrates a cloud given in the camera frame ((N, 3) metres; (N, 3) uint8
-        colours optional). See :meth:`integrate`."""
+    def integrate_points(self, points: np.ndarray, colors: Optional[np.ndarray] = None, *,
+                         guess: Optional[np.ndarray] = None, timestamp: Optional[float] = None) -> FrameRecord:
+        """Integrates a cloud given in the camera frame ((N, 3) metres; optional (N, 3)
+        colours, uint8 or float in [0, 1]). See :meth:`integrate`."""
         p = as_points(points, "points", np.dtype(np.float32))
-        c = None
-        if colors is not None:
-            c = np.asarray(colors)
-            if c.shape != (p.shape[0], 3):
-                raise ValueError(f"colors: expected shape ({p.shape[0]}, 3), got {c.shape}")
-            if c.dtype != np.uint8:
-                if np.issubdtype(c.dtype, np.floating) and c.size and c.max() <= 1.0:
-                    c = np.rint(c * 255.0)
-                c = np.clip(c, 0, 255).astype(np.uint8)
-            c = np.ascontiguousarray(c)
-        g = None if guess is None else as_transform(guess, "guess")
-        index = len(self.records)
-        ts = float(index) if timestamp is None else float(timestamp)
-        t0 = time.perf_counter()
-        if self.registration == "scanalign" or not self._core.model_size:
-            rep = self._core.integrate(p, c, g)
-            rec = self._record_from_report(rep, index, ts, p.shape[0])
-        else:
-            rec = self._integrate_external(p, c, g, index, ts)
-        rec.total_seconds = time.perf_counter() - t0
+        c = None if colors is None else np.asarray(colors)
+        if c is not None and c.dtype != np.uint8 and c.shape == (p.shape[0], 3):
+            scale = 255.0 if np.issubdtype(c.dtype, np.floating) and c.size and c.max() <= 1.0 else 1.0
+            c = np.clip(np.rint(c * scale), 0, 255).astype(np.uint8)
+        index, t0 = len(self.records), time.perf_counter()
+        rep = self._core.integrate(p, c, None if guess is None else as_transform(guess, "guess"), self.registration)
+        first = rep.status == "initialized"
+        icp = rep.icp
+        rec = FrameRecord(
+            index=index, timestamp=float(index) if timestamp is None else float(timestamp), status=rep.status,
+            merged=rep.merged, T_model_camera=rep.T_model_camera, converged=first or bool(icp.converged),
+            icp_status="" if first else icp.status, iterations=icp.iterations,
+            fitness=1.0 if first else icp.fitness, inlier_rmse=0.0 if first else icp.inlier_rmse,
+            correspondences=icp.correspondence_count, input_points=p.shape[0], frame_points=rep.frame_points,
+            model_points=rep.model_points, prepare_seconds=rep.prepare_seconds,
+            register_seconds=rep.register_seconds, merge_seconds=rep.merge_seconds,
+            total_seconds=time.perf_counter() - t0)
         self.records.append(rec)
         return rec
 
-    def _record_from_report(self, rep: Any, index: int, ts: float, n_input: int) -> FrameRecord:
-        icp = rep.icp
-        first = rep.status == "initialized"
-        return FrameRecord(
-            index=index, timestamp=ts, status=rep.status, merged=rep.merged, T_model_camera=rep.T_model_camera,
-            converged=bool(icp.converged) if not first else True, icp_status=icp.status if not first else "",
-            iterations=icp.iterations, fitness=icp.fitness if not first else 1.0,
-            inlier_rmse=icp.inlier_rmse if not first else 0.0, correspondences=icp.correspondence_count,
-            input_points=n_input, frame_points=rep.frame_points, model_points=rep.model_points,
-            prepare_seconds=rep.prepare_seconds, register_seconds=rep.register_seconds,
-            merge_seconds=rep.merge_seconds, total_seconds=rep.total_seconds)
-
-    def _integrate_external(self, p: np.ndarray, c: Optional[np.ndarray], g: Optional[np.ndarray], index: int,
-                            ts: float) -> FrameRecord:
-        guess = self._core.predicted_pose if g is None else g
-        prepared = self._core.prepare(p, c)
-        rec = FrameRecord(index=index, timestamp=ts, status="skipped_empty", merged=False, T_model_camera=guess,
-                          input_points=p.shape[0], frame_points=len(prepared), model_points=self._core.model_size,
-                          prepare_seconds=prepared.seconds)
-        if len(prepared) == 0:
-            return rec
-        if len(prepared) < self.settings.min_frame_points:
-            rec.status = "skipped_too_few_points"
-            return rec
-        variant = self.registration[len("pcl_"):]
-        t0 = time.perf_counter()
-        normals = self._core.model_normals() if "plane" in variant else None
-        result = pcl_icp(prepared.points, self._core.model_points(), normals, guess, variant=variant,
-                         settings=self.settings.icp)
-        rec.register_seconds = time.perf_counter() - t0
-        rec.converged, rec.icp_status, rec.iterations = bool(result.converged), result.status, result.iterations
-        rec.fitness, rec.inlier_rmse, rec.correspondences = result.fitness, result.inlier_rmse, result.correspondence_count
-        rec.status = self._core.check(result, guess)
-        if rec.status == "registered":
-            t1 = time.perf_counter()
-            rec.T_model_camera = result.T_target_source
-            rec.model_points = self._core.merge(prepared, result.T_target_source)
-            rec.merge_seconds = time.perf_counter() - t1
-            rec.merged = True
-        return rec
-
-    # -- results -------------------------------------------------------------------------
     @property
     def model(self) -> Model:
         """The current model (a copy)."""

@@ -239,7 +239,7 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
   if (source.empty()) throw std::invalid_argument("ICP source: empty point cloud");
   const bool plane = settings_.estimator == IcpEstimator::PointToPlane;
   if (plane && normals_.empty())
-    throw std::invalid_argument("ICP: point-to-plane needs target normals (setTarget(points, normals))");
+    throw std::invalid_argument("ICP: point-to-plane needs target_normals (setTarget(points, normals)), or use the point-to-point estimator");
   requireRigid(T_init, "ICP initial transform");
 
   const auto t0 = std::chrono::steady_clock::now();
