@@ -28,7 +28,7 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 from helpers import apply, pose_error, rigid  # noqa: E402
 
-from scanalign import datasets, registration  # noqa: E402
+from scanalign import datasets, parts, registration  # noqa: E402
 
 # Motions of the camera between the two clouds (T_target_source). "frame-to-frame" is an
 # eye-in-hand step at the eye-in-hand paper's capture rate (10 Hz, arm at <= 0.1 m/s): about 1 cm;
@@ -45,7 +45,7 @@ def surface(name: str, n: int, seed: int):
     mesh = datasets.load_cgal_mesh(name)
     v = mesh.vertices - mesh.vertices.mean(axis=0)
     v = v * (0.15 / np.ptp(v, axis=0).max()) + [0.0, 0.0, 0.5]
-    return datasets.sample_mesh((v, mesh.faces), n, seed=seed)
+    return parts.sample_mesh((v, mesh.faces), n, seed=seed)
 
 
 def methods(src, tgt, nrm):

@@ -24,7 +24,7 @@ from typing import Callable, Tuple
 import numpy as np
 
 import scanalign
-from scanalign import datasets
+from scanalign import datasets, parts
 from scanalign.evaluation import MeshDistanceIndex
 
 _ROOT = Path(__file__).resolve().parents[1]
@@ -55,7 +55,7 @@ def query_points(vertices: np.ndarray, faces: np.ndarray, n: int, spread: float,
     rng = np.random.default_rng(0)
     diag = float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
     n_far = int(round(far * n))
-    surface, _ = datasets.sample_mesh((vertices, faces), n - n_far, seed=1)
+    surface, _ = parts.sample_mesh((vertices, faces), n - n_far, seed=1)
     direction = rng.normal(size=surface.shape)
     direction /= np.linalg.norm(direction, axis=1, keepdims=True)
     near = surface + direction * rng.uniform(0, spread * diag, (len(surface), 1))

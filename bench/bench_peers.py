@@ -775,12 +775,12 @@ def section_loop(args, threads: int, peers) -> Dict[str, Any]:
 
 
 def scaling_surface(n: int, seed: int):
-    from scanalign import datasets
+    from scanalign import datasets, parts
 
     mesh = datasets.load_cgal_mesh("bunny00")
     v = mesh.vertices - mesh.vertices.mean(axis=0)
     v = v * (0.15 / np.ptp(v, axis=0).max()) + [0.0, 0.0, 0.5]
-    return datasets.sample_mesh((v, mesh.faces), n, seed=seed)
+    return parts.sample_mesh((v, mesh.faces), n, seed=seed)
 
 
 SCALING_MOTION = rigid((0.3, 1.0, -0.4), math.radians(1.0), (0.004, -0.003, 0.003))

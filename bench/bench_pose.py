@@ -42,7 +42,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from scanalign import cad, cbd, datasets, features, pose, registration, synthetic
+from scanalign import cad, cbd, datasets, features, pose, registration, rendering, synthetic
 from scanalign.camera import Intrinsics
 
 
@@ -136,9 +136,9 @@ def zivid_scans(parts, args, rng):
         dirs, _ = cad.tessellated_sphere(1)
         for k in args.zivid_poses:
             d = dirs[k]
-            T_world_cam = synthetic.look_at(0.45 * d, np.zeros(3), up=(0, 0, 1) if abs(d[2]) < 0.9 else (1, 0, 0))
+            T_world_cam = rendering.look_at(0.45 * d, np.zeros(3), up=(0, 0, 1) if abs(d[2]) < 0.9 else (1, 0, 0))
             T_cam_world = np.linalg.inv(T_world_cam)
-            rr = synthetic.render_depth(v, f, K, T_cam_world)
+            rr = rendering.render_depth(v, f, K, T_cam_world)
             depth = np.asarray(rr.depth)
             vv, uu = np.nonzero(np.isfinite(depth) & (depth > 0))
             z = depth[vv, uu]

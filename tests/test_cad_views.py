@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanalign import cad, evaluation, synthetic
+from scanalign import cad, evaluation, parts
 
 
 @pytest.mark.parametrize("level,nv,nf", [(0, 12, 20), (1, 42, 80), (2, 162, 320)])
@@ -21,7 +21,7 @@ def test_tessellated_sphere_counts_and_closure(level, nv, nf):  # claim 30
 
 
 def test_views_lie_on_the_surface_face_their_camera_and_cover_the_part():
-    mesh = synthetic.builtin_mesh()
+    mesh = parts.builtin_mesh()
     views = cad.render_views(mesh, resolution=120)
     assert len(views) == 42
     index = evaluation.MeshDistanceIndex(mesh.vertices, mesh.faces)
@@ -37,7 +37,7 @@ def test_views_lie_on_the_surface_face_their_camera_and_cover_the_part():
         allpts.append(v.points)
     # every part of the surface is seen by some view: surface samples near a view point
     from scipy.spatial import cKDTree
-    from scanalign.datasets import sample_mesh
+    from scanalign.parts import sample_mesh
 
     samples, _ = sample_mesh(mesh, 3000, seed=1)
     d, _ = cKDTree(np.vstack(allpts)).query(samples)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from scanalign import cad, cbd, datasets, features, fitting, pose, synthetic
+from scanalign import cad, cbd, datasets, features, fitting, parts, pose, synthetic
 
 
 def _pose(seed: int, t_scale: float = 0.05) -> np.ndarray:
@@ -231,7 +231,7 @@ def test_pose_bad_input_gives_errors_or_not_found(fandisk_views):
 
 def test_flags_refuse_a_closed_surface(fandisk_views):
     mesh, _ = fandisk_views
-    p, n = datasets.sample_mesh(mesh, 20000, seed=0)
+    p, n = parts.sample_mesh(mesh, 20000, seed=0)
     flag = pose.normal_line_flag(p, n)
     assert flag.mean_normal_length < 0.05  # claim 33
     r = pose.align_flags(p, n, p, n)

@@ -9,13 +9,17 @@ Submodules are imported on first use so ``import scanalign`` stays fast:
 - :mod:`scanalign.segmentation` -- RANSAC planes and spheres (CGA models), table segmentation.
 - :mod:`scanalign.fitting` -- CGA sphere / plane fit (weighted), Pratt circle fit.
 - :mod:`scanalign.io` -- PCD / PLY / OFF / STL / OBJ readers and a PLY writer.
-- :mod:`scanalign.datasets` -- real test data from Debian packages, built-in objects.
+- :mod:`scanalign.datasets` -- real test data downloaded from Debian packages and PyPI.
+- :mod:`scanalign.parts` -- the built-in part (mesh and sampled cloud), area-weighted mesh sampling.
+- :mod:`scanalign.rendering` -- exact z-buffer depth rendering of meshes, ``look_at`` camera poses.
 - :mod:`scanalign.camera` -- pinhole intrinsics and RGB-D frames.
-- :mod:`scanalign.trajectory` -- timestamped camera poses, the TUM trajectory format.
+- :mod:`scanalign.trajectory` -- timestamped camera poses, the TUM trajectory format, the one
+  timestamp-association rule (``associate_timestamps``).
 - :mod:`scanalign.tum` -- RGB-D sequences in the TUM RGB-D benchmark folder layout.
 - :mod:`scanalign.synthetic` -- the synthetic eye-in-hand RGB-D scanner (ground truth known).
 - :mod:`scanalign.pipeline` -- the reconstruction job: frames in, model, trajectory and report out.
-- :mod:`scanalign.evaluation` -- ATE / RPE (Sturm et al. 2012), exact cloud-to-mesh distance.
+- :mod:`scanalign.evaluation` -- ATE / RPE (Sturm et al. 2012).
+- :mod:`scanalign.mesh_metrics` -- exact cloud-to-mesh distance (C++ BVH) and its statistics.
 - :mod:`scanalign.cga` -- conformal geometric algebra G(4,1): points, spheres, planes, lines, motors.
 - :mod:`scanalign.cad` -- CAD model to clouds: tessellated-sphere viewpoint sampling.
 - :mod:`scanalign.cbd` -- the curvature-based descriptor (keypoints, weighted CGA spheres, matching).
@@ -37,8 +41,9 @@ from typing import Any
 
 __version__ = "0.1.0"
 
-_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "camera", "trajectory", "tum",
-               "synthetic", "cga", "kinematics", "cad", "cbd", "pose", "fitting", "segmentation", "pipeline", "evaluation", "plots", "cli")
+_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "parts", "rendering", "camera",
+               "trajectory", "tum", "synthetic", "cga", "kinematics", "cad", "cbd", "pose", "fitting", "segmentation",
+               "pipeline", "evaluation", "mesh_metrics", "plots", "se3", "cli")
 
 __all__ = ["__version__", *_SUBMODULES]
 

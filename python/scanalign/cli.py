@@ -25,14 +25,14 @@ from . import se3
 
 def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
     """Runs the two-cloud registration demo; returns the report written to ``out/report.json``."""
-    from . import datasets, io
+    from . import io, parts
     from .features import estimate_normals
     from .registration import icp, pcl_icp
 
     rng = np.random.default_rng(seed)
     out.mkdir(parents=True, exist_ok=True)
     # Model: the built-in part, in the model frame, 40 cm in front of the first camera.
-    part, _ = datasets.builtin_object(n_points=40000, seed=seed)
+    part, _ = parts.builtin_object(n_points=40000, seed=seed)
     model = part + np.array([0.0, 0.0, 0.40])
     model_normals = estimate_normals(model, radius=0.005, viewpoint=(0.0, 0.0, 0.0))
     # A new frame: the camera moved by T_model_camera; the frame sees part of the object
