@@ -1,9 +1,13 @@
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
+#include <cmath>
+#include <limits>
 #include <optional>
 #include <sstream>
 #include <string>
+#include <type_traits>
+#include <variant>
 #include <vector>
 
 #include "arrays.hpp"
@@ -58,46 +62,6 @@ PclIcpVariant variantFromString(const std::string& s) {
                         "'scanalign_point_to_plane_lls', got '" + s + "'");
 }
 
-template <typename Scalar>
-void defineIcp(py::module_& m, const char* name) {
-  py::class_<Icp<Scalar>>(m, name)
-      .def(py::init<IcpSettings>(), py::arg("settings"))
-      .def(
-          "set_target",
-          [](Icp<Scalar>& self, const py::array& points, const py::object& normals) {
-            const auto p = cloudView<Scalar>(points, "target");
-            const auto n = optionalCloudView<Scalar>(normals, "target_normals");
-            // Fail here rather than at the first align().
-            if (normals.is_none() && self.settings().estimator == IcpEstimator::PointToPlane)
-              throw py::value_error(kNeedsNormals);
-            py::gil_scoped_release release;
-            self.setTarget(p, n);
-          },
-          py::arg("points"), py::arg("normals"),
-          "Builds the k-d tree over the target (metres); normals are needed for point-to-plane.")
-      .def(
-          "align",
-          [](Icp<Scalar>& self, const py::array& source, const Eigen::Matrix4d& init) {
-            const auto s = cloudView<Scalar>(source, "source");
-            py::gil_scoped_release release;
-            return self.align(s, init);
-          },
-          py::arg("source"), py::arg("init"), "Aligns source (source frame, metres) from init = T_target_source.")
-      .def_property(
-          "settings", [](const Icp<Scalar>& self) { return self.settings(); },
-          [](Icp<Scalar>& self, const IcpSettings& s) {
-            validate(s);
-            if (!self.hasNormals() && s.estimator == IcpEstimator::PointToPlane) throw py::value_error(kNeedsNormals);
-            self.settings() = s;
-          },
-          "a copy of the IcpSettings; assign a new one to change them")
-      .def_property_readonly("target_size", &Icp<Scalar>::targetSize, "points in the tree (finite, valid normal)")
-      .def_property_readonly("has_normals", &Icp<Scalar>::hasNormals)
-      .def_property_readonly("tree_height", &Icp<Scalar>::treeHeight)
-      .def_property_readonly("tree_build_seconds", &Icp<Scalar>::treeBuildSeconds,
-                             "time to build the target's tree and normal table, s");
-}
-
 /// Nearest neighbour of every query row (in parallel): (input index or -1, squared
 /// distance in m^2, exact) arrays. `search(q, max_d2)` returns a NearestNeighbor whose node
 /// `index_of` maps back to the input cloud.
@@ -127,40 +91,167 @@ py::tuple nearestAll(const py::array& queries, double max_distance, Search&& sea
   return py::make_tuple(index, d2, exact);
 }
 
+template <typename T>
+struct ScalarOf;
+template <typename S>
+struct ScalarOf<Icp<S>> {
+  using type = S;
+};
+template <typename S>
+struct ScalarOf<LeftBalancedKdTree<S>> {
+  using type = S;
+};
+
+/// A float array (any layout) as Scalar: a view when it already is, else a C-contiguous copy.
 template <typename Scalar>
-void defineKdTree(py::module_& m, const char* name) {
-  using Tree = LeftBalancedKdTree<Scalar>;
-  py::class_<Tree>(m, name)
-      .def(py::init([](const py::array& points) {
-             const auto view = cloudView<Scalar>(points, "points");
-             py::gil_scoped_release release;
-             return Tree(view);
-           }),
-           py::arg("points"))
-      .def_property_readonly("size", &Tree::size)
-      .def_property_readonly("height", &Tree::height)
-      .def(
-          "nearest",
-          [](const Tree& tree, const py::array& queries, double max_distance, int stack_depth) {
-            if (stack_depth < 1 || stack_depth > Tree::kMaxStack)
-              throw py::value_error("stack_depth must be in [1, " + std::to_string(Tree::kMaxStack) + "]");
-            return nearestAll<Scalar>(
-                queries, max_distance,
-                [&](const Scalar* q, Scalar max_d2) { return tree.nearest(q, max_d2, stack_depth); },
-                [&](std::uint32_t node) { return tree.node(node).index(); });
-          },
-          py::arg("queries"), py::arg("max_distance"), py::arg("stack_depth"))
-      .def(
-          "radius",
-          [](const Tree& tree, const py::array& query, double radius) {
-            const auto q = cloudView<Scalar>(query, "query");
-            if (q.size != 1) throw py::value_error("radius: query must be a (1, 3) array");
-            std::vector<std::int64_t> out;
-            tree.forEachInRadius(q.ptr(0), static_cast<Scalar>(radius * radius),
-                                 [&](std::uint32_t node, Scalar) { out.push_back(tree.node(node).index()); });
-            return out;
-          },
-          py::arg("query"), py::arg("radius"));
+py::array asScalar(const py::array& a, const char* what) {
+  if (a.dtype().kind() != 'f')
+    throw py::type_error(std::string(what) + ": expected a float32 or float64 array, got dtype " +
+                         std::string(py::str(a.dtype())));
+  const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
+  const bool viewable = a.dtype().is(py::dtype::of<Scalar>()) && a.ndim() == 2 && a.strides(1) == item &&
+                        (a.shape(0) <= 1 || (a.strides(0) >= 3 * item && a.strides(0) % item == 0));
+  return viewable ? a : py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
+}
+
+bool isDouble(const py::array& a) { return a.dtype().is(py::dtype::of<double>()); }
+
+/// The ICP engine in the target's precision: float32 when target and normals are float32
+/// (half the memory, faster), else float64; sources are cast to it.
+class AnyIcp {
+ public:
+  AnyIcp(const py::array& target, const py::object& normals, const IcpSettings& settings) {
+    validate(settings);
+    if (isDouble(target) || (!normals.is_none() && isDouble(py::cast<py::array>(normals))))
+      engine_.emplace<Icp<double>>(settings);
+    else
+      engine_.emplace<Icp<float>>(settings);
+    std::visit(
+        [&](auto& icp) {
+          using Scalar = typename ScalarOf<std::decay_t<decltype(icp)>>::type;
+          const py::array t = asScalar<Scalar>(target, "target");
+          const py::object n = normals.is_none() ? normals : asScalar<Scalar>(py::cast<py::array>(normals), "target_normals");
+          const auto tv = cloudView<Scalar>(t, "target");
+          const auto nv = optionalCloudView<Scalar>(n, "target_normals");
+          // Fail here rather than at the first align().
+          if (n.is_none() && settings.estimator == IcpEstimator::PointToPlane) throw py::value_error(kNeedsNormals);
+          py::gil_scoped_release release;
+          icp.setTarget(tv, nv);
+        },
+        engine_);
+  }
+
+  IcpResult align(const py::array& source, const Eigen::Matrix4d& init) {
+    return std::visit(
+        [&](auto& icp) {
+          using Scalar = typename ScalarOf<std::decay_t<decltype(icp)>>::type;
+          const py::array s = asScalar<Scalar>(source, "source");
+          const auto view = cloudView<Scalar>(s, "source");
+          py::gil_scoped_release release;
+          return icp.align(view, init);
+        },
+        engine_);
+  }
+
+  IcpSettings settings() const { return std::visit([](const auto& icp) { return icp.settings(); }, engine_); }
+  void setSettings(const IcpSettings& s) {
+    validate(s);
+    std::visit(
+        [&](auto& icp) {
+          if (!icp.hasNormals() && s.estimator == IcpEstimator::PointToPlane) throw py::value_error(kNeedsNormals);
+          icp.settings() = s;
+        },
+        engine_);
+  }
+  std::size_t targetSize() const { return std::visit([](const auto& icp) { return icp.targetSize(); }, engine_); }
+  int treeHeight() const { return std::visit([](const auto& icp) { return icp.treeHeight(); }, engine_); }
+  double treeBuildSeconds() const {
+    return std::visit([](const auto& icp) { return icp.treeBuildSeconds(); }, engine_);
+  }
+  bool hasNormals() const { return std::visit([](const auto& icp) { return icp.hasNormals(); }, engine_); }
+  std::string dtype() const { return std::holds_alternative<Icp<double>>(engine_) ? "float64" : "float32"; }
+
+ private:
+  std::variant<Icp<float>, Icp<double>> engine_;
+};
+
+void defineIcp(py::module_& m) {
+  py::class_<AnyIcp>(m, "Icp",
+                     "Reusable ICP against one target (the model): the k-d tree is built once. The tree keeps the "
+                     "target's precision (float32 when target and normals are float32), sources are cast to it.")
+      .def(py::init<const py::array&, const py::object&, const IcpSettings&>(), py::arg("target"),
+           py::arg("target_normals"), py::arg("settings"),
+           "target: (N, 3) float points, m, target frame; target_normals: (N, 3) unit normals (needed for "
+           "point-to-plane; non-finite or zero ones leave their point out) or None")
+      .def("align", &AnyIcp::align, py::arg("source"), py::arg("init"),
+           "Aligns source ((N, 3) float, m, source frame; non-finite rows ignored) from init = T_target_source "
+           "(4x4 rigid); returns an IcpResult")
+      .def_property("settings", &AnyIcp::settings, &AnyIcp::setSettings,
+                    "a copy of the IcpSettings; assign a new one to change them")
+      .def_property_readonly("target_size", &AnyIcp::targetSize, "points in the tree (finite, with a valid normal)")
+      .def_property_readonly("has_normals", &AnyIcp::hasNormals)
+      .def_property_readonly("tree_height", &AnyIcp::treeHeight, "levels of the target's tree below its root")
+      .def_property_readonly("tree_build_seconds", &AnyIcp::treeBuildSeconds,
+                             "time spent building the target's k-d tree and normal table, s")
+      .def_property_readonly("dtype", &AnyIcp::dtype, "'float32' or 'float64': the engine's precision");
+}
+
+/// The left-balanced k-d tree of the eye-in-hand paper, §3.1, in the points' precision.
+class AnyKdTree {
+ public:
+  explicit AnyKdTree(const py::array& points) {
+    if (isDouble(points))
+      tree_.emplace<LeftBalancedKdTree<double>>();
+    else
+      tree_.emplace<LeftBalancedKdTree<float>>();
+    std::visit(
+        [&](auto& tree) {
+          using Scalar = typename ScalarOf<std::decay_t<decltype(tree)>>::type;
+          const py::array p = asScalar<Scalar>(points, "points");
+          const auto view = cloudView<Scalar>(p, "points");
+          py::gil_scoped_release release;
+          tree.build(view);
+        },
+        tree_);
+  }
+  std::size_t size() const { return std::visit([](const auto& t) { return t.size(); }, tree_); }
+  int height() const { return std::visit([](const auto& t) { return t.height(); }, tree_); }
+
+  py::tuple nearest(const py::array& queries, double max_distance, int stack_depth) const {
+    if (stack_depth < 1 || stack_depth > LeftBalancedKdTree<float>::kMaxStack)
+      throw py::value_error("stack_depth must be in [1, " + std::to_string(LeftBalancedKdTree<float>::kMaxStack) + "]");
+    return std::visit(
+        [&](const auto& tree) {
+          using Scalar = typename ScalarOf<std::decay_t<decltype(tree)>>::type;
+          const py::tuple r = nearestAll<Scalar>(
+              asScalar<Scalar>(queries, "queries"), max_distance,
+              [&](const Scalar* q, Scalar max_d2) { return tree.nearest(q, max_d2, stack_depth); },
+              [&](std::uint32_t node) { return tree.node(node).index(); });
+          const auto d2 = r[1].cast<py::array_t<Scalar>>();
+          py::array_t<double> d(d2.size());
+          for (py::ssize_t i = 0; i < d2.size(); ++i) d.mutable_data()[i] = std::sqrt(double(d2.data()[i]));
+          return py::make_tuple(r[0], d, r[2]);
+        },
+        tree_);
+  }
+
+ private:
+  std::variant<LeftBalancedKdTree<float>, LeftBalancedKdTree<double>> tree_;
+};
+
+void defineKdTree(py::module_& m) {
+  py::class_<AnyKdTree>(m, "KdTree",
+                        "The left-balanced k-d tree of the eye-in-hand paper, §3.1 (one point per node, searched with "
+                        "a fixed stack), in the points' precision")
+      .def(py::init<const py::array&>(), py::arg("points"), "points: (N, 3) float, m; non-finite rows are skipped")
+      .def_property_readonly("size", &AnyKdTree::size, "points in the tree (the finite input rows)")
+      .def_property_readonly("height", &AnyKdTree::height,
+                             "levels below the root; the fixed-stack search is exact when stack_depth >= height")
+      .def("nearest", &AnyKdTree::nearest, py::arg("queries"),
+           py::arg("max_distance") = std::numeric_limits<double>::infinity(), py::arg("stack_depth") = 20,
+           "Nearest neighbour of each (N, 3) query within max_distance (m, exclusive; positive), stack_depth in "
+           "[1, 64]. Returns (indices int64 into points, -1 for none in range; Euclidean distances, m, float64, inf "
+           "where none; exact: per-query flags telling whether the fixed stack sufficed)");
 }
 
 template <typename Scalar>
@@ -316,10 +407,8 @@ void defineRegistration(py::module_& m) {
       .def_readonly("seconds", &IcpResult::seconds, "wall time of the alignment, s (target tree build excluded)")
       .def("__repr__", &describe);
 
-  defineIcp<float>(m, "Icp32");
-  defineIcp<double>(m, "Icp64");
-  defineKdTree<float>(m, "KdTree32");
-  defineKdTree<double>(m, "KdTree64");
+  defineIcp(m);
+  defineKdTree(m);
   m.attr("RIGID_TOLERANCE") = kRigidTolerance;
   m.attr("RIGID_ROW_TOLERANCE") = kRigidRowTolerance;
   m.def(

@@ -25,7 +25,7 @@ from typing import Literal, Optional, Sequence, Union
 import numpy as np
 
 from . import _core
-from ._arrays import as_points, as_transform, common_dtype, set_fields
+from ._arrays import as_points, as_transform, set_fields
 
 Box = _core.registration.Box
 IcpSettings = _core.registration.IcpSettings
@@ -54,7 +54,7 @@ def make_settings(settings: Optional[IcpSettings] = None, **overrides: object) -
     return s
 
 
-class Icp:
+class Icp(_core.registration.Icp):
     """Reusable ICP against one target (the model): the k-d tree is built once.
 
     For frame-to-model registration, where many frames are aligned to the same model::
@@ -69,44 +69,20 @@ class Icp:
         settings: an :class:`IcpSettings`; keyword overrides are applied on top.
 
     The tree keeps the target's dtype (float32 if both arrays are: half the memory,
-    faster); sources are cast to it. Raises as :func:`icp`.
+    faster); sources are cast to it. ``settings`` (a copy; assign a new one to change
+    them), ``target_size`` and ``tree_build_seconds`` are properties. Raises as :func:`icp`.
     """
 
     def __init__(self, target: np.ndarray, target_normals: Optional[np.ndarray] = None,
                  settings: Optional[IcpSettings] = None, **overrides: object) -> None:
-        t = as_points(target, "target")
         n = None if target_normals is None else as_points(target_normals, "target_normals")
-        self._dtype = common_dtype(t, n)
-        self._engine = (_core.registration.Icp64 if self._dtype == np.float64 else _core.registration.Icp32)(
-            make_settings(settings, **overrides))
-        self._engine.set_target(t.astype(self._dtype, copy=False),
-                                None if n is None else n.astype(self._dtype, copy=False))
-
-    @property
-    def settings(self) -> IcpSettings:
-        """A copy of the current settings (assign a new one to change them)."""
-        return self._engine.settings
-
-    @settings.setter
-    def settings(self, value: IcpSettings) -> None:
-        self._engine.settings = value
-
-    @property
-    def target_size(self) -> int:
-        """Points in the k-d tree (finite points with valid normals)."""
-        return int(self._engine.target_size)
-
-    @property
-    def tree_build_seconds(self) -> float:
-        """Time spent building the target's k-d tree and normal table, seconds."""
-        return float(self._engine.tree_build_seconds)
+        super().__init__(as_points(target, "target"), n, make_settings(settings, **overrides))
 
     def align(self, source: np.ndarray, init: Optional[np.ndarray] = None) -> IcpResult:
         """Aligns ``source`` ((N, 3), metres, source frame; non-finite rows ignored) to the
         target from ``init`` (``T_target_source``, 4x4 rigid; identity by default).
         Check ``converged`` / ``status`` of the :class:`IcpResult`."""
-        return self._engine.align(as_points(source, "source", self._dtype),
-                                  np.eye(4) if init is None else as_transform(init))
+        return super().align(as_points(source, "source"), np.eye(4) if init is None else as_transform(init))
 
 
 def icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndarray] = None,
@@ -209,38 +185,7 @@ def box_rejector_keep(source: np.ndarray, query_indices: Sequence[int], box: Box
     return np.asarray(kept, dtype=np.int64)
 
 
-class KdTree:
-    """The left-balanced k-d tree of the eye-in-hand paper, §3.1 (one point per node,
-    searched with a fixed stack).
-
-    Args:
-        points: (N, 3) float32/float64 points; non-finite rows are skipped.
-    """
-
-    def __init__(self, points: np.ndarray) -> None:
-        self._points = as_points(points, "points")
-        self._tree = (_core.registration.KdTree64 if self._points.dtype == np.float64
-                      else _core.registration.KdTree32)(self._points)
-
-    @property
-    def size(self) -> int:
-        """Points in the tree (the finite input rows)."""
-        return int(self._tree.size)
-
-    @property
-    def height(self) -> int:
-        """Levels below the root; the fixed-stack search is exact when stack_depth >= height."""
-        return int(self._tree.height)
-
-    def nearest(self, queries: np.ndarray, max_distance: float = float("inf"), stack_depth: int = 20) -> tuple:
-        """Nearest neighbour of each query within ``max_distance`` (metres, exclusive;
-        ValueError unless positive). ``stack_depth`` in [1, 64].
-
-        Returns:
-            ``(indices, distances, exact)``: int64 indices into ``points`` (-1: none in
-            range), Euclidean distances in metres (inf where none), and per-query flags
-            telling whether the fixed-size stack sufficed for an exact answer.
-        """
-        q = as_points(queries, "queries", self._points.dtype)
-        idx, d2, exact = self._tree.nearest(q, float(max_distance), int(stack_depth))
-        return np.asarray(idx), np.sqrt(np.asarray(d2, dtype=np.float64)), np.asarray(exact)
+#: The left-balanced k-d tree of the eye-in-hand paper, §3.1: ``KdTree(points)`` ((N, 3)
+#: float, metres); ``nearest(queries, max_distance=inf, stack_depth=20)`` returns (int64
+#: indices, -1 for none in range; distances in metres; per-query exactness flags).
+KdTree = _core.registration.KdTree
