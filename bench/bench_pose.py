@@ -1,5 +1,5 @@
 """CAD-model pose: the curvature-based descriptor against stock PCL descriptors, in one run
-(thesis paper 5, experiments 1 and 2; spec §7.7 Tables I and II).
+(Kleppe, PhD thesis, NTNU 2018, paper 5, experiments 1 and 2, Tables I and II).
 
 Data: CGAL demo meshes (mechanical parts and Stanford models, fetched from Debian's
 libcgal-demo by scanalign.datasets) scaled to a 120 mm bounding box, seen from vertices of

@@ -1,4 +1,4 @@
-"""Viewpoint sampling of a CAD model (thesis §7.3, spec §8, claim 30)."""
+"""Viewpoint sampling of a CAD model (Kleppe, PhD thesis, NTNU 2018, §7.3)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from scanalign import cad, evaluation, parts
 
 
 @pytest.mark.parametrize("level,nv,nf", [(0, 12, 20), (1, 42, 80), (2, 162, 320)])
-def test_tessellated_sphere_counts_and_closure(level, nv, nf):  # claim 30
+def test_tessellated_sphere_counts_and_closure(level, nv, nf):  # §7.3: the 42 views
     V, F = cad.tessellated_sphere(level)
     assert V.shape == (nv, 3) and F.shape == (nf, 3)
     np.testing.assert_allclose(np.linalg.norm(V, axis=1), 1.0, atol=1e-15)
@@ -33,7 +33,7 @@ def test_views_lie_on_the_surface_face_their_camera_and_cover_the_part():
         assert np.all(pc[:, 2] > 0)
         u = v.intrinsics.fx * pc[:, 0] / pc[:, 2] + v.intrinsics.cx
         np.testing.assert_allclose(u, v.pixels[:, 0], atol=1e-3)  # back-projection inverts projection
-        assert np.all(np.einsum("ij,ij->i", v.normals, v.viewpoint - v.points) > 0)  # claim 32
+        assert np.all(np.einsum("ij,ij->i", v.normals, v.viewpoint - v.points) > 0)  # normals towards the camera
         allpts.append(v.points)
     # every part of the surface is seen by some view: surface samples near a view point
     from scipy.spatial import cKDTree

@@ -1,4 +1,4 @@
-"""CAD-model pose chain (thesis ch. 6-7, spec §6-§8): motor estimation, CBD, RANSAC, paper 4
+"""CAD-model pose chain (Kleppe, PhD thesis, NTNU 2018, ch. 6-7; papers 4-5): motor estimation, CBD, RANSAC, paper 4
 flags, the PCL baselines and the pipeline, against known transforms and independent oracles."""
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ def fandisk_views(dataset_cache: Path):
     return (v, m.faces), cad.render_views((v, m.faces), resolution=300)
 
 
-# --- motor estimation (claim 21) --------------------------------------------------------------
+# --- motor estimation (paper 5 §III-E) --------------------------------------------------------------
 
 def test_motor_is_exact_on_noise_free_pairs_and_equals_svd_on_noisy_ones():
     rng = np.random.default_rng(0)
@@ -62,7 +62,7 @@ def test_motor_is_exact_on_noise_free_pairs_and_equals_svd_on_noisy_ones():
 
 def test_motor_acts_on_conformal_points_as_in_clifford():
     """Independent oracle: the 8 motor coefficients, read as a G(4,1) multivector in the
-    clifford package, map up(x) to up(R x + t) by the sandwich M X M~ (spec §1.9)."""
+    clifford package, map up(x) to up(R x + t) by the sandwich M X M~ (thesis ch. 4, motors)."""
     g3c = pytest.importorskip("clifford.g3c")
     e1, e2, e3, einf = g3c.e1, g3c.e2, g3c.e3, g3c.einf
     rng = np.random.default_rng(3)
@@ -115,15 +115,15 @@ def test_shape_factors_and_keypoint_rules():
     counts = np.array([300, 300, 300, 100])
     f = features.shape_factors(ev)
     np.testing.assert_allclose(f.sum(axis=1), 1.0)
-    np.testing.assert_allclose(np.diag(f[:3]), 1.0)  # line, plane, isotropic (claim 15)
-    np.testing.assert_array_equal(cbd.select_keypoints(counts, ev), [0, 2])  # delta_p = 1 disables (claim 16)
+    np.testing.assert_allclose(np.diag(f[:3]), 1.0)  # line, plane, isotropic ((6.1)-(6.3))
+    np.testing.assert_array_equal(cbd.select_keypoints(counts, ev), [0, 2])  # delta_p = 1 disables ((6.4))
     keys, t = cbd.automatic_keypoints(counts, ev, k=2)
-    assert set(keys) <= set(cbd.select_keypoints(counts, ev, t, inclusive=True))  # claim 17
+    assert set(keys) <= set(cbd.select_keypoints(counts, ev, t, inclusive=True))  # paper 5 §III-B4
 
 
 def test_spheres_follow_the_weighted_fit_of_the_thesis(fandisk_views):
     """(6.8)-(6.11) re-derived with numpy weights and scanalign.fitting.fit_sphere; the
-    weights use |v . d|, so either sign of each eigenvector gives the same sphere (claim 18)."""
+    weights use |v . d|, so either sign of each eigenvector gives the same sphere ((6.8)-(6.11))."""
     _, views = fandisk_views
     pts = views[5].points
     f = cbd.compute(pts, min_neighbors=0)
@@ -154,7 +154,7 @@ def test_descriptors_are_invariant_to_rigid_motion(fandisk_views):
     np.testing.assert_array_equal(a.keypoints, b.keypoints)
     np.testing.assert_allclose(a.descriptors, b.descriptors, atol=1e-7)
     np.testing.assert_allclose(a.scalar, b.scalar, atol=1e-9)
-    # F = ½(r1² − d1²) + ½(r2² − d2²) (claim 19)
+    # F = ½(r1² − d1²) + ½(r2² − d2²) ((6.14)-(6.16))
     r1, d1, r2, d2 = a.descriptors.T
     F = np.where(a.flat1, 0, 0.5 * (r1**2 - d1**2)) + np.where(a.flat2, 0, 0.5 * (r2**2 - d2**2))
     np.testing.assert_allclose(a.scalar, F, atol=1e-12)
@@ -162,7 +162,7 @@ def test_descriptors_are_invariant_to_rigid_motion(fandisk_views):
 
 @pytest.mark.parametrize("variant", ["radius_distance", "scalar"])
 def test_self_alignment_of_a_real_part_is_recovered_after_icp(fandisk_views, variant):
-    """Claim 20 / issue §7: a fandisk view and its displaced copy, < 0.5 mm and 0.2 degrees."""
+    """Paper 5 Exp. 1: a fandisk view and its displaced copy, < 0.5 mm and 0.2 degrees."""
     mesh, views = fandisk_views
     pts = views[5].points
     T = _pose(6)
@@ -233,13 +233,13 @@ def test_flags_refuse_a_closed_surface(fandisk_views):
     mesh, _ = fandisk_views
     p, n = parts.sample_mesh(mesh, 20000, seed=0)
     flag = pose.normal_line_flag(p, n)
-    assert flag.mean_normal_length < 0.05  # claim 33
+    assert flag.mean_normal_length < 0.05  # paper 4 §2: closed surfaces are refused
     r = pose.align_flags(p, n, p, n)
     assert not r.valid and "closed" in r.message
 
 
 def test_flags_align_a_partial_view_with_a_resampled_copy(fandisk_views):
-    """Claim 34: two independent samplings of the same view; the error falls with the point count."""
+    """Paper 4 Table 1: two independent samplings of the same view; the error falls with the point count."""
     _, views = fandisk_views
     v = views[17]
     T = _pose(8)

@@ -8,14 +8,14 @@
 #include <cstring>
 
 #include "arrays.hpp"
-#include "scanalign/features/cbd.hpp"
+#include "scanalign/pose/cbd.hpp"
 #include "scanalign/pose/model_views.hpp"
 #include "scanalign/pose/pcl_coarse_aligner.hpp"
 #include "scanalign/pose/pose_estimation.hpp"
-#include "scanalign/registration/cbd_alignment.hpp"
-#include "scanalign/registration/correspondence_ransac.hpp"
-#include "scanalign/registration/flag_alignment.hpp"
-#include "scanalign/registration/motor_estimation.hpp"
+#include "scanalign/pose/cbd_alignment.hpp"
+#include "scanalign/pose/correspondence_ransac.hpp"
+#include "scanalign/pose/flag_alignment.hpp"
+#include "scanalign/pose/motor_estimation.hpp"
 
 namespace scanalign::python {
 

@@ -1,4 +1,4 @@
-// CAD-pose chain (spec §6-§7): Valkenburg–Dorst motor estimation vs Kabsch (claim 21), CBD
+// CAD-pose chain (Kleppe, PhD thesis, NTNU 2018, ch. 6-7): Valkenburg–Dorst motor estimation vs Kabsch, CBD
 // keypoints and descriptors (claims 15-19), correspondence RANSAC, paper 4 flags (33-34).
 #include <gtest/gtest.h>
 
@@ -8,11 +8,11 @@
 
 #include <Eigen/Geometry>
 
-#include "scanalign/features/cbd.hpp"
-#include "scanalign/registration/cbd_alignment.hpp"
-#include "scanalign/registration/correspondence_ransac.hpp"
-#include "scanalign/registration/flag_alignment.hpp"
-#include "scanalign/registration/motor_estimation.hpp"
+#include "scanalign/pose/cbd.hpp"
+#include "scanalign/pose/cbd_alignment.hpp"
+#include "scanalign/pose/correspondence_ransac.hpp"
+#include "scanalign/pose/flag_alignment.hpp"
+#include "scanalign/pose/motor_estimation.hpp"
 
 using namespace scanalign;
 
@@ -60,7 +60,7 @@ std::vector<double> bumpyEllipsoid(int n, bool partial, std::vector<double>* nor
 
 }  // namespace
 
-TEST(MotorEstimation, ExactOnNoiseFreePairsAndEqualToSvdOnNoisyOnes) {  // claim 21
+TEST(MotorEstimation, ExactOnNoiseFreePairsAndEqualToSvdOnNoisyOnes) {  // paper 5 §III-E
   std::mt19937 g(7);
   std::normal_distribution<double> n(0, 1);
   for (int trial = 0; trial < 20; ++trial) {
@@ -148,13 +148,13 @@ TEST(Cbd, KeypointThresholdsAndAutomaticModeFollowTheThesis) {  // claims 15-17
   EXPECT_DOUBLE_EQ(shapeFactorsOf(p[0]).linear, 1.0);
   EXPECT_DOUBLE_EQ(shapeFactorsOf(p[1]).planar, 1.0);
   EXPECT_DOUBLE_EQ(shapeFactorsOf(p[2]).spherical, 1.0);
-  // δ_p = 1 disables the planar term even for C_p = 1; n_min rejects point 3 (claim 16).
+  // δ_p = 1 disables the planar term even for C_p = 1; n_min rejects point 3 ((6.4)).
   EXPECT_EQ(selectKeypoints(p, {0.3, 1.0, 0.3}, 200), (std::vector<std::uint32_t>{0, 2}));
   EXPECT_EQ(selectKeypoints(p, {1.0, 0.5, 1.0}, 200), (std::vector<std::uint32_t>{1}));
   EXPECT_EQ(selectKeypoints(p, {0.3, 1.0, 0.3}, 50), (std::vector<std::uint32_t>{0, 2, 3}));
   EXPECT_DOUBLE_EQ(keypointScore(p[3], 200), 1.0 / 3.0);
   EXPECT_DOUBLE_EQ(keypointScore(p[0], 200), 0.0);
-  // Automatic mode (claim 17): random shapes; the derived δ's re-select the keypoints.
+  // Automatic mode (paper 5 §III-B4): random shapes; the derived δ's re-select the keypoints.
   std::mt19937 g(5);
   std::uniform_real_distribution<double> u(0, 1);
   std::vector<NeighbourhoodPca> q(1000);
@@ -186,7 +186,7 @@ TEST(Cbd, DescriptorsAreInvariantToRigidMotionAndMatchThemselves) {  // claims 1
     EXPECT_NEAR(a.scalar[i], b.scalar[i], 1e-9);
     for (const CbdSphere* sp : {&a.sphere1[i], &a.sphere2[i]}) {
       if (sp->flat) continue;
-      // claim 19: F term = S·P for the e0-normalised sphere, S·P = ½(r² − d²)
+      // (6.14)-(6.16): F term = S·P for the e0-normalised sphere, S·P = ½(r² − d²)
       const Eigen::Vector3d c = sp->dual.head<3>();
       const Eigen::Vector3d p(x[3 * a.keypoints[i]], x[3 * a.keypoints[i] + 1], x[3 * a.keypoints[i] + 2]);
       EXPECT_NEAR((c - p).norm(), sp->distance, 1e-9);
@@ -196,7 +196,7 @@ TEST(Cbd, DescriptorsAreInvariantToRigidMotionAndMatchThemselves) {  // claims 1
       EXPECT_NEAR(SP, 0.5 * (sp->radius * sp->radius - sp->distance * sp->distance), 1e-12);
     }
   }
-  // Self-alignment (claim 20): most keypoints match themselves (the ellipsoid's mirror
+  // Self-alignment (paper 5 Exp. 1): most keypoints match themselves (the ellipsoid's mirror
   // symmetries, broken only near the bump, make the rest ambiguous).
   const CbdMatches m = matchCbd(a, b, CbdDescriptorVariant::RadiusDistance);
   std::size_t same = 0;

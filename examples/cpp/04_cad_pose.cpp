@@ -9,7 +9,7 @@
 #include <Eigen/Geometry>
 
 #include <scanalign/features/normals.hpp>
-#include <scanalign/registration/cbd_alignment.hpp>
+#include <scanalign/pose/cbd_alignment.hpp>
 #include <scanalign/registration/icp.hpp>
 
 int main() {

@@ -17,11 +17,11 @@
 #include <Eigen/Core>
 
 #include "scanalign/common/cloud_view.hpp"
-#include "scanalign/features/cbd.hpp"
+#include "scanalign/pose/cbd.hpp"
 #include "scanalign/fitting/ransac.hpp"
 #include "scanalign/pose/model_views.hpp"
-#include "scanalign/registration/cbd_alignment.hpp"
-#include "scanalign/registration/flag_alignment.hpp"
+#include "scanalign/pose/cbd_alignment.hpp"
+#include "scanalign/pose/flag_alignment.hpp"
 
 namespace scanalign {
 

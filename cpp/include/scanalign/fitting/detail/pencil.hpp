@@ -1,5 +1,5 @@
 // The symmetric-definite pencil behind the CGA sphere fit (Kleppe, PhD thesis, NTNU 2018, (5.31)-(5.34)), shared by
-// fitting/sphere_fit.cpp and the curvature-based descriptor (features/cbd.cpp). See the
+// fitting/sphere_fit.cpp and the curvature-based descriptor (pose/cbd.cpp). See the
 // comment at the top of sphere_fit.cpp for the derivation.
 #pragma once
 

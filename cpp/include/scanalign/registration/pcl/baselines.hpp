@@ -1,5 +1,5 @@
 // Stock PCL 1.13 ICP variants, run on the same inputs and criteria as scanalign's engine,
-// for evaluation (seed 000 §4: PCL SVD and dual quaternion; PCL's point-to-plane LLS).
+// for evaluation (the eye-in-hand paper, Comput. Electron. Agric. 180 (2021) 105929, §4: PCL SVD and dual quaternion; PCL's point-to-plane LLS).
 // The declarations here are PCL-free; the implementations live in pcl_baselines.cpp.
 #pragma once
 

@@ -1,4 +1,4 @@
-// BoxRejector: seed 000 §3.4's box correspondence rejector as a drop-in
+// BoxRejector: the box correspondence rejector of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929, §3.4) as a drop-in
 // pcl::registration::CorrespondenceRejector.
 //
 // The box is given in the source camera frame. A correspondence is rejected when its

@@ -1,4 +1,4 @@
-// PointToPlaneLLS: Low's point-to-plane linear least squares (seed 000 §3.2) as a drop-in
+// PointToPlaneLLS: Low's point-to-plane linear least squares (the eye-in-hand paper, Comput. Electron. Agric. 180 (2021) 105929, §3.2) as a drop-in
 // pcl::registration::TransformationEstimation, e.g. for pcl::IterativeClosestPointWithNormals:
 //
 //   auto est = pcl::make_shared<scanalign::PointToPlaneLLS<pcl::PointNormal, pcl::PointNormal>>();

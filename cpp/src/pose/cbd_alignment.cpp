@@ -1,5 +1,5 @@
 // CBD coarse alignment. See cbd_alignment.hpp.
-#include "scanalign/registration/cbd_alignment.hpp"
+#include "scanalign/pose/cbd_alignment.hpp"
 
 #include <omp.h>
 

@@ -1,4 +1,4 @@
-// Valkenburg–Dorst motor estimation and Kabsch/SVD (spec §7.5, §8). See motor_estimation.hpp.
+// Valkenburg–Dorst motor estimation and Kabsch/SVD (paper 5 §III-E; thesis (2.1)-(2.15)). See motor_estimation.hpp.
 //
 // Forming Q. Q_ij = Σ_k w_k ⟨c̃_i Y_k c_j X_k⟩ is bilinear in the conformal points, so with
 // X_k = Σ_b [X_k]_b E_b and Y_k = Σ_a [Y_k]_a E_a on the vector basis E = (e1, e2, e3, e∞, e0)
@@ -6,7 +6,7 @@
 // B_ijab = ⟨c̃_i E_a c_j E_b⟩ are 8·8·5·5 constants of the algebra. B is computed once with
 // the full geometric product (cga/multivector.hpp), so the data pass is 25 multiply-adds per
 // pair and the algebra stays the thesis's, not a hand-expanded formula.
-#include "scanalign/registration/motor_estimation.hpp"
+#include "scanalign/pose/motor_estimation.hpp"
 
 #include "scanalign/common/rigid.hpp"
 
@@ -30,7 +30,7 @@ using cga::Multivector;
 
 const std::array<const char*, 8> kMotorBasis = {"e23", "e31", "e12", "e1inf", "e2inf", "e3inf", "e123inf", ""};
 
-/// The 8 motor basis blades c_i (spec §7.5 order: 1, e23, e31, e12, e1∞, e2∞, e3∞, e123∞).
+/// The 8 motor basis blades c_i (paper 5 order: 1, e23, e31, e12, e1∞, e2∞, e3∞, e123∞).
 std::array<Multivector, 8> motorBasis() {
   std::array<Multivector, 8> c;
   c[0] = Multivector(1.0);
@@ -164,7 +164,7 @@ Eigen::Matrix4d motorToMatrix(const Vector8d& motor) {
   for (int i = 1; i < 4; ++i) R = R + Multivector::named(kMotorBasis[i - 1], r(i));
   Multivector M(motor(0) / rn);
   for (int i = 1; i < 8; ++i) M = M + Multivector::named(kMotorBasis[i - 1], motor(i) / rn);
-  // T = M R̃ = 1 − ½ t e∞ (spec §1.9): read t off the e_i∞ coefficients and rebuild a proper
+  // T = M R̃ = 1 − ½ t e∞ (thesis ch. 4, motors): read t off the e_i∞ coefficients and rebuild a proper
   // motor, which projects away any e123∞ part inconsistent with M M̃ = 1.
   const Multivector T = M * R.reverse();
   const Eigen::Vector3d t(-2 * T.get("e1inf"), -2 * T.get("e2inf"), -2 * T.get("e3inf"));
@@ -222,7 +222,7 @@ MotorEstimate estimateRigidSvd(const CloudView<double>& source, const CloudView<
   const Eigen::Matrix3d R = rotationFromCrossCovariance(H).R;  // never a reflection
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
   T.topLeftCorner<3, 3>() = R;
-  T.topRightCorner<3, 1>() = p.cy - R * p.cx;  // spec §8: t = ȳ − R x̄
+  T.topRightCorner<3, 1>() = p.cy - R * p.cx;  // t = ȳ − R x̄ (the printed (2.15) has it wrong)
   out.T_target_source = T;
   out.motor = motorCoefficients(cga::Motor::fromMatrix(T).multivector());
   out.rmse = rmseOf(source, target, weights, T);

@@ -1,20 +1,20 @@
 // Curvature-based descriptor (CBD) for coarse alignment of a CAD model to a scan
-// (thesis ch. 6, paper 5; spec §7.1–§7.4).
+// (Kleppe, PhD thesis, NTNU 2018, ch. 6; paper 5 §III).
 //
 // Pipeline per cloud:
-//  1. PCA of every point's radius neighbourhood (k-d tree search, spec §7.1): neighbour
+//  1. PCA of every point's radius neighbourhood (k-d tree search, paper 5 (11)): neighbour
 //     count and covariance eigenvalues λ1 ≥ λ2 ≥ λ3.
-//  2. Keypoints (spec §7.2): either the thresholds of (6.4), |N_i| ≥ n_min and
+//  2. Keypoints: either the thresholds of (6.4), |N_i| ≥ n_min and
 //     (C_l > δ_l or C_p > δ_p or C_s > δ_s), or the automatic variant of P5 §III-B4 (the k
 //     points with the lowest score C_lC_p + C_pC_s + C_sC_l, whose shape factors then set δ).
-//  3. Two weighted CGA spheres per keypoint (6.8–6.11, spec §7.3): fitted to the neighbourhood
+//  3. Two weighted CGA spheres per keypoint (6.8–6.11): fitted to the neighbourhood
 //     with weights exp(−γ |distance to the plane Π_ij|), where Π_i1 ⊥ v2 and Π_i2 ⊥ v1 pass
 //     through the keypoint; a weight uses |v·(p − p_i)|, so flipping the sign of any
-//     eigenvector changes nothing (claim 18).
-//  4. Descriptors (spec §7.4): (r1, d1, r2, d2) of paper 5 (sphere radius and distance from
+//     eigenvector changes nothing.
+//  4. Descriptors: (r1, d1, r2, d2) of paper 5 (sphere radius and distance from
 //     the sphere centre to the keypoint, (29)–(32)) and the scalar F = (S1 + S2)·P
 //     = ½(r1² − d1²) + ½(r2² − d2²) of chapter 6 (6.14–6.16).
-//  5. Matching (spec §7.4): every source keypoint is paired with its nearest target keypoints
+//  5. Matching: every source keypoint is paired with its nearest target keypoints
 //     in descriptor space (a k-d tree over the 4-vectors, a sorted array for F).
 //
 // Units: metres for points, radii and distances; γ in 1/m (the thesis's 0.2 per mm is 200 per
@@ -33,20 +33,20 @@
 
 namespace scanalign {
 
-/// How keypoints are chosen (spec §7.2).
+/// How keypoints are chosen ((6.4), paper 5 §III-B4).
 enum class CbdKeypointMode {
   Thresholds,  ///< (6.4) with the given δ's and n_min
   Automatic,   ///< the num_keypoints lowest-score points (P5 §III-B4); δ's derived from them
 };
 
-/// Which descriptor the matcher compares (spec §7.4).
+/// Which descriptor the matcher compares (paper 5 (32), (6.18)).
 enum class CbdDescriptorVariant {
   RadiusDistance,  ///< (r1, d1, r2, d2), error Σ (r_k − r_l)² + (d_k − d_l)² (P5 (29)–(32))
   Scalar,          ///< F = (S1 + S2)·P, error (F_k − F_l)² (6.17–6.18)
 };
 
 /// δ_l, δ_p, δ_s of (6.4): a point is a keypoint if any shape factor exceeds its δ. A δ ≥ 1
-/// disables that factor (claim 16; with the inclusive comparison, δ > 1).
+/// disables that factor (a shape factor never exceeds 1; with the inclusive comparison, δ > 1).
 struct ShapeThresholds {
   double linear = 0.3;     ///< δ_l (thesis Fig 6.3: 0.3)
   double planar = 1.0;     ///< δ_p (thesis: 1, i.e. planar points are never keypoints)
@@ -71,7 +71,7 @@ struct CbdSettings {
   int max_keypoints = 2000;
   /// m; a fitted sphere larger than this (or a plane) is "flat": r = d = max_sphere_radius and
   /// its F term is 0. Guards the (r, d) descriptor against the arbitrary radius of planar
-  /// patches (spec §7.4 "unstable for planar surfaces").
+  /// patches (paper 5 notes it is unstable for planar surfaces).
   double max_sphere_radius = 1.0;
   CbdDescriptorVariant variant = CbdDescriptorVariant::RadiusDistance;
   int num_threads = 0;         ///< OpenMP threads; 0 = all cores
@@ -83,7 +83,7 @@ struct NeighbourhoodPca {
   Eigen::Vector3d eigenvalues = Eigen::Vector3d::Zero();  ///< λ1 ≥ λ2 ≥ λ3 ≥ 0 of Σ (p − p̄)(p − p̄)ᵀ, m²
 };
 
-/// The weighted CGA sphere of one keypoint and plane (spec §7.3).
+/// The weighted CGA sphere of one keypoint and plane ((6.8)-(6.11)).
 struct CbdSphere {
   /// Dual sphere [c; ½(c² − r²); 1] on (e1, e2, e3, e∞, e0) in the cloud's frame (a flat one
   /// is stored as the dual plane [n; δ; 0] with |n| = 1).
@@ -107,7 +107,7 @@ struct CbdFeatures {
 };
 
 /// PCA of every point's neighbourhood of radius `radius` (m), by k-d tree radius search
-/// (spec §7.1). Non-finite points get count 0. Parallel over points.
+/// (paper 5 (11)). Non-finite points get count 0. Parallel over points.
 template <typename Scalar>
 std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, double radius, int num_threads = 0);
 
@@ -119,7 +119,7 @@ features::ShapeFactors shapeFactorsOf(const NeighbourhoodPca& pca);
 double keypointScore(const NeighbourhoodPca& pca, int min_neighbors);
 
 /// Indices of the points that pass (6.4): count ≥ min_neighbors and any shape factor > its δ
-/// (≥ when `inclusive`, which makes the derived δ's reproduce their keypoints, claim 17).
+/// (≥ when `inclusive`, which makes the derived δ's reproduce their keypoints).
 /// Ascending order.
 std::vector<std::uint32_t> selectKeypoints(const std::vector<NeighbourhoodPca>& pca, const ShapeThresholds& thresholds,
                                            int min_neighbors, bool inclusive = false);
@@ -127,13 +127,13 @@ std::vector<std::uint32_t> selectKeypoints(const std::vector<NeighbourhoodPca>& 
 /// Automatic keypoints (P5 §III-B4): the `k` points with the lowest score (ascending index
 /// order), and the δ's they imply: each keypoint lowers the δ of its largest shape factor to
 /// that factor's value; a group no keypoint belongs to keeps δ = 2 (disabled). Applying the δ's with inclusive = true to the same
-/// cloud selects (a superset of, and with distinct scores exactly) these keypoints (claim 17).
+/// cloud selects (a superset of, and with distinct scores exactly) these keypoints.
 std::vector<std::uint32_t> automaticKeypoints(const std::vector<NeighbourhoodPca>& pca, int k, int min_neighbors,
                                               ShapeThresholds* thresholds);
 
 /// Full CBD of a cloud. `thresholds_override` (may be null) forces the Thresholds mode with
-/// these δ's (inclusive), e.g. δ's derived from the model cloud applied to the scene (spec
-/// §7.2). Throws std::invalid_argument for bad settings.
+/// these δ's (inclusive), e.g. δ's derived from the model cloud applied to the scene
+/// (paper 5 §III-B4). Throws std::invalid_argument for bad settings.
 template <typename Scalar>
 CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& settings,
                        const ShapeThresholds* thresholds_override = nullptr);

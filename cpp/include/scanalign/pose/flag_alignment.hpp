@@ -1,4 +1,4 @@
-// Initial alignment with motors (thesis paper 4, spec §6): a global, correspondence-free
+// Initial alignment with motors (Kleppe, PhD thesis, NTNU 2018, paper 4 §2): a global, correspondence-free
 // coarse alignment of two partial views of the same surface.
 //
 // Each cloud {x_i, n̂_i} gives a flag f = ℓ̄ + P: the centroid P = C((1/m)Σ x_i) and the average
@@ -11,7 +11,7 @@
 // solved by Levenberg–Marquardt on the motor manifold (updates M ← exp(B) M with a 6-dof
 // bivector B), started from the closed-form motor that maps one flag onto the other.
 //
-// Restriction (spec §6): on a closed surface the unit normals sum to zero, the average line is
+// Restriction (paper 4 §2): on a closed surface the unit normals sum to zero, the average line is
 // undefined, and the method refuses (valid = false) when |n̄| < min_mean_normal_length.
 // Units: metres and radians, mixed without weights as in the thesis.
 #pragma once
@@ -40,7 +40,7 @@ template <typename Scalar>
 NormalLineFlag normalLineFlag(const CloudView<Scalar>& points, const CloudView<Scalar>& normals);
 
 struct FlagAlignmentSettings {
-  /// Refuse when |n̄| of either cloud is below this (closed surfaces: claim 33).
+  /// Refuse when |n̄| of either cloud is below this (closed surfaces, paper 4 §2).
   double min_mean_normal_length = 0.05;
   /// Refuse when the centroid is closer than this (m) to the average line: the rotation
   /// about the line is then undetermined.

@@ -1,5 +1,5 @@
 // Coarse alignment with the curvature-based descriptor (thesis ch. 6, paper 5): CBD keypoints
-// and descriptors on both clouds (features/cbd.hpp), nearest-descriptor matches, RANSAC over
+// and descriptors on both clouds (pose/cbd.hpp), nearest-descriptor matches, RANSAC over
 // the matches with a motor refit (correspondence_ransac.hpp), then a score of the whole source
 // cloud against the target. Refine the result with ICP (registration/icp.hpp).
 #pragma once
@@ -10,8 +10,8 @@
 #include <Eigen/Core>
 
 #include "scanalign/common/cloud_view.hpp"
-#include "scanalign/features/cbd.hpp"
-#include "scanalign/registration/correspondence_ransac.hpp"
+#include "scanalign/pose/cbd.hpp"
+#include "scanalign/pose/correspondence_ransac.hpp"
 
 namespace scanalign {
 

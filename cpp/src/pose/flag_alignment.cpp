@@ -1,5 +1,5 @@
 // Paper 4 initial alignment with motors. See flag_alignment.hpp.
-#include "scanalign/registration/flag_alignment.hpp"
+#include "scanalign/pose/flag_alignment.hpp"
 
 #include <cmath>
 #include <stdexcept>

@@ -1,5 +1,5 @@
 // Curvature-based descriptor (thesis ch. 6, paper 5). See cbd.hpp.
-#include "scanalign/features/cbd.hpp"
+#include "scanalign/pose/cbd.hpp"
 
 #include <omp.h>
 
@@ -88,8 +88,8 @@ struct ScoredIndex {
   bool operator<(const ScoredIndex& o) const { return score < o.score || (score == o.score && index < o.index); }
 };
 
-/// One weighted sphere fit in the keypoint's local frame x = (p − p_i)/r (spec §7.3). The
-/// fit is equivariant under this similarity (claim 13), and the unit-scale coordinates keep
+/// One weighted sphere fit in the keypoint's local frame x = (p − p_i)/r ((6.8)-(6.11)). The
+/// fit is equivariant under this similarity, and the unit-scale coordinates keep
 /// the 5x5 moment matrix well conditioned whatever the cloud's position.
 CbdSphere fitLocalSphere(const Eigen::Matrix<double, 5, 5>& D, const Eigen::Vector3d& p_i, double scale,
                          double max_radius) {
@@ -238,7 +238,7 @@ double keypointScore(const NeighbourhoodPca& pca, int min_neighbors) {
 std::vector<std::uint32_t> selectKeypoints(const std::vector<NeighbourhoodPca>& pca, const ShapeThresholds& t,
                                            int min_neighbors, bool inclusive) {
   std::vector<std::uint32_t> out;
-  // A factor never exceeds 1, so δ >= 1 disables its term with ">" (claim 16); with ">="
+  // A factor never exceeds 1, so δ >= 1 disables its term with ">"; with ">="
   // (derived δ's) a δ of exactly 1 comes from a pure keypoint and must select it.
   const auto pass = [inclusive](double c, double delta) { return inclusive ? c >= delta : c > delta; };
   for (std::size_t i = 0; i < pca.size(); ++i) {
@@ -306,7 +306,7 @@ CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& setti
   for (const auto& p : pca)
     if (p.count >= static_cast<std::uint32_t>(s.min_neighbors)) ++out.points_with_min_neighbors;
 
-  // Keypoints (spec §7.2).
+  // Keypoints ((6.4) or paper 5 §III-B4).
   std::vector<std::uint32_t> keys;
   bool capped_mode = true;
   if (thresholds_override) {
@@ -330,7 +330,7 @@ CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& setti
     std::sort(keys.begin(), keys.end());
   }
 
-  // Two weighted spheres per keypoint (spec §7.3), in parallel.
+  // Two weighted spheres per keypoint ((6.8)-(6.11)), in parallel.
   const std::size_t nk = keys.size();
   out.keypoints = keys;
   out.descriptors.resize(nk);

@@ -1,5 +1,5 @@
 // RANSAC over correspondences. See correspondence_ransac.hpp.
-#include "scanalign/registration/correspondence_ransac.hpp"
+#include "scanalign/pose/correspondence_ransac.hpp"
 
 #include "scanalign/common/rigid.hpp"
 
@@ -10,7 +10,7 @@
 #include <Eigen/Dense>
 
 #include "scanalign/fitting/ransac.hpp"
-#include "scanalign/registration/motor_estimation.hpp"
+#include "scanalign/pose/motor_estimation.hpp"
 
 namespace scanalign {
 
