@@ -28,9 +28,11 @@ from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Optional, Union
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from .camera import Frame
-from .reconstruction import FrameRecord, FrameToModelSettings, Model, Reconstructor
+from .reconstruction import DepthFilter, FrameRecord, FrameToModelSettings, Model, Reconstructor
+from .se3 import inverse
 from .trajectory import Trajectory
 
 __all__ = ["ReconstructionResult", "reconstruct", "settings_to_dict", "write_joints_csv"]
@@ -231,13 +233,6 @@ def _jsonable(v: Any) -> Any:
     return v
 
 
-def _progress_bar(total: Optional[int], enabled: bool) -> Any:
-    """A tqdm bar on stderr (tqdm is a dependency), or None."""
-    from tqdm.auto import tqdm
-
-    return tqdm(total=total, desc="reconstruct", unit="frame", file=sys.stderr, dynamic_ncols=True) if enabled else None
-
-
 def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings] = None, *,
                 registration: str = "scanalign", model_frame: str = "auto", initial_guess: str = "previous",
                 min_depth: float = 0.1, max_depth: float = 2.0, pixel_stride: int = 1, depth_filter: Optional[Any] = None,
@@ -281,7 +276,8 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
     t_start = time.perf_counter()
     total = len(frames) if hasattr(frames, "__len__") else None  # type: ignore[arg-type]
     rec: Optional[Reconstructor] = None
-    bar = _progress_bar(total, progress is True)
+    bar = (tqdm(total=total, desc="reconstruct", unit="frame", file=sys.stderr, dynamic_ncols=True)
+           if progress is True else None)
     callback = progress if callable(progress) else None
     ref_of: Dict[int, np.ndarray] = {}
     last_ref: Optional[np.ndarray] = None
@@ -294,8 +290,6 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
                 if model_frame == "base" and frame.T_base_camera is None:
                     raise ValueError("model_frame='base' needs a reference pose (T_base_camera) on the first frame")
                 T0 = np.asarray(frame.T_base_camera, dtype=np.float64) if base else np.eye(4)
-                from .reconstruction import DepthFilter
-
                 filt = DepthFilter() if isinstance(depth_filter, str) and depth_filter == "default" else depth_filter
                 rec = Reconstructor(settings, T_model_camera0=T0, registration=registration, min_depth=min_depth,
                                     max_depth=max_depth, pixel_stride=pixel_stride, depth_filter=filt, **overrides)
@@ -306,7 +300,7 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
                 if last_ref is not None and rec.model_size:
                     # The robot's relative motion since the last merged frame, applied to
                     # that frame's estimate.
-                    guess = rec.last_pose @ np.linalg.inv(last_ref) @ np.asarray(frame.T_base_camera)
+                    guess = rec.last_pose @ inverse(last_ref) @ np.asarray(frame.T_base_camera)
             record = rec.integrate(frame, guess=guess)
             meta = getattr(frame, "meta", None) or {}
             q = meta.get("joints")
@@ -376,7 +370,7 @@ def model_mesh_distance(result: ReconstructionResult, vertices_base: np.ndarray,
         ref = result.reference
         k = np.nonzero(np.isclose(ref.timestamps, first.timestamp, rtol=0, atol=1e-9))[0]
         if k.size:
-            T_base_model = ref.poses[k[0]] @ np.linalg.inv(first.T_model_camera)
+            T_base_model = ref.poses[k[0]] @ inverse(first.T_model_camera)
     pts = result.model.points.astype(np.float64) @ T_base_model[:3, :3].T + T_base_model[:3, 3]
     s = mesh_distance_stats(pts, vertices_base, faces)
     return {k: float(getattr(s, k)) for k in ("mean", "median", "p95", "max", "rmse")}

@@ -218,7 +218,7 @@ class FrameRecord:
         status: ``"initialized"`` (first frame, defines the model), ``"registered"``, or
             why it was skipped: ``"skipped_empty"``, ``"skipped_too_few_points"``,
             ``"skipped_not_converged"``, ``"skipped_too_few_correspondences"``,
-            ``"skipped_low_fitness"``, ``"skipped_motion"``, ``"skipped_error"``.
+            ``"skipped_low_fitness"``, ``"skipped_motion"``.
         merged: the frame was added to the model.
         T_model_camera: 4x4 estimated camera pose (camera -> model); for a skipped frame
             the initial guess it was tried from.

@@ -116,11 +116,15 @@ def icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndar
         ValueError: wrong shapes, empty clouds, mismatched or missing normals, bad
             settings or a non-rigid ``init``.
     """
-    named = dict(max_correspondence_distance=max_correspondence_distance, box=box, estimator=estimator,
-                 max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
-                 fitness_epsilon=fitness_epsilon)
-    s = make_settings(settings, **{k: v for k, v in named.items() if v is not None}, **overrides)
+    s = _settings(settings, overrides, max_correspondence_distance=max_correspondence_distance, box=box,
+                  estimator=estimator, max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
+                  fitness_epsilon=fitness_epsilon)
     return Icp(target, target_normals, s).align(source, init)
+
+
+def _settings(settings: Optional[IcpSettings], overrides: dict, **named: object) -> IcpSettings:
+    """make_settings with the named keyword arguments that were given (not None)."""
+    return make_settings(settings, **{k: v for k, v in named.items() if v is not None}, **overrides)
 
 
 def pcl_icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndarray] = None,
@@ -139,9 +143,9 @@ def pcl_icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.
     build and ``align``. Other arguments and errors as :func:`icp` (the estimator is the
     variant's; ``search_stack_depth`` and ``warm_start`` do not apply).
     """
-    named = dict(max_correspondence_distance=max_correspondence_distance, box=box, max_iterations=max_iterations,
-                 transformation_epsilon=transformation_epsilon, fitness_epsilon=fitness_epsilon)
-    s = make_settings(settings, **{k: v for k, v in named.items() if v is not None}, **overrides)
+    s = _settings(settings, overrides, max_correspondence_distance=max_correspondence_distance, box=box,
+                  max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
+                  fitness_epsilon=fitness_epsilon)
     nrm = None if target_normals is None else as_points(target_normals, "target_normals", _F32)
     return _core.registration.pcl_icp(as_points(source, "source", _F32), as_points(target, "target", _F32), nrm,
                                       np.eye(4) if init is None else as_transform(init), s, variant)
