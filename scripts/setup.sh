@@ -28,7 +28,7 @@ if [ ! -x .venv/bin/python ]; then
 fi
 .venv/bin/python -m pip install -q --upgrade pip
 .venv/bin/python -m pip install -q "scikit-build-core>=0.10" "pybind11>=2.12" "cmake>=3.20" ninja numpy pytest scipy \
-  matplotlib Pillow tqdm PyYAML plyfile
+  matplotlib Pillow tqdm PyYAML plyfile "pybind11-stubgen>=2.5"
 
 echo "[setup] building and installing scanalign (build folder build/py)"
 # -j2: the build machine has 2 cores and PCL translation units are memory-hungry.

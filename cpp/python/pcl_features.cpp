@@ -15,7 +15,7 @@ void definePclFeatures(py::module_& m) {
   py::enum_<PclDescriptor>(m, "PclDescriptor", "PCL descriptor of a baseline")
       .value("fpfh", PclDescriptor::FPFH, "FPFHEstimationOMP, 33 bins (Rusu 2009)")
       .value("shot", PclDescriptor::SHOT, "SHOTEstimationOMP, 352 bins (Tombari 2010)")
-      .value("3dsc", PclDescriptor::ShapeContext3D, "ShapeContext3DEstimation, 1980 bins (Frome 2004)")
+      .value("shape_context_3d", PclDescriptor::ShapeContext3D, "ShapeContext3DEstimation, 1980 bins (Frome 2004)")
       .value("ppf", PclDescriptor::PPF, "PPF + PPFRegistration (Drost 2010); no matcher");
   py::enum_<PclMatcher>(m, "PclMatcher", "PCL feature matcher")
       .value("prerejective", PclMatcher::Prerejective, "SampleConsensusPrerejective (Buch 2013)")
@@ -43,7 +43,7 @@ void definePclFeatures(py::module_& m) {
       .def_readwrite("ppf_scene_fraction", &S::ppf_scene_fraction, "PPF: fraction of target points used as references")
       .def_readwrite("seed", &S::seed, "seeds std::srand, which PCL's samplers use")
       .def_readwrite("num_threads", &S::num_threads, "OpenMP threads, 0 = all cores");
-  m.def("thesis_pcl_preset", &thesisPclPreset, py::arg("descriptor"), py::arg("matcher") = PclMatcher::Prerejective,
+  m.def("thesis_pcl_preset", &thesisPclPreset, py::arg("descriptor"), py::arg("matcher"),
         "the thesis's baseline settings for a descriptor (1 mm voxels, 30 mm radii, 3DSC 40 mm, 1000 iterations, 5 mm)");
   using R = PclFeatureAlignmentResult;
   py::class_<R>(m, "PclFeatureAlignmentResult", "Outcome of a PCL baseline")

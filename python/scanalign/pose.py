@@ -57,7 +57,7 @@ Method = Literal["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags"]
 METHODS: Tuple[str, ...] = ("cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags")
 # PCL baseline name -> (descriptor, matcher)
 _PCL_METHODS = {"fpfh": ("fpfh", "prerejective"), "fpfh_sac_ia": ("fpfh", "sac_ia"), "shot": ("shot", "prerejective"),
-                "3dsc": ("3dsc", "prerejective"), "ppf": ("ppf", "prerejective")}
+                "3dsc": ("shape_context_3d", "prerejective"), "ppf": ("ppf", "prerejective")}
 
 
 def _pcl_preset(method: str) -> Any:
