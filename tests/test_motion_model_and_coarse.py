@@ -50,11 +50,11 @@ def test_predicted_pose_is_the_last_motion_applied_again(demo_frames):
         assert r.merged
         poses.append(r.T_model_camera)
     # The eye-in-hand paper's model (Comput. Electron. Agric. 180 (2021) 105929) predicts no motion.
-    seed = Reconstructor(T_model_camera0=demo_frames[0].T_base_camera, crop_box=CROP)
-    assert seed.settings.motion_model == "previous"
+    baseline = Reconstructor(T_model_camera0=demo_frames[0].T_base_camera, crop_box=CROP)
+    assert baseline.settings.motion_model == "previous"
     for f in demo_frames[:2]:
-        seed.integrate(f)
-    np.testing.assert_array_equal(seed.predicted_pose, seed.last_pose)
+        baseline.integrate(f)
+    np.testing.assert_array_equal(baseline.predicted_pose, baseline.last_pose)
 
 
 def test_motion_model_rejects_unknown_names():
@@ -75,18 +75,18 @@ def test_coarse_to_fine_reaches_the_known_motion_with_fewer_full_iterations(surf
     # Another sampling and noise than the target: not a copy of the model.
     src = apply(np.linalg.inv(T_TRUE), pts[rng.permutation(len(pts))[:20000]]) + rng.normal(0, 2e-4, (20000, 3))
     args = (src.astype(np.float32), pts.astype(np.float32), nrm.astype(np.float32))
-    seed = reg.icp(*args)
+    baseline = reg.icp(*args)
     coarse = reg.icp(*args, coarse_stride=4)
-    assert seed.converged and coarse.converged
-    assert seed.coarse_iterations == 0 and coarse.coarse_iterations > 0
-    assert coarse.iterations < seed.iterations, (coarse.iterations, seed.iterations)
-    for res in (seed, coarse):
+    assert baseline.converged and coarse.converged
+    assert baseline.coarse_iterations == 0 and coarse.coarse_iterations > 0
+    assert coarse.iterations < baseline.iterations, (coarse.iterations, baseline.iterations)
+    for res in (baseline, coarse):
         rot, trans = pose_error(res.T_target_source, T_TRUE)
         assert rot < 2e-3 and trans < 2e-4, (rot, trans)
     # Both are the full-resolution fixed point, to within the convergence tolerance.
-    rot, trans = pose_error(coarse.T_target_source, seed.T_target_source)
+    rot, trans = pose_error(coarse.T_target_source, baseline.T_target_source)
     assert rot < 1e-3 and trans < 1e-4, (rot, trans)
-    assert coarse.source_points_used == 20000 and coarse.fitness == seed.fitness
+    assert coarse.source_points_used == 20000 and coarse.fitness == baseline.fitness
 
 
 def test_coarse_stride_must_be_positive():

@@ -249,7 +249,7 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
             ``"base"``: the robot base frame, placing the first frame at its reference
             pose ``T_base_camera`` (required then); ``"auto"``: base when the first
             frame has a reference pose, else camera.
-        initial_guess: ``"previous"`` (seed: the previous registration),
+        initial_guess: ``"previous"`` (eye-in-hand paper §3.2: the previous registration),
             ``"constant_velocity"`` (the last inter-frame motion applied once more:
             sets ``settings.motion_model``) or ``"reference"`` (the robot's reference
             motion since the last merged frame applied to its estimate: odometry-aided
