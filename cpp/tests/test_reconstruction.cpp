@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "scanalign/reconstruction/depth_image.hpp"
+#include "scanalign/pose/model_views.hpp"  // lookAt
 #include "scanalign/reconstruction/frame_to_model.hpp"
 #include "test_support.hpp"
 
@@ -61,18 +62,6 @@ std::vector<float> rayCast(const Eigen::Matrix4d& T_world_camera, const PinholeI
       if (std::isfinite(best)) depth[static_cast<std::size_t>(v) * K.width + u] = float(best + (noise > 0 ? g(rng) : 0.0));
     }
   return depth;
-}
-
-Eigen::Matrix4d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
-  Eigen::Vector3d z = (target - eye).normalized();
-  Eigen::Vector3d x = z.cross(Eigen::Vector3d::UnitZ()).normalized();
-  Eigen::Vector3d y = z.cross(x);
-  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
-  T.block<3, 1>(0, 0) = x;
-  T.block<3, 1>(0, 1) = y;
-  T.block<3, 1>(0, 2) = z;
-  T.block<3, 1>(0, 3) = eye;
-  return T;
 }
 
 // Camera on a circle of radius 0.25 m, 0.35 m above the table, looking at the object.
