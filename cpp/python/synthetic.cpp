@@ -1,21 +1,40 @@
-// _core.synthetic: the z-buffer depth renderer behind scanalign.synthetic. The Python layer
-// validates and converts inputs; the checks here are the last line of defence.
+// _core.synthetic: the z-buffer depth renderer, the built-in part's mesh and the Morton
+// order behind scanalign.rendering, scanalign.parts and the simulator's scene.
+#include <limits>
+
 #include <pybind11/eigen.h>
 
 #include "arrays.hpp"
 #include "scanalign/reconstruction/depth_renderer.hpp"
+#include "scanalign/synthetic/builtin_part.hpp"
+#include "scanalign/synthetic/morton_order.hpp"
+#include "scanalign/synthetic/sensor_noise.hpp"
 
 namespace scanalign::python {
 
 namespace {
 
+/// (M, 3) faces of any integer dtype as int32, every index checked against [0, n_vertices)
+/// before the cast (an int64 index must not wrap into range).
+std::vector<std::int32_t> facesArg(const py::array& faces, py::ssize_t n_vertices) {
+  if (faces.size() == 0 && faces.ndim() <= 2) return {};
+  const char kind = faces.dtype().kind();
+  if (kind != 'i' && kind != 'u')
+    throw py::type_error("faces: expected an integer array, got dtype " + std::string(py::str(faces.dtype())));
+  if (faces.ndim() != 2 || faces.shape(1) != 3)
+    throw py::value_error("faces: expected shape (M, 3), got " + std::string(py::str(faces.attr("shape"))));
+  const auto f = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(faces);
+  const std::int64_t* p = f.data();
+  const auto [lo, hi] = std::minmax_element(p, p + f.size());
+  if (*lo < 0 || *hi >= n_vertices)
+    throw py::value_error("faces: vertex indices must lie in [0, " + std::to_string(n_vertices) + "), got [" +
+                          std::to_string(*lo) + ", " + std::to_string(*hi) + "]");
+  return std::vector<std::int32_t>(p, p + f.size());
+}
+
 py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, int width, int height, double fx, double fy,
                         double cx, double cy, const Eigen::Matrix4d& T_camera_world, double near_clip, double far_clip,
                         bool cull_backfaces, int num_threads) {
-  if (!faces.dtype().is(py::dtype::of<std::int32_t>()))
-    throw py::type_error("faces: expected dtype int32, got " + std::string(py::str(faces.dtype())));
-  if (faces.ndim() != 2 || faces.shape(1) != 3) throw py::value_error("faces: expected an (M, 3) array");
-  if (!(faces.flags() & py::array::c_style)) throw py::value_error("faces: must be C-contiguous");
   if (width < 1 || height < 1 || width > 32768 || height > 32768)
     throw py::value_error("image size must be in [1, 32768] pixels");
   const bool f32 = vertices.dtype().is(py::dtype::of<float>());
@@ -25,6 +44,7 @@ py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, int w
     vf = cloudView<float>(vertices, "vertices");
   else
     vd = cloudView<double>(vertices, "vertices");  // raises TypeError for other dtypes
+  const std::vector<std::int32_t> f = facesArg(faces, vertices.shape(0));
   const PinholeCamera camera{width, height, fx, fy, cx, cy};
   DepthRenderSettings settings;
   settings.near_clip = near_clip;
@@ -36,27 +56,125 @@ py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, int w
   py::array_t<std::int32_t> face_id({h, w});
   py::array_t<float> cosine({h, w});
   const DepthRenderOutput out{depth.mutable_data(), face_id.mutable_data(), cosine.mutable_data()};
-  const auto* f = static_cast<const std::int32_t*>(faces.data());
-  const auto n_faces = static_cast<std::size_t>(faces.shape(0));
   {
     py::gil_scoped_release release;
     if (f32)
-      renderDepth(vf, f, n_faces, camera, T_camera_world, settings, out);
+      renderDepth(vf, f.data(), f.size() / 3, camera, T_camera_world, settings, out);
     else
-      renderDepth(vd, f, n_faces, camera, T_camera_world, settings, out);
+      renderDepth(vd, f.data(), f.size() / 3, camera, T_camera_world, settings, out);
   }
   return py::make_tuple(depth, face_id, cosine);
+}
+
+py::tuple builtinPartMeshPy(int segments) {
+  const BuiltinPartMesh m = builtinPartMesh(segments);
+  const auto nv = static_cast<py::ssize_t>(m.vertices.size()), nf = static_cast<py::ssize_t>(m.faces.size());
+  py::array_t<double> vertices({nv, py::ssize_t{3}});
+  py::array_t<std::int64_t> faces({nf, py::ssize_t{3}});
+  py::array_t<std::int32_t> surface(nf);
+  for (py::ssize_t i = 0; i < nv; ++i)
+    for (int k = 0; k < 3; ++k) vertices.mutable_at(i, k) = m.vertices[static_cast<std::size_t>(i)][k];
+  for (py::ssize_t i = 0; i < nf; ++i) {
+    for (int k = 0; k < 3; ++k) faces.mutable_at(i, k) = m.faces[static_cast<std::size_t>(i)][k];
+    surface.mutable_at(i) = static_cast<std::int32_t>(m.surface[static_cast<std::size_t>(i)]);
+  }
+  return py::make_tuple(vertices, faces, surface);
+}
+
+py::array_t<float> applySensorNoisePy(const SensorNoise& noise, const py::array& depth, const py::array& cos_incidence,
+                                      std::uint64_t seed) {
+  using Image = py::array_t<float, py::array::c_style | py::array::forcecast>;
+  const auto z = Image::ensure(depth), c = Image::ensure(cos_incidence);
+  if (!z || z.ndim() != 2) throw py::value_error("depth: expected an (H, W) float array");
+  if (!c || c.ndim() != 2 || c.shape(0) != z.shape(0) || c.shape(1) != z.shape(1))
+    throw py::value_error("cos_incidence: expected an array of the depth's shape (H, W)");
+  py::array_t<float> out({z.shape(0), z.shape(1)});
+  const auto w = static_cast<int>(z.shape(1)), h = static_cast<int>(z.shape(0));
+  float* o = out.mutable_data();
+  {
+    py::gil_scoped_release release;
+    applySensorNoise(noise, z.data(), c.data(), w, h, seed, o);
+  }
+  return out;
+}
+
+void bindSensorNoise(py::module_& s) {
+  const double inf = std::numeric_limits<double>::infinity();
+  py::class_<SensorNoise>(s, "SensorNoise",
+                          "A depth sensor's error model, applied to noise-free depth (see apply_sensor_noise): "
+                          "dropouts at grazing incidence, on both sides of depth edges and at random, axial Gaussian "
+                          "noise sigma(z) = axial_sigma_ref (z / z_ref)^2 (the depth error of a triangulation sensor "
+                          "grows with the square of the distance), the range [min_range, max_range] and rounding to "
+                          "depth_unit. Read-only (the presets are shared); invalid fields raise ValueError naming "
+                          "them.")
+      .def(py::init([](std::string name, double axial_sigma_ref, double z_ref, double depth_unit, double min_range,
+                       double max_range, double grazing_cos, double edge_threshold, int edge_width, double dropout) {
+             SensorNoise n{std::move(name), axial_sigma_ref, z_ref,          depth_unit, min_range,
+                           max_range,       grazing_cos,     edge_threshold, edge_width, dropout};
+             n.validate();
+             return n;
+           }),
+           py::kw_only(), py::arg("name") = "custom", py::arg("axial_sigma_ref") = 0.0, py::arg("z_ref") = 1.0,
+           py::arg("depth_unit") = 0.0, py::arg("min_range") = 0.0, py::arg("max_range") = inf,
+           py::arg("grazing_cos") = 0.0, py::arg("edge_threshold") = 0.0, py::arg("edge_width") = 0,
+           py::arg("dropout") = 0.0)
+      .def_readonly("name", &SensorNoise::name, "label")
+      .def_readonly("axial_sigma_ref", &SensorNoise::axial_sigma_ref, "standard deviation of the depth error at z_ref (m)")
+      .def_readonly("z_ref", &SensorNoise::z_ref, "reference depth of axial_sigma_ref (m)")
+      .def_readonly("depth_unit", &SensorNoise::depth_unit, "quantisation step of the reported depth (m); 0 for none")
+      .def_readonly("min_range", &SensorNoise::min_range, "nearest measurable depth (m)")
+      .def_readonly("max_range", &SensorNoise::max_range, "farthest measurable depth (m)")
+      .def_readonly("grazing_cos", &SensorNoise::grazing_cos, "minimum |cosine of incidence| for a measurement")
+      .def_readonly("edge_threshold", &SensorNoise::edge_threshold,
+                    "relative depth jump marking a discontinuity; 0 disables edge dropout")
+      .def_readonly("edge_width", &SensorNoise::edge_width, "pixels dropped on each side of a discontinuity")
+      .def_readonly("dropout", &SensorNoise::dropout, "probability that any other pixel is missing")
+      .def(
+          "sigma",
+          [](const SensorNoise& n, const py::array_t<double>& z) {
+            return py::vectorize([&n](double v) { return n.sigma(v); })(z);
+          },
+          py::arg("z"),
+           "Axial standard deviation (m) at depth z (m), element-wise for arrays.")
+      .def("__repr__", [](const SensorNoise& n) {
+        return "SensorNoise(name='" + n.name + "', axial_sigma_ref=" + std::to_string(n.axial_sigma_ref) +
+               ", z_ref=" + std::to_string(n.z_ref) + ", depth_unit=" + std::to_string(n.depth_unit) + ", ...)";
+      });
+  s.def("apply_sensor_noise", &applySensorNoisePy, py::arg("noise"), py::arg("depth"), py::arg("cos_incidence"),
+        py::arg("seed"),
+        "Noisy (H, W) float32 depth in metres (NaN = missing) from noise-free `depth` (m, NaN = nothing hit) and the "
+        "rendered `cos_incidence`, by the SensorNoise model; all randomness from the 64-bit `seed` (equal seeds give "
+        "identical images with one build of the library).");
 }
 
 }  // namespace
 
 void bindSynthetic(py::module_& m) {
-  auto s = m.def_submodule("synthetic", "z-buffer depth renderer for synthetic RGB-D frames");
+  auto s = m.def_submodule("synthetic", "z-buffer depth renderer, the built-in part's mesh, Morton order");
+  bindSensorNoise(s);
   s.def("render_depth", &renderDepthPy, py::arg("vertices"), py::arg("faces"), py::arg("width"), py::arg("height"),
         py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"), py::arg("T_camera_world"), py::arg("near_clip"),
         py::arg("far_clip"), py::arg("cull_backfaces"), py::arg("num_threads"),
-        "Renders an (N,3) float32/float64 mesh with int32 (M,3) faces; returns (depth float32 m, NaN = no hit; "
-        "face_id int32, -1 = no hit; cos_incidence float32).");
+        "Renders an (N,3) float32/float64 mesh with (M,3) integer faces (indices checked, naming faces); returns "
+        "(depth float32 m, NaN = no hit; face_id int32, -1 = no hit; cos_incidence float32).");
+  s.def("builtin_part_mesh", &builtinPartMeshPy, py::arg("segments"),
+        "The built-in part (see scanalign.parts) as a watertight mesh in metres: (vertices (V,3) float64, faces "
+        "(F,3) int64 wound counter-clockwise seen from outside, surface (F,) int32: 0 plane, 1 boss cylinder, 2 "
+        "cap sphere). ValueError for segments < 8.");
+  s.def(
+      "morton_order",
+      [](const py::array& points) {
+        const CloudView<double> view = cloudView<double>(points, "points");
+        std::vector<std::int64_t> order;
+        {
+          py::gil_scoped_release release;
+          order = mortonOrder(view);
+        }
+        return py::array_t<std::int64_t>(static_cast<py::ssize_t>(order.size()), order.data());
+      },
+      py::arg("points"),
+      "(N,) int64 permutation sorting (N,3) float64 points along a Morton (Z-order) curve of their bounding box "
+      "(21 bits per axis; non-finite points last; ties keep input order).");
 }
 
 }  // namespace scanalign::python

@@ -12,10 +12,13 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
 from typing import Any, Dict, Mapping, Optional, Union
 
 import numpy as np
+import yaml
 
 __all__ = ["Intrinsics", "Frame", "INTRINSICS_PRESETS"]
 
@@ -94,39 +97,34 @@ class Intrinsics:
 
     @classmethod
     def from_file(cls, path: Union[str, os.PathLike]) -> "Intrinsics":
-        """Reads a JSON file or a flat YAML file (``key: value`` lines) with keys width,
-        height, fx, fy, cx, cy. Other keys (e.g. ``depth_scale``) are ignored here; see
+        """Reads a JSON or YAML file (:func:`read_camera_file`) with keys width, height, fx,
+        fy, cx, cy. Other keys (e.g. ``depth_scale``) are ignored here; see
         :func:`read_camera_file` for them."""
         return cls.from_dict(read_camera_file(path))
 
 
+#: A number in exponent notation, which YAML 1.1 (PyYAML) reads as a string unless it has a dot.
+_EXPONENT_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+
+
 def read_camera_file(path: Union[str, os.PathLike]) -> Dict[str, Any]:
-    """Reads a small camera description: JSON, or flat YAML (``key: value`` per line,
-    ``#`` comments). Returns the mapping with numbers parsed. Raises ValueError on a
-    malformed file."""
-    with open(path, "r", encoding="utf-8") as f:
-        text = f.read()
-    if str(path).lower().endswith(".json") or text.lstrip().startswith("{"):
-        try:
-            d = json.loads(text)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"{path}: not valid JSON: {e}") from None
-        if not isinstance(d, dict):
-            raise ValueError(f"{path}: expected a JSON object")
-        return d
-    out: Dict[str, Any] = {}
-    for lineno, raw in enumerate(text.splitlines(), 1):
-        line = raw.split("#", 1)[0].strip()
-        if not line or line in ("---", "%YAML:1.0"):
-            continue
-        if ":" not in line:
-            raise ValueError(f"{path}:{lineno}: expected 'key: value', got {raw!r}")
-        key, value = (s.strip() for s in line.split(":", 1))
-        try:
-            out[key] = float(value) if any(c in value for c in ".eE") else int(value)
-        except ValueError:
-            out[key] = value.strip("'\"")
-    return out
+    """Reads a small camera description, JSON or YAML (a leading OpenCV ``%YAML:1.0`` line,
+    which YAML parsers reject as a directive, is skipped), as a mapping; strings that are
+    numbers in exponent notation (``1e-3``, which YAML 1.1 reads as text) become floats.
+
+    Raises:
+        OSError: the file cannot be read.
+        ValueError: not valid JSON/YAML, or not a mapping (naming the file).
+    """
+    text = Path(path).read_text(encoding="utf-8")
+    as_json = str(path).lower().endswith(".json") or text.lstrip().startswith("{")
+    try:  # JSON is nearly YAML, but not quite (tabs, escapes): a JSON file is read as JSON
+        d = json.loads(text) if as_json else yaml.safe_load(re.sub(r"\A%YAML:1\.0[^\n]*", "", text))
+    except (json.JSONDecodeError, yaml.YAMLError) as e:
+        raise ValueError(f"{path}: not valid JSON or YAML: {e}") from None
+    if not isinstance(d, dict):
+        raise ValueError(f"{path}: expected 'key: value' entries, got {type(d).__name__}")
+    return {k: float(v) if isinstance(v, str) and _EXPONENT_NUMBER.fullmatch(v) else v for k, v in d.items()}
 
 
 #: Named intrinsics. TUM values are from the TUM RGB-D benchmark's published calibration

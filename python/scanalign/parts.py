@@ -1,7 +1,7 @@
 """The built-in machined part (needs no download), and meshes turned into oriented clouds.
 
-The part is defined once, as a closed triangle mesh (:func:`builtin_mesh`) generated from
-the analytic surfaces below; :func:`builtin_object` samples its cloud from that mesh and
+The part is defined once, as a closed triangle mesh (:func:`builtin_mesh`, generated in C++
+from the analytic surfaces below); :func:`builtin_object` samples its cloud from that mesh and
 puts the points of the curved faces back on the exact cylinder and sphere. In metres, in
 its own frame (origin at the box centre, z up):
 
@@ -19,29 +19,24 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Dict, List, Sequence, Tuple, Union
+from typing import Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
 
-from . import io
+from . import _core, io
 
 __all__ = ["builtin_mesh", "builtin_object", "sample_mesh", "normalize_mesh"]
 
 MeshLike = Union[io.Mesh, Tuple[npt.ArrayLike, npt.ArrayLike]]
 
-_BOX_HALF = np.array([0.040, 0.025, 0.015])  # box centred at the origin
-_TOP = float(_BOX_HALF[2])
+_TOP = 0.015  # the box's top face
 _BOSS_CENTER = np.array([-0.015, 0.0])
 _BOSS_RADIUS = 0.012
-_BOSS_HEIGHT = 0.015
 _CAP_CENTER = np.array([0.020, 0.006, _TOP - 0.009])
 _CAP_RADIUS = 0.015
 _CAP_BASE_RADIUS = math.sqrt(_CAP_RADIUS**2 - (_TOP - _CAP_CENTER[2]) ** 2)
-_PLANE, _BOSS, _CAP = 0, 1, 2  # the analytic surface each mesh face lies on
-
-
-# --------------------------------------------------------------------------- sampling
+_PLANE, _BOSS, _CAP = 0, 1, 2  # the analytic surface each mesh face lies on (as in C++)
 
 
 def _sample_faces(mesh: io.Mesh, n_points: int, rng: np.random.Generator):
@@ -111,157 +106,11 @@ def normalize_mesh(mesh: io.Mesh, size: float) -> io.Mesh:
     return io.Mesh((v - offset) * (size / extent), mesh.faces.copy())
 
 
-# --------------------------------------------------------------------------- mesh generation
-
-
-class _MeshBuilder:
-    """Collects triangles, each labelled with the analytic surface it lies on; vertices with
-    bit-identical coordinates are shared, which keeps the surfaces watertight without a tolerance."""
-
-    def __init__(self) -> None:
-        self._index: Dict[Tuple[float, float, float], int] = {}
-        self.vertices: List[Tuple[float, float, float]] = []
-        self.faces: List[Tuple[int, int, int]] = []
-        self.labels: List[int] = []
-        self.surface = _PLANE
-
-    def vertex(self, p: Sequence[float]) -> int:
-        key = (float(p[0]), float(p[1]), float(p[2]))
-        i = self._index.get(key)
-        if i is None:
-            i = self._index[key] = len(self.vertices)
-            self.vertices.append(key)
-        return i
-
-    def vertices_of(self, points: np.ndarray) -> List[int]:
-        return [self.vertex(p) for p in points]
-
-    def triangle(self, a: int, b: int, c: int) -> None:
-        self.faces.append((a, b, c))
-        self.labels.append(self.surface)
-
-    def strip(self, lower: Sequence[int], upper: Sequence[int]) -> None:
-        """Closed band between two rings of equal size, both counter-clockwise seen from
-        outside-above; normals point away from the ring axis."""
-        n = len(lower)
-        for j in range(n):
-            k = (j + 1) % n
-            self.triangle(lower[j], lower[k], upper[k])
-            self.triangle(lower[j], upper[k], upper[j])
-
-
-def _annulus(b: _MeshBuilder, centre: np.ndarray, hole: List[int], hole_xy: np.ndarray, outer: List[int],
-             outer_xy: np.ndarray) -> None:
-    """Triangulates a planar region z = const between a circular hole and a convex outer
-    boundary around it (normal +z) by merging both boundaries in angle around the hole centre."""
-
-    def by_angle(idx: List[int], xy: np.ndarray) -> Tuple[List[int], np.ndarray]:
-        ang = np.mod(np.arctan2(xy[:, 1] - centre[1], xy[:, 0] - centre[0]), 2 * np.pi)
-        order = np.argsort(ang, kind="stable")
-        return [idx[i] for i in order], ang[order]
-
-    inner, ia = by_angle(hole, hole_xy)
-    outer, oa = by_angle(outer, outer_xy)
-    # Both walks start at their first point past angle 0 and close the loop by repeating it
-    # at + 2 pi; each step advances the walk whose next point comes first in angle.
-    inner, ia = inner + [inner[0]], np.append(ia, ia[0] + 2 * np.pi)
-    outer, oa = outer + [outer[0]], np.append(oa, oa[0] + 2 * np.pi)
-    i = j = 0
-    n_i, n_o = len(inner) - 1, len(outer) - 1
-    while i < n_i or j < n_o:
-        if j >= n_o or (i < n_i and ia[i + 1] <= oa[j + 1]):
-            b.triangle(inner[i], outer[j], inner[i + 1])
-            i += 1
-        else:
-            b.triangle(inner[i], outer[j], outer[j + 1])
-            j += 1
-
-
-def _rectangle_side(b: _MeshBuilder, top: List[int], bottom: Tuple[int, int]) -> None:
-    """A vertical rectangle whose top edge carries the points ``top`` (from the corner above
-    bottom[0] to the one above bottom[1]) and whose bottom edge is the two corners ``bottom``.
-    Its normal is (direction of ``top``) x (up): walk the top edge with the outside on your
-    left, seen from above."""
-    b0, b1 = bottom
-    half = (len(top) - 1) // 2
-    for j in range(half):
-        b.triangle(b0, top[j + 1], top[j])
-    b.triangle(b0, b1, top[half])
-    for j in range(half, len(top) - 1):
-        b.triangle(b1, top[j + 1], top[j])
-
-
 @functools.lru_cache(maxsize=4)
 def _builtin(segments: int) -> Tuple[io.Mesh, np.ndarray]:
     """The part's mesh and, per face, the surface it lies on (_PLANE, _BOSS or _CAP)."""
-    hx, hy, hz = (float(x) for x in _BOX_HALF)
-    b = _MeshBuilder()
-    phi = 2 * np.pi * np.arange(segments) / segments
-    ring = np.column_stack([np.cos(phi), np.sin(phi)])
-
-    # Boss: a cylinder on the top face, its bottom ring shared with the face's hole.
-    boss_xy = _BOSS_CENTER + _BOSS_RADIUS * ring
-    boss_bottom = b.vertices_of(np.column_stack([boss_xy, np.full(segments, hz)]))
-    boss_top = b.vertices_of(np.column_stack([boss_xy, np.full(segments, hz + _BOSS_HEIGHT)]))
-    b.surface = _BOSS
-    b.strip(boss_bottom, boss_top)
-    b.surface = _PLANE
-    lid = b.vertex((_BOSS_CENTER[0], _BOSS_CENTER[1], hz + _BOSS_HEIGHT))
-    for j in range(segments):
-        b.triangle(lid, boss_top[j], boss_top[(j + 1) % segments])
-
-    # Cap: the sphere above the top face, in rings from the base circle to the pole.
-    theta_max = math.acos((hz - _CAP_CENTER[2]) / _CAP_RADIUS)  # polar angle of the base circle
-    n_rings = max(4, segments // 8)
-    rings = []
-    for k in range(n_rings):
-        th = theta_max * (n_rings - k) / n_rings
-        if k == 0:  # exactly on the top face, so the face's hole matches bit for bit
-            pts = np.column_stack([_CAP_CENTER[:2] + _CAP_RADIUS * math.sin(th) * ring, np.full(segments, hz)])
-        else:
-            pts = _CAP_CENTER + _CAP_RADIUS * np.column_stack([math.sin(th) * ring, np.full(segments, math.cos(th))])
-        rings.append(b.vertices_of(pts))
-    b.surface = _CAP
-    for lower, upper in zip(rings[:-1], rings[1:]):
-        b.strip(lower, upper)
-    pole = b.vertex(_CAP_CENTER + np.array([0.0, 0.0, _CAP_RADIUS]))
-    for j in range(segments):
-        b.triangle(pole, rings[-1][j], rings[-1][(j + 1) % segments])
-    b.surface = _PLANE
-    cap_xy = _CAP_CENTER[:2] + _CAP_RADIUS * math.sin(theta_max) * ring
-
-    # Top face: split at x = xs between the two holes into two rectangles with one hole each.
-    xs = 0.5 * ((_BOSS_CENTER[0] + _BOSS_RADIUS) + (_CAP_CENTER[0] - _CAP_RADIUS * math.sin(theta_max)))
-
-    def line(a: float, c: float) -> np.ndarray:  # boundary points 4 mm apart: dense enough for the merge
-        return np.linspace(a, c, max(2, int(math.ceil(abs(c - a) / 0.004)) + 1))
-
-    x_left, x_right, y_all = line(-hx, xs), line(xs, hx), line(-hy, hy)
-    # Boundary points, each edge generated once so that faces sharing it share the vertices.
-    x_all = np.concatenate([x_left, x_right[1:]])
-    south = [b.vertex((x, -hy, hz)) for x in x_all]  # y = -hy, x ascending
-    north = [b.vertex((x, hy, hz)) for x in x_all]   # y = +hy, x ascending
-    west = [b.vertex((-hx, y, hz)) for y in y_all]   # x = -hx, y ascending
-    east = [b.vertex((hx, y, hz)) for y in y_all]    # x = +hx, y ascending
-    split = [b.vertex((xs, y, hz)) for y in y_all]
-    n_left = len(x_left)
-    left_outer = south[:n_left] + split[1:-1] + north[:n_left] + west[1:-1]
-    right_outer = south[n_left - 1:] + east[1:-1] + north[n_left - 1:] + split[1:-1]
-    for centre, hole, hole_xy, outer in ((_BOSS_CENTER, boss_bottom, boss_xy, left_outer),
-                                         (_CAP_CENTER[:2], rings[0], cap_xy, right_outer)):
-        _annulus(b, centre, hole, hole_xy, outer, np.array([b.vertices[i][:2] for i in outer]))
-
-    # Side walls (outward normals) and the bottom face.
-    c000, c100 = b.vertex((-hx, -hy, -hz)), b.vertex((hx, -hy, -hz))
-    c010, c110 = b.vertex((-hx, hy, -hz)), b.vertex((hx, hy, -hz))
-    _rectangle_side(b, south, (c000, c100))          # y = -hy
-    _rectangle_side(b, north[::-1], (c110, c010))    # y = +hy
-    _rectangle_side(b, west[::-1], (c010, c000))     # x = -hx
-    _rectangle_side(b, east, (c100, c110))           # x = +hx
-    b.triangle(c000, c110, c100)
-    b.triangle(c000, c010, c110)
-    mesh = io.Mesh(np.array(b.vertices, dtype=np.float64), np.array(b.faces, dtype=np.int64))
-    return mesh, np.array(b.labels)
+    vertices, faces, surface = _core.synthetic.builtin_part_mesh(segments)
+    return io.Mesh(vertices, faces), surface
 
 
 def builtin_mesh(segments: int = 96) -> io.Mesh:
@@ -275,9 +124,9 @@ def builtin_mesh(segments: int = 96) -> io.Mesh:
     Args:
         segments: vertices around the boss and the cap (integer >= 8).
     """
-    if int(segments) != segments or segments < 8:
+    if int(segments) != segments:
         raise ValueError(f"segments must be an integer >= 8, got {segments}")
-    m, _ = _builtin(int(segments))
+    m, _ = _builtin(int(segments))  # C++ raises ValueError for segments < 8
     return io.Mesh(m.vertices.copy(), m.faces.copy())
 
 

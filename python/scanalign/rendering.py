@@ -53,22 +53,6 @@ def as_intrinsics(intrinsics: object) -> Intrinsics:
     return intrinsics
 
 
-def _as_faces(faces: object, n_vertices: int) -> np.ndarray:
-    """(M, 3) int32 faces. The index range is checked here, before the cast to int32 could
-    wrap an int64 index into range (the C++ check sees only the cast values)."""
-    f = np.asarray(faces)
-    if f.size == 0 and f.ndim <= 2:
-        return np.zeros((0, 3), np.int32)
-    if not np.issubdtype(f.dtype, np.integer):
-        raise TypeError(f"faces: expected an integer array, got dtype {f.dtype}")
-    if f.ndim != 2 or f.shape[1] != 3:
-        raise ValueError(f"faces: expected shape (M, 3), got {f.shape}")
-    lo, hi = int(f.min()), int(f.max())
-    if lo < 0 or hi >= n_vertices:
-        raise ValueError(f"faces: vertex indices must lie in [0, {n_vertices}), got [{lo}, {hi}]")
-    return np.ascontiguousarray(f, dtype=np.int32)
-
-
 def render_depth(
     vertices: np.ndarray,
     faces: np.ndarray,
@@ -109,10 +93,10 @@ def render_depth(
             transform, or bad clip distances (``near_clip``, ``far_clip`` in the C++ message).
     """
     K = as_intrinsics(intrinsics)
-    v = as_points(vertices, "vertices")
     T = as_transform(T_camera_world, "T_camera_world")  # rigidity: checked in C++, naming T_camera_world
-    depth, face_id, cos = _core.synthetic.render_depth(v, _as_faces(faces, v.shape[0]), K.width, K.height, K.fx,
-                                                       K.fy, K.cx, K.cy, T, float(near), float(far),
+    # Face dtype, shape and index range: checked in C++, naming faces.
+    depth, face_id, cos = _core.synthetic.render_depth(as_points(vertices, "vertices"), np.asarray(faces), K.width,
+                                                       K.height, K.fx, K.fy, K.cx, K.cy, T, float(near), float(far),
                                                        bool(cull_backfaces), num_threads)
     return RenderResult(depth, face_id, cos)
 

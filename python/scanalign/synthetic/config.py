@@ -30,6 +30,17 @@ def _is_number(v: object) -> bool:
     return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
+# The numeric fields: (names, what they must be, the test for a finite number).
+_CHECKS = [(("n_frames", "rings"), "an integer >= 1", lambda v: int(v) == v >= 1),
+           (("seed",), "an integer >= 0", lambda v: int(v) == v >= 0),
+           (("height", "resolution_scale", "frame_rate"), "a positive number", lambda v: v > 0),
+           (("radius", "table_size"), "a non-negative number", lambda v: v >= 0),
+           (("depth_unit",), "a non-negative number or 'auto'", lambda v: v >= 0),
+           (("object_size", "distance"), "a positive number or null", lambda v: v > 0),
+           (("robot_x", "robot_y"), "a finite number (m) or null", lambda v: True),
+           (("robot_z", "robot_roll", "robot_pitch", "robot_yaw"), "a finite number (m or rad)", lambda v: True)]
+
+
 @dataclass
 class SyntheticConfig:
     """Everything that defines a synthetic scan; read from JSON or flat YAML (``key: value``).
@@ -97,33 +108,17 @@ class SyntheticConfig:
     robot_elbow: str = "up"
 
     def __post_init__(self) -> None:
-        for name, allowed in (("trajectory", ("loop", "hemisphere")), ("robot_elbow", ("up", "down", "any"))):
-            if getattr(self, name) not in allowed:
-                raise ValueError(f"{name} must be one of {allowed}, got {getattr(self, name)!r}")
-        for name, presets in (("noise", NOISE_PRESETS), ("intrinsics", INTRINSICS_PRESETS)):
-            if isinstance(getattr(self, name), str) and getattr(self, name) not in presets:
-                raise ValueError(f"unknown {name} preset {getattr(self, name)!r}; known: {sorted(presets)}")
-        for name, lowest in (("n_frames", 1), ("rings", 1), ("seed", 0)):
+        for name, allowed in (("trajectory", ("loop", "hemisphere")), ("robot_elbow", ("up", "down", "any")),
+                              ("noise", NOISE_PRESETS), ("intrinsics", INTRINSICS_PRESETS)):
             v = getattr(self, name)
-            if not _is_number(v) or int(v) != v or v < lowest:
-                raise ValueError(f"{name} must be an integer >= {lowest}, got {v!r}")
-            setattr(self, name, int(v))
-        if isinstance(self.depth_unit, str) and self.depth_unit != "auto":
-            raise ValueError(f"depth_unit must be a length in metres or 'auto', got {self.depth_unit!r}")
-        numeric_unit = () if isinstance(self.depth_unit, str) else ("depth_unit",)
-        checks = [(n, "a positive number", lambda v: _is_number(v) and v > 0)
-                  for n in ("height", "resolution_scale", "frame_rate")]
-        checks += [(n, "a non-negative number", lambda v: _is_number(v) and v >= 0)
-                   for n in ("radius", "table_size") + numeric_unit]
-        checks += [(n, "a positive number or null", lambda v: v is None or (_is_number(v) and v > 0))
-                   for n in ("object_size", "distance")]
-        checks += [(n, "a finite number (m or rad), or null", lambda v: v is None or _is_number(v))
-                   for n in ("robot_x", "robot_y")]
-        checks += [(n, "a finite number (m or rad)", _is_number)
-                   for n in ("robot_z", "robot_roll", "robot_pitch", "robot_yaw")]
-        for name, what, ok in checks:
-            if not ok(getattr(self, name)):
-                raise ValueError(f"{name} must be {what}, got {getattr(self, name)!r}")
+            if not isinstance(v, dict) and v not in allowed:  # intrinsics may be a mapping
+                raise ValueError(f"unknown {name} {v!r}; known: {sorted(allowed)}")
+        for names, what, ok in _CHECKS:
+            for name in names:
+                v = getattr(self, name)
+                if not (ok(v) if _is_number(v) else v is None and "null" in what or v == "auto" in what):
+                    raise ValueError(f"{name} must be {what}, got {v!r}")
+        self.n_frames, self.rings, self.seed = int(self.n_frames), int(self.rings), int(self.seed)
         if not 0 < self.min_elevation <= self.max_elevation <= math.pi / 2:
             raise ValueError("need 0 < min_elevation <= max_elevation <= pi/2 (radians)")
         if not isinstance(self.robot, str):

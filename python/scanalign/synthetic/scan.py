@@ -10,7 +10,7 @@ from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
 
-from .. import io, se3
+from .. import _core, io, se3
 from ..camera import Frame, Intrinsics
 from ..reconstruction import depth_to_cloud
 from ..rendering import as_intrinsics
@@ -81,17 +81,10 @@ class SyntheticScan:
         return p
 
 
-def _camera_poses(poses: Union[ScanTrajectory, Trajectory, np.ndarray], frame_rate: float) -> Dict[str, Any]:
-    """Camera poses, timestamps and what a :class:`ScanTrajectory` adds (hand-eye, robot)."""
-    out: Dict[str, Any] = dict(T_flange_camera=None, T_base_flange=None, joints=None, robot=None, T_base_robot=None)
-    if isinstance(poses, ScanTrajectory):
-        out.update(T_cams=poses.T_base_camera, stamps=poses.timestamps, T_flange_camera=poses.T_flange_camera.copy(),
-                   T_base_flange=poses.T_base_flange.copy())
-        if poses.joints is not None:
-            out.update(joints=poses.joints.copy(), robot=poses.robot,
-                       T_base_robot=None if poses.T_base_robot is None else poses.T_base_robot.copy())
-    elif isinstance(poses, Trajectory):
-        out.update(T_cams=poses.poses, stamps=poses.timestamps)
+def _camera_poses(poses: Union[ScanTrajectory, Trajectory, np.ndarray], frame_rate: float):
+    """(N, 4, 4) rigid camera poses (camera -> base) and (N,) timestamps (s)."""
+    if isinstance(poses, (ScanTrajectory, Trajectory)):
+        T_cams, stamps = getattr(poses, "T_base_camera", getattr(poses, "poses", None)), poses.timestamps
     else:
         T_cams = np.asarray(poses, dtype=np.float64)
         T_cams = T_cams[None] if T_cams.ndim == 2 else T_cams
@@ -99,12 +92,10 @@ def _camera_poses(poses: Union[ScanTrajectory, Trajectory, np.ndarray], frame_ra
             raise ValueError(f"poses: expected (N, 4, 4) camera poses, got shape {T_cams.shape}")
         if not (math.isfinite(frame_rate) and frame_rate > 0):
             raise ValueError(f"frame_rate must be positive (Hz), got {frame_rate!r}")
-        out.update(T_cams=T_cams, stamps=np.arange(len(T_cams)) / frame_rate)
-    out["T_cams"] = np.array([se3.require_rigid(T, f"poses[{k}]") for k, T in enumerate(out["T_cams"])]).reshape(
-        -1, 4, 4)
-    if len(out["T_cams"]) == 0:
+        stamps = np.arange(len(T_cams)) / frame_rate
+    if len(T_cams) == 0:
         raise ValueError("poses: no camera poses given")
-    return out
+    return np.array([se3.require_rigid(T, f"poses[{k}]") for k, T in enumerate(T_cams)]), np.array(stamps, float)
 
 
 def render_scan(
@@ -129,7 +120,7 @@ def render_scan(
             of ``T_base_camera``, or an (N, 4, 4) array of ``T_base_camera`` (camera -> base, m).
         intrinsics: camera intrinsics or a preset name (:data:`scanalign.camera.INTRINSICS_PRESETS`).
         noise: a :class:`SensorNoise` or a preset name (``NOISE_PRESETS``); None = "none".
-        seed: noise seed. Frame ``k`` draws from ``numpy.random.default_rng`` seeded with
+        seed: noise seed. Frame ``k``'s noise is seeded from
             ``numpy.random.SeedSequence(seed).spawn(N)[k]``: equal seeds give bit-identical
             frames, and a frame does not depend on how many others are rendered.
         depth_unit: metres per unit of the stored uint16 depth (depths above 65535 units are
@@ -159,15 +150,18 @@ def render_scan(
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     if int(num_threads) != num_threads or num_threads < 0:
         raise ValueError(f"num_threads must be a non-negative integer, got {num_threads!r}")
-    src = _camera_poses(poses, frame_rate)
-    T_cams, stamps = src["T_cams"], src["stamps"]
+    T_cams, stamps = _camera_poses(poses, frame_rate)
+    # What a ScanTrajectory adds: the hand-eye transform, flange poses and the robot's joints.
+    src = {k: getattr(poses, k, None) for k in ("T_flange_camera", "T_base_flange", "joints", "robot", "T_base_robot")}
+    src = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in src.items()}
     children = np.random.SeedSequence(int(seed)).spawn(len(T_cams))
     scene._prepare_shading()  # build the shared caches before the worker threads read them
 
     def render_frame(k: int) -> Frame:
         T = T_cams[k]
         clean = scene.render(T, K, near=near, num_threads=1)
-        z = model.apply(clean.depth, clean.cos_incidence, np.random.default_rng(children[k]))
+        z = _core.synthetic.apply_sensor_noise(model, clean.depth, clean.cos_incidence,
+                                               int(children[k].generate_state(1, np.uint64)[0]))
         depth, scale = z, 1.0
         if depth_unit is not None:
             units = np.round(np.nan_to_num(z, nan=0.0) / depth_unit)
@@ -196,8 +190,5 @@ def render_scan(
     else:
         with concurrent.futures.ThreadPoolExecutor(max_workers=workers) as pool:
             frames = list(pool.map(render_frame, range(len(T_cams))))
-    return SyntheticScan(frames=frames, reference=Trajectory(np.asarray(stamps, dtype=np.float64).copy(),
-                                                             T_cams.copy()),
-                         mesh=scene.mesh, object_mesh=scene.object_mesh, intrinsics=K, noise=model,
-                         T_flange_camera=src["T_flange_camera"], T_base_flange=src["T_base_flange"], scene=scene,
-                         seed=int(seed), joints=src["joints"], robot=src["robot"], T_base_robot=src["T_base_robot"])
+    return SyntheticScan(frames=frames, reference=Trajectory(stamps, T_cams.copy()), mesh=scene.mesh,
+                         object_mesh=scene.object_mesh, intrinsics=K, noise=model, scene=scene, seed=int(seed), **src)

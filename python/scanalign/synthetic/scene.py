@@ -8,27 +8,13 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from .. import io, se3
+from .. import _core, io, se3
 from .._arrays import as_transform
 from ..camera import Intrinsics
 from ..reconstruction import depth_to_cloud
 from ..rendering import RenderResult, as_intrinsics, render_depth
 
 __all__ = ["SceneObject", "Scene"]
-
-
-def _morton_order(points: np.ndarray, bits: int = 10) -> np.ndarray:
-    """Permutation sorting points along a Morton (Z-order) curve of their bounding box."""
-    if len(points) == 0:
-        return np.zeros(0, np.int64)
-    lo = points.min(axis=0)
-    ext = float(np.ptp(points, axis=0).max()) or 1.0
-    q = np.clip(((points - lo) / ext * (2**bits - 1)).astype(np.uint64), 0, 2**bits - 1)
-    code = np.zeros(len(points), dtype=np.uint64)
-    for bit in range(bits):
-        for axis in range(3):
-            code |= ((q[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(3 * bit + axis)
-    return np.argsort(code, kind="stable")
 
 
 def _as_color(color: Sequence[float], name: str = "color") -> np.ndarray:
@@ -91,30 +77,21 @@ class Scene:
         light_direction: Sequence[float] = (0.3, -0.2, 1.0),
         ambient: float = 0.3,
     ) -> None:
-        if table_size is not None:
-            ts = _finite(table_size, (2,), "table_size", "two positive lengths in metres")
-            if ts.min() <= 0:
-                raise ValueError(f"table_size: expected two positive lengths in metres, got {table_size!r}")
-            table_size = (float(ts[0]), float(ts[1]))
-        tc = _finite(table_center, (2,), "table_center", "(x, y) in metres")
-        if not math.isfinite(table_height):
-            raise ValueError("table_height must be finite")
-        if not (math.isfinite(checker_size) and checker_size > 0):
-            raise ValueError("checker_size must be a positive length in metres")
+        ts = None if table_size is None else _finite(table_size, (2,), "table_size", "two lengths in metres")
         light = _finite(light_direction, (3,), "light_direction", "a non-zero 3-vector")
-        if np.linalg.norm(light) == 0:
-            raise ValueError("light_direction must be a non-zero 3-vector")
-        if not 0 <= ambient <= 1:
-            raise ValueError("ambient must lie in [0, 1]")
-        self.table_size = table_size
-        self.table_center = (float(tc[0]), float(tc[1]))
-        self.table_height = float(table_height)
-        self.checker_size = float(checker_size)
-        if len(checker_colors) != 2:
-            raise ValueError(f"checker_colors: expected two RGB albedos, got {checker_colors!r}")
+        for name, ok, what in (("table_size", ts is None or ts.min() > 0, "two positive lengths (m) or None"),
+                               ("table_height", math.isfinite(table_height), "finite (m)"),
+                               ("checker_size", math.isfinite(checker_size) and checker_size > 0, "a length > 0 (m)"),
+                               ("light_direction", np.linalg.norm(light) > 0, "a non-zero 3-vector"),
+                               ("ambient", 0 <= ambient <= 1, "in [0, 1]"),
+                               ("checker_colors", len(checker_colors) == 2, "two RGB albedos")):
+            if not ok:
+                raise ValueError(f"{name} must be {what}, got {locals()[name]!r}")
+        self.table_size = None if ts is None else (float(ts[0]), float(ts[1]))
+        self.table_center = tuple(float(c) for c in _finite(table_center, (2,), "table_center", "(x, y) in metres"))
+        self.table_height, self.checker_size, self.ambient = float(table_height), float(checker_size), float(ambient)
         self.checker_colors = tuple(_as_color(c, "checker_colors") for c in checker_colors)
         self.light_direction = light / np.linalg.norm(light)
-        self.ambient = float(ambient)
         self.objects: List[SceneObject] = []
         self._combined: Optional[Dict[str, np.ndarray]] = None
 
@@ -191,7 +168,7 @@ class Scene:
             # Faces in Morton order of their centroids and vertices in order of first use:
             # neighbouring faces end up close in memory, which cuts the renderer's cache misses
             # on meshes stored in random order. Unused vertices are dropped.
-            order = _morton_order(v[f].mean(axis=1)) if len(f) > 1 else np.arange(len(f))
+            order = _core.synthetic.morton_order(v[f].mean(axis=1))
             f = f[order]
             used, first = np.unique(f.ravel(), return_index=True)
             by_first_use = used[np.argsort(first, kind="stable")]

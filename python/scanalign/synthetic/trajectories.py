@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Optional, Sequence
+from typing import Any, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -50,17 +50,11 @@ class ScanTrajectory:
     T_base_robot: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
-        self.T_base_flange = np.asarray(self.T_base_flange, dtype=np.float64)
-        if self.T_base_flange.ndim != 3 or self.T_base_flange.shape[1:] != (4, 4):
-            raise ValueError(f"T_base_flange: expected shape (N, 4, 4), got {self.T_base_flange.shape}")
+        n = len(self.T_base_flange)
+        self.T_base_flange = _array(self.T_base_flange, (n, 4, 4), "T_base_flange")
         self.T_flange_camera = se3.require_rigid(self.T_flange_camera, "T_flange_camera")
-        self.timestamps = np.asarray(self.timestamps, dtype=np.float64).reshape(-1)
-        if len(self.timestamps) != len(self.T_base_flange):
-            raise ValueError("timestamps: one timestamp per pose expected")
-        if self.joints is not None:
-            self.joints = np.asarray(self.joints, dtype=np.float64)
-            if self.joints.shape != (len(self.T_base_flange), 6):
-                raise ValueError(f"joints: expected shape ({len(self.T_base_flange)}, 6), got {self.joints.shape}")
+        self.timestamps = _array(np.ravel(self.timestamps), (n,), "timestamps")
+        self.joints = None if self.joints is None else _array(self.joints, (n, 6), "joints")
         if self.T_base_robot is not None:
             self.T_base_robot = se3.require_rigid(self.T_base_robot, "T_base_robot")
 
@@ -78,11 +72,12 @@ class ScanTrajectory:
         return Trajectory(self.timestamps.copy(), self.T_base_camera)
 
 
-def _center(center: Sequence[float]) -> np.ndarray:
-    c = np.asarray(center, dtype=np.float64)
-    if c.shape != (3,) or not np.all(np.isfinite(c)):
-        raise ValueError(f"center: expected (x, y, z) in metres, got {center!r}")
-    return c
+def _array(value: Any, shape: Tuple[int, ...], name: str) -> np.ndarray:
+    """``value`` as a finite float64 array of ``shape``; ValueError naming ``name`` otherwise."""
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != shape or not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: expected finite values of shape {shape}, got shape {a.shape}")
+    return a
 
 
 def _planned(T_base_camera: np.ndarray, T_flange_camera: Optional[np.ndarray], frame_rate: float,
@@ -166,7 +161,7 @@ def loop_trajectory(
     """
     if int(n_frames) != n_frames or n_frames < 1:
         raise ValueError(f"n_frames must be a positive integer, got {n_frames}")
-    c = _center(center)
+    c = _array(center, (3,), "center")
     if not (math.isfinite(height) and height > 0):
         raise ValueError(f"height must be a positive distance in metres, got {height}")
     if not (math.isfinite(radius) and radius >= 0):
@@ -225,7 +220,7 @@ def hemisphere_trajectory(
         raise ValueError(f"n_frames must be an integer >= the number of rings ({el.size}), got {n_frames}")
     if not (math.isfinite(distance) and distance > 0):
         raise ValueError(f"distance must be a positive length in metres, got {distance}")
-    c = _center(center)
+    c = _array(center, (3,), "center")
     tgt = c if target is None else np.asarray(target, dtype=np.float64)
     # Largest-remainder apportionment of the frames to the rings.
     share = np.maximum(np.cos(el), 1e-3)

@@ -1,0 +1,208 @@
+#include "scanalign/synthetic/builtin_part.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+namespace scanalign {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kHx = 0.040, kHy = 0.025, kHz = 0.015;  // box half sizes
+constexpr double kBossX = -0.015, kBossY = 0.0, kBossRadius = 0.012, kBossHeight = 0.015;
+constexpr double kCapX = 0.020, kCapY = 0.006, kCapZ = kHz - 0.009, kCapRadius = 0.015;
+
+/// Collects labelled triangles; vertices with bit-identical coordinates are shared, which
+/// keeps the surfaces watertight without a tolerance.
+class MeshBuilder {
+ public:
+  PartSurface surface = PartSurface::kPlane;
+
+  int vertex(double x, double y, double z) {
+    const auto [it, added] = index_.try_emplace({x, y, z}, static_cast<int>(mesh_.vertices.size()));
+    if (added) mesh_.vertices.emplace_back(x, y, z);
+    return it->second;
+  }
+  const Eigen::Vector3d& at(int i) const { return mesh_.vertices[static_cast<std::size_t>(i)]; }
+
+  void triangle(int a, int b, int c) {
+    mesh_.faces.emplace_back(a, b, c);
+    mesh_.surface.push_back(surface);
+  }
+
+  /// Closed band between two rings of equal size, both counter-clockwise seen from
+  /// outside-above; normals point away from the ring axis.
+  void strip(const std::vector<int>& lower, const std::vector<int>& upper) {
+    const std::size_t n = lower.size();
+    for (std::size_t j = 0; j < n; ++j) {
+      const std::size_t k = (j + 1) % n;
+      triangle(lower[j], lower[k], upper[k]);
+      triangle(lower[j], upper[k], upper[j]);
+    }
+  }
+
+  /// Fan from `apex` over a closed ring (counter-clockwise seen from the apex's side).
+  void fan(int apex, const std::vector<int>& ring) {
+    for (std::size_t j = 0; j < ring.size(); ++j) triangle(apex, ring[j], ring[(j + 1) % ring.size()]);
+  }
+
+  /// The plane z = const between a circular hole around (cx, cy) and a convex outer boundary
+  /// around it (normal +z): both boundaries are walked in angle around the hole's centre,
+  /// each step advancing the walk whose next point comes first.
+  void annulus(double cx, double cy, const std::vector<int>& hole, const std::vector<int>& outer) {
+    auto [inner, ia] = byAngle(cx, cy, hole);
+    auto [out, oa] = byAngle(cx, cy, outer);
+    const std::size_t n_i = inner.size(), n_o = out.size();
+    // Close both loops by repeating the first point at + 2 pi.
+    inner.push_back(inner[0]);
+    ia.push_back(ia[0] + 2 * kPi);
+    out.push_back(out[0]);
+    oa.push_back(oa[0] + 2 * kPi);
+    std::size_t i = 0, j = 0;
+    while (i < n_i || j < n_o) {
+      if (j >= n_o || (i < n_i && ia[i + 1] <= oa[j + 1])) {
+        triangle(inner[i], out[j], inner[i + 1]);
+        ++i;
+      } else {
+        triangle(inner[i], out[j], out[j + 1]);
+        ++j;
+      }
+    }
+  }
+
+  /// A vertical rectangle whose top edge carries `top` (from the corner above b0 to the one
+  /// above b1) and whose bottom edge is b0-b1. Its normal is (direction of top) x (up).
+  void rectangleSide(const std::vector<int>& top, int b0, int b1) {
+    const std::size_t half = (top.size() - 1) / 2;
+    for (std::size_t j = 0; j < half; ++j) triangle(b0, top[j + 1], top[j]);
+    triangle(b0, b1, top[half]);
+    for (std::size_t j = half; j + 1 < top.size(); ++j) triangle(b1, top[j + 1], top[j]);
+  }
+
+  BuiltinPartMesh take() { return std::move(mesh_); }
+
+ private:
+  std::pair<std::vector<int>, std::vector<double>> byAngle(double cx, double cy, const std::vector<int>& idx) const {
+    std::vector<double> ang(idx.size());
+    for (std::size_t k = 0; k < idx.size(); ++k) {
+      const double a = std::atan2(at(idx[k]).y() - cy, at(idx[k]).x() - cx);
+      ang[k] = a < 0 ? a + 2 * kPi : a;
+    }
+    std::vector<std::size_t> order(idx.size());
+    std::iota(order.begin(), order.end(), std::size_t{0});
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return ang[a] < ang[b]; });
+    std::pair<std::vector<int>, std::vector<double>> sorted;
+    for (std::size_t k : order) {
+      sorted.first.push_back(idx[k]);
+      sorted.second.push_back(ang[k]);
+    }
+    return sorted;
+  }
+
+  std::map<std::array<double, 3>, int> index_;
+  BuiltinPartMesh mesh_;
+};
+
+/// n points from a to c, both included (as numpy.linspace).
+std::vector<double> linspace(double a, double c, int n) {
+  std::vector<double> out(static_cast<std::size_t>(n));
+  const double step = (c - a) / (n - 1);
+  for (int k = 0; k < n; ++k) out[static_cast<std::size_t>(k)] = a + k * step;
+  out.back() = c;
+  return out;
+}
+
+/// Boundary points at most 4 mm apart: dense enough for the annulus merge.
+std::vector<double> boundary(double a, double c) {
+  return linspace(a, c, std::max(2, static_cast<int>(std::ceil(std::abs(c - a) / 0.004)) + 1));
+}
+
+}  // namespace
+
+BuiltinPartMesh builtinPartMesh(int segments) {
+  if (segments < 8) throw std::invalid_argument("segments must be an integer >= 8, got " + std::to_string(segments));
+  MeshBuilder b;
+  const auto n = static_cast<std::size_t>(segments);
+  std::vector<double> cs(n), sn(n);
+  for (std::size_t j = 0; j < n; ++j) {
+    const double phi = 2 * kPi * static_cast<double>(j) / segments;
+    cs[j] = std::cos(phi);
+    sn[j] = std::sin(phi);
+  }
+  auto ring = [&](double cx, double cy, double r, double z) {
+    std::vector<int> idx(n);
+    for (std::size_t j = 0; j < n; ++j) idx[j] = b.vertex(cx + r * cs[j], cy + r * sn[j], z);
+    return idx;
+  };
+
+  // Boss: a cylinder on the top face, its bottom ring shared with the face's hole.
+  const std::vector<int> boss_bottom = ring(kBossX, kBossY, kBossRadius, kHz);
+  const std::vector<int> boss_top = ring(kBossX, kBossY, kBossRadius, kHz + kBossHeight);
+  b.surface = PartSurface::kBoss;
+  b.strip(boss_bottom, boss_top);
+  b.surface = PartSurface::kPlane;
+  b.fan(b.vertex(kBossX, kBossY, kHz + kBossHeight), boss_top);
+
+  // Cap: the sphere above the top face, in rings from the base circle to the pole; the base
+  // ring lies exactly on the top face, so the face's hole matches it bit for bit.
+  const double theta_max = std::acos((kHz - kCapZ) / kCapRadius);  // polar angle of the base
+  const int n_rings = std::max(4, segments / 8);
+  std::vector<std::vector<int>> rings;
+  for (int k = 0; k < n_rings; ++k) {
+    const double th = theta_max * (n_rings - k) / n_rings;
+    rings.push_back(ring(kCapX, kCapY, kCapRadius * std::sin(th), k == 0 ? kHz : kCapZ + kCapRadius * std::cos(th)));
+  }
+  b.surface = PartSurface::kCap;
+  for (std::size_t k = 0; k + 1 < rings.size(); ++k) b.strip(rings[k], rings[k + 1]);
+  b.fan(b.vertex(kCapX, kCapY, kCapZ + kCapRadius), rings.back());
+  b.surface = PartSurface::kPlane;
+
+  // Top face: split at x = xs between the two holes into two rectangles with one hole each.
+  // Each boundary edge is generated once, so faces sharing it share its vertices.
+  const double xs = 0.5 * ((kBossX + kBossRadius) + (kCapX - kCapRadius * std::sin(theta_max)));
+  const std::vector<double> x_left = boundary(-kHx, xs), x_right = boundary(xs, kHx), y_all = boundary(-kHy, kHy);
+  std::vector<double> x_all = x_left;
+  x_all.insert(x_all.end(), x_right.begin() + 1, x_right.end());
+  std::vector<int> south, north, west, east, split;
+  for (double x : x_all) south.push_back(b.vertex(x, -kHy, kHz));  // y = -hy, x ascending
+  for (double x : x_all) north.push_back(b.vertex(x, kHy, kHz));   // y = +hy, x ascending
+  for (double y : y_all) west.push_back(b.vertex(-kHx, y, kHz));   // x = -hx, y ascending
+  for (double y : y_all) east.push_back(b.vertex(kHx, y, kHz));    // x = +hx, y ascending
+  for (double y : y_all) split.push_back(b.vertex(xs, y, kHz));
+  const std::size_t n_left = x_left.size();
+  auto cat = [](std::initializer_list<std::pair<std::vector<int>::const_iterator, std::vector<int>::const_iterator>>
+                    parts) {
+    std::vector<int> out;
+    for (const auto& [first, last] : parts) out.insert(out.end(), first, last);
+    return out;
+  };
+  const auto L = static_cast<std::ptrdiff_t>(n_left);
+  const std::vector<int> left_outer = cat({{south.begin(), south.begin() + L},
+                                           {split.begin() + 1, split.end() - 1},
+                                           {north.begin(), north.begin() + L},
+                                           {west.begin() + 1, west.end() - 1}});
+  const std::vector<int> right_outer = cat({{south.begin() + L - 1, south.end()},
+                                            {east.begin() + 1, east.end() - 1},
+                                            {north.begin() + L - 1, north.end()},
+                                            {split.begin() + 1, split.end() - 1}});
+  b.annulus(kBossX, kBossY, boss_bottom, left_outer);
+  b.annulus(kCapX, kCapY, rings[0], right_outer);
+
+  // Side walls (outward normals) and the bottom face.
+  const int c000 = b.vertex(-kHx, -kHy, -kHz), c100 = b.vertex(kHx, -kHy, -kHz);
+  const int c010 = b.vertex(-kHx, kHy, -kHz), c110 = b.vertex(kHx, kHy, -kHz);
+  b.rectangleSide(south, c000, c100);                                  // y = -hy
+  b.rectangleSide(std::vector<int>(north.rbegin(), north.rend()), c110, c010);  // y = +hy
+  b.rectangleSide(std::vector<int>(west.rbegin(), west.rend()), c010, c000);    // x = -hx
+  b.rectangleSide(east, c100, c110);                                   // x = +hx
+  b.triangle(c000, c110, c100);
+  b.triangle(c000, c010, c110);
+  return b.take();
+}
+
+}  // namespace scanalign

@@ -1,0 +1,91 @@
+#include "scanalign/synthetic/sensor_noise.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+namespace scanalign {
+
+namespace {
+
+void require(bool ok, const char* field, const char* what) {
+  if (!ok) throw std::invalid_argument(std::string("SensorNoise.") + field + " must be " + what);
+}
+
+/// Pixels within `width` pixels of a depth discontinuity: a 4-neighbour pair whose depths
+/// differ by more than `threshold` times the nearer one, or where exactly one of the two sees
+/// a surface (a silhouette against the void). Both sides are marked; only valid pixels.
+std::vector<char> depthEdges(const float* z, int w, int h, double threshold, int width) {
+  const std::size_t n = static_cast<std::size_t>(w) * static_cast<std::size_t>(h);
+  std::vector<char> edge(n, 0);
+  auto pair = [&](std::size_t a, std::size_t b) {
+    const bool va = std::isfinite(z[a]), vb = std::isfinite(z[b]);
+    if (va != vb || (va && vb && std::abs(double(z[a]) - z[b]) > threshold * std::min<double>(z[a], z[b])))
+      edge[a] = edge[b] = 1;
+  };
+  for (int r = 0; r < h; ++r)
+    for (int c = 0; c < w; ++c) {
+      const std::size_t i = static_cast<std::size_t>(r) * w + c;
+      if (c + 1 < w) pair(i, i + 1);
+      if (r + 1 < h) pair(i, i + w);
+    }
+  for (int step = 1; step < width; ++step) {  // dilate by one pixel per step (4-neighbourhood)
+    std::vector<char> grown = edge;
+    for (int r = 0; r < h; ++r)
+      for (int c = 0; c < w; ++c) {
+        const std::size_t i = static_cast<std::size_t>(r) * w + c;
+        if (!edge[i]) continue;
+        if (c > 0) grown[i - 1] = 1;
+        if (c + 1 < w) grown[i + 1] = 1;
+        if (r > 0) grown[i - w] = 1;
+        if (r + 1 < h) grown[i + w] = 1;
+      }
+    edge.swap(grown);
+  }
+  return edge;
+}
+
+}  // namespace
+
+void SensorNoise::validate() const {
+  for (auto [v, field] : {std::pair{axial_sigma_ref, "axial_sigma_ref"}, {depth_unit, "depth_unit"},
+                          {min_range, "min_range"}, {grazing_cos, "grazing_cos"}, {edge_threshold, "edge_threshold"},
+                          {dropout, "dropout"}})
+    require(std::isfinite(v) && v >= 0, field, "finite and >= 0");
+  require(std::isfinite(z_ref) && z_ref > 0, "z_ref", "a positive depth (m)");
+  require(max_range > min_range, "max_range", "greater than min_range");
+  require(grazing_cos < 1, "grazing_cos", "< 1");
+  require(dropout < 1, "dropout", "< 1");
+  require(edge_width >= 0, "edge_width", "a non-negative integer");
+}
+
+void applySensorNoise(const SensorNoise& noise, const float* depth, const float* cos_incidence, int width, int height,
+                      std::uint64_t seed, float* out) {
+  noise.validate();
+  const std::size_t n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+  std::vector<char> edge;
+  if (noise.edge_threshold > 0 && noise.edge_width > 0)
+    edge = depthEdges(depth, width, height, noise.edge_threshold, noise.edge_width);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> uniform(0.0, 1.0);
+  std::normal_distribution<double> normal(0.0, 1.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    out[i] = std::numeric_limits<float>::quiet_NaN();
+    bool valid = std::isfinite(depth[i]);
+    if (noise.grazing_cos > 0) valid = valid && std::abs(cos_incidence[i]) >= noise.grazing_cos;
+    if (!edge.empty()) valid = valid && !edge[i];
+    // The dropout draw comes first and for every pixel, so one pixel's fate does not shift
+    // the random stream of the others.
+    if (noise.dropout > 0 && uniform(rng) < noise.dropout) valid = false;
+    if (!valid) continue;
+    double z = depth[i];
+    if (noise.axial_sigma_ref > 0) z += noise.sigma(z) * normal(rng);
+    if (z < noise.min_range || z > noise.max_range) continue;
+    if (noise.depth_unit > 0) z = std::round(z / noise.depth_unit) * noise.depth_unit;
+    out[i] = static_cast<float>(z);
+  }
+}
+
+}  // namespace scanalign
