@@ -29,7 +29,7 @@
 
 namespace {
 
-using namespace scanalign::kinematics;
+using namespace scanalign;
 using Clock = std::chrono::steady_clock;
 
 double seconds(Clock::time_point a, Clock::time_point b) { return std::chrono::duration<double>(b - a).count(); }
@@ -119,7 +119,7 @@ void benchRobot(const Robot& robot, std::size_t n, int repeats, int threads, std
     double sum = 0;
     // Only the call is timed; the checksum is taken afterwards (ikBatch writes memory the
     // optimiser cannot see through, and the checksum reads it).
-    const double t = best(repeats, [&] { ikBatch(robot, poses.data(), n, batch.data(), IKOptions{}, threads); });
+    const double t = best(repeats, [&] { ikBatch(robot, poses.data(), n, batch.data(), IKSettings{}, threads); });
     for (std::size_t i = 0; i < n; ++i)
       for (const auto& sol : batch[i].solutions)
         if (sol.status == IKStatus::Ok) sum += sol.q.sum();

@@ -46,7 +46,7 @@ void defineFeatures(py::module_& m) {
           throw py::value_error("eigenvalues: expected shape (3,) or (N, 3)");
         py::array_t<double> out(std::vector<py::ssize_t>(ev.shape(), ev.shape() + ev.ndim()));
         for (py::ssize_t i = 0; i < ev.size() / 3; ++i) {
-          const features::ShapeFactors c = features::shapeFactors(ev.data()[3 * i], ev.data()[3 * i + 1], ev.data()[3 * i + 2]);
+          const ShapeFactors c = shapeFactors(ev.data()[3 * i], ev.data()[3 * i + 1], ev.data()[3 * i + 2]);
           out.mutable_data()[3 * i] = c.linear;
           out.mutable_data()[3 * i + 1] = c.planar;
           out.mutable_data()[3 * i + 2] = c.spherical;

@@ -20,7 +20,7 @@ namespace py = pybind11;
 namespace scanalign::python {
 
 namespace {
-using namespace scanalign::kinematics;
+using namespace scanalign;
 using F64 = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using RowMatrix4d = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
 
@@ -120,10 +120,10 @@ void requireIk(const Robot& r) {
         "(forward kinematics still works)");
 }
 
-IKOptions options(const Robot& r, const Vector6d& q_free, double reach_tolerance, double singular_tolerance,
+IKSettings options(const Robot& r, const Vector6d& q_free, double reach_tolerance, double singular_tolerance,
                   bool respect_limits) {
   requireIk(r);
-  IKOptions o;
+  IKSettings o;
   o.q_free = q_free;
   o.reach_tolerance = tolerance(reach_tolerance, "reach_tolerance");
   o.singular_tolerance = tolerance(singular_tolerance, "singular_tolerance");
@@ -498,7 +498,7 @@ py::object withinLimits(const Robot& r, const py::object& q, double tol) {
 
 IKResult ikOne(const Robot& r, const py::object& T, const py::object& q_free, bool respect_limits,
                double reach_tolerance, double singular_tolerance) {
-  const IKOptions o = options(r, vector6Or(q_free, "q_free", Vector6d::Zero()), reach_tolerance, singular_tolerance,
+  const IKSettings o = options(r, vector6Or(q_free, "q_free", Vector6d::Zero()), reach_tolerance, singular_tolerance,
                               respect_limits);
   return ik(r, rigid(T, "T_base_tool"), o);
 }
@@ -506,15 +506,15 @@ IKResult ikOne(const Robot& r, const py::object& T, const py::object& q_free, bo
 IKSolution ikClosestOne(const Robot& r, const py::object& T, const py::object& q_current, const py::object& weights,
                         bool respect_limits, double reach_tolerance, double singular_tolerance) {
   const Vector6d qc = vector6(q_current, "q_current");
-  const IKOptions o = options(r, qc, reach_tolerance, singular_tolerance, respect_limits);
-  ClosestOptions c;
+  const IKSettings o = options(r, qc, reach_tolerance, singular_tolerance, respect_limits);
+  ClosestSettings c;
   c.weights = vector6Or(weights, "weights", Vector6d::Ones(), true);
   return ikClosest(r, rigid(T, "T_base_tool"), qc, o, c);
 }
 
 IKBatch ikBatchMany(const Robot& r, const py::object& T, const py::object& q_free, bool respect_limits,
                     int num_threads, double reach_tolerance, double singular_tolerance) {
-  const IKOptions o = options(r, vector6Or(q_free, "q_free", Vector6d::Zero()), reach_tolerance, singular_tolerance,
+  const IKSettings o = options(r, vector6Or(q_free, "q_free", Vector6d::Zero()), reach_tolerance, singular_tolerance,
                               respect_limits);
   const F64 p = poses(T, "T_base_tool", false);
   threadCount(num_threads);
@@ -530,8 +530,8 @@ JointTrajectory ikTrajectoryMany(const Robot& r, const py::object& T, const py::
                                  const py::object& weights, bool respect_limits, double reach_tolerance,
                                  double singular_tolerance) {
   const Vector6d qs = vector6(q_start, "q_start");
-  const IKOptions o = options(r, qs, reach_tolerance, singular_tolerance, respect_limits);
-  ClosestOptions c;
+  const IKSettings o = options(r, qs, reach_tolerance, singular_tolerance, respect_limits);
+  ClosestSettings c;
   c.weights = vector6Or(weights, "weights", Vector6d::Ones(), true);
   const F64 p = poses(T, "T_base_tool", true);
   const py::ssize_t n = p.shape(0);
@@ -548,8 +548,8 @@ JointTrajectory ikTrajectoryMany(const Robot& r, const py::object& T, const py::
 IKConstruction construction(const Robot& r, const py::object& T, int shoulder, int elbow, int wrist,
                             const py::object& q_free) {
   const IKConfig c = config(shoulder, elbow, wrist);
-  const IKOptions o = options(r, vector6Or(q_free, "q_free", Vector6d::Zero()), IKOptions{}.reach_tolerance,
-                              IKOptions{}.singular_tolerance, true);
+  const IKSettings o = options(r, vector6Or(q_free, "q_free", Vector6d::Zero()), IKSettings{}.reach_tolerance,
+                              IKSettings{}.singular_tolerance, true);
   return ikConstruction(r, rigid(T, "T_base_tool"), c, o);
 }
 
@@ -606,7 +606,7 @@ void defForward(RobotClass& c) {
 }
 
 void defInverse(RobotClass& c) {
-  const IKOptions defaults;
+  const IKSettings defaults;
   c.def("ik", &ikOne, py::arg("T_base_tool"), py::arg("q_free") = py::none(), py::arg("respect_limits") = true,
         py::kw_only(), py::arg("reach_tolerance") = defaults.reach_tolerance,
         py::arg("singular_tolerance") = defaults.singular_tolerance, kIkDoc)
@@ -713,8 +713,8 @@ void bindRobot(py::module_& m) {
 
 void defineKinematics(py::module_& m) {
   // The C++ defaults and names, so that the Python layer has one source of truth.
-  m.attr("DEFAULT_REACH_TOLERANCE") = IKOptions{}.reach_tolerance;
-  m.attr("DEFAULT_SINGULAR_TOLERANCE") = IKOptions{}.singular_tolerance;
+  m.attr("DEFAULT_REACH_TOLERANCE") = IKSettings{}.reach_tolerance;
+  m.attr("DEFAULT_SINGULAR_TOLERANCE") = IKSettings{}.singular_tolerance;
   m.attr("STATUS_NAMES") = py::make_tuple(toString(IKStatus::Ok), toString(IKStatus::OutsideLimits),
                                           toString(IKStatus::Unreachable), toString(IKStatus::InvalidInput));
   m.attr("SINGULAR_NAMES") = py::make_tuple(kSingularNames[0], kSingularNames[1], kSingularNames[2]);

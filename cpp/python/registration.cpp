@@ -275,7 +275,7 @@ void defineBucketKdTree(py::module_& m, const char* name) {
             const py::tuple r = nearestAll<Scalar>(
                 queries, max_distance, [&](const Scalar* q, Scalar max_d2) { return tree.nearest(q, max_d2); },
                 [&](std::uint32_t node) { return tree.index(node); });
-            return py::make_tuple(r[0], r[1]);  // always exact
+            return py::tuple(r[py::slice(0, 2, 1)]);  // (indices, distances): always exact
           },
           py::arg("queries"), py::arg("max_distance"));
 }

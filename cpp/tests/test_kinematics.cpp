@@ -13,7 +13,7 @@
 #include "scanalign/kinematics/ik.hpp"
 #include "scanalign/kinematics/robot.hpp"
 
-using namespace scanalign::kinematics;
+using namespace scanalign;
 namespace cga = scanalign::cga;
 
 namespace {
@@ -106,7 +106,7 @@ class IKRoundTrip : public ::testing::TestWithParam<const char*> {};
 TEST_P(IKRoundTrip, EverySolutionReachesThePoseAndTheGeneratorIsFound) {
   const Robot r = Robot::byName(GetParam());
   std::mt19937 g(7);
-  IKOptions o;
+  IKSettings o;
   o.respect_limits = false;
   int hist[9] = {0};
   const int N = 3000;
@@ -168,7 +168,7 @@ TEST(IK, CgaMultivectorOracleAgilus) {
   std::mt19937 g(5);
   const double d1 = 0.4, a1 = 0.025, a2 = 0.455, a3 = 0.035, d4 = 0.42;
   int checked = 0;
-  IKOptions o;
+  IKSettings o;
   o.respect_limits = false;
   for (int t = 0; t < 40; ++t) {
     const Eigen::Isometry3d T = r.forward(randomQ(g, r, false));
@@ -209,7 +209,7 @@ TEST(IK, CgaMultivectorOracleUR5) {
   std::mt19937 g(6);
   const double d1 = 0.089159, a2 = -0.425, a3 = -0.39225, d4 = 0.10915, d5 = 0.09465;
   int checked = 0;
-  IKOptions o;
+  IKSettings o;
   o.respect_limits = false;
   for (int t = 0; t < 40; ++t) {
     const Eigen::Isometry3d T = r.forward(randomQ(g, r, false));
@@ -270,7 +270,7 @@ TEST(IK, Claim28SingularWristKukaUsesFreeAngle) {
   const Robot r = Robot::kukaKR6R900sixx();
   const Vector6d q = (Vector6d() << 0.3, -1.2, 1.4, 0.7, 0.0, -0.4).finished();  // θ5 = 0
   const Eigen::Isometry3d T = r.forward(q);
-  IKOptions o;
+  IKSettings o;
   o.q_free[3] = 0.25;
   const IKResult res = ik(r, T, o);
   // The pose is singular for the generating arm configuration (θ1-θ3) only: both of its
@@ -293,7 +293,7 @@ TEST(IK, Claim28SingularShoulderKukaUsesFreeAngle) {
   // wrist centre on the first axis: P_w = (0, 0, 0.9), tool pointing up
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() << 0, 0, 0.9 + 0.08;
-  IKOptions o;
+  IKSettings o;
   o.q_free[0] = -0.6;
   const IKResult res = ik(r, T, o);
   int n = 0;
@@ -312,7 +312,7 @@ TEST(IK, Claim28SingularWristUR5UsesFreeAngle) {
   const Robot r = Robot::ur5();
   const Vector6d q = (Vector6d() << 0.4, -1.0, 1.2, -0.5, 0.0, 0.9).finished();  // θ5 = 0: a_e ∥ z1
   const Eigen::Isometry3d T = r.forward(q);
-  IKOptions o;
+  IKSettings o;
   o.q_free[5] = 0.9;
   const IKResult res = ik(r, T, o);
   bool found = false;
@@ -339,7 +339,7 @@ TEST(IK, NearSingularAndBoundaryPosesStayExact) {
         Vector6d q = randomQ(g, r, false);
         q[4] = (t % 2 ? eps : -eps) + (t % 4 >= 2 ? M_PI : 0.0) - r.joints[4].theta_offset;
         const Eigen::Isometry3d T = r.forward(q);
-        IKOptions o;
+        IKSettings o;
         o.respect_limits = false;
         o.q_free = q;
         const IKResult res = ik(r, T, o);
@@ -360,7 +360,7 @@ TEST(IK, NearSingularAndBoundaryPosesStayExact) {
         // heights 0.45-0.65 m: P_w at least 56 mm from P1 (the elbow folds to 33.5 mm at most)
         const Eigen::Vector3d pw(rho * std::cos(ang), rho * std::sin(ang), 0.55 + 0.1 * std::sin(7 * ang));
         T.translation() = pw + 0.08 * T.linear().col(2);
-        IKOptions o;
+        IKSettings o;
         o.respect_limits = false;
         const IKResult res = ik(r, T, o);
         EXPECT_EQ(res.status, IKStatus::Ok);
@@ -453,7 +453,7 @@ TEST(IK, SingularWristUR5PicksAReachableFreeAngle) {
   const Robot r = Robot::ur5();
   const Vector6d q = (Vector6d() << 1.27198586, 0.70980771, -0.20467251, -1.27468777, M_PI, -2.61732557).finished();
   const Eigen::Isometry3d T = r.forward(q);
-  IKOptions o;
+  IKSettings o;
   o.respect_limits = false;
   o.q_free[5] = -1.1;
   const IKResult res = ik(r, T, o);

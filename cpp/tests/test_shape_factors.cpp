@@ -7,7 +7,7 @@
 
 #include "scanalign/features/shape_factors.hpp"
 
-using scanalign::features::shapeFactors;
+using scanalign::shapeFactors;
 
 namespace {
 Eigen::Vector3d pcaEigenvalues(const Eigen::Matrix3Xd& p) {

@@ -13,7 +13,7 @@
 #include <scanalign/kinematics/ik.hpp>
 #include <scanalign/kinematics/robot.hpp>
 
-using namespace scanalign::kinematics;
+using namespace scanalign;
 
 namespace {
 

@@ -11,7 +11,7 @@
 #include "scanalign/cga/vector5.hpp"
 #include "scanalign/common/rigid.hpp"
 
-namespace scanalign::kinematics {
+namespace scanalign {
 
 namespace {
 
@@ -81,7 +81,7 @@ PointPair meet3(const Vector5d& A, const Vector5d& B, const Vector5d& C) {
   return out;
 }
 
-/// Reality test with tolerance (IKOptions::reach_tolerance): -1 imaginary, 0 tangent, 1 real.
+/// Reality test with tolerance (IKSettings::reach_tolerance): -1 imaginary, 0 tangent, 1 real.
 inline int reality(const PointPair& q, double tol) {
   if (q.degenerate || !(q.discriminant >= -tol)) return -1;
   return q.discriminant <= tol ? 0 : 1;
@@ -189,7 +189,7 @@ struct Target {
 
 /// Stores the joint angles (DH thetas) of one configuration, applying offsets and limits.
 void finish(const Robot& robot, const Angle theta[6], const IKConfig& cfg, std::uint8_t singular,
-            const IKOptions& o, IKResult& res) {
+            const IKSettings& o, IKResult& res) {
   IKSolution& s = res.solutions[static_cast<std::size_t>(configIndex(cfg))];
   s.config = cfg;
   s.singular = singular;
@@ -246,7 +246,7 @@ inline int elbowLabel(int shoulder, const Vector3d& f, const Vector3d& P1, const
 }
 
 // ----- KUKA KR6 R900 sixx and arms of the same layout (Paper 1 §4) -----
-void solveSphericalWrist(const Robot& robot, const Target& T, const IKOptions& o, IKResult& res, Recorder* rec) {
+void solveSphericalWrist(const Robot& robot, const Target& T, const IKSettings& o, IKResult& res, Recorder* rec) {
   const auto& J = robot.joints;
   const double d1 = J[0].d, a1 = J[0].a, a2 = J[1].a, a3 = J[2].a, d4 = J[3].d, d6 = J[5].d;
   const Vector3d a_e = T.R.col(2);
@@ -413,7 +413,7 @@ double feasibleWristAngle(double desired, const Target& T, const Vector3d& p5, c
 }
 
 // ----- Universal Robots (Paper 1 §5) -----
-void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& o, IKResult& res, Recorder* rec) {
+void solveUniversalRobots(const Robot& robot, const Target& T, const IKSettings& o, IKResult& res, Recorder* rec) {
   const auto& J = robot.joints;
   const double d1 = J[0].d, a2 = J[1].a, a3 = J[2].a, d4 = J[3].d, d5 = J[4].d, d6 = J[5].d;
   const Vector3d a_e = T.R.col(2);
@@ -579,7 +579,7 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKOptions& 
 
 bool validPose(const Eigen::Isometry3d& T) { return isRigid(T.matrix()); }
 
-IKResult solve(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKOptions& o, Recorder* rec) {
+IKResult solve(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKSettings& o, Recorder* rec) {
   IKResult res;
   for (int k = 0; k < 8; ++k) res.solutions[static_cast<std::size_t>(k)].config = configFromIndex(k);
   const ArmGeometry g = robot.geometry();
@@ -624,12 +624,12 @@ const char* toString(IKStatus s) {
   }
 }
 
-IKResult ik(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKOptions& options) {
+IKResult ik(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKSettings& options) {
   return solve(robot, T_base_tool, options, nullptr);
 }
 
 IKConstruction ikConstruction(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKConfig& config,
-                              const IKOptions& options) {
+                              const IKSettings& options) {
   IKConstruction out;
   out.geometry = robot.geometry();
   Recorder rec;
@@ -641,8 +641,8 @@ IKConstruction ikConstruction(const Robot& robot, const Eigen::Isometry3d& T_bas
 }
 
 IKSolution ikClosest(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const Vector6d& q_current,
-                     const IKOptions& options, const ClosestOptions& closest) {
-  IKOptions o = options;
+                     const IKSettings& options, const ClosestSettings& closest) {
+  IKSettings o = options;
   if (q_current.allFinite()) o.q_free = q_current;
   const IKResult r = solve(robot, T_base_tool, o, nullptr);
   IKSolution best;
@@ -677,7 +677,7 @@ IKSolution ikClosest(const Robot& robot, const Eigen::Isometry3d& T_base_tool, c
   return best;
 }
 
-void ikBatch(const Robot& robot, const double* poses, std::size_t n, IKResult* out, const IKOptions& options,
+void ikBatch(const Robot& robot, const double* poses, std::size_t n, IKResult* out, const IKSettings& options,
              int num_threads) {
   const long long N = static_cast<long long>(n);
 #pragma omp parallel for schedule(static) num_threads(num_threads > 0 ? num_threads : omp_get_max_threads()) if (num_threads != 1 && N > 64)
@@ -685,7 +685,7 @@ void ikBatch(const Robot& robot, const double* poses, std::size_t n, IKResult* o
 }
 
 std::size_t ikTrajectory(const Robot& robot, const double* poses, std::size_t n, const Vector6d& q_start,
-                         double* out_q, IKStatus* out_status, const IKOptions& options, const ClosestOptions& closest) {
+                         double* out_q, IKStatus* out_status, const IKSettings& options, const ClosestSettings& closest) {
   Vector6d q = q_start;
   std::size_t good = 0;
   for (std::size_t i = 0; i < n; ++i) {
@@ -703,4 +703,4 @@ std::size_t ikTrajectory(const Robot& robot, const double* poses, std::size_t n,
   return good;
 }
 
-}  // namespace scanalign::kinematics
+}  // namespace scanalign

@@ -6,7 +6,7 @@
 
 #include <omp.h>
 
-namespace scanalign::kinematics {
+namespace scanalign {
 
 namespace {
 
@@ -186,4 +186,4 @@ Robot Robot::byName(const std::string& name) {
                               "' (known: kr6_r900_sixx, agilus, ur3, ur5, ur10, ur3e, ur5e, ur10e, ur5_thesis)");
 }
 
-}  // namespace scanalign::kinematics
+}  // namespace scanalign

@@ -221,17 +221,17 @@ std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, 
   return pcaOverTree(points, LeftBalancedKdTree<Scalar>(points), radius, num_threads);
 }
 
-features::ShapeFactors shapeFactorsOf(const NeighbourhoodPca& pca) {
+ShapeFactors shapeFactorsOf(const NeighbourhoodPca& pca) {
   // A neighbourhood without spread (one point, or duplicates) has no shape: all zeros, so
   // it is never a keypoint. Everything else uses the one definition of (6.1)-(6.3).
   if (!(pca.eigenvalues.sum() > 0)) return {};
-  return features::shapeFactors(pca.eigenvalues);
+  return shapeFactors(pca.eigenvalues);
 }
 
 double keypointScore(const NeighbourhoodPca& pca, int min_neighbors) {
   if (pca.count < static_cast<std::uint32_t>(std::max(min_neighbors, 0)) || !(pca.eigenvalues.sum() > 0))
     return 1.0 / 3.0;
-  const features::ShapeFactors f = shapeFactorsOf(pca);
+  const ShapeFactors f = shapeFactorsOf(pca);
   return f.linear * f.planar + f.planar * f.spherical + f.spherical * f.linear;
 }
 
@@ -244,7 +244,7 @@ std::vector<std::uint32_t> selectKeypoints(const std::vector<NeighbourhoodPca>& 
   for (std::size_t i = 0; i < pca.size(); ++i) {
     if (pca[i].count < static_cast<std::uint32_t>(std::max(min_neighbors, 0)) || !(pca[i].eigenvalues.sum() > 0))
       continue;
-    const features::ShapeFactors f = shapeFactorsOf(pca[i]);
+    const ShapeFactors f = shapeFactorsOf(pca[i]);
     // (6.4)
     if (pass(f.linear, t.linear) || pass(f.planar, t.planar) || pass(f.spherical, t.spherical))
       out.push_back(static_cast<std::uint32_t>(i));
@@ -267,7 +267,7 @@ std::vector<std::uint32_t> automaticKeypoints(const std::vector<NeighbourhoodPca
   ShapeThresholds t{2.0, 2.0, 2.0};
   for (std::size_t j = 0; j < n; ++j) {
     out[j] = scored[j].index;
-    const features::ShapeFactors f = shapeFactorsOf(pca[scored[j].index]);
+    const ShapeFactors f = shapeFactorsOf(pca[scored[j].index]);
     // The keypoint's dominant factor sets its group's δ (P5 §III-B4).
     if (f.linear >= f.planar && f.linear >= f.spherical)
       t.linear = std::min(t.linear, f.linear);

@@ -10,7 +10,7 @@
 
 #include <Eigen/Core>
 
-namespace scanalign::features {
+namespace scanalign {
 
 struct ShapeFactors {
   double linear = 0;     ///< C_l (6.1): 1 for a line
@@ -33,4 +33,4 @@ inline ShapeFactors shapeFactors(double l1, double l2, double l3) {
 }
 inline ShapeFactors shapeFactors(const Eigen::Vector3d& lambda) { return shapeFactors(lambda[0], lambda[1], lambda[2]); }
 
-}  // namespace scanalign::features
+}  // namespace scanalign

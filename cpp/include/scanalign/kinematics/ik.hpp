@@ -44,7 +44,7 @@
 //   UR shoulder (P_c on the first axis: the horizon pair is tangent): no free angle; the
 //            solutions whose shoulder AND elbow labels are both flipped coincide (the elbow
 //            label is measured relative to the shoulder side).
-// A point pair counts as tangent when |h²/r²| <= IKOptions::reach_tolerance; a pose that
+// A point pair counts as tangent when |h²/r²| <= IKSettings::reach_tolerance; a pose that
 // is singular for one arm configuration (e.g. θ5 = 0 for the elbow-up solution) is usually
 // regular for the others, so the bits are per solution.
 // The solution's `singular` bit mask says which applied.
@@ -64,7 +64,7 @@
 
 #include "scanalign/kinematics/robot.hpp"
 
-namespace scanalign::kinematics {
+namespace scanalign {
 
 enum class IKStatus : std::uint8_t {
   Ok = 0,             ///< q reaches the pose and lies inside the joint limits
@@ -138,7 +138,7 @@ inline std::vector<Vector6d> distinctSolutions(const IKResult& r, double tol = 1
   return out;
 }
 
-struct IKOptions {
+struct IKSettings {
   /// Free angles used at singularities (rad): q_free[0] for the KUKA shoulder, q_free[3] for
   /// the KUKA wrist, q_free[5] for the UR wrist. ikClosest passes the current joints.
   Vector6d q_free = Vector6d::Zero();
@@ -161,9 +161,9 @@ struct IKOptions {
 
 /// All (up to 8) solutions for a target tool pose T_base_tool (tool -> robot base, metres).
 /// Never throws for bad poses: they give IKStatus::InvalidInput.
-IKResult ik(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKOptions& options = {});
+IKResult ik(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKSettings& options = {});
 
-struct ClosestOptions {
+struct ClosestSettings {
   /// Weight of each joint in the distance sum_i w_i (q_i - q_current_i)².
   Vector6d weights = Vector6d::Ones();
 };
@@ -173,11 +173,11 @@ struct ClosestOptions {
 /// solution has status Unreachable / OutsideLimits / InvalidInput when no Ok solution
 /// exists. Singular free angles are taken from q_current.
 IKSolution ikClosest(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const Vector6d& q_current,
-                     const IKOptions& options = {}, const ClosestOptions& closest = {});
+                     const IKSettings& options = {}, const ClosestSettings& closest = {});
 
 /// Batch IK: poses are n 4x4 row-major T_base_tool matrices; out[n] receives the results.
 /// Parallel over poses (OpenMP; 0 = all cores, 1 = serial).
-void ikBatch(const Robot& robot, const double* poses, std::size_t n, IKResult* out, const IKOptions& options = {},
+void ikBatch(const Robot& robot, const double* poses, std::size_t n, IKResult* out, const IKSettings& options = {},
              int num_threads = 0);
 
 /// A joint trajectory through a sequence of poses: each step takes the solution closest to
@@ -185,8 +185,8 @@ void ikBatch(const Robot& robot, const double* poses, std::size_t n, IKResult* o
 /// where no Ok solution exists; the next step then starts again from the last good q) and
 /// out_status n statuses. Returns the number of Ok steps.
 std::size_t ikTrajectory(const Robot& robot, const double* poses, std::size_t n, const Vector6d& q_start,
-                         double* out_q, IKStatus* out_status, const IKOptions& options = {},
-                         const ClosestOptions& closest = {});
+                         double* out_q, IKStatus* out_status, const IKSettings& options = {},
+                         const ClosestSettings& closest = {});
 
 /// The intermediate CGA construction of one configuration, in DH frame 0 (metres): for
 /// inspection, plots and tests against an independent CGA implementation.
@@ -204,6 +204,6 @@ struct IKConstruction {
   double elbow_discriminant = std::numeric_limits<double>::quiet_NaN();
 };
 IKConstruction ikConstruction(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKConfig& config,
-                              const IKOptions& options = {});
+                              const IKSettings& options = {});
 
-}  // namespace scanalign::kinematics
+}  // namespace scanalign

@@ -21,7 +21,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
-namespace scanalign::kinematics {
+namespace scanalign {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
 
@@ -102,4 +102,4 @@ struct Robot {
   static Robot byName(const std::string& name);
 };
 
-}  // namespace scanalign::kinematics
+}  // namespace scanalign

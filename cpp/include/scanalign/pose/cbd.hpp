@@ -112,7 +112,7 @@ template <typename Scalar>
 std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, double radius, int num_threads = 0);
 
 /// Shape factors of one neighbourhood (6.1)–(6.3); zero spread gives all zeros.
-features::ShapeFactors shapeFactorsOf(const NeighbourhoodPca& pca);
+ShapeFactors shapeFactorsOf(const NeighbourhoodPca& pca);
 
 /// Score C_lC_p + C_pC_s + C_sC_l of the automatic mode (P5 §III-B4): 0 on a pure line, plane
 /// or sphere, 1/3 at C_l = C_p = C_s; points with count < min_neighbors score 1/3 (the maximum).
