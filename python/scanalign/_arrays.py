@@ -57,5 +57,8 @@ def set_fields(obj: object, values: dict, what: str) -> object:
         if name.startswith("_") or not isinstance(getattr(type(obj), name, None), property):
             known = sorted(k for k in dir(type(obj)) if isinstance(getattr(type(obj), k), property))
             raise TypeError(f"unknown {what} setting {name!r}; known: {', '.join(known)}")
-        setattr(obj, name, value)
+        try:
+            setattr(obj, name, value)
+        except TypeError as e:
+            raise TypeError(f"{what} setting {name}: {e}") from None
     return obj

@@ -68,16 +68,16 @@ struct IcpSettings {
   IcpEstimator estimator = IcpEstimator::PointToPlane;
   /// Correspondences farther apart than this are rejected (m). Also bounds the search.
   double max_correspondence_distance = 0.05;
-  /// Stop after this many iterations (status MaxIterations, not converged). Seed: 50.
+  /// Stop after this many iterations (status MaxIterations, not converged). Eye-in-hand paper §3.3: 50.
   int max_iterations = 50;
   /// Converged when the increment's squared translation is <= this (m^2) and its rotation
-  /// satisfies cos(angle) >= 1 - this, as pcl::IterativeClosestPoint. Seed: 1e-8.
+  /// satisfies cos(angle) >= 1 - this, as pcl::IterativeClosestPoint. Eye-in-hand paper §3.3: 1e-8.
   double transformation_epsilon = 1e-8;
   /// If > 0, the rotation test uses cos(angle) >= this value instead (PCL's
   /// setTransformationRotationEpsilon; a cosine, e.g. 0.99999).
   double transformation_rotation_epsilon = 0.0;
   /// Converged when |MSE_k - MSE_{k-1}| / MSE_{k-1} < this (PCL's Euclidean fitness
-  /// epsilon; MSE of correspondence distances, m^2). Seed: 1e-8.
+  /// epsilon; MSE of correspondence distances, m^2). Eye-in-hand paper §3.3: 1e-8.
   double fitness_epsilon = 1e-8;
   /// Converged when |MSE_k - MSE_{k-1}| < this (m^2). PCL's default 1e-12.
   double absolute_mse_epsilon = 1e-12;
@@ -113,7 +113,7 @@ struct IcpSettings {
   /// converges by the criteria above, then on all points until they converge. The coarse
   /// phase only moves the start of the full-resolution iterations closer to their fixed
   /// point, which is the answer either way; each coarse iteration costs 1/coarse_stride
-  /// of a full one. 1 = off (seed: every iteration on all points). Skipped when the
+  /// of a full one. 1 = off (the eye-in-hand paper: every iteration on all points). Skipped when the
   /// subset would have fewer than 500 points.
   int coarse_stride = 1;
   /// OpenMP threads; 0 = OpenMP's default (all cores).
