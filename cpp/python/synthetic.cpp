@@ -3,11 +3,13 @@
 #include <limits>
 
 #include <pybind11/eigen.h>
+#include <pybind11/stl.h>
 
 #include "arrays.hpp"
 #include "scanalign/reconstruction/depth_renderer.hpp"
 #include "scanalign/synthetic/builtin_part.hpp"
 #include "scanalign/synthetic/morton_order.hpp"
+#include "scanalign/synthetic/scan_paths.hpp"
 #include "scanalign/synthetic/sensor_noise.hpp"
 
 namespace scanalign::python {
@@ -64,6 +66,14 @@ py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, int w
       renderDepth(vd, f.data(), f.size() / 3, camera, T_camera_world, settings, out);
   }
   return py::make_tuple(depth, face_id, cosine);
+}
+
+py::array_t<double> posesArray(const Poses& poses) {
+  py::array_t<double> out({static_cast<py::ssize_t>(poses.size()), py::ssize_t{4}, py::ssize_t{4}});
+  for (std::size_t k = 0; k < poses.size(); ++k)
+    for (int i = 0; i < 4; ++i)
+      for (int j = 0; j < 4; ++j) out.mutable_at(static_cast<py::ssize_t>(k), i, j) = poses[k](i, j);
+  return out;
 }
 
 py::tuple builtinPartMeshPy(int segments) {
@@ -157,6 +167,27 @@ void bindSynthetic(py::module_& m) {
         py::arg("far_clip"), py::arg("cull_backfaces"), py::arg("num_threads"),
         "Renders an (N,3) float32/float64 mesh with (M,3) integer faces (indices checked, naming faces); returns "
         "(depth float32 m, NaN = no hit; face_id int32, -1 = no hit; cos_incidence float32).");
+  s.def(
+      "loop_camera_poses",
+      [](int n_frames, const Eigen::Vector3d& center, double height, double radius, double start_angle, double sweep,
+         const Eigen::Vector3d& target) {
+        return posesArray(loopCameraPoses(n_frames, center, height, radius, start_angle, sweep, target));
+      },
+      py::arg("n_frames"), py::arg("center"), py::arg("height"), py::arg("radius"), py::arg("start_angle"),
+      py::arg("sweep"), py::arg("target"),
+      "(n_frames, 4, 4) T_base_camera on a loop: camera k at center + (radius cos a_k, radius sin a_k, height) (m), "
+      "a_k = start_angle + sweep k / n_frames (rad), looking at target, image up +z (outwards when radius is 0). "
+      "ValueError naming a bad argument.");
+  s.def(
+      "hemisphere_camera_poses",
+      [](int n_frames, const Eigen::Vector3d& target, double distance, const std::vector<double>& elevations,
+         double start_angle) {
+        return posesArray(hemisphereCameraPoses(n_frames, target, distance, elevations, start_angle));
+      },
+      py::arg("n_frames"), py::arg("target"), py::arg("distance"), py::arg("elevations"), py::arg("start_angle"),
+      "(n_frames, 4, 4) T_base_camera on rings at `distance` (m) from target, one per elevation (rad, in (0, pi/2]), "
+      "frames shared in proportion to cos(elevation), successive rings in opposite directions. ValueError naming a "
+      "bad argument.");
   s.def("builtin_part_mesh", &builtinPartMeshPy, py::arg("segments"),
         "The built-in part (see scanalign.parts) as a watertight mesh in metres: (vertices (V,3) float64, faces "
         "(F,3) int64 wound counter-clockwise seen from outside, surface (F,) int32: 0 plane, 1 boss cylinder, 2 "

@@ -3,21 +3,16 @@ does not import it).
 
 A camera on a robot's hand moves around objects on a table; the z-buffer renderer
 (:mod:`scanalign.rendering`) computes what it sees and a sensor model adds RealSense- or
-Zivid-like noise. Every pose, surface and pixel is known exactly, so reconstructions can
-be scored against the truth.
+Zivid-like noise. Every pose, surface and pixel is known exactly.
 
-Frames (``T_a_b`` maps b-coordinates into a; metres, 4x4 float64):
-
-- ``base``: the scene (world) frame; z up, the table top is the plane ``z = table_height``
-  (0 by default). Every pose and the reconstruction's model are given in it.
-- ``robot``: the base of the arm that moves the camera (a UR5 by default,
-  :mod:`scanalign.kinematics`), mounted at ``T_base_robot`` (default :func:`robot_mount`:
-  hanging 0.9 m above the table centre).
-- ``flange``: the tool flange; ``T_base_flange = T_base_robot @ fk(q)``.
-- ``camera``: the depth camera, OpenCV convention (x right, y down, z along the optical
-  axis); ``T_flange_camera`` is the hand-eye calibration, so
-  ``T_base_camera = T_base_flange @ T_flange_camera``.
-- ``object``: a mesh's own frame; ``T_base_object`` places it in the scene.
+Frames (``T_a_b`` maps b-coordinates into a; metres, 4x4 float64): ``base``, the scene
+(world) frame, z up, the table top the plane ``z = table_height`` (0 by default), in which
+every pose and the reconstruction's model are given; ``robot``, the base of the arm (a UR5
+by default) at ``T_base_robot`` (default :func:`robot_mount`: hanging 0.9 m above the table
+centre); ``flange``, the tool flange, ``T_base_flange = T_base_robot @ fk(q)``; ``camera``,
+OpenCV convention (x right, y down, z along the optical axis), ``T_base_camera =
+T_base_flange @ T_flange_camera`` (the hand-eye calibration); ``object``, a mesh's own frame,
+placed by ``T_base_object``.
 
 Pipeline::
 
@@ -30,10 +25,9 @@ Pipeline::
     scan.reference.poses[0]            # exact T_base_camera of frame 0
     scan.mesh                          # the whole scene in the base frame (for cloud-to-mesh)
 
-or ``builtin_scan(n_frames=36, noise="sr300", seed=0)``, or a JSON / flat YAML file read by
-:class:`SyntheticConfig`. With a robot, the planned camera poses become flange poses
-``T_base_camera @ inv(T_flange_camera)`` in the robot base frame; analytic inverse
-kinematics gives the joints (each step the solution closest to the previous one) and forward
+or ``builtin_scan(n_frames=36, noise="sr300", seed=0)``, or a JSON / YAML file read by
+:class:`SyntheticConfig`. With a robot, analytic inverse kinematics of the planned flange
+poses gives the joints (each step the solution closest to the previous one) and forward
 kinematics of those joints the reference poses, so a reconstruction is scored against the
 robot's own pose, as in the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929,
 §4). A pose the arm cannot reach raises ValueError naming the frame and the IK status.

@@ -9,8 +9,7 @@ from typing import Any, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .. import se3
-from ..rendering import look_at
+from .. import _core, se3
 from ..trajectory import Trajectory
 
 __all__ = ["DEFAULT_T_FLANGE_CAMERA", "ScanTrajectory", "loop_trajectory", "hemisphere_trajectory"]
@@ -159,24 +158,10 @@ def loop_trajectory(
             :func:`~scanalign.synthetic.robot_mount` hanging ``DEFAULT_ROBOT_HEIGHT`` above ``center``.
         q_start: with a robot, joints (rad) to start from (default: chosen automatically, elbow up).
     """
-    if int(n_frames) != n_frames or n_frames < 1:
-        raise ValueError(f"n_frames must be a positive integer, got {n_frames}")
     c = _array(center, (3,), "center")
-    if not (math.isfinite(height) and height > 0):
-        raise ValueError(f"height must be a positive distance in metres, got {height}")
-    if not (math.isfinite(radius) and radius >= 0):
-        raise ValueError(f"radius must be a non-negative distance in metres, got {radius}")
-    if not (math.isfinite(start_angle) and math.isfinite(sweep)):
-        raise ValueError("start_angle and sweep must be finite (radians)")
-    tgt = c if target is None else np.asarray(target, dtype=np.float64)
-    poses = []
-    for k in range(int(n_frames)):
-        a = start_angle + sweep * k / n_frames
-        radial = np.array([math.cos(a), math.sin(a), 0.0])
-        # Straight down (radius 0): keep the image up pointing outwards along the azimuth.
-        up = np.array([0.0, 0.0, 1.0]) if radius > 1e-9 * height else radial
-        poses.append(look_at(c + radius * radial + np.array([0.0, 0.0, height]), tgt, up))
-    return _planned(np.array(poses), T_flange_camera, frame_rate, jitter_translation, jitter_rotation, seed, robot,
+    poses = _core.synthetic.loop_camera_poses(n_frames, c, height, radius, start_angle, sweep,
+                                              c if target is None else _array(target, (3,), "target"))
+    return _planned(poses, T_flange_camera, frame_rate, jitter_translation, jitter_rotation, seed, robot,
                     T_base_robot, q_start, c)
 
 
@@ -213,29 +198,8 @@ def hemisphere_trajectory(
         target, T_flange_camera, frame_rate, jitter_translation, jitter_rotation, seed,
             robot, T_base_robot, q_start: as for :func:`loop_trajectory`.
     """
-    el = np.asarray(elevations, dtype=np.float64).reshape(-1)
-    if el.size == 0 or not np.all((el > 0) & (el <= math.pi / 2 + 1e-12)):
-        raise ValueError("elevations must be non-empty and in (0, pi/2] radians")
-    if int(n_frames) != n_frames or n_frames < el.size:
-        raise ValueError(f"n_frames must be an integer >= the number of rings ({el.size}), got {n_frames}")
-    if not (math.isfinite(distance) and distance > 0):
-        raise ValueError(f"distance must be a positive length in metres, got {distance}")
     c = _array(center, (3,), "center")
-    tgt = c if target is None else np.asarray(target, dtype=np.float64)
-    # Largest-remainder apportionment of the frames to the rings.
-    share = np.maximum(np.cos(el), 1e-3)
-    share = share / share.sum() * (n_frames - el.size)
-    counts = 1 + np.floor(share).astype(int)
-    for i in np.argsort(-(share - np.floor(share)))[: n_frames - counts.sum()]:
-        counts[i] += 1
-    poses = []
-    azimuth = start_angle
-    for r, (e, n) in enumerate(zip(el, counts)):
-        step = (1.0 if r % 2 == 0 else -1.0) * 2 * math.pi / n
-        for k in range(n):
-            radial = np.array([math.cos(azimuth + step * k), math.sin(azimuth + step * k), 0.0])
-            eye = tgt + distance * (math.cos(e) * radial + np.array([0.0, 0.0, math.sin(e)]))
-            poses.append(look_at(eye, tgt, np.array([0.0, 0.0, 1.0]) if math.cos(e) > 1e-6 else radial))
-        azimuth += step * (n - 1)
-    return _planned(np.array(poses), T_flange_camera, frame_rate, jitter_translation, jitter_rotation, seed, robot,
+    poses = _core.synthetic.hemisphere_camera_poses(n_frames, c if target is None else _array(target, (3,), "target"),
+                                                    distance, np.ravel(elevations), start_angle)
+    return _planned(poses, T_flange_camera, frame_rate, jitter_translation, jitter_rotation, seed, robot,
                     T_base_robot, q_start, c)

@@ -1,0 +1,84 @@
+#include "scanalign/synthetic/scan_paths.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <stdexcept>
+#include <string>
+
+#include "scanalign/pose/model_views.hpp"
+
+namespace scanalign {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+void require(bool ok, const std::string& message) {
+  if (!ok) throw std::invalid_argument(message);
+}
+
+}  // namespace
+
+Poses loopCameraPoses(int n_frames, const Eigen::Vector3d& center, double height, double radius, double start_angle,
+                      double sweep, const Eigen::Vector3d& target) {
+  require(n_frames >= 1, "n_frames must be a positive integer, got " + std::to_string(n_frames));
+  require(center.allFinite(), "center: expected (x, y, z) in metres, finite");
+  require(target.allFinite(), "target: expected (x, y, z) in metres, finite");
+  require(std::isfinite(height) && height > 0, "height must be a positive distance in metres");
+  require(std::isfinite(radius) && radius >= 0, "radius must be a non-negative distance in metres");
+  require(std::isfinite(start_angle) && std::isfinite(sweep), "start_angle and sweep must be finite (radians)");
+  Poses poses;
+  for (int k = 0; k < n_frames; ++k) {
+    const double a = start_angle + sweep * k / n_frames;
+    const Eigen::Vector3d radial(std::cos(a), std::sin(a), 0.0);
+    // Straight down (radius 0): keep the image up pointing outwards along the azimuth.
+    const Eigen::Vector3d up = radius > 1e-9 * height ? Eigen::Vector3d::UnitZ() : radial;
+    poses.push_back(lookAt(center + radius * radial + Eigen::Vector3d(0, 0, height), target, up));
+  }
+  return poses;
+}
+
+Poses hemisphereCameraPoses(int n_frames, const Eigen::Vector3d& target, double distance,
+                            const std::vector<double>& elevations, double start_angle) {
+  const auto rings = static_cast<int>(elevations.size());
+  require(rings > 0 && std::all_of(elevations.begin(), elevations.end(),
+                                   [](double e) { return e > 0 && e <= kPi / 2 + 1e-12; }),
+          "elevations must be non-empty and in (0, pi/2] radians");
+  require(n_frames >= rings, "n_frames must be an integer >= the number of rings (" + std::to_string(rings) +
+                                 "), got " + std::to_string(n_frames));
+  require(std::isfinite(distance) && distance > 0, "distance must be a positive length in metres");
+  require(target.allFinite(), "target: expected (x, y, z) in metres, finite");
+  require(std::isfinite(start_angle), "start_angle must be finite (radians)");
+  // Largest-remainder apportionment of the frames to the rings.
+  std::vector<double> share(elevations.size());
+  for (std::size_t r = 0; r < share.size(); ++r) share[r] = std::max(std::cos(elevations[r]), 1e-3);
+  const double total = std::accumulate(share.begin(), share.end(), 0.0);
+  std::vector<int> counts(share.size());
+  int assigned = 0;
+  for (std::size_t r = 0; r < share.size(); ++r) {
+    share[r] *= (n_frames - rings) / total;
+    counts[r] = 1 + static_cast<int>(std::floor(share[r]));
+    assigned += counts[r];
+  }
+  std::vector<std::size_t> by_remainder(share.size());
+  std::iota(by_remainder.begin(), by_remainder.end(), std::size_t{0});
+  std::stable_sort(by_remainder.begin(), by_remainder.end(), [&](std::size_t a, std::size_t b) {
+    return share[a] - std::floor(share[a]) > share[b] - std::floor(share[b]);
+  });
+  for (int i = 0; i < n_frames - assigned; ++i) ++counts[by_remainder[static_cast<std::size_t>(i)]];
+  Poses poses;
+  double azimuth = start_angle;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    const double e = elevations[r], step = (r % 2 == 0 ? 1.0 : -1.0) * 2 * kPi / counts[r];
+    for (int k = 0; k < counts[r]; ++k) {
+      const Eigen::Vector3d radial(std::cos(azimuth + step * k), std::sin(azimuth + step * k), 0.0);
+      const Eigen::Vector3d eye = target + distance * (std::cos(e) * radial + Eigen::Vector3d(0, 0, std::sin(e)));
+      poses.push_back(lookAt(eye, target, std::cos(e) > 1e-6 ? Eigen::Vector3d::UnitZ() : radial));
+    }
+    azimuth += step * (counts[r] - 1);
+  }
+  return poses;
+}
+
+}  // namespace scanalign
