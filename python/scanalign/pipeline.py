@@ -157,7 +157,7 @@ class ReconstructionResult:
                     self.estimate_at_reference(), self.reference, out / "trajectory.png",
                     title="estimated (aligned) vs reference camera path")
             elif len(self.estimate) >= 2:
-                paths["trajectory_png"] = _plot_estimate_only(self.estimate, out / "trajectory.png")
+                paths["trajectory_png"] = _plots.plot_trajectory_topdown(self.estimate, None, out / "trajectory.png")
             rows = [dict(time=r.total_seconds, iterations=r.iterations, fitness=r.fitness,
                          model_points=r.model_points, skipped=not r.merged) for r in self.records]
             paths["frames_png"] = _plots.plot_frame_stats(rows, out / "frames.png",
@@ -193,26 +193,6 @@ def write_joints_csv(path: Union[str, Path], indices: Iterable[int], timestamps:
         w.writerow(["index", "timestamp", "q1", "q2", "q3", "q4", "q5", "q6"])
         for i, t, row in zip(indices, timestamps, q):
             w.writerow([int(i), repr(float(t))] + [repr(float(v)) if math.isfinite(v) else "" for v in row])
-    return Path(path)
-
-
-def _plot_estimate_only(estimate: Trajectory, path: Path) -> Path:
-    """Top-down view of an estimated camera path when no reference exists (real data)."""
-    from matplotlib.figure import Figure
-
-    p = estimate.positions
-    fig = Figure(figsize=(6.4, 5.6))
-    ax = fig.add_subplot(1, 1, 1)
-    ax.plot(p[:, 0], p[:, 1], "-", color="tab:blue", lw=1.2, label="estimate")
-    ax.plot(p[0, 0], p[0, 1], "o", color="tab:blue", mfc="white", label="start")
-    ax.plot(p[-1, 0], p[-1, 1], "s", color="tab:blue", label="end")
-    ax.set_xlabel("x (m)")
-    ax.set_ylabel("y (m)")
-    ax.set_aspect("equal", adjustable="datalim")
-    ax.grid(True, lw=0.3, alpha=0.5)
-    ax.set_title(f"estimated camera path (model frame), {len(estimate)} poses, no reference")
-    ax.legend(loc="best", fontsize=8)
-    fig.savefig(path, dpi=150)
     return Path(path)
 
 

@@ -67,7 +67,7 @@ def _length_unit(units: str, extent: float) -> Tuple[str, float]:
     raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
 
 
-def plot_trajectory_topdown(estimate: Trajectory, reference: Trajectory, path: PathLike,
+def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory], path: PathLike,
                             title: Optional[str] = None, aligned: bool = True, plane: Optional[str] = None,
                             units: str = "auto", with_scale: bool = False, associate: bool = False,
                             max_difference: float = 0.02, dpi: int = 150) -> Path:
@@ -80,7 +80,8 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Trajectory, path: P
 
     Args:
         estimate, reference: ``T_world_camera`` trajectories, paired by index (equal length)
-            or by timestamps with ``associate`` (``max_difference`` s).
+            or by timestamps with ``associate`` (``max_difference`` s). Without a reference
+            (real data) the estimate alone is drawn, in its own frame.
         path: PNG file to write (parent folders are created).
         aligned: align the estimate to the reference first (as the ATE does; the ATE RMSE
             appears in the legend).  Otherwise both are drawn as given and the legend shows
@@ -95,25 +96,28 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Trajectory, path: P
     """
     from .evaluation import absolute_trajectory_error
 
-    ate = absolute_trajectory_error(estimate, reference, align=aligned, with_scale=with_scale,
-                                    associate=associate, max_difference=max_difference)
-    est = ate.aligned.positions
-    ref = ate.reference.positions
-    i, j = _plane_axes(plane, ref)
+    ate = None
+    if reference is not None:
+        ate = absolute_trajectory_error(estimate, reference, align=aligned, with_scale=with_scale,
+                                        associate=associate, max_difference=max_difference)
+    est = ate.aligned.positions if ate else estimate.positions
+    ref = ate.reference.positions if ate else est[:0]
+    i, j = _plane_axes(plane, ref if ate else est)
     both = np.concatenate([est, ref])
     extent = float(np.ptp(both[:, [i, j]], axis=0).max()) if both.shape[0] else 0.0
     unit, k = _length_unit(units, extent)
     e2, r2 = est[:, [i, j]] * k, ref[:, [i, j]] * k
     fig = _figure((6.4, 5.6))
     ax = fig.add_subplot(1, 1, 1)
-    segs = np.stack([r2, e2], axis=1)
-    from matplotlib.collections import LineCollection
+    if ate:
+        from matplotlib.collections import LineCollection
 
-    ax.add_collection(LineCollection(segs, colors="0.6", linewidths=0.6, label="error", zorder=1))
-    ax.plot(r2[:, 0], r2[:, 1], "-", color="black", lw=1.4, label="reference", zorder=2)
-    ax.plot(e2[:, 0], e2[:, 1], "-", color="tab:blue", lw=1.2, label="estimate" + (" (aligned)" if aligned else ""),
-            zorder=3)
-    for pts, color in ((r2, "black"), (e2, "tab:blue")):
+        ax.add_collection(LineCollection(np.stack([r2, e2], axis=1), colors="0.6", linewidths=0.6, label="error",
+                                         zorder=1))
+        ax.plot(r2[:, 0], r2[:, 1], "-", color="black", lw=1.4, label="reference", zorder=2)
+    ax.plot(e2[:, 0], e2[:, 1], "-", color="tab:blue", lw=1.2,
+            label="estimate" + (" (aligned)" if ate and aligned else ""), zorder=3)
+    for pts, color in ((r2, "black"), (e2, "tab:blue")) if ate else ((e2, "tab:blue"),):
         ax.plot(pts[0, 0], pts[0, 1], "o", color=color, ms=6, mfc="white", zorder=4)
         ax.plot(pts[-1, 0], pts[-1, 1], "s", color=color, ms=6, zorder=4)
     ax.plot([], [], "o", color="0.3", mfc="white", label="start")
@@ -124,10 +128,13 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Trajectory, path: P
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.grid(True, lw=0.3, alpha=0.5)
-    rmse = ate.translation.rmse * k
-    label = "ATE" if aligned else "RMS distance (unaligned)"
-    ax.set_title(f"{title + chr(10) if title else ''}{label} RMSE {rmse:.3g} {unit}, "
-                 f"max {ate.translation.max * k:.3g} {unit}, {ate.translation.count} poses")
+    if ate:
+        label = "ATE" if aligned else "RMS distance (unaligned)"
+        summary = (f"{label} RMSE {ate.translation.rmse * k:.3g} {unit}, max {ate.translation.max * k:.3g} {unit}, "
+                   f"{ate.translation.count} poses")
+    else:
+        summary = f"estimated camera path (model frame), {len(estimate)} poses, no reference"
+    ax.set_title(f"{title + chr(10) if title else ''}{summary}")
     ax.legend(loc="best", fontsize=8)
     return _save(fig, path, dpi)
 
