@@ -7,6 +7,8 @@
 #include <memory>
 #include <string>
 #include <tuple>
+#include <utility>
+#include <vector>
 
 #include "arrays.hpp"
 #include "scanalign/evaluation/mesh_distance.hpp"
@@ -92,29 +94,46 @@ Stack stackOf(const py::array& a, const char* what, py::ssize_t rows, py::ssize_
   return s;
 }
 
-py::array_t<double> quaternionsFromRotations(const py::array& rotations) {
-  const Stack R = stackOf(rotations, "rotations", 3, 3);
-  py::array_t<double> out({R.shape(0), py::ssize_t{4}});
-  for (py::ssize_t i = 0; i < R.shape(0); ++i)
-    Eigen::Map<Eigen::Vector4d>(out.mutable_data(i, 0)) =
-        quaternionFromRotation(Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R.data(i, 0, 0)));
+/// A C-contiguous float64 stack of shape (..., rows, cols) (cols 0: (..., rows)) and its
+/// leading shape, so that one call maps any batch of matrices or quaternions.
+std::pair<Stack, std::vector<py::ssize_t>> batchOf(const py::object& o, const char* what, py::ssize_t rows,
+                                                   py::ssize_t cols) {
+  const py::array a = asArray(o, what);
+  const Stack s = Stack::ensure(a);
+  const py::ssize_t dims = cols ? 2 : 1;
+  if (!s || s.ndim() < dims || s.shape(s.ndim() - dims) != rows || (cols && s.shape(s.ndim() - 1) != cols))
+    throw py::value_error(std::string(what) + ": expected shape (..., " + std::to_string(rows) +
+                          (cols ? ", " + std::to_string(cols) : std::string()) + "), got " + shapeOf(a));
+  return {s, std::vector<py::ssize_t>(s.shape(), s.shape() + s.ndim() - dims)};
+}
+
+py::array_t<double> quaternionsFromRotations(const py::object& rotations) {
+  auto [R, shape] = batchOf(rotations, "rotations", 3, 3);
+  shape.push_back(4);
+  py::array_t<double> out(shape);
+  const py::ssize_t n = R.size() / 9;
+  for (py::ssize_t i = 0; i < n; ++i)
+    Eigen::Map<Eigen::Vector4d>(out.mutable_data() + 4 * i) =
+        quaternionFromRotation(Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R.data() + 9 * i));
   return out;
 }
 
-py::array_t<double> rotationsFromQuaternions(const py::array& quaternions) {
-  const Stack q = stackOf(quaternions, "quaternions", 4, 0);
-  py::array_t<double> out({q.shape(0), py::ssize_t{3}, py::ssize_t{3}});
-  for (py::ssize_t i = 0; i < q.shape(0); ++i)
-    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(out.mutable_data(i, 0, 0)) =
-        rotationFromQuaternion(Eigen::Map<const Eigen::Vector4d>(q.data(i, 0)));
+py::array_t<double> rotationsFromQuaternions(const py::object& quaternions) {
+  auto [q, shape] = batchOf(quaternions, "quaternions", 4, 0);
+  shape.insert(shape.end(), {3, 3});
+  py::array_t<double> out(shape);
+  const py::ssize_t n = q.size() / 4;
+  for (py::ssize_t i = 0; i < n; ++i)
+    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(out.mutable_data() + 9 * i) =
+        rotationFromQuaternion(Eigen::Map<const Eigen::Vector4d>(q.data() + 4 * i));
   return out;
 }
 
 py::array_t<double> interpolatePoses(const py::array& from, const py::array& to, const py::array& fraction) {
-  const Stack T0 = stackOf(from, "from", 4, 4), T1 = stackOf(to, "to", 4, 4);
+  const Stack T0 = stackOf(from, "start", 4, 4), T1 = stackOf(to, "end", 4, 4);
   const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(fraction);
   if (T1.shape(0) != T0.shape(0) || !a || a.ndim() != 1 || a.shape(0) != T0.shape(0))
-    throw py::value_error("interpolate_poses: from, to and fraction must hold the same number of poses");
+    throw py::value_error("interpolate_poses: start, end and fraction must hold the same number of poses");
   using M4 = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
   py::array_t<double> out({T0.shape(0), py::ssize_t{4}, py::ssize_t{4}});
   for (py::ssize_t i = 0; i < T0.shape(0); ++i)
@@ -168,12 +187,13 @@ distance NaN, point NaN and triangle -1.
 )doc");
 
   m.def("quaternions_from_rotations", &quaternionsFromRotations, py::arg("rotations"),
-        "(N, 4) unit quaternions (qx, qy, qz, qw), qw >= 0, of (N, 3, 3) rotation matrices");
+        "Unit quaternions (..., 4) as (qx, qy, qz, qw), Hamilton convention, qw >= 0, of rotation "
+        "matrices (..., 3, 3) (Eigen's Shepperd method, accurate over the whole rotation group).");
   m.def("rotations_from_quaternions", &rotationsFromQuaternions, py::arg("quaternions"),
-        "(N, 3, 3) rotation matrices of (N, 4) quaternions (qx, qy, qz, qw), normalised first; "
-        "ValueError for a zero or non-finite one");
-  m.def("interpolate_poses", &interpolatePoses, py::arg("from"), py::arg("to"), py::arg("fraction"),
-        "(N, 4, 4) poses a fraction (N,) of the way from (N, 4, 4) `from` to `to`: translation "
+        "Rotation matrices (..., 3, 3) of quaternions (..., 4) given as (qx, qy, qz, qw), normalised "
+        "first. Raises ValueError for a zero or non-finite quaternion.");
+  m.def("interpolate_poses", &interpolatePoses, py::arg("start"), py::arg("end"), py::arg("fraction"),
+        "(N, 4, 4) poses a fraction (N,) of the way from (N, 4, 4) `start` to `end`: translation "
         "linear, rotation spherical-linear along the shorter arc (metres)");
 }
 

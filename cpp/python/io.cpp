@@ -1,5 +1,6 @@
-// _core.io: PCD reading and LZF decompression.  python/scanalign/io.py reads the file,
-// names it in error messages and keeps the public signatures.
+// _core.io: PCD reading, LZF decompression, OFF / OBJ / STL meshes and fan triangulation.
+// python/scanalign/io.py reads the file, names it in error messages and keeps the public
+// signatures.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -10,6 +11,7 @@
 #include <string_view>
 
 #include "scanalign/io/lzf.hpp"
+#include "scanalign/io/mesh_text.hpp"
 #include "scanalign/io/pcd.hpp"
 
 namespace py = pybind11;
@@ -46,6 +48,15 @@ const char* dataName(PcdData d) {
     case PcdData::BinaryCompressed: return "binary_compressed";
   }
   return "";
+}
+
+using Indices = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>;
+
+template <typename T>
+py::array_t<T> rows3(std::vector<T> values) {
+  py::array_t<T> a({static_cast<py::ssize_t>(values.size() / 3), py::ssize_t{3}});
+  if (!values.empty()) std::memcpy(a.mutable_data(), values.data(), values.size() * sizeof(T));
+  return a;
 }
 
 }  // namespace
@@ -93,9 +104,10 @@ void defineIo(py::module_& m) {
 
   m.def(
       "lzf_decompress",
-      [](const py::bytes& data, std::int64_t expected_size) {
+      [](const py::object& data, std::int64_t expected_size) {
         if (expected_size < 0) throw std::invalid_argument("expected_size must be >= 0");
-        const auto view = bytesView(data);
+        const py::bytes bytes = py::module_::import("builtins").attr("bytes")(data);  // bytearray, memoryview...
+        const auto view = bytesView(bytes);
         std::vector<std::uint8_t> out;
         {
           py::gil_scoped_release release;
@@ -104,9 +116,52 @@ void defineIo(py::module_& m) {
         }
         return py::bytes(reinterpret_cast<const char*>(out.data()), out.size());
       },
-      py::arg("data"), py::arg("expected_size"),
-      "Decompresses an LZF stream to exactly expected_size bytes; ValueError when it is "
-      "truncated, corrupt, or of another size.");
+      py::arg("data"), py::arg("expected_size"), R"doc(
+Decompresses an LZF stream (the liblzf format PCL uses for ``binary_compressed``).
+
+Args:
+    data: the compressed bytes (any bytes-like object).
+    expected_size: exact size of the decompressed output in bytes (>= 0).
+
+Returns:
+    The decompressed bytes, of length ``expected_size``.
+
+Raises:
+    ValueError: the stream is truncated, refers before the start of the output, does not
+        decompress to exactly ``expected_size`` bytes, or is too short to ever reach
+        ``expected_size`` (checked before allocating the output); a negative expected_size.
+)doc");
+
+  m.def(
+      "parse_mesh",
+      [](const py::bytes& data, const std::string& format) {
+        const auto view = bytesView(data);
+        TextMesh mesh;
+        {
+          py::gil_scoped_release release;
+          if (format == "off") mesh = parseOff(view);
+          else if (format == "obj") mesh = parseObj(view);
+          else if (format == "stl") mesh = parseStl(view);
+          else throw std::invalid_argument("format must be 'off', 'obj' or 'stl', got '" + format + "'");
+        }
+        return py::make_tuple(rows3(std::move(mesh.vertices)), rows3(std::move(mesh.faces)));
+      },
+      py::arg("data"), py::arg("format"),
+      "Parses the bytes of an OFF, OBJ or STL file: (vertices (V, 3) float64 in the file's unit, "
+      "faces (F, 3) int64), polygons fan-triangulated, STL corners with equal coordinates merged in "
+      "order of first appearance. Raises ValueError for a malformed or truncated file, a face with "
+      "fewer than 3 corners or an index out of range.");
+
+  m.def(
+      "fan_triangulate",
+      [](const Indices& counts, const Indices& indices, std::int64_t n_vertices) {
+        const auto vec = [](const Indices& a) { return std::vector<std::int64_t>(a.data(), a.data() + a.size()); };
+        return rows3(fanTriangulate(vec(counts), vec(indices), n_vertices));
+      },
+      py::arg("counts"), py::arg("indices"), py::arg("n_vertices"),
+      "(F, 3) int64 triangles of polygons given as corner counts and their concatenated vertex "
+      "indices: (p0, p1, ..., pk) becomes (p0, p1, p2), (p0, p2, p3), ... Raises ValueError for a "
+      "polygon with fewer than 3 corners or an index outside [0, n_vertices).");
 }
 
 }  // namespace scanalign::python

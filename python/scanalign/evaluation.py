@@ -62,13 +62,20 @@ def _as_trajectory(x: TrajectoryLike, name: str) -> Trajectory:
     return Trajectory(np.arange(a.shape[0], dtype=np.float64), a)
 
 
-def _check_same_length(est: Trajectory, ref: Trajectory, minimum: int, what: str) -> None:
+def _paired(estimate: TrajectoryLike, reference: TrajectoryLike, associate: bool, max_difference: float,
+            offset: float, minimum: int, what: str) -> Tuple[Trajectory, Trajectory]:
+    """The two trajectories, paired by timestamps with ``associate`` (else by index, so they
+    must have equal lengths), with at least ``minimum`` pairs."""
+    est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
+    if associate:
+        est, ref = _associate(est, ref, max_difference=max_difference, offset=offset)
     if len(est) != len(ref):
         raise ValueError(
             f"{what}: estimate has {len(est)} poses, reference {len(ref)}; poses are paired by index, "
             "so pass trajectories of equal length or associate=True to match timestamps")
     if len(est) < minimum:
         raise ValueError(f"{what} needs at least {minimum} poses, got {len(est)}")
+    return est, ref
 
 
 # -------------------------------------------------------------- Umeyama / Horn alignment
@@ -95,7 +102,7 @@ def umeyama_alignment(source: np.ndarray, target: np.ndarray,
             (all points coincident or collinear in source or target: the cross-covariance
             has rank < 2 and the rotation is not determined).
     """
-    # The one Kabsch/Umeyama implementation is C++'s (scanalign/common/rigid.hpp).
+    # The one Kabsch/Umeyama implementation is C++'s; it takes rows of contiguous coordinates.
     R, t, s = _core.registration.fit_similarity(np.ascontiguousarray(source, dtype=np.float64),
                                                 np.ascontiguousarray(target, dtype=np.float64), bool(with_scale))
     return np.asarray(R), np.asarray(t), float(s)
@@ -301,27 +308,16 @@ def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLik
         ValueError: different lengths without ``associate``, fewer than 3 poses (with
             ``align``; 1 without), degenerate (collinear) centres with ``align``.
     """
-    est = _as_trajectory(estimate, "estimate")
-    ref = _as_trajectory(reference, "reference")
-    if associate:
-        est, ref = _associate(est, ref, max_difference=max_difference, offset=offset)
-    _check_same_length(est, ref, 3 if align else 1, "absolute_trajectory_error")
-    p = est.positions
-    q = ref.positions
-    if align:
-        R, t, s = umeyama_alignment(p, q, with_scale=with_scale)
-    else:
-        R, t, s = np.eye(3), np.zeros(3), 1.0
-    aligned_poses = est.poses.copy()
-    aligned_poses[:, :3, :3] = R @ est.rotations
-    aligned_poses[:, :3, 3] = s * (p @ R.T) + t
-    aligned = Trajectory(est.timestamps.copy(), aligned_poses)
-    trans_err = np.linalg.norm(aligned_poses[:, :3, 3] - q, axis=1)
-    rel_rot = np.swapaxes(ref.rotations, 1, 2) @ aligned_poses[:, :3, :3]
-    rot_err = np.degrees(se3.rotation_angle(rel_rot))
+    est, ref = _paired(estimate, reference, associate, max_difference, offset, 3 if align else 1,
+                       "absolute_trajectory_error")
+    R, t, s = umeyama_alignment(est.positions, ref.positions, with_scale) if align else (np.eye(3), np.zeros(3), 1.0)
     T = np.eye(4)
     T[:3, :3] = s * R
     T[:3, 3] = t
+    aligned = est.transformed(T)
+    aligned.poses[:, :3, :3] = R @ est.rotations  # the scale moves the centres only
+    trans_err = np.linalg.norm(aligned.positions - ref.positions, axis=1)
+    rot_err = np.degrees(se3.rotation_angle(np.swapaxes(ref.rotations, 1, 2) @ aligned.rotations))
     return AteResult(translation=ErrorStats.from_errors(trans_err), rotation=ErrorStats.from_errors(rot_err),
                      T_reference_estimate=T, scale=float(s), aligned=aligned, reference=ref)
 
@@ -395,11 +391,7 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
     Raises:
         ValueError: different lengths, fewer than 2 poses, bad delta / unit, no pair found.
     """
-    est = _as_trajectory(estimate, "estimate")
-    ref = _as_trajectory(reference, "reference")
-    if associate:
-        est, ref = _associate(est, ref, max_difference=max_difference, offset=offset)
-    _check_same_length(est, ref, 2, "relative_pose_error")
+    est, ref = _paired(estimate, reference, associate, max_difference, offset, 2, "relative_pose_error")
     if delta_unit not in _DELTA_UNITS:
         raise ValueError(f"delta_unit must be one of {_DELTA_UNITS}, got {delta_unit!r}")
     if not (np.isfinite(delta) and delta > 0):
@@ -430,10 +422,7 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
     if pairs.shape[0] == 0:
         raise ValueError(f"relative_pose_error: delta = {delta} {delta_unit} gives no pose pair among {n} poses")
     i, j = pairs[:, 0], pairs[:, 1]
-    Q, P = ref.poses, est.poses
-    Q_rel = se3.inverse(Q[i]) @ Q[j]
-    P_rel = se3.inverse(P[i]) @ P[j]
-    E = se3.inverse(Q_rel) @ P_rel
+    E = se3.inverse(se3.inverse(ref.poses[i]) @ ref.poses[j]) @ (se3.inverse(est.poses[i]) @ est.poses[j])
     trans = np.linalg.norm(E[:, :3, 3], axis=1)
     rot = np.degrees(se3.rotation_angle(E[:, :3, :3]))
     return RpeResult(translation=ErrorStats.from_errors(trans), rotation=ErrorStats.from_errors(rot),
@@ -455,15 +444,12 @@ def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike,
     angles in degrees.  Keys: ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe``
     (:meth:`RpeResult.as_dict`), optionally ``cloud_to_mesh_m``.
     """
-    est = _as_trajectory(estimate, "estimate")
-    ref = _as_trajectory(reference, "reference")
-    if associate:
-        est, ref = _associate(est, ref, max_difference=max_difference, offset=offset)
+    if (points is None) != (mesh is None):
+        raise ValueError("pass both points and mesh=(vertices, faces) for the cloud-to-mesh distance, or neither")
+    est, ref = _paired(estimate, reference, associate, max_difference, offset, 0, "evaluate_reconstruction")
     ate = absolute_trajectory_error(est, ref, with_scale=with_scale)
     rpe = relative_pose_error(est, ref, delta=rpe_delta, delta_unit=rpe_delta_unit, all_pairs=rpe_all_pairs)
     out: Dict[str, Any] = {"poses": len(est), "ate": ate.as_dict(), "rpe": rpe.as_dict()}
-    if (points is None) != (mesh is None):
-        raise ValueError("pass both points and mesh=(vertices, faces) for the cloud-to-mesh distance, or neither")
-    if points is not None and mesh is not None:
+    if mesh is not None:
         out["cloud_to_mesh_m"] = mesh_distance_stats(points, mesh[0], mesh[1]).as_dict()
     return out

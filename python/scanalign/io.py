@@ -6,7 +6,8 @@ Formats:
   with ``DATA ascii``, ``binary`` and ``binary_compressed`` (LZF) payloads, parsed by the
   C++ core (``scanalign/io/pcd.hpp``).
 - **Meshes**: :func:`read_mesh` for ``.off``, ``.ply``, ``.stl`` and ``.obj``; polygons
-  are fan-triangulated into a :class:`Mesh`.  PLY goes through the ``plyfile`` library.
+  are fan-triangulated into a :class:`Mesh`.  PLY goes through the ``plyfile`` library,
+  the others through the C++ core (``scanalign/io/mesh_text.hpp``).
 - **PLY point clouds**: :func:`write_ply` and :func:`read_ply_points` (``plyfile``).
 
 Units: the library works in metres, but files store coordinates in whatever unit they
@@ -21,15 +22,13 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import re
-import struct
 import warnings
 from pathlib import Path
 from typing import Union
 
 import numpy as np
 import numpy.typing as npt
-from plyfile import PlyData, PlyElement, PlyElementParseError, PlyHeaderParseError
+from plyfile import PlyData, PlyElementParseError, PlyHeaderParseError
 
 from ._core import io as _io
 
@@ -54,22 +53,8 @@ def _error(path: PathLike, message: str) -> ValueError:
 # --------------------------------------------------------------------------- PCD
 
 
-def lzf_decompress(data: bytes, expected_size: int) -> bytes:
-    """Decompress an LZF stream (the liblzf format PCL uses for ``binary_compressed``).
-
-    Args:
-        data: the compressed bytes.
-        expected_size: exact size of the decompressed output in bytes.
-
-    Returns:
-        The decompressed bytes, of length ``expected_size``.
-
-    Raises:
-        ValueError: the stream is truncated, refers before the start of the output,
-            does not decompress to exactly ``expected_size`` bytes, or is too short to
-            ever reach ``expected_size`` (checked before allocating the output).
-    """
-    return _io.lzf_decompress(bytes(data), int(expected_size))
+#: Decompresses an LZF stream (the liblzf format PCL uses for ``binary_compressed``).
+lzf_decompress = _io.lzf_decompress
 
 
 def read_pcd(path: PathLike) -> dict[str, np.ndarray]:
@@ -181,87 +166,6 @@ class Mesh:
         object.__setattr__(self, "faces", faces)
 
 
-def _fan_triangulate(
-    path: PathLike, counts: np.ndarray, flat: np.ndarray, n_vertices: int
-) -> np.ndarray:
-    """Fan-triangulate polygons given as vertex counts + concatenated indices.
-
-    Polygon ``(p0, p1, ..., pk)`` becomes ``(p0, p1, p2), (p0, p2, p3), ...``.
-    Indices are validated against ``n_vertices``.
-    """
-    counts = np.asarray(counts, dtype=np.int64)
-    flat = np.asarray(flat, dtype=np.int64)
-    if counts.size and counts.min() < 3:
-        bad = int(np.argmax(counts < 3))
-        raise _error(path, f"face {bad} has {counts[bad]} vertices (at least 3 needed)")
-    if flat.size and (flat.min() < 0 or flat.max() >= n_vertices):
-        raise _error(
-            path,
-            f"face vertex index out of range [0, {n_vertices}): "
-            f"found {flat.min() if flat.min() < 0 else flat.max()}",
-        )
-    starts = np.cumsum(counts) - counts
-    n_tris = counts - 2
-    first = np.repeat(starts, n_tris)
-    # k-th triangle of a polygon uses its corners 0, k+1, k+2.
-    k = np.arange(int(n_tris.sum())) - np.repeat(np.cumsum(n_tris) - n_tris, n_tris)
-    return np.stack([flat[first], flat[first + k + 1], flat[first + k + 2]], axis=1)
-
-
-def _content_lines(text: str) -> list[str]:
-    """Lines with ``#`` comments removed, blank lines dropped."""
-    lines = (line.split("#", 1)[0].strip() for line in text.splitlines())
-    return [line for line in lines if line]
-
-
-def _read_off(path: PathLike) -> Mesh:
-    lines = _content_lines(Path(path).read_text(encoding="utf-8", errors="replace"))
-    if not lines:
-        raise _error(path, "empty OFF file")
-    keyword, *rest = lines[0].split()
-    match = re.fullmatch(r"(ST)?(C)?(N)?(4)?(n)?OFF", keyword)
-    if match is None:
-        raise _error(path, f"not an OFF file (header {keyword!r})")
-    if match.group(4) or match.group(5):
-        raise _error(path, f"{keyword}: only 3D OFF files are supported")
-    if rest and rest[0].upper() == "BINARY":
-        raise _error(path, "binary OFF files are not supported")
-    body = lines[1:]
-    if not rest:  # counts on their own line
-        if not body:
-            raise _error(path, "OFF file has no vertex/face counts")
-        rest = body[0].split()
-        body = body[1:]
-    try:
-        n_vertices, n_faces = int(rest[0]), int(rest[1])
-    except (IndexError, ValueError):
-        raise _error(path, f"malformed OFF counts line {' '.join(rest)!r}") from None
-    if len(body) < n_vertices + n_faces:
-        raise _error(
-            path,
-            f"OFF file is truncated: {len(body)} data lines for "
-            f"{n_vertices} vertices + {n_faces} faces",
-        )
-    try:
-        coords = [line.split()[:3] for line in body[:n_vertices]]
-        if any(len(c) != 3 for c in coords):
-            raise ValueError("a vertex line has fewer than 3 coordinates")
-        vertices = np.array(coords, dtype=np.float64).reshape(n_vertices, 3)
-        counts = np.empty(n_faces, dtype=np.int64)
-        flat: list[str] = []
-        for i, line in enumerate(body[n_vertices : n_vertices + n_faces]):
-            tokens = line.split()
-            k = int(tokens[0])
-            if len(tokens) < k + 1:
-                raise ValueError(f"face {i} lists fewer than {k} indices")
-            counts[i] = k
-            flat.extend(tokens[1 : k + 1])
-        indices = np.array(flat, dtype=np.int64)
-    except ValueError as exc:
-        raise _error(path, f"malformed OFF data: {exc}") from None
-    return Mesh(vertices, _fan_triangulate(path, counts, indices, n_vertices))
-
-
 # PLY (through plyfile) ---------------------------------------------------------
 
 # Triangle meshes first: a known list length lets plyfile read faces with one array
@@ -316,86 +220,10 @@ def _read_ply_mesh(path: PathLike) -> Mesh:
     else:
         counts = np.fromiter(map(len, polygons), dtype=np.int64, count=len(polygons))
         flat = np.concatenate(polygons) if len(polygons) else np.empty(0, np.int64)
-    return Mesh(vertices, _fan_triangulate(path, counts, flat, len(vertices)))
-
-
-# STL / OBJ --------------------------------------------------------------------
-
-
-def _merge_vertices(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Merge bit-identical corner positions; keep first-appearance order.
-
-    Args:
-        corners: ``(3F, 3)`` triangle corners.
-
-    Returns:
-        ``(V, 3)`` unique vertices and ``(F, 3)`` faces indexing them.
-    """
-    unique, first, inverse = np.unique(corners, axis=0, return_index=True, return_inverse=True)
-    order = np.argsort(first)
-    rank = np.empty_like(order)
-    rank[order] = np.arange(len(order))
-    return unique[order], rank[inverse.reshape(-1)].reshape(-1, 3)
-
-
-def _read_stl(path: PathLike) -> Mesh:
-    raw = Path(path).read_bytes()
-    if len(raw) >= 84:
-        (n_triangles,) = struct.unpack_from("<I", raw, 80)
-        if len(raw) == 84 + 50 * n_triangles:
-            record = np.dtype(
-                [("normal", "<f4", (3,)), ("corners", "<f4", (3, 3)), ("attribute", "<u2")]
-            )
-            table = np.frombuffer(raw, record, n_triangles, 84)
-            return Mesh(*_merge_vertices(table["corners"].reshape(-1, 3).astype(np.float64)))
-    if not raw.lstrip().startswith(b"solid"):
-        raise _error(path, "neither a binary STL (size mismatch) nor an ASCII STL ('solid')")
-    text = raw.decode("ascii", errors="replace")
-    loops = len(re.findall(r"\bouter\s+loop\b", text))
-    if loops != len(re.findall(r"\bendloop\b", text)) or loops != len(
-        re.findall(r"\bendfacet\b", text)
-    ):
-        raise _error(path, "ASCII STL is truncated or malformed (unbalanced facet/loop)")
-    coords = re.findall(r"\bvertex\s+(\S+)\s+(\S+)\s+(\S+)", text)
-    if len(coords) != 3 * loops:
-        raise _error(path, f"ASCII STL has {len(coords)} vertices for {loops} triangles")
     try:
-        corners = np.array(coords, dtype=np.float64).reshape(-1, 3)
+        return Mesh(vertices, _io.fan_triangulate(counts, flat, len(vertices)))
     except ValueError as exc:
-        raise _error(path, f"malformed ASCII STL vertex: {exc}") from None
-    return Mesh(*_merge_vertices(corners))
-
-
-def _read_obj(path: PathLike) -> Mesh:
-    text = Path(path).read_text(encoding="utf-8", errors="replace").replace("\\\n", " ")
-    vertices: list[list[str]] = []
-    counts: list[int] = []
-    flat: list[int] = []
-    try:
-        for line_no, line in enumerate(text.splitlines(), start=1):
-            tokens = line.split("#", 1)[0].split()
-            if not tokens:
-                continue
-            if tokens[0] == "v":
-                if len(tokens) < 4:
-                    raise ValueError(f"line {line_no}: vertex with fewer than 3 coordinates")
-                vertices.append(tokens[1:4])
-            elif tokens[0] == "f":
-                for corner in tokens[1:]:
-                    index = int(corner.split("/", 1)[0])
-                    if index == 0:
-                        raise ValueError(f"line {line_no}: OBJ indices start at 1")
-                    # Negative indices count back from the latest vertex.
-                    flat.append(index - 1 if index > 0 else len(vertices) + index)
-                counts.append(len(tokens) - 1)
-        vertex_array = np.array(vertices, dtype=np.float64).reshape(-1, 3)
-    except ValueError as exc:
-        raise _error(path, f"malformed OBJ: {exc}") from None
-    faces = _fan_triangulate(path, np.array(counts), np.array(flat), len(vertex_array))
-    return Mesh(vertex_array, faces)
-
-
-_MESH_READERS = {".off": _read_off, ".ply": _read_ply_mesh, ".stl": _read_stl, ".obj": _read_obj}
+        raise _error(path, str(exc)) from None
 
 
 def read_mesh(path: PathLike) -> Mesh:
@@ -405,7 +233,8 @@ def read_mesh(path: PathLike) -> Mesh:
       per-vertex/per-face colours ignored.
     - PLY: ascii and binary (little/big endian); vertex ``x y z`` (other properties,
       including lists, are skipped), face list ``vertex_indices`` or ``vertex_index``.
-    - STL: ascii and binary; bit-identical corners are merged into shared vertices.
+    - STL: ascii and binary; corners with equal coordinates are merged into shared
+      vertices, in order of first appearance.
     - OBJ: ``v`` and ``f`` records (``f 1 2 3``, ``f 1/1/1 ...``, ``f 1//1 ...``,
       negative relative indices); everything else is ignored.
 
@@ -423,9 +252,14 @@ def read_mesh(path: PathLike) -> Mesh:
             range, or a face with fewer than 3 corners.
     """
     suffix = Path(path).suffix.lower()
-    if suffix not in _MESH_READERS:
+    if suffix == ".ply":
+        return _read_ply_mesh(path)
+    if suffix not in (".off", ".stl", ".obj"):
         raise _error(path, f"unsupported mesh extension {suffix!r} (use .off, .ply, .stl, .obj)")
-    return _MESH_READERS[suffix](path)
+    try:  # parsed by the C++ core (scanalign/io/mesh_text.hpp)
+        return Mesh(*_io.parse_mesh(Path(path).read_bytes(), suffix[1:]))
+    except ValueError as exc:
+        raise _error(path, str(exc)) from None
 
 
 # --------------------------------------------------------------------------- PLY points

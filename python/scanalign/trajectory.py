@@ -14,7 +14,8 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import dataclass
-from typing import Optional, Sequence, Union
+from pathlib import Path
+from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -28,26 +29,18 @@ __all__ = [
     "read_tum_trajectory",
     "write_tum_trajectory",
     "associate_timestamps",
+    "TumFormatError",
+    "read_tum_rows",
+    "time_order",
 ]
 
-
-def quaternion_from_matrix(R: np.ndarray) -> np.ndarray:
-    """Unit quaternions (..., 4) as (qx, qy, qz, qw), qw >= 0, from rotation matrices (..., 3, 3)."""
-    R = np.asarray(R, dtype=np.float64)
-    if R.shape[-2:] != (3, 3):
-        raise ValueError(f"expected rotation matrices of shape (..., 3, 3), got {R.shape}")
-    return _core.evaluation.quaternions_from_rotations(R.reshape(-1, 3, 3)).reshape(R.shape[:-2] + (4,))
+PathLike = Union[str, "os.PathLike[str]"]
 
 
-def matrix_from_quaternion(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) from quaternions (..., 4) given as (qx, qy, qz, qw).
-
-    The quaternion is normalised first. Raises ValueError for a zero or non-finite one.
-    """
-    q = np.asarray(q, dtype=np.float64)
-    if q.shape[-1] != 4:
-        raise ValueError(f"expected quaternions of shape (..., 4), got {q.shape}")
-    return _core.evaluation.rotations_from_quaternions(q.reshape(-1, 4)).reshape(q.shape[:-1] + (3, 3))
+#: Unit quaternions (..., 4) (qx, qy, qz, qw), qw >= 0, of rotation matrices (..., 3, 3).
+quaternion_from_matrix = _core.evaluation.quaternions_from_rotations
+#: Rotation matrices (..., 3, 3) of quaternions (..., 4) (qx, qy, qz, qw), normalised first.
+matrix_from_quaternion = _core.evaluation.rotations_from_quaternions
 
 
 def pose_from_tum(values: np.ndarray) -> np.ndarray:
@@ -129,10 +122,12 @@ class Trajectory:
         return cls(rows[:, 0], pose_from_tum(rows[:, 1:]))
 
     @classmethod
-    def read_tum(cls, path: Union[str, os.PathLike]) -> "Trajectory":
+    def read_tum(cls, path: PathLike) -> "Trajectory":
+        """:func:`read_tum_trajectory`."""
         return read_tum_trajectory(path)
 
-    def write_tum(self, path: Union[str, os.PathLike], header: Optional[str] = None) -> None:
+    def write_tum(self, path: PathLike, header: Optional[str] = None) -> None:
+        """:func:`write_tum_trajectory`."""
         write_tum_trajectory(path, self, header)
 
     def interpolate(self, timestamps: Sequence[float], max_gap: float = np.inf) -> "Trajectory":
@@ -165,38 +160,91 @@ class Trajectory:
         return Trajectory(t, T)
 
 
-def read_tum_trajectory(path: Union[str, os.PathLike]) -> Trajectory:
-    """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line; ``#``
-    comments and blank lines skipped; commas accepted as separators).
+class TumFormatError(ValueError):
+    """A file does not follow the TUM RGB-D benchmark's formats.
+
+    Attributes:
+        path: the offending file (or folder), or None.
+        line: 1-based line number in ``path`` where applicable, else None.
+    """
+
+    def __init__(self, message: str, path: Optional[PathLike] = None, line: Optional[int] = None) -> None:
+        where = "" if path is None else f"{os.fspath(path)}:{line}: " if line is not None else f"{os.fspath(path)}: "
+        super().__init__(where + message)
+        self.path = None if path is None else os.fspath(path)
+        self.line = line
+
+
+def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarray, List[str], np.ndarray]:
+    """The TUM benchmark's text files, one rule for all: ``#`` starts a comment, blank
+    lines are skipped, commas and tabs separate fields (as in the benchmark's
+    ``associate.py``).  Every data line has ``fields`` fields: numbers, except that with
+    ``expected`` starting with "'timestamp filename'" the last one is a name.
+
+    Returns:
+        (values (N, k) float64, names (the last fields when they are names, else empty),
+        1-based line numbers (N,)).
 
     Raises:
-        ValueError: a line without 8 numbers (the line number is given).
+        TumFormatError: not UTF-8 text, a line with another number of fields, a value that
+            is not a finite number (the file and line are named).
     """
-    rows = []
-    with open(path, "r", encoding="utf-8") as f:
-        for lineno, raw in enumerate(f, 1):
-            line = raw.split("#", 1)[0].strip()
-            if not line:
-                continue
-            parts = line.replace(",", " ").split()
-            if len(parts) != 8:
-                raise ValueError(f"{path}:{lineno}: expected 8 values (timestamp tx ty tz qx qy qz qw), got {len(parts)}")
-            try:
-                rows.append([float(p) for p in parts])
-            except ValueError:
-                raise ValueError(f"{path}:{lineno}: not a number in {raw.strip()!r}") from None
-    return Trajectory.from_tum_rows(np.array(rows).reshape(-1, 8))
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise TumFormatError(f"not a UTF-8 text file ({e})", path) from None
+    named = expected.startswith("'timestamp filename'")
+    values, names, lines = [], [], []
+    for lineno, raw in enumerate(text.splitlines(), 1):
+        parts = raw.split("#", 1)[0].replace(",", " ").split()
+        if not parts:
+            continue
+        if len(parts) != fields:
+            raise TumFormatError(f"expected {expected}, got {raw.strip()!r}", path, lineno)
+        if named:
+            names.append(parts.pop())
+        try:
+            row = [float(p) for p in parts]
+        except ValueError:
+            raise TumFormatError(f"not a number in {raw.strip()!r}", path, lineno) from None
+        if not all(map(math.isfinite, row)):
+            raise TumFormatError(f"a value is not finite in {raw.strip()!r}", path, lineno)
+        values.append(row)
+        lines.append(lineno)
+    return np.array(values).reshape(-1, fields - named), names, np.array(lines, dtype=np.int64)
 
 
-def write_tum_trajectory(path: Union[str, os.PathLike], trajectory: Trajectory, header: Optional[str] = None) -> None:
-    """Writes a trajectory in the TUM format (full double precision)."""
+def time_order(timestamps: np.ndarray, path: PathLike, lines: np.ndarray) -> np.ndarray:
+    """The stable order sorting ``timestamps`` (recorders sometimes flush out of order).
+
+    Raises:
+        TumFormatError: the same timestamp twice (both lines are named).
+    """
+    order = np.argsort(timestamps, kind="stable")
+    dup = np.flatnonzero(np.diff(timestamps[order]) == 0)
+    if dup.size:
+        a, b = order[dup[0]], order[dup[0] + 1]
+        raise TumFormatError(f"timestamp {timestamps[a]:.6f} appears twice (lines {lines[a]} and {lines[b]})",
+                             path, int(lines[b]))
+    return order
+
+
+def read_tum_trajectory(path: PathLike) -> Trajectory:
+    """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, in file order).
+
+    Raises:
+        TumFormatError (a ValueError): a line without 8 finite numbers (file and line named).
+    """
+    return Trajectory.from_tum_rows(read_tum_rows(path, 8, "8 values (timestamp tx ty tz qx qy qz qw)")[0])
+
+
+def write_tum_trajectory(path: PathLike, trajectory: Trajectory, header: Optional[str] = None) -> None:
+    """Writes a trajectory in the TUM format: timestamps to the microsecond, poses in full
+    double precision; ``header`` lines become ``#`` comments."""
     with open(path, "w", encoding="utf-8") as f:
-        if header:
-            for line in header.splitlines():
-                f.write(f"# {line}\n")
+        f.writelines(f"# {line}\n" for line in (header or "").splitlines())
         f.write("# timestamp tx ty tz qx qy qz qw\n")
-        for r in trajectory.to_tum_rows():
-            f.write(f"{r[0]:.6f} " + " ".join(f"{v:.17g}" for v in r[1:]) + "\n")
+        f.writelines(f"{r[0]:.6f} " + " ".join(f"{v:.17g}" for v in r[1:]) + "\n" for r in trajectory.to_tum_rows())
 
 
 def associate_timestamps(first: Sequence[float], second: Sequence[float], max_difference: float) -> np.ndarray:
