@@ -654,6 +654,40 @@ def test_config_reads_a_mesh_file(tmp_path):
     assert scan.object_mesh.vertices[:, 2].min() == pytest.approx(0.0, abs=1e-12)
 
 
+def test_camera_files_json_and_yaml(tmp_path):
+    from scanalign.camera import read_camera_file
+
+    # OpenCV writes a "%YAML:1.0" first line (a directive YAML parsers reject); YAML 1.1 reads
+    # "1e-3" without a dot as text: both are handled.
+    (tmp_path / "cv.yaml").write_text("%YAML:1.0\n---\n# camera\nwidth: 640\nheight: 480\nfx: 5.25e2\n"
+                                      "fy: 525\ncx: 319.5\ncy: 239.5\ndepth_scale: 1e-3\nname: 'sr300'\n")
+    d = read_camera_file(tmp_path / "cv.yaml")
+    assert d == {"width": 640, "height": 480, "fx": 525.0, "fy": 525, "cx": 319.5, "cy": 239.5,
+                 "depth_scale": 1e-3, "name": "sr300"}
+    assert Intrinsics.from_file(tmp_path / "cv.yaml") == Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
+    (tmp_path / "cam.json").write_text(json.dumps({"width": 64, "height": 48, "fx": 50, "fy": 50, "cx": 31.5,
+                                                   "cy": 23.5}))
+    assert Intrinsics.from_file(tmp_path / "cam.json").shape == (48, 64)
+    for name, text in (("list.yaml", "- 1\n- 2\n"), ("bad.yaml", "a: [1\n"), ("bad.json", "{\"a\": 1,}")):
+        (tmp_path / name).write_text(text)
+        with pytest.raises(ValueError, match=name):
+            read_camera_file(tmp_path / name)
+    with pytest.raises(ValueError, match="focal length"):
+        Intrinsics(64, 48, 0.0, 50.0, 31.5, 23.5)
+
+
+def test_sensor_noise_is_read_only_and_validated():
+    sr300 = syn.NOISE_PRESETS["sr300"]
+    with pytest.raises(AttributeError):
+        sr300.axial_sigma_ref = 0.0  # the presets are shared
+    custom = syn.SensorNoise(name="mine", axial_sigma_ref=0.002, z_ref=0.5, edge_width=2)
+    assert (custom.name, custom.axial_sigma_ref, custom.edge_width, custom.max_range) == ("mine", 0.002, 2, math.inf)
+    np.testing.assert_allclose(custom.sigma([0.5, 1.0]), [0.002, 0.008])
+    for field, value in (("z_ref", 0.0), ("grazing_cos", 1.0), ("edge_width", -1), ("depth_unit", math.nan)):
+        with pytest.raises(ValueError, match=field):
+            syn.SensorNoise(**{field: value})
+
+
 @pytest.mark.data
 @pytest.mark.parametrize("name", ["bunny00", "fandisk"])
 def test_cgal_mesh_scene(name, dataset_cache):

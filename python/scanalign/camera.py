@@ -20,6 +20,8 @@ from typing import Any, Dict, Mapping, Optional, Union
 import numpy as np
 import yaml
 
+from . import _core
+
 __all__ = ["Intrinsics", "Frame", "INTRINSICS_PRESETS"]
 
 
@@ -41,18 +43,13 @@ class Intrinsics:
     cy: float
 
     def __post_init__(self) -> None:
-        for name in ("width", "height"):
+        for name in ("width", "height", "fx", "fy", "cx", "cy"):
             v = getattr(self, name)
-            if int(v) != v or v <= 0:
+            if name in ("width", "height") and int(v) != v:
                 raise ValueError(f"Intrinsics.{name} must be a positive integer, got {v!r}")
-            object.__setattr__(self, name, int(v))
-        for name in ("fx", "fy", "cx", "cy"):
-            v = float(getattr(self, name))
-            if not math.isfinite(v):
-                raise ValueError(f"Intrinsics.{name} must be finite, got {v!r}")
-            object.__setattr__(self, name, v)
-        if self.fx <= 0 or self.fy <= 0:
-            raise ValueError(f"Intrinsics: focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
+            object.__setattr__(self, name, int(v) if name in ("width", "height") else float(v))
+        # The C++ checks (positive size and focal lengths, finite values): ValueError naming them.
+        _core.reconstruction.PinholeIntrinsics(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
 
     @property
     def K(self) -> np.ndarray:

@@ -132,14 +132,9 @@ def _write_atomic(path: Path, data: bytes) -> None:
 
 
 def fetch_all() -> list[Path]:
-    """Download and unpack both data packages (idempotent).
-
-    Returns:
-        The unpacked package folders (``libcgal-demo``, ``python3-pcl``).
-
-    Raises:
-        DatasetUnavailableError: ``apt-get``/``dpkg-deb`` missing or failing.
-    """
+    """Downloads and unpacks both data packages (idempotent); returns the unpacked package
+    folders (``libcgal-demo``, ``python3-pcl``). Raises DatasetUnavailableError when
+    ``apt-get``/``dpkg-deb`` are missing or fail."""
     return [_package_root(CGAL_PACKAGE), _package_root(PCL_PACKAGE)]
 
 
@@ -167,37 +162,25 @@ def _cgal_tar_members() -> list[str]:
 
 
 def cgal_mesh_names() -> list[str]:
-    """Names of CGAL's example meshes, without extension (e.g. ``"fandisk"``).
-
-    A few meshes exist in several formats (``sphere`` as .off, .ply and .stl); the bare
-    name means the ``.off`` one, the others are reachable with their extension through
-    :func:`cgal_mesh_path`.  Downloads ``libcgal-demo`` on first use.
-    """
+    """Names of CGAL's example meshes, without extension (e.g. ``"fandisk"``); downloads
+    ``libcgal-demo`` on first use. A few exist in several formats (``sphere`` as .off, .ply
+    and .stl): the bare name means the ``.off`` one, the others are reachable with their
+    extension through :func:`cgal_mesh_path`."""
     return sorted({Path(name).stem for name in _cgal_tar_members()})
 
 
 def cgal_mesh_path(name: str) -> Path:
-    """Path of a CGAL example mesh, extracted from the package on first use.
+    """The cached file of a CGAL example mesh, extracted from the package on first use.
 
-    Args:
-        name: mesh name without extension (``"fandisk"``, ``"bunny00"``), or a file name
-            with extension to pick a format (``"pig.stl"``).
-
-    Returns:
-        The mesh file in the cache.
-
-    Raises:
-        ValueError: no such mesh.
-        DatasetUnavailableError: the package cannot be fetched.
+    ``name``: without extension (``"fandisk"``, ``"bunny00"``), or with one to pick a format
+    (``"pig.stl"``). Raises ValueError for an unknown name, DatasetUnavailableError when the
+    package cannot be fetched.
     """
     members = _cgal_tar_members()
-    if name in members:
-        filename = name
-    else:
-        candidates = [name + ext for ext in _MESH_EXTENSIONS if name + ext in members]
-        if not candidates:
-            raise _unknown("CGAL mesh", name, cgal_mesh_names(), "cgal_mesh_names")
-        filename = candidates[0]
+    candidates = [name + ext for ext in ("",) + _MESH_EXTENSIONS if name + ext in members]
+    if not candidates:
+        raise _unknown("CGAL mesh", name, cgal_mesh_names(), "cgal_mesh_names")
+    filename = candidates[0]
     target = cache_dir() / "cgal_meshes" / filename
     if target.exists():
         return target
@@ -214,12 +197,8 @@ def cgal_mesh_path(name: str) -> Path:
 
 
 def load_cgal_mesh(name: str) -> io.Mesh:
-    """Load a CGAL example mesh (see :func:`cgal_mesh_path` for ``name``).
-
-    Returns:
-        The triangulated :class:`scanalign.io.Mesh`, in the file's own unit (the CGAL
-        meshes are mostly scaled to about one unit across; they are not in metres).
-    """
+    """A CGAL example mesh (``name`` as for :func:`cgal_mesh_path`), triangulated, in the
+    file's own unit (mostly about one unit across; not metres)."""
     return io.read_mesh(cgal_mesh_path(name))
 
 
@@ -232,24 +211,15 @@ def _pcl_clouds() -> dict[str, Path]:
 
 
 def pcl_cloud_names() -> list[str]:
-    """Names of the PCL tutorial clouds (e.g. ``"table_scene_lms400"``, ``"milk"``).
-
-    Downloads ``python3-pcl`` on first use.
-    """
+    """Names of the PCL tutorial clouds (``"table_scene_lms400"``, ``"milk"``, ...);
+    downloads ``python3-pcl`` on first use."""
     return sorted(_pcl_clouds())
 
 
 def pcl_cloud_path(name: str) -> Path:
-    """Path of a PCL tutorial cloud (``.pcd``), fetching the package on first use.
-
-    Args:
-        name: cloud name without extension, e.g. ``"bun0"``, ``"table_scene_lms400"``,
-            ``"milk"``.
-
-    Raises:
-        ValueError: no such cloud.
-        DatasetUnavailableError: the package cannot be fetched.
-    """
+    """Path of the PCL tutorial cloud ``name`` (without extension: ``"bun0"``, ``"milk"``,
+    ...), fetching the package on first use. Raises ValueError for an unknown name,
+    DatasetUnavailableError when the package cannot be fetched."""
     clouds = _pcl_clouds()
     if name not in clouds:
         raise _unknown("PCL cloud", name, list(clouds), "pcl_cloud_names")
@@ -257,14 +227,9 @@ def pcl_cloud_path(name: str) -> Path:
 
 
 def load_pcl_cloud(name: str) -> np.ndarray:
-    """Load the finite ``x y z`` points of a PCL tutorial cloud.
-
-    Note that PCL's file names are not always descriptive: in this package ``bun0`` is
-    an indoor lidar scan about 29 m across, not the Stanford bunny.
-
-    Returns:
-        ``(N, 3)`` float64 points in metres; NaN (invalid) points are removed.
-    """
+    """The finite ``x y z`` points of a PCL tutorial cloud, ``(N, 3)`` float64 metres (NaN
+    points removed). PCL's names are not always descriptive: ``bun0`` is an indoor lidar
+    scan about 29 m across, not the Stanford bunny."""
     return io.read_pcd_points(pcl_cloud_path(name), dtype=np.float64, remove_nan=True)
 
 
@@ -339,22 +304,17 @@ def _small_gicp_data_dir() -> Path:
 
 
 def small_gicp_lidar_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The outdoor LiDAR scan pair of small_gicp's examples, with its reference pose.
+    """The outdoor LiDAR scan pair of small_gicp's examples, with its reference pose:
+    ``(source (N, 3), target (M, 3), T_target_source (4, 4))``, float64, metres.
 
-    Two downsampled outdoor LiDAR scans (about 70k points each, about 60 x 40 x 12 m, in
-    metres) and the reference ``T_target_source`` shipped with them in the ``small_gicp``
-    1.0.1 source distribution on PyPI (``data/source.ply``, ``data/target.ply``,
-    ``data/T_target_source.txt``). The sdist is fetched once with ``pip download
-    --no-deps --no-binary :all:`` into ``<cache>/sdists/`` (nothing is built or
-    installed) and its ``data/`` unpacked into ``<cache>/small_gicp_data/``.
-
-    Returns:
-        ``(source (N, 3) float64, target (M, 3) float64, T_target_source (4, 4) float64)``.
-        The file stores the pose with 6 significant digits; its rotation is projected onto
-        the nearest rotation matrix (a change below 1e-6), so the result is exactly rigid.
-
-    Raises:
-        DatasetUnavailableError: pip cannot download the sdist (no network, no PyPI).
+    Two downsampled outdoor LiDAR scans (about 70k points each, about 60 x 40 x 12 m) and the
+    ``T_target_source`` shipped with them in the ``small_gicp`` 1.0.1 source distribution on
+    PyPI (``data/source.ply``, ``data/target.ply``, ``data/T_target_source.txt``), fetched once
+    with ``pip download --no-deps --no-binary :all:`` into ``<cache>/sdists/`` (nothing is
+    built or installed), its ``data/`` unpacked into ``<cache>/small_gicp_data/``. The file
+    stores the pose with 6 significant digits; its rotation is projected onto the nearest
+    rotation matrix (a change below 1e-6), so the result is exactly rigid. Raises
+    DatasetUnavailableError when pip cannot download the sdist (no network, no PyPI).
     """
     root = _small_gicp_data_dir()
     source = io.read_ply_points(root / "source.ply")["points"]

@@ -3,6 +3,7 @@ follows a planned camera path (joints by inverse kinematics, poses by forward ki
 
 from __future__ import annotations
 
+import itertools
 import math
 from typing import Any, Optional, Sequence, Tuple
 
@@ -31,9 +32,8 @@ def robot_mount(x: float = 0.5, y: float = 0.0, z: float = DEFAULT_ROBOT_HEIGHT,
     axis). From above, both default paths lie 0.15-0.47 m from the first axis and 0.3-0.7 m
     from the shoulder, inside the workspace and away from every singularity.
     """
-    vals = (x, y, z, roll, pitch, yaw)
-    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in vals):
-        raise ValueError(f"robot_mount: expected finite numbers (m, rad), got {vals!r}")
+    if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (x, y, z, roll, pitch, yaw)):
+        raise ValueError(f"robot_mount: expected finite numbers (m, rad), got {(x, y, z, roll, pitch, yaw)!r}")
     T = se3.rigid([0.0, 0.0, 1.0], yaw, [x, y, z])
     T[:3, :3] = T[:3, :3] @ se3.rotation_about([0.0, 1.0, 0.0], pitch) @ se3.rotation_about([1.0, 0.0, 0.0], roll)
     return T
@@ -146,21 +146,16 @@ def _best_start(model: Any, Tbr: np.ndarray, T_first: np.ndarray, elbow: str, ru
     if not candidates:
         raise ValueError(f"robot {model.name}: no elbow-{elbow} solution within the joint limits for {where(0)}; "
                          f"use elbow='any' or another mount")
-    lo, hi = model.limits[:, 0], model.limits[:, 1]
     best, best_step = None, math.inf
-    for k in candidates:
-        for d1 in (0.0, -2 * math.pi, 2 * math.pi):
-            for d6 in (0.0, -2 * math.pi, 2 * math.pi):
-                q0 = np.array(first.q[k], dtype=np.float64)
-                q0[0] += d1
-                q0[5] += d6
-                if np.any(q0 < lo) or np.any(q0 > hi):
-                    continue
-                tr, step = run(q0)
-                # Strictly smaller by more than rounding: equal steps keep the earlier candidate.
-                if best is None or step < best_step - 1e-9 or (
-                        step == best_step == math.inf and np.count_nonzero(tr.ok) > np.count_nonzero(best.ok)):
-                    best, best_step = tr, step
+    for k, d1, d6 in itertools.product(candidates, *[(0.0, -2 * math.pi, 2 * math.pi)] * 2):
+        q0 = np.array(first.q[k], dtype=np.float64) + [d1, 0, 0, 0, 0, d6]
+        if np.any(q0 < model.limits[:, 0]) or np.any(q0 > model.limits[:, 1]):
+            continue
+        tr, step = run(q0)
+        # Strictly smaller by more than rounding: equal steps keep the earlier candidate.
+        if best is None or step < best_step - 1e-9 or (
+                step == best_step == math.inf and np.count_nonzero(tr.ok) > np.count_nonzero(best.ok)):
+            best, best_step = tr, step
     if best is None:
         raise ValueError(f"robot {model.name}: every start for {where(0)} lies outside the joint limits")
     return best

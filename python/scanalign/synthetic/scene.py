@@ -149,14 +149,6 @@ class Scene:
         lo, hi = v.min(axis=0), v.max(axis=0)
         return np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, self.table_height])
 
-    def _table(self) -> Tuple[np.ndarray, np.ndarray]:
-        sx, sy = self.table_size
-        cx, cy = self.table_center
-        z = self.table_height
-        v = np.array([[cx - sx / 2, cy - sy / 2, z], [cx + sx / 2, cy - sy / 2, z],
-                      [cx + sx / 2, cy + sy / 2, z], [cx - sx / 2, cy + sy / 2, z]])
-        return v, np.array([[0, 1, 2], [0, 2, 3]])
-
     def _build(self) -> Dict[str, np.ndarray]:
         if self._combined is not None:
             return self._combined
@@ -182,9 +174,10 @@ class Scene:
             offset += len(by_first_use)
         n_object_faces = sum(len(f) for f in faces)
         if self.table_size is not None:
-            tv, tf = self._table()
-            verts.append(tv)
-            faces.append(tf + offset)
+            (sx, sy), (cx, cy) = self.table_size, self.table_center
+            corners = ((-1, -1), (1, -1), (1, 1), (-1, 1))  # counter-clockwise seen from above: normal +z
+            verts.append([[cx + a * sx / 2, cy + b * sy / 2, self.table_height] for a, b in corners])
+            faces.append(np.array([[0, 1, 2], [0, 2, 3]]) + offset)
             owner.append(np.full(2, -1, dtype=np.int32))
             source.append(np.arange(2))
             albedo.append(np.tile(self.checker_colors[0], (2, 1)))
