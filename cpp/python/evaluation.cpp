@@ -11,10 +11,14 @@
 #include <vector>
 
 #include "arrays.hpp"
+#include "scanalign/evaluation/associate.hpp"
+#include "scanalign/evaluation/error_stats.hpp"
 #include "scanalign/evaluation/mesh_distance.hpp"
 #include "scanalign/evaluation/pose_interpolation.hpp"
 
 namespace scanalign::python {
+
+using namespace pybind11::literals;
 
 namespace {
 
@@ -142,9 +146,83 @@ py::array_t<double> interpolatePoses(const py::array& from, const py::array& to,
   return out;
 }
 
+MeshDistanceStats distanceStats(const MeshDistanceIndex& index, const py::object& points, int num_threads) {
+  const py::array_t<double> d = distance(index, points, num_threads);
+  return summarizeDistances(d.data(), static_cast<std::size_t>(d.size()));
+}
+
+void defineStats(py::module_& m) {
+  py::class_<ErrorStats>(m, "ErrorStats", R"doc(
+Summary of per-pose (or per-pair) errors, as the TUM benchmark tools and ``evo`` report them.
+
+Units are those of ``errors`` (metres for translations, degrees for rotations). ``std`` is
+the population standard deviation (ddof = 0, like ``numpy.std``, ``evo`` and the TUM
+scripts); ``sse`` the sum of squares; ``rmse = sqrt(sse / count)``; ``median`` as
+``numpy.median``.
+)doc")
+      .def_static(
+          "from_errors",
+          [](const py::array_t<double, py::array::c_style | py::array::forcecast>& errors) {
+            return summarizeErrors(std::vector<double>(errors.data(), errors.data() + errors.size()));
+          },
+          py::arg("errors"), "The statistics of an array of errors (flattened); ValueError when it is empty.")
+      .def_readonly("rmse", &ErrorStats::rmse, "root mean square error")
+      .def_readonly("mean", &ErrorStats::mean, "mean error")
+      .def_readonly("median", &ErrorStats::median, "median error")
+      .def_readonly("std", &ErrorStats::std, "population standard deviation (ddof = 0)")
+      .def_readonly("min", &ErrorStats::min, "smallest error")
+      .def_readonly("max", &ErrorStats::max, "largest error")
+      .def_readonly("sse", &ErrorStats::sse, "sum of squared errors")
+      .def_readonly("count", &ErrorStats::count, "number of errors")
+      .def_property_readonly(
+          "errors", [](const ErrorStats& s) { return py::array_t<double>(s.errors.size(), s.errors.data()); },
+          "(count,) float64 copy of the errors")
+      .def(
+          "as_dict",
+          [](const ErrorStats& s, bool include_errors) {
+            py::dict d("rmse"_a = s.rmse, "mean"_a = s.mean, "median"_a = s.median, "std"_a = s.std, "min"_a = s.min,
+                       "max"_a = s.max, "sse"_a = s.sse, "count"_a = s.count);
+            if (include_errors) {
+              py::list errors;
+              for (double e : s.errors) errors.append(e);
+              d["errors"] = errors;
+            }
+            return d;
+          },
+          py::arg("include_errors") = false, "Plain floats (JSON-serialisable); the per-pose errors only on request.")
+      .def("__repr__", [](const ErrorStats& s) {
+        return "ErrorStats(rmse=" + std::to_string(s.rmse) + ", mean=" + std::to_string(s.mean) +
+               ", max=" + std::to_string(s.max) + ", count=" + std::to_string(s.count) + ")";
+      });
+
+  py::class_<MeshDistanceStats>(m, "MeshDistanceStats",
+                                "Cloud-to-mesh distance summary (m) over the finite points; ``count`` points were "
+                                "measured, ``dropped`` rows had NaN/Inf coordinates and were left out.")
+      .def_readonly("mean", &MeshDistanceStats::mean, "mean distance (m)")
+      .def_readonly("median", &MeshDistanceStats::median, "median distance (m)")
+      .def_readonly("p95", &MeshDistanceStats::p95,
+                    "95th percentile (m), linear interpolation as numpy.percentile")
+      .def_readonly("max", &MeshDistanceStats::max, "largest distance (m)")
+      .def_readonly("rmse", &MeshDistanceStats::rmse, "root mean square distance (m)")
+      .def_readonly("count", &MeshDistanceStats::count, "points measured")
+      .def_readonly("dropped", &MeshDistanceStats::dropped, "rows left out for NaN/Inf coordinates")
+      .def(
+          "as_dict",
+          [](const MeshDistanceStats& s) {
+            return py::dict("mean"_a = s.mean, "median"_a = s.median, "p95"_a = s.p95, "max"_a = s.max,
+                            "rmse"_a = s.rmse, "count"_a = s.count, "dropped"_a = s.dropped);
+          },
+          "The fields as a JSON-serialisable dict")
+      .def("__repr__", [](const MeshDistanceStats& s) {
+        return "MeshDistanceStats(mean=" + std::to_string(s.mean) + ", p95=" + std::to_string(s.p95) +
+               ", max=" + std::to_string(s.max) + ", count=" + std::to_string(s.count) + ")";
+      });
+}
+
 }  // namespace
 
 void defineEvaluation(py::module_& m) {
+  defineStats(m);
   py::class_<MeshDistanceIndex>(m, "MeshDistanceIndex", R"doc(
 Exact point-to-triangle-mesh distance queries; build once, query many times.
 
@@ -180,6 +258,9 @@ Returns:
     (N,) float64 distances.
 )doc")
       .def("__call__", &distance, py::arg("points"), py::arg("num_threads") = 0, "same as distance()")
+      .def("stats", &distanceStats, py::arg("points"), py::arg("num_threads") = 0,
+           "MeshDistanceStats of distance(points); rows with NaN/Inf are dropped. Raises ValueError when "
+           "no point is finite.")
       .def("closest_points", &closestPoints, py::arg("points"), py::arg("num_threads") = 0, R"doc(
 Nearest surface points: ``(distances (N,) float64 m, points (N, 3) float64 in the mesh's
 frame, triangles (N,) int64 rows of faces)``. Rows of ``points`` with NaN/Inf give
@@ -192,6 +273,37 @@ distance NaN, point NaN and triangle -1.
   m.def("rotations_from_quaternions", &rotationsFromQuaternions, py::arg("quaternions"),
         "Rotation matrices (..., 3, 3) of quaternions (..., 4) given as (qx, qy, qz, qw), normalised "
         "first. Raises ValueError for a zero or non-finite quaternion.");
+  m.def(
+      "associate_timestamps",
+      [](const Stack& first, const Stack& second, double max_difference) {
+        const auto vec = [](const Stack& a) { return std::vector<double>(a.data(), a.data() + a.size()); };
+        const auto pairs = associateTimestamps(vec(first), vec(second), max_difference);
+        py::array_t<std::int64_t> out({static_cast<py::ssize_t>(pairs.size()), py::ssize_t{2}});
+        for (std::size_t k = 0; k < pairs.size(); ++k)
+          *out.mutable_data(k, 0) = pairs[k].first, *out.mutable_data(k, 1) = pairs[k].second;
+        return out;
+      },
+      py::arg("first"), py::arg("second"), py::arg("max_difference"), R"doc(
+Pairs two timestamp streams one-to-one, closest pairs first: the package's one rule.
+
+Every pair ``(i, j)`` with ``|first[i] - second[j]| <= max_difference`` is a candidate;
+candidates are taken greedily by increasing ``|dt|`` (ties: smaller ``i``, then smaller
+``j``), skipping those whose ``i`` or ``j`` is already taken.  This is the TUM RGB-D
+benchmark's ``associate.py`` (Sturm et al., IROS 2012) except for the bound, which is
+inclusive as in ``evo``'s ``matching_time_indices``: the two differ only for pairs
+exactly at the bound, and ``max_difference=0`` then means "identical timestamps".
+
+Args:
+    first, second: timestamps (s), each sorted ascending (repeats allowed).
+    max_difference: largest accepted time difference (s), finite and >= 0.
+
+Returns:
+    (K, 2) int64 index pairs ``(i, j)``, sorted by ``i``.
+
+Raises:
+    ValueError: a negative or non-finite ``max_difference``, unsorted or non-finite
+        timestamps.
+)doc");
   m.def("interpolate_poses", &interpolatePoses, py::arg("start"), py::arg("end"), py::arg("fraction"),
         "(N, 4, 4) poses a fraction (N,) of the way from (N, 4, 4) `start` to `end`: translation "
         "linear, rotation spherical-linear along the shorter arc (metres)");

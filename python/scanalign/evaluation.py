@@ -29,6 +29,7 @@ from typing import Any, Dict, Optional, Tuple, Union
 import numpy as np
 
 from . import _core, se3
+from ._core.evaluation import ErrorStats
 from .mesh_metrics import MeshDistanceIndex, MeshDistanceStats, mesh_distance_stats, point_to_mesh_distance
 from .trajectory import Trajectory, associate_timestamps
 
@@ -187,44 +188,6 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
 
 
 # ---------------------------------------------------------- Error statistics and results
-
-@dataclass
-class ErrorStats:
-    """Summary of per-pose (or per-pair) errors, as the TUM tools and ``evo`` report them.
-
-    Units are those of ``errors`` (metres for translations, degrees for rotations).
-    ``std`` is the population standard deviation (ddof = 0, like ``numpy.std``, ``evo``
-    and the TUM scripts); ``sse`` the sum of squares; ``rmse = sqrt(sse / count)``.
-    """
-
-    rmse: float
-    mean: float
-    median: float
-    std: float
-    min: float
-    max: float
-    sse: float
-    count: int
-    errors: np.ndarray = field(repr=False)
-
-    @classmethod
-    def from_errors(cls, errors: np.ndarray) -> "ErrorStats":
-        e = np.asarray(errors, dtype=np.float64).reshape(-1)
-        if e.size == 0:
-            raise ValueError("no errors to summarise")
-        sse = float(np.sum(e * e))
-        return cls(rmse=float(np.sqrt(sse / e.size)), mean=float(np.mean(e)), median=float(np.median(e)),
-                   std=float(np.std(e)), min=float(np.min(e)), max=float(np.max(e)), sse=sse,
-                   count=int(e.size), errors=e)
-
-    def as_dict(self, include_errors: bool = False) -> Dict[str, Any]:
-        """Plain floats (JSON-serialisable); the per-pose errors only on request."""
-        keys = ("rmse", "mean", "median", "std", "min", "max", "sse", "count")
-        d: Dict[str, Any] = {k: getattr(self, k) for k in keys}
-        if include_errors:
-            d["errors"] = self.errors.tolist()
-        return d
-
 
 @dataclass
 class AteResult:

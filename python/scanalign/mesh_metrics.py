@@ -8,12 +8,9 @@ and mesh share one frame; distances are unsigned (no inside / outside notion).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any, Dict
-
 import numpy as np
 
-from ._core.evaluation import MeshDistanceIndex
+from ._core.evaluation import MeshDistanceIndex, MeshDistanceStats
 
 __all__ = ["MeshDistanceIndex", "MeshDistanceStats", "point_to_mesh_distance", "mesh_distance_stats"]
 
@@ -36,37 +33,12 @@ def point_to_mesh_distance(points: np.ndarray, vertices: np.ndarray, faces: np.n
     return MeshDistanceIndex(vertices, faces).distance(points)
 
 
-@dataclass
-class MeshDistanceStats:
-    """Cloud-to-mesh distance summary (m) over the finite points.
-
-    ``count`` points were measured; ``dropped`` rows had NaN/Inf coordinates and were left out.
-    """
-
-    mean: float
-    median: float
-    p95: float
-    max: float
-    rmse: float
-    count: int
-    dropped: int = 0
-
-    def as_dict(self) -> Dict[str, Any]:
-        return {k: getattr(self, k) for k in ("mean", "median", "p95", "max", "rmse", "count", "dropped")}
-
-
 def mesh_distance_stats(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> MeshDistanceStats:
-    """Statistics of :func:`point_to_mesh_distance` (m); non-finite point rows are dropped.
-
-    ``p95`` is the 95th percentile (linear interpolation, ``numpy.percentile``).
+    """:meth:`MeshDistanceIndex.stats` of ``points`` to the mesh ``(vertices, faces)``: mean,
+    median, p95 (``numpy.percentile``'s linear interpolation), max and rmse (m) over the
+    finite points; rows with NaN/Inf are dropped (counted).
 
     Raises:
         ValueError: no finite point (besides the input errors of point_to_mesh_distance).
     """
-    d = point_to_mesh_distance(points, vertices, faces)
-    e = d[np.isfinite(d)]
-    if e.size == 0:
-        raise ValueError("mesh_distance_stats: no finite point to measure")
-    return MeshDistanceStats(mean=float(e.mean()), median=float(np.median(e)), p95=float(np.percentile(e, 95)),
-                             max=float(e.max()), rmse=float(np.sqrt(np.mean(e * e))), count=int(e.size),
-                             dropped=int(d.size - e.size))
+    return MeshDistanceIndex(vertices, faces).stats(points)

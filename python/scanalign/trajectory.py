@@ -247,54 +247,5 @@ def write_tum_trajectory(path: PathLike, trajectory: Trajectory, header: Optiona
         f.writelines(f"{r[0]:.6f} " + " ".join(f"{v:.17g}" for v in r[1:]) + "\n" for r in trajectory.to_tum_rows())
 
 
-def associate_timestamps(first: Sequence[float], second: Sequence[float], max_difference: float) -> np.ndarray:
-    """Pairs two timestamp streams one-to-one, closest pairs first: the package's one rule.
-
-    Every pair ``(i, j)`` with ``|first[i] - second[j]| <= max_difference`` is a candidate;
-    candidates are taken greedily by increasing ``|dt|`` (ties: smaller ``i``, then smaller
-    ``j``), skipping those whose ``i`` or ``j`` is already taken.  This is the TUM RGB-D
-    benchmark's ``associate.py`` (Sturm et al., IROS 2012) except for the bound, which is
-    inclusive as in ``evo``'s ``matching_time_indices``: the two differ only for pairs
-    exactly at the bound, and ``max_difference=0`` then means "identical timestamps".
-
-    Args:
-        first, second: timestamps (s), each sorted ascending (repeats allowed).
-        max_difference: largest accepted time difference (s), finite and >= 0.
-
-    Returns:
-        (K, 2) int64 index pairs ``(i, j)``, sorted by ``i``.
-
-    Raises:
-        ValueError: a negative or non-finite ``max_difference``, unsorted or non-finite
-            timestamps.
-    """
-    a = np.asarray(first, dtype=np.float64).reshape(-1)
-    b = np.asarray(second, dtype=np.float64).reshape(-1)
-    if not (max_difference >= 0 and math.isfinite(max_difference)):
-        raise ValueError(f"max_difference must be a finite number >= 0 (s), got {max_difference!r}")
-    for name, t in (("first", a), ("second", b)):
-        if not np.all(np.isfinite(t)):
-            raise ValueError(f"associate_timestamps: {name} has non-finite timestamps")
-        if np.any(np.diff(t) < 0):
-            raise ValueError(f"associate_timestamps: {name} timestamps must be sorted ascending")
-    if a.size == 0 or b.size == 0:
-        return np.zeros((0, 2), dtype=np.int64)
-    # Candidate windows are widened so that rounding in t +- max_difference never loses a
-    # pair; the exact criterion is applied afterwards.
-    margin = max_difference * (1 + 1e-9) + 1e-9 * max(np.abs(a).max(), np.abs(b).max())
-    lo = np.searchsorted(b, a - margin, side="left")
-    counts = np.searchsorted(b, a + margin, side="right") - lo
-    ii = np.repeat(np.arange(a.size), counts)
-    jj = np.arange(ii.size) - np.repeat(np.cumsum(counts) - counts, counts) + np.repeat(lo, counts)
-    d = np.abs(a[ii] - b[jj])
-    keep = d <= max_difference
-    ii, jj = ii[keep], jj[keep]
-    order = np.lexsort((jj, ii, d[keep]))
-    used_a = np.zeros(a.size, dtype=bool)
-    used_b = np.zeros(b.size, dtype=bool)
-    pairs = []
-    for i, j in zip(ii[order].tolist(), jj[order].tolist()):
-        if not (used_a[i] or used_b[j]):
-            used_a[i] = used_b[j] = True
-            pairs.append((i, j))
-    return np.array(sorted(pairs), dtype=np.int64).reshape(-1, 2)
+#: Pairs two timestamp streams one-to-one, closest pairs first (the package's one rule).
+associate_timestamps = _core.evaluation.associate_timestamps
