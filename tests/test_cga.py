@@ -152,6 +152,12 @@ def test_bad_point_input():
         cga.up(np.array([[0, 0, np.inf]]))
     with pytest.raises(ValueError):
         cga.up(np.zeros((4, 2)))
+    with pytest.raises(ValueError):
+        cga.up([1.0, 2.0])
+    with pytest.raises(TypeError):
+        cga.geometric_product_many(np.zeros((2, 32), dtype=np.int32), np.zeros((2, 32)))
+    with pytest.raises(ValueError):
+        cga.geometric_product_many(np.zeros((2, 32)), np.zeros((3, 32)))
     with pytest.raises(TypeError):
         cga.up(np.zeros((4, 3), dtype=np.int64))
     with pytest.raises(ValueError):
@@ -322,7 +328,14 @@ def test_motor_against_clifford_and_matrix(rng):
 def test_typed_point_and_repr():
     p = cga.Point([1.0, 2.0, 3.0])
     assert (p | cga.Point([1.0, 2.0, 4.0])).scalar() == pytest.approx(-0.5)
-    assert "Point([1., 2., 3.]" in repr(p) or "Point([1, 2, 3]" in repr(p)
+    assert repr(p) == "Point([1, 2, 3])"
+    # a Point is accepted wherever a Multivector is, as its conformal point up(x)
+    assert_mv(p ^ cga.einf, cl_up([1.0, 2.0, 3.0]) ^ C_EINF, 1e-12)
+    assert_mv(cga.einf ^ p, C_EINF ^ cl_up([1.0, 2.0, 3.0]), 1e-12)
+    np.testing.assert_allclose(cga.down(p), [1.0, 2.0, 3.0], atol=1e-15)
+    np.testing.assert_allclose(cga.Point.from_multivector(cga.up([1.0, 2, 3]) * -4.0).position, [1, 2, 3], atol=1e-14)
+    with pytest.raises(ValueError):
+        cga.Point([0, np.inf, 0])
     assert repr(cga.einf) == "Multivector(1*einf)"
     assert repr(cga.Multivector(2.0) - cga.e1) == "Multivector(2 - 1*e1)"
 
@@ -356,7 +369,19 @@ def test_circle_from_sphere_plane_meet(rng):
         np.testing.assert_allclose(cga.round_center(from_cl(a ^ b ^ d)), circ.center, atol=1e-9)
     with pytest.raises(ValueError):
         cga.Circle.from_dual(cga.meet_sphere_plane(cga.Sphere([0, 0, 0], 1.0), cga.Plane([0, 0, 1], 2.0)))
-    assert repr(cga.Circle([0, 0, 0], [0, 0, 2], 0.5)) == "Circle(center=[0., 0., 0.], normal=[0., 0., 1.], radius=0.5)"
+    assert repr(cga.Circle([0, 0, 0], [0, 0, 2], 0.5)) == "Circle(center=[0, 0, 0], normal=[0, 0, 1], radius=0.5)"
+    # through three points: the circumcircle (centre equidistant from them, in their plane)
+    a, b, d = rng.uniform(-1, 1, (3, 3))
+    circ = cga.Circle.through_points(a, b, d)
+    np.testing.assert_allclose([np.linalg.norm(x - circ.center) for x in (a, b, d)], circ.radius, atol=1e-9)
+    n = np.cross(b - a, d - a)
+    assert abs(circ.normal @ n) == pytest.approx(np.linalg.norm(n), rel=1e-9)
+    assert circ.normal @ (circ.center - a) == pytest.approx(0, abs=1e-9)
+    for bad in (([0, 0, 0], [0, 0, 0], 1.0), ([0, 0, 0], [0, 0, 1], -1.0), ([0, 0, np.nan], [0, 0, 1], 1.0)):
+        with pytest.raises(ValueError):
+            cga.Circle(*bad)
+    with pytest.raises(ValueError):                # collinear points: a line, not a circle
+        cga.Circle.through_points([0, 0, 0], [1, 0, 0], [2, 0, 0])
 
 
 def _orthonormal_in_plane(n):
@@ -375,7 +400,7 @@ def _cl_vec(x):
     return x[0] * B["e1"] + x[1] * B["e2"] + x[2] * B["e3"]
 
 
-def test_signed_angle_claim9_numpy_and_clifford():
+def test_signed_angle_eq17_numpy_and_clifford():
     rng = np.random.default_rng(91)
     I3c = B["e1"] ^ B["e2"] ^ B["e3"]
     for _ in range(100):
@@ -401,6 +426,8 @@ def test_signed_angle_claim9_numpy_and_clifford():
     assert cga.signed_angle([1, 0, 0], [0, 1, 0], cga.e1 ^ cga.e2) == pytest.approx(np.pi / 2)
     with pytest.raises(ValueError):
         cga.signed_angle([1, 0, 0], [0, 1, 0], cga.Multivector())
+    with pytest.raises(ValueError, match="b"):
+        cga.signed_angle([1, 0, 0], [0, 1], cga.e1 ^ cga.e2)
     with pytest.raises(ValueError):
         cga.rotation_plane_from_axis([0, 0, 0])
 
@@ -441,7 +468,7 @@ def test_rotation_planes_line_and_plane_vs_clifford():
 # --- typed PointPair / FlatPoint (thesis (4.62)-(4.63), (4.69)) -----------------------------------
 
 
-def test_point_pair_claim5_vs_clifford():
+def test_point_pair_eq4_63_vs_clifford():
     rng = np.random.default_rng(93)
     for _ in range(30):
         a, b = rng.uniform(-2, 2, 3), rng.uniform(-2, 2, 3)

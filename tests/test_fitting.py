@@ -1,5 +1,6 @@
-"""scanalign.fitting: CGA sphere fit (spec §2.2/§2.3, claims 11-14) and Pratt's circle fit
-(§2.1), against analytic truth and an independent geometric least-squares oracle."""
+"""scanalign.fitting: the CGA sphere fit (Kleppe, PhD thesis, NTNU 2018, (5.26)-(5.34), weighted
+(6.5)-(6.11)) and Pratt's circle fit ((5.1)-(5.25)), against analytic truth and an independent
+geometric least-squares oracle."""
 
 from __future__ import annotations
 
@@ -32,7 +33,7 @@ def geometric_oracle(p, w=None):
     return res.x[:3], res.x[3]
 
 
-def test_exact_points_on_random_spheres():  # claim 11
+def test_exact_points_on_random_spheres():  # (5.31): exact points give the exact sphere
     rng = np.random.default_rng(0)
     for trial in range(40):
         c = rng.uniform(-3, 3, 3)
@@ -52,6 +53,19 @@ def test_float32_input():
     f = fit_sphere(p)
     np.testing.assert_allclose(f.center, [0.1, 0.2, 0.5], atol=1e-6)
     assert abs(f.radius - 0.03) < 1e-6
+
+
+def test_any_array_layout_gives_the_same_fit():
+    """Strided rows (a[:, :3] of an (N, 4) array), Fortran order, reversed rows and nested lists
+    are all accepted and fitted exactly as the C-contiguous array."""
+    rng = np.random.default_rng(14)
+    p = sphere_points(rng, [0.3, -0.2, 0.1], 0.2, 60, 1e-3)
+    f = fit_sphere(p)
+    padded = np.c_[p, np.ones(60)]
+    for q in (padded[:, :3], np.asfortranarray(p), p[::-1], p.tolist()):
+        g = fit_sphere(q)
+        np.testing.assert_allclose(g.center, f.center, atol=1e-12)
+        assert abs(g.radius - f.radius) < 1e-12
 
 
 def test_noisy_cap_within_noise_and_matches_oracle():
@@ -100,7 +114,7 @@ def test_bunny_patches_match_geometric_oracle(bunny):
     assert checked >= 30 and sphere_like >= 20
 
 
-def test_coplanar_points_give_plane():  # claim 12
+def test_coplanar_points_give_plane():  # (5.26)-(5.34): e0 coefficient ~ 0, a plane
     rng = np.random.default_rng(4)
     n = np.array([0.2, -0.6, 0.7])
     n /= np.linalg.norm(n)
@@ -121,7 +135,7 @@ def test_coplanar_points_give_plane():  # claim 12
     assert abs(f2.distance - delta) < 1e-9
 
 
-def test_weights_zero_removes_and_integers_duplicate():  # §2.3, claim 13
+def test_weights_zero_removes_and_integers_duplicate():  # (6.5)-(6.6); invariant to weight scaling
     rng = np.random.default_rng(5)
     p = sphere_points(rng, [0, 0, 0.4], 0.1, 60, 0.005, 1.0)
     w = rng.integers(0, 4, 60).astype(float)
@@ -142,7 +156,7 @@ def test_weights_zero_removes_and_integers_duplicate():  # §2.3, claim 13
     assert np.linalg.norm(fw.center - co) < 1e-3 and abs(fw.radius - ro) < 1e-3
 
 
-def test_permutation_and_rigid_motion():  # claim 13
+def test_permutation_and_rigid_motion():  # (5.27): permutation invariant, rigid-motion equivariant
     rng = np.random.default_rng(6)
     p = sphere_points(rng, [0.1, 0.1, 0.1], 0.2, 80, 0.01, 1.2)
     f = fit_sphere(p)
@@ -195,9 +209,20 @@ def test_batched_matches_single():
         f = fit_sphere(g)
         np.testing.assert_allclose(b.center[k], f.center, atol=1e-12)
         assert abs(b.radius[k] - f.radius) < 1e-12 and b.count[k] == 50
-    assert b.count[-1] == 0 and np.isnan(b.radius[-1])
+    assert b.count[-1] == 0 and np.isnan(b.radius[-1]) and np.all(np.isnan(b.dual[-1]))
+    # every field of the batch is the single fit's, also read back one group at a time
+    assert len(b) == 31 and b.center.shape == (31, 3) and b.dual.shape == (31, 5) and b.normal.shape == (31, 3)
+    for k in (0, 7, 29):
+        f = fit_sphere(groups[k])
+        np.testing.assert_allclose(b.dual[k], f.dual, atol=1e-10)
+        assert b.is_plane[k] == f.is_plane and b.imaginary[k] == f.imaginary and abs(b.rms[k] - f.rms) < 1e-12
+        assert b[k].radius == b.radius[k] and b[k - 31].count == b.count[k]
+    with pytest.raises(IndexError):
+        b[31]
     with pytest.raises(ValueError):
         fit_spheres(pts, offsets[::-1])
+    with pytest.raises(ValueError):
+        fit_spheres(pts, np.r_[offsets[:-1], len(pts) + 1])
     with pytest.raises(TypeError):
         fit_spheres(pts, offsets.astype(float))
 

@@ -1,6 +1,6 @@
-"""RANSAC planes / spheres (thesis §5.2, CGA models 5.35-5.36, 4.58) and table segmentation
-(paper 3) against independent truth: synthetic scenes with known geometry, and PCL's real
-table scene."""
+"""RANSAC planes / spheres (Kleppe, PhD thesis, NTNU 2018, §5.2, CGA models (5.35)-(5.36), (4.58))
+and table segmentation (its Paper 3, §3.1) against independent truth: synthetic scenes with
+known geometry, and PCL's real table scene."""
 
 from __future__ import annotations
 
@@ -284,8 +284,31 @@ def test_bad_input():
         seg.ransac_sphere(pts, 0.01, min_radius=0.2, max_radius=0.1)
     with pytest.raises(ValueError):
         seg.segment_table(pts, cluster_tolerance=-1)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="viewpoint"):
         seg.segment_table(pts, viewpoint=(0, 0))
+    # settings are checked once, in C++, and the message names the argument
+    for kwargs, name in [(dict(max_iterations=0), "max_iterations"), (dict(confidence=1.5), "confidence"),
+                         (dict(threshold=np.nan), "threshold")]:
+        for call in (lambda: seg.ransac_plane(pts, kwargs.get("threshold", 0.01), **{k: v for k, v in kwargs.items()
+                                                                                     if k != "threshold"}),
+                     lambda: seg.segment_table(pts, **kwargs)):
+            with pytest.raises(ValueError, match=name):
+                call()
+    for kwargs, name in [(dict(up=(0, np.inf, 0)), "up"), (dict(crop_min=(0, np.nan, 0)), "crop"),
+                         (dict(min_cluster_size=0), "min_cluster_size"), (dict(min_cluster_size=-5), "min_cluster_size"),
+                         (dict(min_cluster_size=10, max_cluster_size=9), "max_cluster_size"),
+                         (dict(cluster_tolerance=np.inf), "cluster_tolerance")]:
+        with pytest.raises(ValueError, match=name):
+            seg.segment_table(pts, **kwargs)
+    with pytest.raises(TypeError):
+        seg.segment_table(pts, no_such_setting=1)
+    bad = seg.TableSegmentationSettings()
+    bad.cluster_tolerance = -1.0
+    with pytest.raises(ValueError, match="cluster_tolerance"):
+        bad.validate()
+    # any Python int seeds the generator (taken modulo 2^64)
+    a, b = seg.ransac_plane(pts, 0.005, seed=-1), seg.ransac_plane(pts, 0.005, seed=2**64 - 1)
+    np.testing.assert_array_equal(a.hypothesis_normal, b.hypothesis_normal)
     # NaN rows: ignored, never inliers; indices still refer to the input rows
     nanpts = pts.copy()
     nanpts[::7] = np.nan

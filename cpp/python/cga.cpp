@@ -1,5 +1,6 @@
-// Bindings of the CGA core G(4,1) (scanalign/cga/*.hpp; Kleppe, PhD thesis, NTNU 2018, ch. 4). The documented API
-// is python/scanalign/cga.py.
+// Bindings of the CGA core G(4,1) (scanalign/cga/*.hpp; Kleppe, PhD thesis, NTNU 2018, ch. 4), exported as they are by
+// python/scanalign/cga.py (whose docstring describes the conventions). std::invalid_argument and std::domain_error
+// reach Python as ValueError (pybind11 defaults).
 #include <sstream>
 
 #include <pybind11/eigen.h>
@@ -57,9 +58,19 @@ py::array_t<double> fromCoeffs(const Coeffs& c) {
   for (int i = 0; i < 32; ++i) out.mutable_data()[i] = c[i];
   return out;
 }
-void checkRows(const RowArray& a, py::ssize_t cols, const char* what) {
+/// An (N, cols) float array of finite values as C-contiguous float64; TypeError / ValueError naming `what`.
+RowArray finiteRows(const py::object& o, py::ssize_t cols, const char* what) {
+  const py::array a = py::array::ensure(o);
+  if (!a || a.dtype().kind() != 'f')
+    throw py::type_error(std::string(what) + ": expected a float32/float64 array" +
+                         (a ? ", got " + std::string(py::str(a.dtype())) : std::string()));
   if (a.ndim() != 2 || a.shape(1) != cols)
     throw py::value_error(std::string(what) + ": expected an (N, " + std::to_string(cols) + ") array");
+  RowArray r = RowArray::ensure(a);
+  const double* d = r.data();
+  for (py::ssize_t i = 0; i < r.size(); ++i)
+    if (!std::isfinite(d[i])) throw py::value_error(std::string(what) + ": contains NaN or Inf");
+  return r;
 }
 }  // namespace
 
@@ -121,42 +132,69 @@ void defineCga(py::module_& m) {
       .def("__repr__", &mvRepr);
 
   // ----- points, vectorised -----
-  m.def("up", [](const Eigen::Vector3d& x) { return cga::up(x); });
-  m.def("down", [](const Multivector& P) { return cga::down(P); });
-  m.def("to_vector5", &cga::toVector5);
-  m.def("from_vector5", &cga::fromVector5);
-  m.def("inner_product_matrix", &cga::innerProductMatrix);
-  m.def("up_many", [](const RowArray& x) {
-    checkRows(x, 3, "points");
-    const py::ssize_t n = x.shape(0);
-    py::array_t<double> out({n, py::ssize_t{5}});
-    const double* p = x.data();
-    double* o = out.mutable_data();
-    for (py::ssize_t i = 0; i < n; ++i, p += 3, o += 5) {
-      o[0] = p[0];
-      o[1] = p[1];
-      o[2] = p[2];
-      o[3] = 0.5 * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
-      o[4] = 1.0;
-    }
-    return out;
-  });
-  m.def("down_many", [](const RowArray& v) {
-    checkRows(v, 5, "conformal points");
-    const py::ssize_t n = v.shape(0);
-    py::array_t<double> out({n, py::ssize_t{3}});
-    const double* p = v.data();
-    double* o = out.mutable_data();
-    for (py::ssize_t i = 0; i < n; ++i, p += 5, o += 3) {
-      if (!(std::abs(p[4]) > 0)) throw py::value_error("down: row " + std::to_string(i) + " has e0 coefficient 0");
-      for (int k = 0; k < 3; ++k) o[k] = p[k] / p[4];
-    }
-    return out;
-  });
+  m.def(
+      "up",
+      [](const py::object& x_in) -> py::object {
+        const py::array x = py::array::ensure(x_in);
+        if (!x || x.ndim() != 2) {
+          const auto p = RowArray::ensure(x_in);
+          if (!p || p.ndim() != 1 || p.shape(0) != 3)
+            throw py::value_error("x: expected a (3,) point or an (N, 3) array, metres");
+          return py::cast(cga::up(Eigen::Vector3d(p.at(0), p.at(1), p.at(2))));
+        }
+        const RowArray p = finiteRows(x_in, 3, "points");
+        const py::ssize_t n = p.shape(0);
+        py::array_t<double> out({n, py::ssize_t{5}});
+        double* o = out.mutable_data();
+        for (const double* q = p.data(); q != p.data() + 3 * n; q += 3, o += 5) {
+          std::copy(q, q + 3, o);
+          o[3] = 0.5 * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
+          o[4] = 1.0;
+        }
+        return std::move(out);
+      },
+      py::arg("x"),
+      "Conformal point x + 1/2 x^2 einf + e0 (4.54) of a point in metres: a (3,) point gives a Multivector, an "
+      "(N, 3) float array an (N, 5) float64 array of coefficients (e1, e2, e3, einf, e0) (4.55). ValueError for "
+      "NaN/Inf or a wrong shape, TypeError for a non-float (N, 3) array.");
+  m.def(
+      "down",
+      [](const py::object& P) -> py::object {
+        if (py::isinstance<Multivector>(P) || py::isinstance<cga::Point>(P))
+          return py::cast(cga::down(P.cast<Multivector>()));
+        const RowArray p = finiteRows(P, 5, "conformal points");
+        const py::ssize_t n = p.shape(0);
+        py::array_t<double> out({n, py::ssize_t{3}});
+        double* o = out.mutable_data();
+        for (py::ssize_t i = 0; i < n; ++i, o += 3) {
+          const double* q = p.data() + 5 * i;
+          if (!(std::abs(q[4]) > 0)) throw py::value_error("down: row " + std::to_string(i) + " has e0 coefficient 0");
+          for (int k = 0; k < 3; ++k) o[k] = q[k] / q[4];
+        }
+        return std::move(out);
+      },
+      py::arg("P"),
+      "Euclidean point (metres) of a conformal point of any scale (divides by the e0 coefficient -einf . P): a "
+      "Multivector gives a (3,) array, an (N, 5) array of coefficients (e1, e2, e3, einf, e0) an (N, 3) array. "
+      "ValueError for a zero e0 coefficient (a point at infinity).");
+  m.def("to_vector5", &cga::toVector5, py::arg("v"), "(5,) coefficients (e1, e2, e3, einf, e0) of a vector (4.55)");
+  m.def("from_vector5", &cga::fromVector5, py::arg("x"), "the vector of (5,) coefficients (e1, e2, e3, einf, e0)");
+  m.def("inner_product_matrix", &cga::innerProductMatrix, "M with X . Y = X^T M Y on (e1, e2, e3, einf, e0) (5.32)");
+  m.def("blade_names", [] {
+    std::vector<std::string> names;
+    for (unsigned i = 0; i < 32; ++i) names.push_back(Multivector::nullBladeName(i));
+    return names;
+  }, "names of the 32 null-basis blades in the order of null_coefficients()");
+  m.attr("e0") = Multivector::e0();
+  m.attr("e1") = Multivector::e1();
+  m.attr("e2") = Multivector::e2();
+  m.attr("e3") = Multivector::e3();
+  m.attr("einf") = Multivector::eInf();
+  m.attr("Ic") = Multivector::pseudoscalar();
+  m.attr("I3") = Multivector::pseudoscalar3();
   // Batched geometric product on (N,32) orthonormal coefficients (benchmarks).
-  m.def("geometric_product_many", [](const RowArray& a, const RowArray& b) {
-    checkRows(a, 32, "a");
-    checkRows(b, 32, "b");
+  m.def("geometric_product_many", [](const py::object& a_in, const py::object& b_in) {
+    const RowArray a = finiteRows(a_in, 32, "a"), b = finiteRows(b_in, 32, "b");
     if (a.shape(0) != b.shape(0)) throw py::value_error("a and b must have the same number of rows");
     const py::ssize_t n = a.shape(0);
     py::array_t<double> out({n, py::ssize_t{32}});
@@ -169,7 +207,9 @@ void defineCga(py::module_& m) {
       }
     }
     return out;
-  });
+  }, py::arg("a"), py::arg("b"),
+  "Row-wise geometric products of two (N, 32) arrays of orthonormal-basis coefficients "
+  "(Multivector.orthonormal_coefficients() layout)");
 
   // ----- typed objects -----
   py::class_<cga::Sphere>(m, "Sphere", R"(Dual (IPNS) sphere S* = up(c) - 1/2 r^2 einf (4.59).
@@ -253,7 +293,7 @@ motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
       .def("apply_sphere", [](const cga::Motor& M, const cga::Sphere& s) { return M.apply(s); })
       .def("apply_line", [](const cga::Motor& M, const cga::Line& l) { return M.apply(l); })
       .def("apply_points", [](const cga::Motor& M, const RowArray& x) {
-        checkRows(x, 3, "points");
+        if (x.ndim() != 2 || x.shape(1) != 3) throw py::value_error("points: expected an (N, 3) array");
         const py::ssize_t n = x.shape(0);
         py::array_t<double> out({n, py::ssize_t{3}});
         const Multivector Mm = M.multivector(), Mr = Mm.reverse();
@@ -305,34 +345,110 @@ i.e. (a, b) for from_points(a, b), and raises ValueError for an imaginary pair.)
       .def_readonly("direct", &cga::FlatPoint::direct)
       .def("location", &cga::FlatPoint::location)
       .def("__repr__", [](const cga::FlatPoint& f) { return "FlatPoint(" + fmt(f.location()) + ")"; });
-  m.def("meet_line_plane_flat", &cga::meetLinePlaneFlat);
-  m.def("meet_plane_circle_pair", &cga::meetPlaneCirclePair);
+  py::class_<cga::Point>(m, "Point", R"(A Euclidean point (metres) as a conformal point up(x) (4.54).
 
-  m.def("normalise_blade", &cga::normaliseBlade);
-  m.def("euclidean_dual", &cga::euclideanDual);
-  m.def("rotation_plane_from_axis", &cga::rotationPlaneFromAxis);
-  m.def("rotation_axis", &cga::rotationAxis);
-  m.def("signed_angle", py::overload_cast<const Eigen::Vector3d&, const Eigen::Vector3d&, const Multivector&>(&cga::signedAngle));
-  m.def("signed_angle_mv", py::overload_cast<const Multivector&, const Multivector&, const Multivector&>(&cga::signedAngle));
-  m.def("rotation_plane_perpendicular_to_line", py::overload_cast<const Multivector&>(&cga::rotationPlanePerpendicularToLine));
-  m.def("rotation_plane_perpendicular_to_line_typed", py::overload_cast<const cga::Line&>(&cga::rotationPlanePerpendicularToLine));
-  m.def("rotation_plane_parallel_to_plane", py::overload_cast<const Multivector&>(&cga::rotationPlaneParallelToPlane));
-  m.def("rotation_plane_parallel_to_plane_typed", py::overload_cast<const cga::Plane&>(&cga::rotationPlaneParallelToPlane));
-  m.def("point_pair_points", &cga::pointPairPoints);
-  m.def("flat_point_location", &cga::flatPointLocation);
-  m.def("round_center", &cga::roundCenter);
-  m.def("round_radius2", &cga::roundRadius2);
-  m.def("rotor", &cga::rotor);
-  m.def("translator", &cga::translator);
-  m.def("meet_sphere_plane", &cga::meetSpherePlane);
-  m.def("meet_planes", &cga::meetPlanes);
-  m.def("meet_spheres", &cga::meetSpheres);
-  m.def("meet_plane_circle", &cga::meetPlaneCircle);
-  m.def("meet_line_plane", &cga::meetLinePlane);
-  m.def("point_distance", &cga::pointDistance);
-  m.def("point_plane_distance", &cga::pointPlaneDistance);
-  m.def("sphere_point_inner", &cga::spherePointInner);
-  m.def("point_sphere_distance", &cga::pointSphereDistance);
+Point(x).mv is the normalised conformal point; the operators *, ^, | and ~ act on it and
+return Multivector. A Point is accepted wherever a Multivector is.)")
+      .def(py::init<const Eigen::Vector3d&>(), py::arg("x"))
+      .def_static("from_multivector", &cga::Point::fromMultivector, py::arg("P"))
+      .def_readonly("position", &cga::Point::position, "(3,) m")
+      .def_property_readonly("mv", &cga::Point::multivector, "up(position)")
+      .def("__mul__", [](const cga::Point& a, const Multivector& b) { return a.multivector() * b; }, py::is_operator())
+      .def("__xor__", [](const cga::Point& a, const Multivector& b) { return a.multivector().outer(b); }, py::is_operator())
+      .def("__or__", [](const cga::Point& a, const Multivector& b) { return a.multivector().inner(b); }, py::is_operator())
+      .def("__invert__", [](const cga::Point& a) { return a.multivector().reverse(); })
+      .def("__repr__", [](const cga::Point& p) { return "Point(" + fmt(p.position) + ")"; });
+  mv.def(py::init([](const cga::Point& p) { return p.multivector(); }), py::arg("point"));
+  py::implicitly_convertible<cga::Point, Multivector>();
+  py::class_<cga::Circle>(m, "Circle", R"(A circle: center (metres), unit normal of its carrier plane, radius (metres).
+
+direct() is up(a) ^ up(b) ^ up(c) for three points on it (4.57); from_direct reads any direct
+circle (centre C einf C, radius from <C C^> / <(einf _| C)^2>, normal from the plane C ^ einf
+(4.64)); from_dual reads a meet result such as meet_sphere_plane (the dual C*; its undual
+C* Ic is the direct circle). ValueError for an imaginary circle (radius^2 < 0), a line (a
+circle through infinity), a zero normal or a negative radius.)")
+      .def(py::init<const Eigen::Vector3d&, const Eigen::Vector3d&, double>(), py::arg("center"), py::arg("normal"),
+           py::arg("radius"))
+      .def_static("through_points", &cga::Circle::throughPoints, py::arg("a"), py::arg("b"), py::arg("c"))
+      .def_static("from_direct", &cga::Circle::fromDirect, py::arg("C"))
+      .def_static("from_dual", &cga::Circle::fromDual, py::arg("C_dual"))
+      .def_readonly("center", &cga::Circle::center, "(3,) m")
+      .def_readonly("normal", &cga::Circle::normal, "(3,) unit normal of the carrier plane")
+      .def_readonly("radius", &cga::Circle::radius, "m")
+      .def("direct", &cga::Circle::direct)
+      .def("dual", &cga::Circle::dual)
+      .def("__repr__", [](const cga::Circle& c) {
+        return "Circle(center=" + fmt(c.center) + ", normal=" + fmt(c.normal) + ", radius=" + fmt(c.radius) + ")";
+      });
+
+  m.def("point_pair", &cga::pointPair, py::arg("a"), py::arg("b"), "direct point pair up(a) ^ up(b) (4.62), metres");
+  m.def("point_pair_points", &cga::pointPairPoints, py::arg("Q"),
+        "The two points (Q -+ sqrt(Q^2)) / (-einf . Q) (4.63) of a direct point pair, (a, b) for Q = up(a) ^ up(b) "
+        "(negating Q swaps them). A dual pair from a meet is made direct with .undual(). ValueError when Q^2 < 0 "
+        "(no real points, thesis (4.70)-(4.73)).");
+  m.def("flat_point", &cga::flatPoint, py::arg("p"), "flat point up(p) ^ einf (4.69)");
+  m.def("flat_point_location", &cga::flatPointLocation, py::arg("F"), "location (metres) of a flat point of any scale");
+  m.def("circle", &cga::circle, py::arg("a"), py::arg("b"), py::arg("c"),
+        "direct circle up(a) ^ up(b) ^ up(c) through three points (4.57)");
+  m.def("round_center", &cga::roundCenter, py::arg("X"), "centre X einf X of a direct round (point pair, circle, sphere)");
+  m.def("round_radius2", &cga::roundRadius2, py::arg("X"),
+        "squared radius <X X^>_0 / <D D>_0, D = einf _| X, of a direct round (Dorst et al. 2007, §14.2); < 0: imaginary");
+  m.def("meet_sphere_plane", &cga::meetSpherePlane, py::arg("sphere"), py::arg("plane"), "dual circle Pi* ^ S* (4.70)");
+  m.def("meet_planes", &cga::meetPlanes, py::arg("a"), py::arg("b"), "dual line Pi1* ^ Pi2*");
+  m.def("meet_spheres", &cga::meetSpheres, py::arg("a"), py::arg("b"), "dual circle S1* ^ S2*");
+  m.def("meet_plane_circle", &cga::meetPlaneCircle, py::arg("plane"), py::arg("dual_circle"),
+        "dual point pair Pi* ^ C* (its .undual() is the direct pair)");
+  m.def("meet_line_plane", &cga::meetLinePlane, py::arg("line"), py::arg("plane"), "flat point Pi* . L (4.73)");
+  m.def("meet_line_plane_flat", &cga::meetLinePlaneFlat, py::arg("line"), py::arg("plane"), "the line-plane meet as a FlatPoint");
+  m.def("meet_plane_circle_pair", &cga::meetPlaneCirclePair, py::arg("plane"), py::arg("dual_circle"),
+        "the plane-circle meet as a PointPair (4.70)");
+  m.def("point_distance", &cga::pointDistance, py::arg("a"), py::arg("b"), "|a - b| from d^2 = -2 up(a) . up(b) (4.56)");
+  m.def("point_plane_distance", &cga::pointPlaneDistance, py::arg("x"), py::arg("plane"),
+        "signed distance up(x) . Pi* = x . n - delta (4.67), metres, > 0 on the normal's side");
+  m.def("sphere_point_inner", &cga::spherePointInner, py::arg("sphere"), py::arg("x"),
+        "S* . up(x) = 1/2 (r^2 - |x - c|^2) (Paper 5 eq. (10)): > 0 inside, 0 on, < 0 outside");
+  m.def("point_sphere_distance", &cga::pointSphereDistance, py::arg("x"), py::arg("sphere"),
+        "|x - c| - r, metres (> 0 outside)");
+  m.def("rotor", &cga::rotor, py::arg("axis"), py::arg("angle"),
+        "rotor cos(angle/2) - sin(angle/2) B for a right-handed rotation by angle (radians) about axis (Paper 4 §3.5)");
+  m.def("translator", &cga::translator, py::arg("t"), "translator 1 - 1/2 t einf (Paper 4 §3.5), t in metres");
+
+  // ----- angles and rotation planes (Paper 1 §3.7) -----
+  m.def("normalise_blade", &cga::normaliseBlade, py::arg("A"), "A / sqrt(|<A ~A>_0|); ValueError for a null blade");
+  m.def("euclidean_dual", &cga::euclideanDual, py::arg("A"), "Euclidean dual A I3^{-1}");
+  m.def("rotation_plane_from_axis", &cga::rotationPlaneFromAxis, py::arg("axis"),
+        "unit rotation plane N = n I3 whose Euclidean dual N* = N I3^{-1} is the unit axis (e.g. e3 -> e12)");
+  m.def("rotation_axis", &cga::rotationAxis, py::arg("N"), "unit axis N* = N I3^{-1} of a Euclidean bivector");
+  m.def(
+      "signed_angle",
+      [](const py::object& a, const py::object& b, const Multivector& N) {
+        auto vec = [](const py::object& v, const char* what) {
+          if (py::isinstance<Multivector>(v)) return v.cast<Multivector>();
+          const auto x = RowArray::ensure(v);
+          if (!x || x.ndim() != 1 || x.shape(0) != 3)
+            throw py::value_error(std::string(what) + ": expected 3 coordinates or a grade-1 Multivector");
+          return Multivector::vector(Eigen::Vector3d(x.at(0), x.at(1), x.at(2)));
+        };
+        return cga::signedAngle(vec(a, "a"), vec(b, "b"), N);
+      },
+      py::arg("a"), py::arg("b"), py::arg("N"),
+      "Signed angle (radians, in (-pi, pi]) from direction a to b in the rotation plane N: theta = "
+      "atan2((a^b) N^{-1}, a.b), Paper 1 eq. (17). a, b: 3-vectors (any length, one frame) or grade-1 "
+      "Multivectors; N: a Euclidean bivector (normalised here). For a, b perpendicular to the axis N* this is the "
+      "right-handed angle about N*.");
+  m.def("rotation_plane_perpendicular_to_line",
+        py::overload_cast<const cga::Line&>(&cga::rotationPlanePerpendicularToLine), py::arg("line"),
+        "Unit rotation plane N = (L* ^ einf) . e0 / |.| (Paper 1 eq. (20)) perpendicular to a Line or a dual line L* "
+        "(Multivector); for L = up(a)^up(b)^einf, rotation_axis(N) = (b - a)/|b - a|");
+  m.def("rotation_plane_perpendicular_to_line",
+        py::overload_cast<const Multivector&>(&cga::rotationPlanePerpendicularToLine), py::arg("line"));
+  m.def("rotation_plane_parallel_to_plane",
+        py::overload_cast<const cga::Plane&>(&cga::rotationPlaneParallelToPlane), py::arg("plane"),
+        "Unit rotation plane N = (Pi . e0) . einf / |.| (Paper 1 eq. (21)) parallel to a Plane (axis oriented to "
+        "plane.normal) or a direct plane Pi (Multivector, (4.64): axis (b - a) x (c - a) normalised for "
+        "Pi = up(a)^up(b)^up(c)^einf, minus the normal of the dual Pi*)");
+  m.def("rotation_plane_parallel_to_plane",
+        py::overload_cast<const Multivector&>(&cga::rotationPlaneParallelToPlane), py::arg("plane"));
 
   // std::invalid_argument and std::domain_error reach Python as ValueError (pybind11 defaults).
 }

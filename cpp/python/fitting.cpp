@@ -1,9 +1,8 @@
-// Bindings of scanalign/fitting/sphere_fit.hpp: the result structs are bound directly (their
-// Python docs are written here, once); python/scanalign/fitting.py only converts inputs.
+// Bindings of scanalign/fitting/sphere_fit.hpp: the fits take NumPy input directly and the
+// result structs are bound as they are, their Python docs written here once.
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
-#include <stdexcept>
 #include <string>
 
 #include "arrays.hpp"
@@ -13,71 +12,59 @@ namespace scanalign::python {
 
 namespace {
 
-template <typename Scalar>
-SphereFit fitSpherePy(const py::array& points, const py::object& weights, double plane_tolerance) {
-  const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
-  SphereFitOptions o;
-  o.plane_tolerance = plane_tolerance;
-  py::array_t<double, py::array::c_style | py::array::forcecast> w;
-  const double* wp = nullptr;
-  if (!weights.is_none()) {
-    w = py::cast<py::array_t<double, py::array::c_style | py::array::forcecast>>(weights);
-    if (w.ndim() != 1 || static_cast<std::size_t>(w.shape(0)) != view.size)
-      throw py::value_error("weights: expected shape (N,) matching points");
-    wp = w.data();
-  }
-  SphereFit f;
-  {
-    py::gil_scoped_release release;
-    f = fitSphere(view, wp, o);
-  }
-  return f;
+/// Calls f(CloudView<float>) for float32 points, else f(CloudView<double>). Any float layout
+/// is accepted (a view when the rows can be viewed, else a C-contiguous copy); TypeError
+/// names `what` for a non-float array, ValueError for a shape other than (N, 3).
+template <typename F>
+auto withCloud(const py::object& o, const char* what, F&& f) {
+  const py::array a = py::array::ensure(o);
+  if (!a || a.dtype().kind() != 'f')
+    throw py::type_error(std::string(what) + ": expected a float32 or float64 array" +
+                         (a ? ", got dtype " + std::string(py::str(a.dtype())) : std::string()));
+  auto call = [&](auto zero) {
+    using Scalar = decltype(zero);
+    const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
+    const bool viewable = a.dtype().is(py::dtype::of<Scalar>()) && a.ndim() == 2 && a.strides(1) == item &&
+                          (a.shape(0) <= 1 || (a.strides(0) >= 3 * item && a.strides(0) % item == 0));
+    const py::array held = viewable ? a : py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
+    return f(cloudView<Scalar>(held, what));
+  };
+  return a.dtype().is(py::dtype::of<float>()) ? call(0.0f) : call(0.0);
 }
 
-// Batched fits: returns arrays (G,5) dual, (G,3) center, (G,) radius, (G,) is_plane,
-// (G,3) normal, (G,) distance, (G,) rms, (G,) count.
+/// `o` as a contiguous Scalar array; TypeError naming `what` unless its dtype kind is one of
+/// `kinds` ("f": float, "biuf": real, "iu": integer).
 template <typename Scalar>
-py::dict fitSpheresPy(const py::array& points, const py::array_t<std::int64_t, py::array::c_style>& offsets,
-                      double plane_tolerance, int num_threads) {
-  const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
-  if (offsets.ndim() != 1 || offsets.shape(0) < 1) throw py::value_error("offsets: expected shape (G + 1,)");
-  SphereFitOptions o;
-  o.plane_tolerance = plane_tolerance;
-  const std::size_t g = static_cast<std::size_t>(offsets.shape(0) - 1);
+py::array_t<Scalar, py::array::c_style | py::array::forcecast> numeric(const py::object& o, const char* what,
+                                                                       const char* kinds) {
+  const py::array a = py::array::ensure(o);
+  if (!a || std::string(kinds).find(a.dtype().kind()) == std::string::npos)
+    throw py::type_error(std::string(what) + ": expected " +
+                         (kinds[0] == 'f' ? "a float" : kinds[0] == 'b' ? "a real" : "an integer") + " array" +
+                         (a ? ", got dtype " + std::string(py::str(a.dtype())) : std::string()));
+  return py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
+}
+
+/// fitSpheres' per-group results, bound as SphereFitBatch (one row per group).
+struct SphereFitBatch {
   std::vector<SphereFit> fits;
-  {
-    py::gil_scoped_release release;
-    fits = fitSpheres(view, offsets.data(), g, o, num_threads);
-  }
-  const auto G = static_cast<py::ssize_t>(g);
-  py::array_t<double> dual({G, py::ssize_t{5}}), center({G, py::ssize_t{3}}), normal({G, py::ssize_t{3}});
-  py::array_t<double> radius(G), distance(G), rms(G);
-  py::array_t<bool> is_plane(G), imaginary(G);
-  py::array_t<std::int64_t> count(G);
-  auto du = dual.mutable_unchecked<2>();
-  auto ce = center.mutable_unchecked<2>();
-  auto no = normal.mutable_unchecked<2>();
-  for (py::ssize_t i = 0; i < G; ++i) {
-    const SphereFit& f = fits[static_cast<std::size_t>(i)];
-    for (int k = 0; k < 5; ++k) du(i, k) = f.dual(k);
-    for (int k = 0; k < 3; ++k) ce(i, k) = f.center(k), no(i, k) = f.normal(k);
-    radius.mutable_data()[i] = f.radius;
-    distance.mutable_data()[i] = f.distance;
-    rms.mutable_data()[i] = f.rms;
-    is_plane.mutable_data()[i] = f.is_plane;
-    imaginary.mutable_data()[i] = f.imaginary;
-    count.mutable_data()[i] = static_cast<std::int64_t>(f.count);
-  }
-  py::dict d;
-  d["dual"] = dual, d["center"] = center, d["radius"] = radius, d["is_plane"] = is_plane;
-  d["imaginary"] = imaginary, d["normal"] = normal, d["distance"] = distance, d["rms"] = rms, d["count"] = count;
-  return d;
-}
+};
 
-CircleFit fitCirclePy(const py::array_t<double, py::array::c_style | py::array::forcecast>& xy) {
-  if (xy.ndim() != 2 || xy.shape(1) != 2) throw py::value_error("points: expected an (N, 2) array");
-  py::gil_scoped_release release;
-  return fitCirclePratt(xy.data(), static_cast<std::size_t>(xy.shape(0)));
+/// One column of a batch: (G,) or (G, k) of `get(fit)`.
+template <typename T, int K = 1, typename Get>
+py::array_t<T> column(const SphereFitBatch& b, Get get) {
+  const auto g = static_cast<py::ssize_t>(b.fits.size());
+  py::array_t<T> out = K == 1 ? py::array_t<T>(g) : py::array_t<T>({g, py::ssize_t{K}});
+  T* d = out.mutable_data();
+  for (const SphereFit& f : b.fits) {
+    if constexpr (K == 1) {
+      *d++ = static_cast<T>(get(f));
+    } else {
+      const auto v = get(f);
+      for (int k = 0; k < K; ++k) *d++ = v(k);
+    }
+  }
+  return out;
 }
 
 }  // namespace
@@ -131,14 +118,143 @@ void defineFitting(py::module_& m) {
         return "CircleFitResult(center=(" + std::to_string(f.center.x()) + ", " + std::to_string(f.center.y()) +
                "), radius=" + std::to_string(f.radius) + ", rms=" + std::to_string(f.rms) + ")";
       });
-  // std::invalid_argument is translated to ValueError by pybind11.
-  m.def("fit_sphere_f32", &fitSpherePy<float>, py::arg("points"), py::arg("weights"), py::arg("plane_tolerance"));
-  m.def("fit_sphere_f64", &fitSpherePy<double>, py::arg("points"), py::arg("weights"), py::arg("plane_tolerance"));
-  m.def("fit_spheres_f32", &fitSpheresPy<float>, py::arg("points"), py::arg("offsets"), py::arg("plane_tolerance"),
-        py::arg("num_threads"));
-  m.def("fit_spheres_f64", &fitSpheresPy<double>, py::arg("points"), py::arg("offsets"), py::arg("plane_tolerance"),
-        py::arg("num_threads"));
-  m.def("fit_circle_pratt", &fitCirclePy, py::arg("points"));
+  py::class_<SphereFitBatch>(m, "SphereFitBatch",
+                             "Result of fit_spheres: the fields of SphereFitResult as arrays with one row per "
+                             "group; a group that cannot be fitted has count 0 and NaN values. Metres.")
+      .def_property_readonly(
+          "center", [](const SphereFitBatch& b) { return column<double, 3>(b, [](auto& f) { return f.center; }); },
+          "(G, 3) sphere centres, m (NaN rows for planes)")
+      .def_property_readonly(
+          "radius", [](const SphereFitBatch& b) { return column<double>(b, [](auto& f) { return f.radius; }); },
+          "(G,) radii, m")
+      .def_property_readonly(
+          "is_plane", [](const SphereFitBatch& b) { return column<bool>(b, [](auto& f) { return f.is_plane; }); },
+          "(G,) the group is flat: normal . p = distance")
+      .def_property_readonly(
+          "normal", [](const SphereFitBatch& b) { return column<double, 3>(b, [](auto& f) { return f.normal; }); },
+          "(G, 3) unit plane normals (NaN rows for spheres)")
+      .def_property_readonly(
+          "distance", [](const SphereFitBatch& b) { return column<double>(b, [](auto& f) { return f.distance; }); },
+          "(G,) plane offsets along normal, m")
+      .def_property_readonly(
+          "imaginary", [](const SphereFitBatch& b) { return column<bool>(b, [](auto& f) { return f.imaginary; }); },
+          "(G,) r^2 < 0")
+      .def_property_readonly(
+          "rms", [](const SphereFitBatch& b) { return column<double>(b, [](auto& f) { return f.rms; }); },
+          "(G,) RMS geometric residuals, m")
+      .def_property_readonly(
+          "count", [](const SphereFitBatch& b) { return column<std::int64_t>(b, [](auto& f) { return f.count; }); },
+          "(G,) points used (0: the group could not be fitted)")
+      .def_property_readonly(
+          "dual", [](const SphereFitBatch& b) { return column<double, 5>(b, [](auto& f) { return f.dual; }); },
+          "(G, 5) dual spheres / planes on (e1, e2, e3, e_inf, e0), as SphereFitResult.dual")
+      .def("__len__", [](const SphereFitBatch& b) { return b.fits.size(); })
+      .def(
+          "__getitem__",
+          [](const SphereFitBatch& b, py::ssize_t g) {
+            const auto n = static_cast<py::ssize_t>(b.fits.size());
+            if (g < -n || g >= n) throw py::index_error("group " + std::to_string(g) + " out of range");
+            return b.fits[static_cast<std::size_t>(g < 0 ? g + n : g)];
+          },
+          py::arg("group"), "the SphereFitResult of one group");
+
+  m.attr("MIN_SPHERE_POINTS") = kMinSpherePoints;
+  // std::invalid_argument reaches Python as ValueError (pybind11 default).
+  m.def(
+      "fit_sphere",
+      [](const py::object& points, const py::object& weights, double plane_tolerance) {
+        return withCloud(points, "points", [&](auto view) {
+          py::array_t<double, py::array::c_style | py::array::forcecast> w;
+          if (!weights.is_none()) {
+            w = numeric<double>(weights, "weights", "biuf");
+            if (w.ndim() != 1 || static_cast<std::size_t>(w.shape(0)) != view.size)
+              throw py::value_error("weights: expected shape (" + std::to_string(view.size) + ",)");
+          }
+          SphereFitOptions o;
+          o.plane_tolerance = plane_tolerance;
+          py::gil_scoped_release release;
+          return fitSphere(view, weights.is_none() ? nullptr : w.data(), o);
+        });
+      },
+      py::arg("points"), py::arg("weights") = py::none(), py::kw_only(), py::arg("plane_tolerance") = 1e-6,
+      R"(Fits a sphere (or a plane) to 3-D points with the CGA sphere fit (Kleppe, PhD thesis, NTNU 2018).
+
+Minimises sum_i w_i (S.P_i)^2 / S^2 / sum_i w_i over dual spheres S (5.27; per point
+(S.P)^2/S^2 ~ delta^2, delta the geometric distance), solved as the eigenvector of the
+smallest positive eigenvalue of Q = sum_i w_i [P_i][P_i]^T M / sum_i w_i (5.31, 6.6) in a
+numerically stable symmetric form. Exact points give the exact sphere; exactly coplanar
+points give a plane.
+
+Args:
+    points: (N, 3) float32/float64 points, metres.
+    weights: optional (N,) non-negative finite weights. A point with weight 0 is removed
+        (it may even be NaN); integer weights act as duplicated points; only ratios matter.
+    plane_tolerance: return a plane when the fitted radius exceeds about
+        1 / plane_tolerance times the extent of the data (finite, >= 0).
+
+Returns:
+    SphereFitResult.
+
+Raises:
+    TypeError: points not a float array, or weights not a real array.
+    ValueError: wrong shapes; non-finite points (with positive weight); negative or
+        non-finite weights; all weights zero; fewer than MIN_SPHERE_POINTS (5) points with
+        positive weight; degenerate data (coincident or collinear points, points on one
+        circle).)");
+  m.def(
+      "fit_spheres",
+      [](const py::object& points, const py::object& offsets, double plane_tolerance, int num_threads) {
+        const auto o = numeric<std::int64_t>(offsets, "offsets", "iu");
+        if (o.ndim() != 1 || o.shape(0) < 1) throw py::value_error("offsets: expected shape (G + 1,)");
+        return withCloud(points, "points", [&](auto view) {
+          SphereFitOptions opt;
+          opt.plane_tolerance = plane_tolerance;
+          SphereFitBatch b;
+          py::gil_scoped_release release;
+          b.fits = fitSpheres(view, o.data(), static_cast<std::size_t>(o.shape(0) - 1), opt, num_threads);
+          return b;
+        });
+      },
+      py::arg("points"), py::arg("offsets"), py::kw_only(), py::arg("plane_tolerance") = 1e-6,
+      py::arg("num_threads") = 0,
+      R"(Many unweighted fit_sphere fits in one call (parallel, OpenMP).
+
+Args:
+    points: (N, 3) float32/float64 points, metres; group g is points[offsets[g]:offsets[g + 1]].
+    offsets: (G + 1,) non-decreasing integer offsets into points (>= 0, <= N).
+    plane_tolerance: as in fit_sphere.
+    num_threads: OpenMP threads, 0 = all cores.
+
+Returns:
+    SphereFitBatch; groups that cannot be fitted get count == 0 and NaNs.
+
+Raises:
+    TypeError: points not float, offsets not integer. ValueError: shapes, offsets out of order
+    or range, plane_tolerance.)");
+  m.def(
+      "fit_circle_2d",
+      [](const py::object& points) {
+        const auto xy = numeric<double>(points, "points", "f");
+        if (xy.ndim() != 2 || xy.shape(1) != 2) throw py::value_error("points: expected an (N, 2) array");
+        py::gil_scoped_release release;
+        return fitCirclePratt(xy.data(), static_cast<std::size_t>(xy.shape(0)));
+      },
+      py::arg("points"),
+      R"(Pratt's algebraic circle fit of 2-D points (Kleppe, PhD thesis, NTNU 2018, (5.21)-(5.25)).
+
+Minimises sum g(p_i)^2 / (d^2 + e^2 - 4af) for the circle g(p) = a|p|^2 + d x + e y + f = 0
+(the Sampson approximation of the geometric distance, 5.9), as the eigenvector of the
+smallest positive eigenvalue of Mc = lambda Nc.
+
+Args:
+    points: (N, 2) float points, metres; N >= 3.
+
+Returns:
+    CircleFitResult.
+
+Raises:
+    TypeError: not a float array. ValueError: wrong shape, fewer than 3 points, non-finite
+    values, collinear or coincident points.)");
 }
 
 }  // namespace scanalign::python

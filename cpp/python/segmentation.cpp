@@ -1,9 +1,11 @@
-// _core.segmentation: RANSAC plane / sphere (thesis §5.2) and table segmentation (paper 3).
-// The result structs are bound directly, their Python docs written here once;
-// python/scanalign/segmentation.py validates and converts inputs.
+// _core.segmentation: RANSAC plane / sphere (Kleppe, PhD thesis, NTNU 2018, §5.2) and table
+// segmentation (its Paper 3, §3.1.2-3.1.3). The functions take NumPy input directly; settings
+// and results are the C++ structs, their Python docs written here once.
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
+#include <limits>
+#include <optional>
 #include <string>
 
 #include "arrays.hpp"
@@ -13,26 +15,67 @@ namespace scanalign::python {
 
 namespace {
 
+using PlaneResult = RansacResult<PlaneModel>;
+using SphereResult = RansacResult<SphereModel>;
+
+/// Calls f(CloudView<float>) for float32 points, else f(CloudView<double>). Any float layout
+/// is accepted (a view when the rows can be viewed, else a C-contiguous copy); TypeError
+/// names `what` for a non-float array, ValueError for a shape other than (N, 3).
+template <typename F>
+auto withCloud(const py::object& o, const char* what, F&& f) {
+  const py::array a = py::array::ensure(o);
+  if (!a || a.dtype().kind() != 'f')
+    throw py::type_error(std::string(what) + ": expected a float32 or float64 array" +
+                         (a ? ", got dtype " + std::string(py::str(a.dtype())) : std::string()));
+  auto call = [&](auto zero) {
+    using Scalar = decltype(zero);
+    const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
+    const bool viewable = a.dtype().is(py::dtype::of<Scalar>()) && a.ndim() == 2 && a.strides(1) == item &&
+                          (a.shape(0) <= 1 || (a.strides(0) >= 3 * item && a.strides(0) % item == 0));
+    const py::array held = viewable ? a : py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
+    return f(cloudView<Scalar>(held, what));
+  };
+  return a.dtype().is(py::dtype::of<float>()) ? call(0.0f) : call(0.0);
+}
+
+/// ValueError unless `points` has at least `minimum` finite rows (a minimal sample).
+template <typename Scalar>
+void requireFinitePoints(const CloudView<Scalar>& points, std::size_t minimum, const char* fn) {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < points.size && n < minimum; ++i) n += points.isFinite(i) ? 1 : 0;
+  if (n < minimum)
+    throw py::value_error(std::string(fn) + " needs at least " + std::to_string(minimum) + " finite points, got " +
+                          std::to_string(n));
+}
+
 py::array_t<std::int64_t> indexArray(const std::vector<std::uint32_t>& v) {
   py::array_t<std::int64_t> a(static_cast<py::ssize_t>(v.size()));
   std::copy(v.begin(), v.end(), a.mutable_data());
   return a;
 }
 
-RansacSettings settingsFrom(double threshold, int max_iterations, double confidence, std::uint64_t seed,
-                            int num_threads, bool refine) {
+/// Any Python int as a 64-bit seed (taken modulo 2^64, so negative seeds are accepted).
+std::uint64_t seedOf(const py::int_& seed) { return PyLong_AsUnsignedLongLongMask(seed.ptr()); }
+
+RansacSettings ransacSettings(double threshold, int max_iterations, double confidence, const py::int_& seed,
+                              int num_threads, bool refine) {
   RansacSettings s;
   s.threshold = threshold;
   s.max_iterations = max_iterations;
   s.confidence = confidence;
-  s.seed = seed;
+  s.seed = seedOf(seed);
   s.num_threads = num_threads;
   s.refine = refine;
   return s;
 }
 
-using PlaneResult = RansacResult<PlaneModel>;
-using SphereResult = RansacResult<SphereModel>;
+/// A 3-vector argument; ValueError naming it otherwise (finiteness is checked by validate()).
+Eigen::Vector3d vec3(const py::handle& o, const char* what) {
+  const auto a = py::array_t<double, py::array::forcecast>::ensure(o);
+  if (!a || a.ndim() != 1 || a.shape(0) != 3)
+    throw py::value_error(std::string(what) + ": expected 3 coordinates, metres");
+  return {a.at(0), a.at(1), a.at(2)};
+}
 
 /// The fields every RANSAC result shares.
 template <typename Model>
@@ -40,7 +83,7 @@ void bindCommon(py::class_<RansacResult<Model>>& c) {
   using R = RansacResult<Model>;
   c.def_property_readonly(
        "status", [](const R& r) { return std::string(toString(r.status)); },
-       "\"success\", or \"degenerate\" (no non-degenerate sample was drawn)")
+       "\"success\", \"degenerate\" (no non-degenerate sample was drawn) or \"too_few_points\"")
       .def_property_readonly("success", &R::success, "status == \"success\"")
       .def_property_readonly(
           "inliers", [](const R& r) { return indexArray(r.inliers); },
@@ -61,61 +104,6 @@ py::object signedDistance(const PlaneResult& r, const py::array_t<double, py::ar
   for (py::ssize_t i = 0; i < p.shape(0); ++i)
     out.mutable_data()[i] = r.model.signedDistance(Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)));
   return std::move(out);
-}
-
-template <typename Scalar>
-PlaneResult plane(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
-               int num_threads, bool refine) {
-  const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
-  const RansacSettings s = settingsFrom(threshold, max_iterations, confidence, seed, num_threads, refine);
-  RansacResult<PlaneModel> r;
-  {
-    py::gil_scoped_release release;
-    r = ransacPlane(view, s);
-  }
-  return r;
-}
-
-template <typename Scalar>
-SphereResult sphere(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
-                int num_threads, bool refine, double min_radius, double max_radius) {
-  const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
-  const RansacSettings s = settingsFrom(threshold, max_iterations, confidence, seed, num_threads, refine);
-  SphereLimits lim;
-  lim.min_radius = min_radius;
-  lim.max_radius = max_radius;
-  RansacResult<SphereModel> r;
-  {
-    py::gil_scoped_release release;
-    r = ransacSphere(view, s, lim);
-  }
-  return r;
-}
-
-template <typename Scalar>
-TableSegmentation table(const py::array& points, double threshold, int max_iterations, double confidence, std::uint64_t seed,
-               int num_threads, bool refine, const py::object& crop_min, const py::object& crop_max,
-               const Eigen::Vector3d& viewpoint, const Eigen::Vector3d& up, double cluster_tolerance,
-               std::size_t min_cluster_size, std::size_t max_cluster_size) {
-  const CloudView<Scalar> view = cloudView<Scalar>(points, "points");
-  TableSegmentationSettings s;
-  s.plane = settingsFrom(threshold, max_iterations, confidence, seed, num_threads, refine);
-  if (!crop_min.is_none() || !crop_max.is_none()) {
-    s.crop = true;
-    if (!crop_min.is_none()) s.crop_min = py::cast<Eigen::Vector3d>(crop_min);
-    if (!crop_max.is_none()) s.crop_max = py::cast<Eigen::Vector3d>(crop_max);
-  }
-  s.viewpoint = viewpoint;
-  s.up = up;
-  s.cluster_tolerance = cluster_tolerance;
-  s.min_cluster_size = min_cluster_size;
-  s.max_cluster_size = max_cluster_size;
-  TableSegmentation r;
-  {
-    py::gil_scoped_release release;
-    r = segmentTable(view, s);
-  }
-  return r;
 }
 
 }  // namespace
@@ -190,10 +178,14 @@ void defineSegmentation(py::module_& m) {
       .def(py::init<>())
       .def_readwrite("threshold", &RansacSettings::threshold, "inlier distance, m")
       .def_readwrite("max_iterations", &RansacSettings::max_iterations, "most hypotheses drawn")
-      .def_readwrite("confidence", &RansacSettings::confidence, "adaptive stop; outside (0, 1) disables it")
+      .def_readwrite("confidence", &RansacSettings::confidence, "adaptive stop, in [0, 1]; 0 or 1 disables it")
       .def_readwrite("seed", &RansacSettings::seed, "sample k is drawn from a generator seeded by (seed, k)")
       .def_readwrite("num_threads", &RansacSettings::num_threads, "0 = all cores; never changes the result")
-      .def_readwrite("refine", &RansacSettings::refine, "least-squares refit of the winner over its inliers");
+      .def_readwrite("refine", &RansacSettings::refine, "least-squares refit of the winner over its inliers")
+      .def_readwrite("msac", &RansacSettings::msac,
+                     "rank hypotheses by the MSAC cost sum min(e^2, threshold^2) (Torr and Zisserman 2000) instead "
+                     "of the inlier count")
+      .def("validate", [](const RansacSettings& s) { validate(s); }, "ValueError naming an invalid field");
   py::class_<TableSegmentationSettings>(m, "TableSegmentationSettings", "Table plane and object clusters (metres)")
       .def(py::init<>())
       .def_readwrite("crop", &TableSegmentationSettings::crop, "apply the pass-through box crop_min..crop_max")
@@ -204,13 +196,129 @@ void defineSegmentation(py::module_& m) {
       .def_readwrite("up", &TableSegmentationSettings::up, "(3,) up direction (zero: use viewpoint)")
       .def_readwrite("cluster_tolerance", &TableSegmentationSettings::cluster_tolerance, "m; linked points")
       .def_readwrite("min_cluster_size", &TableSegmentationSettings::min_cluster_size, "points")
-      .def_readwrite("max_cluster_size", &TableSegmentationSettings::max_cluster_size, "points");
-  m.def("ransac_plane_f32", &plane<float>);
-  m.def("ransac_plane_f64", &plane<double>);
-  m.def("ransac_sphere_f32", &sphere<float>);
-  m.def("ransac_sphere_f64", &sphere<double>);
-  m.def("segment_table_f32", &table<float>);
-  m.def("segment_table_f64", &table<double>);
+      .def_readwrite("max_cluster_size", &TableSegmentationSettings::max_cluster_size, "points")
+      .def("validate", [](const TableSegmentationSettings& s) { validate(s); }, "ValueError naming an invalid field");
+  const RansacSettings dr;
+  m.def(
+      "ransac_plane",
+      [](const py::object& points, double threshold, int max_iterations, double confidence, const py::int_& seed,
+         bool refine, int num_threads) {
+        const RansacSettings s = ransacSettings(threshold, max_iterations, confidence, seed, num_threads, refine);
+        validate(s);
+        return withCloud(points, "points", [&](auto view) {
+          requireFinitePoints(view, 3, "ransac_plane");
+          py::gil_scoped_release release;
+          return ransacPlane(view, s);
+        });
+      },
+      py::arg("points"), py::arg("threshold"), py::kw_only(), py::arg("max_iterations") = dr.max_iterations,
+      py::arg("confidence") = dr.confidence, py::arg("seed") = 0, py::arg("refine") = dr.refine,
+      py::arg("num_threads") = dr.num_threads,
+      R"(The dominant plane by RANSAC with the CGA plane model (Kleppe, PhD thesis, NTNU 2018, (5.35)-(5.36)).
+
+Args:
+    points: (N, 3) float32/float64, metres; NaN/Inf rows ignored.
+    threshold: E_T, metres: a point is an inlier if its distance to the plane is below it.
+    max_iterations: n, the most hypotheses drawn (>= 1).
+    confidence: stop once k >= log(1 - confidence) / log(1 - w^3) for the best inlier ratio w
+        so far; in [0, 1], 0 or 1 disables the adaptive stop.
+    seed: RNG seed, any int (sample k depends on (seed, k) only).
+    refine: PCA refit over the winner's inliers, then inliers re-selected.
+    num_threads: OpenMP threads for scoring hypotheses (0 = all); never changes the result.
+
+Returns:
+    PlaneResult (status "degenerate" when every sample drawn was collinear).
+
+Raises:
+    TypeError: non-float points. ValueError: shape, settings, fewer than 3 finite points.)");
+  m.def(
+      "ransac_sphere",
+      [](const py::object& points, double threshold, double min_radius, double max_radius, int max_iterations,
+         double confidence, const py::int_& seed, bool refine, int num_threads) {
+        const RansacSettings s = ransacSettings(threshold, max_iterations, confidence, seed, num_threads, refine);
+        validate(s);
+        SphereLimits lim;
+        lim.min_radius = min_radius;
+        lim.max_radius = max_radius;
+        return withCloud(points, "points", [&](auto view) {
+          requireFinitePoints(view, 4, "ransac_sphere");
+          py::gil_scoped_release release;
+          return ransacSphere(view, s, lim);
+        });
+      },
+      py::arg("points"), py::arg("threshold"), py::kw_only(), py::arg("min_radius") = 0.0,
+      py::arg("max_radius") = std::numeric_limits<double>::infinity(), py::arg("max_iterations") = dr.max_iterations,
+      py::arg("confidence") = dr.confidence, py::arg("seed") = 0, py::arg("refine") = dr.refine,
+      py::arg("num_threads") = dr.num_threads,
+      R"(A sphere by RANSAC with the CGA sphere through four points (Kleppe, PhD thesis, NTNU 2018, (4.58)-(4.60)).
+
+A sample is degenerate (no hypothesis) when its four points lie within threshold of one
+plane, or when its sphere's radius is outside [min_radius, max_radius] (metres); on planar
+data the result is status "degenerate". The refit (the CGA least-squares fit, (5.31)) is kept
+only when its radius is within the limits. Other arguments as ransac_plane (w^4 in the
+adaptive stop); at least 4 finite points.)");
+  const TableSegmentationSettings dt;
+  m.def(
+      "segment_table_full",
+      [](const py::object& points, double threshold, const py::object& crop_min, const py::object& crop_max,
+         const py::object& viewpoint, const py::object& up, double cluster_tolerance, std::int64_t min_cluster_size,
+         std::optional<std::int64_t> max_cluster_size, int max_iterations, double confidence, const py::int_& seed,
+         int num_threads) {
+        TableSegmentationSettings s;
+        s.plane = ransacSettings(threshold, max_iterations, confidence, seed, num_threads, true);
+        s.crop = !crop_min.is_none() || !crop_max.is_none();
+        if (!crop_min.is_none()) s.crop_min = vec3(crop_min, "crop_min");
+        if (!crop_max.is_none()) s.crop_max = vec3(crop_max, "crop_max");
+        s.viewpoint = vec3(viewpoint, "viewpoint");
+        if (!up.is_none()) s.up = vec3(up, "up");
+        s.cluster_tolerance = cluster_tolerance;
+        if (min_cluster_size < 1 || (max_cluster_size && *max_cluster_size < min_cluster_size))
+          throw py::value_error("need 1 <= min_cluster_size <= max_cluster_size");
+        s.min_cluster_size = static_cast<std::size_t>(min_cluster_size);
+        if (max_cluster_size) s.max_cluster_size = static_cast<std::size_t>(*max_cluster_size);
+        validate(s);
+        return withCloud(points, "points", [&](auto view) {
+          requireFinitePoints(view, 3, "segment_table");
+          py::gil_scoped_release release;
+          return segmentTable(view, s);
+        });
+      },
+      py::arg("points"), py::kw_only(), py::arg("threshold") = dt.plane.threshold, py::arg("crop_min") = py::none(),
+      py::arg("crop_max") = py::none(), py::arg("viewpoint") = std::make_tuple(0.0, 0.0, 0.0),
+      py::arg("up") = py::none(), py::arg("cluster_tolerance") = dt.cluster_tolerance,
+      py::arg("min_cluster_size") = dt.min_cluster_size, py::arg("max_cluster_size") = py::none(),
+      py::arg("max_iterations") = dt.plane.max_iterations, py::arg("confidence") = dt.plane.confidence,
+      py::arg("seed") = 0, py::arg("num_threads") = dt.plane.num_threads,
+      R"(Table plane and object clusters (Paper 3 of Kleppe's thesis, §3.1.2-3.1.3).
+
+(1) optional pass-through crop to a box; (2) RANSAC plane (as ransac_plane, refined) = the
+table; (3) remove its inliers and every point below it (signed distance under threshold,
+the normal oriented towards up or else the camera viewpoint); (4) Euclidean clustering
+with a k-d tree (points within cluster_tolerance are linked); (5) clusters outside
+[min_cluster_size, max_cluster_size] dropped. Each remaining cluster is one object.
+The keywords fill a TableSegmentationSettings.
+
+Args:
+    points: (N, 3) float32/float64, metres (e.g. in the camera frame); NaN rows ignored.
+    threshold: Delta, metres: plane inlier distance; points closer than this above the
+        table are removed with it.
+    crop_min, crop_max: pass-through box corners, metres (either may be None: open side;
+        inf entries allowed). No crop when both are None.
+    viewpoint: camera centre, metres: the table normal is oriented towards it (unless up is
+        given). Points on the other side of the table are removed.
+    up: optional "up" direction (any length) to orient the normal instead.
+    cluster_tolerance: metres: points this close are in the same object.
+    min_cluster_size, max_cluster_size: points per object kept (None: no upper limit).
+    max_iterations, confidence, seed, num_threads: the plane RANSAC, as ransac_plane.
+
+Returns:
+    TableSegmentation: the table plane (plane.success False if no plane could be built:
+    objects is then empty; after the crop too few points give status "too_few_points"),
+    one int64 index array into points per object (largest first), and the point counts
+    after the crop and after step (3).
+
+Raises:
+    TypeError: non-float points. ValueError: shape, settings, fewer than 3 finite points.)");
   m.def(
       "plane_from_points",
       [](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) -> py::object {
@@ -218,7 +326,9 @@ void defineSegmentation(py::module_& m) {
         if (!planeFromPoints(a, b, c, p)) return py::none();
         return py::make_tuple(p.normal, p.distance);
       },
-      "Plane through 3 points (5.35) as (normal, distance), None if collinear");
+      py::arg("a"), py::arg("b"), py::arg("c"),
+      "Plane through three points (metres), the dual of P_A ^ P_B ^ P_C ^ e_inf (5.35) normalised to |n| = 1: "
+      "(normal, distance) with normal . p = distance, or None when the points are collinear");
   m.def(
       "sphere_from_points",
       [](const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
@@ -227,7 +337,9 @@ void defineSegmentation(py::module_& m) {
         if (!sphereFromPoints(a, b, c, d, s)) return py::none();
         return py::make_tuple(s.center, s.radius);
       },
-      "Sphere through 4 points (4.58) as (center, radius), None if coplanar");
+      py::arg("a"), py::arg("b"), py::arg("c"), py::arg("d"),
+      "Sphere through four points (metres), the dual of P_A ^ P_B ^ P_C ^ P_D (4.58): (center, radius), or None "
+      "when the points are coplanar");
   m.def(
       "dual_of_outer4",
       [](const cga5::Vec5& a, const cga5::Vec5& b, const cga5::Vec5& c, const cga5::Vec5& d) {

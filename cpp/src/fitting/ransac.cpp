@@ -188,10 +188,29 @@ void copyLoopStats(const RansacLoopStats& st, RansacResult<Model>& r) {
 }
 }  // namespace
 
+void validate(const RansacSettings& s) {
+  if (!(s.threshold > 0) || !std::isfinite(s.threshold))
+    throw std::invalid_argument("RANSAC settings: threshold must be a finite positive distance in metres");
+  if (s.max_iterations < 1) throw std::invalid_argument("RANSAC settings: max_iterations must be at least 1");
+  if (!(s.confidence >= 0 && s.confidence <= 1))
+    throw std::invalid_argument("RANSAC settings: confidence must lie in [0, 1] (0 or 1: no adaptive stop)");
+}
+
+void validate(const TableSegmentationSettings& s) {
+  validate(s.plane);
+  auto fail = [](const std::string& what) { throw std::invalid_argument("table segmentation settings: " + what); };
+  if (s.crop_min.hasNaN() || s.crop_max.hasNaN()) fail("crop_min and crop_max must not be NaN");
+  if (!s.viewpoint.allFinite()) fail("viewpoint must be 3 finite coordinates");
+  if (!s.up.allFinite()) fail("up must be 3 finite coordinates");
+  if (!(s.cluster_tolerance > 0) || !std::isfinite(s.cluster_tolerance))
+    fail("cluster_tolerance must be a finite positive distance in metres");
+  if (s.min_cluster_size < 1 || s.max_cluster_size < s.min_cluster_size)
+    fail("need 1 <= min_cluster_size <= max_cluster_size");
+}
+
 template <typename Scalar>
 RansacResult<PlaneModel> ransacPlane(const CloudView<Scalar>& points, const RansacSettings& settings) {
-  if (!(settings.threshold > 0) || !std::isfinite(settings.threshold))
-    throw std::invalid_argument("ransacPlane: threshold must be a positive distance");
+  validate(settings);
   RansacResult<PlaneModel> r;
   std::vector<Eigen::Vector3d> xyz;
   const std::vector<std::uint32_t> idx = finiteIndices(points, xyz);
@@ -222,10 +241,9 @@ RansacResult<PlaneModel> ransacPlane(const CloudView<Scalar>& points, const Rans
 template <typename Scalar>
 RansacResult<SphereModel> ransacSphere(const CloudView<Scalar>& points, const RansacSettings& settings,
                                        const SphereLimits& limits) {
-  if (!(settings.threshold > 0) || !std::isfinite(settings.threshold))
-    throw std::invalid_argument("ransacSphere: threshold must be a positive distance");
+  validate(settings);
   if (!(limits.min_radius >= 0) || !(limits.max_radius > limits.min_radius))
-    throw std::invalid_argument("ransacSphere: need 0 <= min_radius < max_radius");
+    throw std::invalid_argument("ransacSphere: need 0 <= min_radius < max_radius (metres)");
   RansacResult<SphereModel> r;
   std::vector<Eigen::Vector3d> xyz;
   const std::vector<std::uint32_t> idx = finiteIndices(points, xyz);
@@ -311,6 +329,7 @@ std::vector<std::vector<std::uint32_t>> euclideanClusters(const CloudView<Scalar
 
 template <typename Scalar>
 TableSegmentation segmentTable(const CloudView<Scalar>& points, const TableSegmentationSettings& s) {
+  validate(s);
   TableSegmentation out;
   // (1) pass-through crop.
   std::vector<std::uint32_t> kept;

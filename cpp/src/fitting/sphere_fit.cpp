@@ -37,7 +37,6 @@ namespace {
 
 constexpr double kClamp = 1e-30;       // floor for D's eigenvalues, relative to the largest
 constexpr double kDegenerate = 1e-12;  // second-smallest eigenvalue of D below this (relative): no unique fit
-constexpr std::size_t kMinSpherePoints = 5;
 constexpr std::size_t kMinCirclePoints = 3;
 
 struct Normalization {
@@ -47,7 +46,7 @@ struct Normalization {
 
 void checkWeight(double w, std::size_t i) {
   if (!std::isfinite(w) || w < 0)
-    throw std::invalid_argument("fitSphere: weight " + std::to_string(i) + " is negative or not finite");
+    throw std::invalid_argument("fitSphere: weights[" + std::to_string(i) + "] is negative or not finite");
 }
 
 }  // namespace
@@ -64,12 +63,13 @@ SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, cons
     const double w = weights ? weights[i] : 1.0;
     if (weights) checkWeight(w, i);
     if (w == 0) continue;  // zero weight: the point is removed
-    if (!points.isFinite(i)) throw std::invalid_argument("fitSphere: point " + std::to_string(i) + " is not finite");
+    if (!points.isFinite(i)) throw std::invalid_argument("fitSphere: points[" + std::to_string(i) +
+                                  "] is not finite (give it weight 0 to remove it)");
     ++count;
     wsum += w;
     sum += w * points[i].template cast<double>();
   }
-  if (points.size > 0 && count == 0 && weights) throw std::invalid_argument("fitSphere: all weights are zero");
+  if (points.size > 0 && count == 0 && weights) throw std::invalid_argument("fitSphere: weights are all zero");
   if (count < kMinSpherePoints)
     throw std::invalid_argument("fitSphere: need at least " + std::to_string(kMinSpherePoints) +
                                 " points (with positive weight), got " + std::to_string(count));

@@ -403,6 +403,57 @@ inline double roundRadius2(const Multivector& X) {
   return (X * X.involute()).scalar() / den;
 }
 
+/// A Euclidean point (metres) held with its conformal point up(x) (4.54).
+struct Point {
+  Vector3 position = Vector3::Zero();  ///< m
+
+  Point() = default;
+  explicit Point(const Vector3& x) : position(x) { detail::requireFinite(x, "point"); }
+  /// From a conformal point of any scale (down(), throws for a point at infinity).
+  static Point fromMultivector(const Multivector& P) { return Point(down(P)); }
+  Multivector multivector() const { return up(position); }
+};
+
+/// A circle: centre and radius (metres) and the unit normal of its carrier plane. Its direct
+/// form is up(a) ^ up(b) ^ up(c) for three points on it (4.57).
+struct Circle {
+  Vector3 center = Vector3::Zero();   ///< m
+  Vector3 normal = Vector3::UnitZ();  ///< unit normal of the carrier plane
+  double radius = 0;                  ///< m
+
+  Circle() = default;
+  Circle(const Vector3& c, const Vector3& n, double r) : center(c), radius(r) {
+    detail::requireFinite(c, "circle centre");
+    detail::requireFinite(n, "circle normal");
+    detail::requireFinite(r, "circle radius");
+    if (!(n.norm() > 1e-12)) throw std::invalid_argument("cga: circle normal is zero");
+    if (r < 0) throw std::invalid_argument("cga: circle radius must be >= 0");
+    normal = n.normalized();
+  }
+  static Circle throughPoints(const Vector3& a, const Vector3& b, const Vector3& c) {
+    return fromDirect(circle(a, b, c));
+  }
+  /// From any direct circle C: centre C einf C, radius^2 from roundRadius2, normal from the
+  /// plane C ^ einf (4.64). Throws for an imaginary circle (radius^2 < 0) or a line (a circle
+  /// through infinity).
+  static Circle fromDirect(const Multivector& C) {
+    const double r2 = roundRadius2(C);
+    if (r2 < 0) throw std::domain_error("cga: imaginary circle (radius^2 = " + std::to_string(r2) + ")");
+    return Circle(roundCenter(C), Plane::fromDirect(C.outer(Multivector::eInf())).normal, std::sqrt(r2));
+  }
+  /// From a dual circle C*, e.g. meetSpherePlane (its undual C* Ic is the direct circle).
+  static Circle fromDual(const Multivector& Cs) { return fromDirect(Cs.undual()); }
+  /// up(a) ^ up(b) ^ up(c) for three points of the circle (4.57).
+  Multivector direct() const {
+    Vector3 u = normal.cross(Vector3::UnitX());
+    if (u.norm() < 0.5) u = normal.cross(Vector3::UnitY());
+    u.normalize();
+    const Vector3 v = normal.cross(u);
+    return circle(center + radius * u, center + radius * v, center - radius * u);
+  }
+  Multivector dual() const { return direct().dual(); }
+};
+
 // ---------------------------------------------------------------------------
 // Meets (4.70)-(4.73): dual results M* = A*^B*
 // ---------------------------------------------------------------------------

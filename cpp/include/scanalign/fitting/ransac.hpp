@@ -115,7 +115,7 @@ const char* toString(RansacStatus s);
 struct RansacSettings {
   double threshold = 0.01;       ///< E_T, metres: inlier if error < threshold
   int max_iterations = 1000;     ///< n: most hypotheses (samples) drawn
-  double confidence = 0.99;      ///< adaptive stop; outside (0, 1) disables it (always max_iterations)
+  double confidence = 0.99;      ///< adaptive stop, in [0, 1]; 0 or 1 disables it (always max_iterations)
   std::uint64_t seed = 0;        ///< sample k is drawn from a generator seeded by (seed, k)
   int num_threads = 0;           ///< OpenMP threads for scoring, 0 = all; never changes the result
   bool refine = true;            ///< least-squares refit of the winner over its inliers
@@ -124,6 +124,10 @@ struct RansacSettings {
   /// one that fits them closely (near-symmetric shapes, inexact correspondences).
   bool msac = false;
 };
+
+/// Throws std::invalid_argument naming the field: threshold must be finite and > 0,
+/// max_iterations >= 1, confidence in [0, 1].
+void validate(const RansacSettings& settings);
 
 /// Outcome of the generic loop: the index of the winning hypothesis' model in the
 /// caller's terms is returned through `best`.
@@ -168,6 +172,7 @@ struct RansacResult {
 };
 
 /// RANSAC plane, CGA model (5.35) and inlier test |P . Pi*| < E_T (5.36, normalised).
+/// Fewer than 3 finite points: status kTooFewPoints. Throws for invalid settings (validate).
 template <typename Scalar>
 RansacResult<PlaneModel> ransacPlane(const CloudView<Scalar>& points, const RansacSettings& settings);
 
@@ -179,7 +184,8 @@ struct SphereLimits {
 /// RANSAC sphere from four points (4.58); residual ||p - c| - r|. A sample is degenerate
 /// when its four points lie within `threshold` of one plane (a plane explains them as
 /// well as any sphere: on planar data no sphere is reported) or the sphere's radius is
-/// outside the limits. The refit is rejected when its radius leaves the limits.
+/// outside the limits. The refit is rejected when its radius leaves the limits. Throws for
+/// invalid settings (validate) or limits (not 0 <= min_radius < max_radius).
 template <typename Scalar>
 RansacResult<SphereModel> ransacSphere(const CloudView<Scalar>& points, const RansacSettings& settings,
                                        const SphereLimits& limits = {});
@@ -206,6 +212,11 @@ struct TableSegmentationSettings {
   std::size_t min_cluster_size = 100;
   std::size_t max_cluster_size = std::numeric_limits<std::size_t>::max();
 };
+
+/// Throws std::invalid_argument naming the field: the plane's RansacSettings, a crop box with
+/// NaN bounds (infinite ones are open sides), a non-finite viewpoint or up, a cluster_tolerance
+/// that is not finite and > 0, or not 1 <= min_cluster_size <= max_cluster_size.
+void validate(const TableSegmentationSettings& settings);
 
 struct TableSegmentation {
   RansacStatus status = RansacStatus::kTooFewPoints;  ///< of the plane RANSAC

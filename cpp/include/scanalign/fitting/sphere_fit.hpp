@@ -28,6 +28,10 @@ namespace scanalign {
 using Vector5d = cga5::Vec5;
 using Matrix5d = cga5::Mat5;
 
+/// Points (with positive weight) a sphere fit needs: four in general position determine a
+/// sphere exactly, a least-squares fit needs at least five.
+inline constexpr std::size_t kMinSpherePoints = 5;
+
 struct SphereFitOptions {
   /// The result is a plane when |e0 coefficient| <= plane_tolerance * |Euclidean part| of the
   /// dual vector computed for the points centred at their centroid and scaled to unit RMS
@@ -57,8 +61,7 @@ struct SphereFit {
 /// positive eigenvalue of Q = (1/Σw) Σ w_i [P_i][P_i]ᵀ M (5.31/6.6). Points with weight 0 are
 /// removed (not even checked for finiteness); integer weights act like duplicated points.
 ///
-/// Requires at least 5 points with positive weight (the contract; 4 points in general
-/// position determine a sphere exactly, but 5 are needed for a fit).
+/// Requires at least kMinSpherePoints (5) points with positive weight.
 ///
 /// Throws std::invalid_argument for: fewer than 5 used points, a non-finite used point, a
 /// negative or non-finite weight, all weights zero, and degenerate data that does not
