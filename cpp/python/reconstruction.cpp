@@ -131,9 +131,12 @@ PclIcpVariant pclVariant(const std::string& registration) {
 /// to the model from the guess, check, merge (the pipeline's PCL baselines).
 FrameReport integrateWithPcl(FrameToModel& self, const CloudView<float>& points, const std::uint8_t* colors,
                              const std::optional<Eigen::Matrix4d>& guess, PclIcpVariant variant) {
+  const auto t_start = std::chrono::steady_clock::now();
   FrameReport r;
   r.T_model_camera = guess ? *guess : self.predictedPose();
   requireRigid(r.T_model_camera, "guess");
+  r.index = self.countFrame();
+  r.input_points = points.size;
   const PreparedFrame frame = self.prepare(points, colors);
   r.frame_points = frame.size();
   r.model_points = self.model().size();
@@ -158,6 +161,7 @@ FrameReport integrateWithPcl(FrameToModel& self, const CloudView<float>& points,
     r.model_points = self.merge(frame, r.T_model_camera);
     r.merge_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   }
+  r.total_seconds = std::chrono::duration<double>(Clock::now() - t_start).count();
   return r;
 }
 
@@ -167,6 +171,34 @@ const std::uint8_t* colorPointer(const py::object& colors, std::size_t n, py::ar
   if (!keep || keep.ndim() != 2 || keep.shape(1) != 3 || static_cast<std::size_t>(keep.shape(0)) != n)
     throw py::value_error("colors: expected a uint8 (N, 3) array with one row per point");
   return keep.data();
+}
+
+bool first(const FrameReport& r) { return r.status == FrameStatus::Initialized; }
+
+py::dict frameReportDict(const FrameReport& r) {
+  py::dict d;
+  d["index"] = r.index;
+  d["timestamp"] = r.timestamp;
+  d["status"] = std::string(toString(r.status));
+  d["merged"] = r.merged();
+  py::list T;
+  for (int i = 0; i < 4; ++i) T.append(py::make_tuple(r.T_model_camera(i, 0), r.T_model_camera(i, 1), r.T_model_camera(i, 2),
+                                                       r.T_model_camera(i, 3)));
+  d["T_model_camera"] = T;
+  d["converged"] = first(r) || r.icp.converged;
+  d["icp_status"] = first(r) ? std::string() : std::string(toString(r.icp.status));
+  d["iterations"] = r.icp.iterations;
+  d["fitness"] = first(r) ? 1.0 : r.icp.fitness;
+  d["inlier_rmse"] = first(r) ? 0.0 : r.icp.inlier_rmse;
+  d["correspondences"] = r.icp.correspondence_count;
+  d["input_points"] = r.input_points;
+  d["frame_points"] = r.frame_points;
+  d["model_points"] = r.model_points;
+  d["prepare_seconds"] = r.prepare_seconds;
+  d["register_seconds"] = r.register_seconds;
+  d["merge_seconds"] = r.merge_seconds;
+  d["total_seconds"] = r.total_seconds;
+  return d;
 }
 
 std::string describe(const FrameReport& r) {
@@ -274,8 +306,10 @@ void defineReconstruction(py::module_& m) {
                      "optional box rejector in the frame's camera coordinates, §3.4)")
       .def("validate", [](const FrameToModelSettings& s) { validate(s); });
 
-  py::class_<FrameReport>(m, "FrameReport", "What the pipeline did with one frame")
+  py::class_<FrameReport>(m, "FrameReport", "What the reconstruction did with one frame")
+      .def(py::init<>())
       .def_readonly("index", &FrameReport::index, "0-based count of frames given to the pipeline")
+      .def_readwrite("timestamp", &FrameReport::timestamp, "the frame's time stamp, s")
       .def_property_readonly(
           "status", [](const FrameReport& r) { return std::string(toString(r.status)); },
           "'initialized', 'registered' or 'skipped_*' (empty, too_few_points, not_converged, "
@@ -291,6 +325,20 @@ void defineReconstruction(py::module_& m) {
       .def_readonly("register_seconds", &FrameReport::register_seconds, "tree build + ICP, s")
       .def_readonly("merge_seconds", &FrameReport::merge_seconds, "transform + merge + voxel grid, s")
       .def_readonly("total_seconds", &FrameReport::total_seconds, "s")
+      .def_readonly("input_points", &FrameReport::input_points, "points given (before crop and downsampling)")
+      .def_property_readonly("converged", [](const FrameReport& r) { return first(r) || r.icp.converged; },
+                             "the registration converged (True for the first frame)")
+      .def_property_readonly(
+          "icp_status", [](const FrameReport& r) { return first(r) ? std::string() : std::string(toString(r.icp.status)); },
+          "IcpStatus name ('' for the first frame)")
+      .def_property_readonly("iterations", [](const FrameReport& r) { return r.icp.iterations; }, "ICP iterations")
+      .def_property_readonly("fitness", [](const FrameReport& r) { return first(r) ? 1.0 : r.icp.fitness; },
+                             "ICP inlier fraction (1 for the first frame)")
+      .def_property_readonly("inlier_rmse", [](const FrameReport& r) { return first(r) ? 0.0 : r.icp.inlier_rmse; },
+                             "ICP inlier RMS distance, m (0 for the first frame)")
+      .def_property_readonly("correspondences", [](const FrameReport& r) { return r.icp.correspondence_count; },
+                             "ICP inlier correspondences")
+      .def("to_dict", &frameReportDict, "the report as a JSON-ready dict (the columns of frames.csv, in order)")
       .def("__repr__", py::overload_cast<const FrameReport&>(&describe));
 
   py::class_<PreparedFrame>(m, "PreparedFrame", "A frame ready to register (camera frame, after crop and downsampling)")

@@ -22,8 +22,7 @@ Example::
 
 from __future__ import annotations
 
-import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
@@ -35,7 +34,7 @@ from .registration import IcpSettings, make_settings
 from .trajectory import Trajectory
 
 __all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "frame_to_cloud", "DepthFilter", "bilateral_filter_depth",
-           "FrameToModelSettings", "make_reconstruction_settings", "FrameRecord", "Model", "Reconstructor",
+           "FrameToModelSettings", "make_reconstruction_settings", "FrameReport", "Model", "Reconstructor",
            "REGISTRATION_METHODS"]
 
 
@@ -208,52 +207,10 @@ def make_reconstruction_settings(settings: Optional[FrameToModelSettings] = None
     return s
 
 
-@dataclass
-class FrameRecord:
-    """What happened to one frame.
-
-    Attributes:
-        index: position in the stream of frames given to the reconstructor (0-based).
-        timestamp: the frame's time stamp, seconds.
-        status: ``"initialized"`` (first frame, defines the model), ``"registered"``, or
-            why it was skipped: ``"skipped_empty"``, ``"skipped_too_few_points"``,
-            ``"skipped_not_converged"``, ``"skipped_too_few_correspondences"``,
-            ``"skipped_low_fitness"``, ``"skipped_motion"``.
-        merged: the frame was added to the model.
-        T_model_camera: 4x4 estimated camera pose (camera -> model); for a skipped frame
-            the initial guess it was tried from.
-        converged, icp_status, iterations, fitness, inlier_rmse (m), correspondences: of
-            the registration (defaults for the first frame).
-        input_points: points from the depth image; frame_points: after crop, downsampling
-            and normals; model_points: model size after this frame.
-        prepare_seconds, register_seconds, merge_seconds, total_seconds: wall times.
-        message: detail for a skipped frame.
-    """
-
-    index: int
-    timestamp: float
-    status: str
-    merged: bool
-    T_model_camera: np.ndarray
-    converged: bool = False
-    icp_status: str = ""
-    iterations: int = 0
-    fitness: float = float("nan")
-    inlier_rmse: float = float("nan")
-    correspondences: int = 0
-    input_points: int = 0
-    frame_points: int = 0
-    model_points: int = 0
-    prepare_seconds: float = 0.0
-    register_seconds: float = 0.0
-    merge_seconds: float = 0.0
-    total_seconds: float = 0.0
-    message: str = ""
-
-    def to_dict(self) -> Dict[str, Any]:
-        d = asdict(self)
-        d["T_model_camera"] = np.asarray(self.T_model_camera).tolist()
-        return d
+#: What the reconstruction did with one frame (the C++ report, bound directly): index,
+#: timestamp (s), status, merged, T_model_camera (camera -> model; for a skipped frame the guess
+#: it was tried from), the registration's figures and the wall times; ``to_dict()``.
+FrameReport = _core.reconstruction.FrameReport
 
 
 @dataclass
@@ -315,7 +272,7 @@ class Reconstructor:
             raise ValueError("pixel_stride must be a positive integer")
         self.min_depth, self.max_depth, self.pixel_stride = float(min_depth), float(max_depth), int(pixel_stride)
         self._core = _core.reconstruction.FrameToModel(self.settings)
-        self.records: List[FrameRecord] = []
+        self.records: List[FrameReport] = []
         self.reset(T_model_camera0)
 
     def reset(self, T_model_camera0: Optional[np.ndarray] = None) -> None:
@@ -326,7 +283,7 @@ class Reconstructor:
         self.T_model_camera0 = T0
         self.records = []
 
-    def integrate(self, frame: Frame, guess: Optional[np.ndarray] = None) -> FrameRecord:
+    def integrate(self, frame: Frame, guess: Optional[np.ndarray] = None) -> FrameReport:
         """Back-projects and integrates one RGB-D frame.
 
         Args:
@@ -350,7 +307,7 @@ class Reconstructor:
         return self.integrate_points(points, colors, guess=guess, timestamp=frame.timestamp)
 
     def integrate_points(self, points: np.ndarray, colors: Optional[np.ndarray] = None, *,
-                         guess: Optional[np.ndarray] = None, timestamp: Optional[float] = None) -> FrameRecord:
+                         guess: Optional[np.ndarray] = None, timestamp: Optional[float] = None) -> FrameReport:
         """Integrates a cloud given in the camera frame ((N, 3) metres; optional (N, 3)
         colours, uint8 or float in [0, 1]). See :meth:`integrate`."""
         p = as_points(points, "points", np.dtype(np.float32))
@@ -358,19 +315,8 @@ class Reconstructor:
         if c is not None and c.dtype != np.uint8 and c.shape == (p.shape[0], 3):
             scale = 255.0 if np.issubdtype(c.dtype, np.floating) and c.size and c.max() <= 1.0 else 1.0
             c = np.clip(np.rint(c * scale), 0, 255).astype(np.uint8)
-        index, t0 = len(self.records), time.perf_counter()
-        rep = self._core.integrate(p, c, None if guess is None else as_transform(guess, "guess"), self.registration)
-        first = rep.status == "initialized"
-        icp = rep.icp
-        rec = FrameRecord(
-            index=index, timestamp=float(index) if timestamp is None else float(timestamp), status=rep.status,
-            merged=rep.merged, T_model_camera=rep.T_model_camera, converged=first or bool(icp.converged),
-            icp_status="" if first else icp.status, iterations=icp.iterations,
-            fitness=1.0 if first else icp.fitness, inlier_rmse=0.0 if first else icp.inlier_rmse,
-            correspondences=icp.correspondence_count, input_points=p.shape[0], frame_points=rep.frame_points,
-            model_points=rep.model_points, prepare_seconds=rep.prepare_seconds,
-            register_seconds=rep.register_seconds, merge_seconds=rep.merge_seconds,
-            total_seconds=time.perf_counter() - t0)
+        rec = self._core.integrate(p, c, None if guess is None else as_transform(guess, "guess"), self.registration)
+        rec.timestamp = float(rec.index) if timestamp is None else float(timestamp)
         self.records.append(rec)
         return rec
 

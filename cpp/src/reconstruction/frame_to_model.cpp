@@ -143,6 +143,7 @@ FrameReport FrameToModel::integrate(const CloudView<float>& points, const std::u
   const auto t0 = Clock::now();
   const PreparedFrame frame = prepare(points, colors);
   FrameReport r = integratePrepared(frame, guess);
+  r.input_points = points.size;
   r.total_seconds = since(t0);
   return r;
 }

@@ -115,6 +115,8 @@ struct PreparedFrame {
 
 struct FrameReport {
   int index = -1;                    ///< 0-based count of frames given to the pipeline
+  double timestamp = 0.0;            ///< s; the frame's time stamp, as the caller gives it
+  std::size_t input_points = 0;      ///< points given (before crop and downsampling)
   FrameStatus status = FrameStatus::SkippedEmpty;
   /// Estimated camera pose in the model frame (camera -> model). For a skipped frame:
   /// the initial guess it was tried from.
@@ -182,6 +184,8 @@ class FrameToModel {
   Eigen::Matrix4d predictedPose() const;
   bool hasModel() const { return model_.size() > 0; }
   int framesSeen() const { return frames_seen_; }
+  /// Counts a frame registered outside integrate() (e.g. by a PCL baseline); returns its index.
+  int countFrame() { return frames_seen_++; }
   int framesMerged() const { return frames_merged_; }
   const FrameToModelSettings& settings() const { return settings_; }
   FrameToModelSettings& settings() { return settings_; }
