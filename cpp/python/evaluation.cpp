@@ -15,6 +15,7 @@
 #include "scanalign/evaluation/error_stats.hpp"
 #include "scanalign/evaluation/mesh_distance.hpp"
 #include "scanalign/evaluation/pose_interpolation.hpp"
+#include "scanalign/evaluation/rpe_pairs.hpp"
 
 namespace scanalign::python {
 
@@ -151,6 +152,15 @@ MeshDistanceStats distanceStats(const MeshDistanceIndex& index, const py::object
   return summarizeDistances(d.data(), static_cast<std::size_t>(d.size()));
 }
 
+py::array_t<std::int64_t> pairArray(const std::vector<std::pair<std::int64_t, std::int64_t>>& pairs) {
+  py::array_t<std::int64_t> out({static_cast<py::ssize_t>(pairs.size()), py::ssize_t{2}});
+  for (std::size_t k = 0; k < pairs.size(); ++k)
+    *out.mutable_data(k, 0) = pairs[k].first, *out.mutable_data(k, 1) = pairs[k].second;
+  return out;
+}
+
+std::vector<double> values(const Stack& a) { return std::vector<double>(a.data(), a.data() + a.size()); }
+
 void defineStats(py::module_& m) {
   py::class_<ErrorStats>(m, "ErrorStats", R"doc(
 Summary of per-pose (or per-pair) errors, as the TUM benchmark tools and ``evo`` report them.
@@ -276,12 +286,7 @@ distance NaN, point NaN and triangle -1.
   m.def(
       "associate_timestamps",
       [](const Stack& first, const Stack& second, double max_difference) {
-        const auto vec = [](const Stack& a) { return std::vector<double>(a.data(), a.data() + a.size()); };
-        const auto pairs = associateTimestamps(vec(first), vec(second), max_difference);
-        py::array_t<std::int64_t> out({static_cast<py::ssize_t>(pairs.size()), py::ssize_t{2}});
-        for (std::size_t k = 0; k < pairs.size(); ++k)
-          *out.mutable_data(k, 0) = pairs[k].first, *out.mutable_data(k, 1) = pairs[k].second;
-        return out;
+        return pairArray(associateTimestamps(values(first), values(second), max_difference));
       },
       py::arg("first"), py::arg("second"), py::arg("max_difference"), R"doc(
 Pairs two timestamp streams one-to-one, closest pairs first: the package's one rule.
@@ -304,6 +309,16 @@ Raises:
     ValueError: a negative or non-finite ``max_difference``, unsorted or non-finite
         timestamps.
 )doc");
+  m.def(
+      "relative_pose_pairs",
+      [](const Stack& s, double delta, bool all_pairs, double tol) {
+        return pairArray(relativePosePairs(values(s), delta, all_pairs, tol));
+      },
+      py::arg("s"), py::arg("delta"), py::arg("all_pairs"), py::arg("tol"),
+      "(M, 2) int64 pose pairs (i, j) over a non-decreasing sequence s (frame indices, path length "
+      "in m or timestamps in s), as evo's RPE: all_pairs false gives the chain 0 = i_0 < i_1 < ..., "
+      "each the first index with s[i_{k+1}] - s[i_k] >= delta; all_pairs true, for every i the first "
+      "j > i minimising |(s[j] - s[i]) - delta|, kept when that is <= tol.");
   m.def("interpolate_poses", &interpolatePoses, py::arg("start"), py::arg("end"), py::arg("fraction"),
         "(N, 4, 4) poses a fraction (N,) of the way from (N, 4, 4) `start` to `end`: translation "
         "linear, rotation spherical-linear along the shorter arc (metres)");

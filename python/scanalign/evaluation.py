@@ -23,7 +23,7 @@ translations in metres and rotations in **degrees** (like the TUM benchmark tool
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Dict, Optional, Tuple, Union
 
 import numpy as np
@@ -217,6 +217,7 @@ class AteResult:
         return self.translation.rmse
 
     def as_dict(self) -> Dict[str, Any]:
+        """JSON-ready: statistics (m, degrees), ``T_reference_estimate`` and ``scale``."""
         return {"translation_m": self.translation.as_dict(), "rotation_deg": self.rotation.as_dict(),
                 "T_reference_estimate": self.T_reference_estimate.tolist(), "scale": self.scale}
 
@@ -293,35 +294,6 @@ _associate = associate  # absolute_trajectory_error / relative_pose_error shadow
 _DELTA_UNITS = ("frames", "seconds", "meters")
 
 
-def _pairs_consecutive(s: np.ndarray, delta: float) -> np.ndarray:
-    """Chain 0 = i_0 < i_1 < ...: i_{k+1} is the first index with s[i_{k+1}] - s[i_k] >= delta."""
-    ids, values = [0], s.tolist()
-    for j in range(1, len(values)):
-        if values[j] - values[ids[-1]] >= delta:
-            ids.append(j)
-    chain = np.asarray(ids, dtype=np.intp)
-    return np.stack([chain[:-1], chain[1:]], axis=1)
-
-
-def _pairs_all(s: np.ndarray, delta: float, tol: float) -> np.ndarray:
-    """For each i, the first j > i minimising |(s[j] - s[i]) - delta|, kept if <= tol."""
-    n = s.shape[0]
-    if n < 2:
-        return np.zeros((0, 2), dtype=np.intp)
-    i = np.arange(n - 1)
-    k = np.searchsorted(s, s[i] + delta, side="left")
-    cand = k[:, None] + np.arange(-2, 2)[None, :]
-    cand = np.clip(cand, i[:, None] + 1, n - 1)
-    # first index holding the same value (argmin takes the first of equal errors)
-    cand = np.maximum(np.searchsorted(s, s[cand], side="left"), i[:, None] + 1)
-    err = np.abs((s[cand] - s[i][:, None]) - delta)
-    pick = np.argmin(err, axis=1)  # candidates are ascending: ties go to the smallest j
-    j = cand[i, pick]
-    e = err[i, pick]
-    ok = e <= tol
-    return np.stack([i[ok], j[ok]], axis=1)
-
-
 def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, delta: float = 1,
                         delta_unit: str = "frames", all_pairs: bool = False, rel_delta_tol: float = 0.1,
                         pairs_from_reference: bool = False, associate: bool = False,
@@ -360,28 +332,19 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
     if not (np.isfinite(delta) and delta > 0):
         raise ValueError(f"delta must be a positive number, got {delta}")
     n = len(est)
-    if delta_unit == "frames":
-        if float(delta) != int(delta):
-            raise ValueError(f"delta must be an integer number of frames, got {delta}")
-        d = int(delta)
-        if all_pairs:
-            i = np.arange(max(n - d, 0))
-            pairs = np.stack([i, i + d], axis=1)
-        else:
-            ids = np.arange(0, n, d)
-            pairs = np.stack([ids[:-1], ids[1:]], axis=1)
-        delta_out: float = d
+    if delta_unit == "frames" and float(delta) != int(delta):
+        raise ValueError(f"delta must be an integer number of frames, got {delta}")
+    delta_out = int(delta) if delta_unit == "frames" else float(delta)
+    src, tol = (ref if pairs_from_reference else est), rel_delta_tol * delta_out
+    if delta_unit == "frames":  # frame indices, exact spacing: (i, i + d) or the chain (0, d), (d, 2d), ...
+        s, tol = np.arange(n, dtype=np.float64), 0.0
+    elif delta_unit == "meters":
+        s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(src.positions, axis=0), axis=1))])
     else:
-        if delta_unit == "meters":
-            src = ref if pairs_from_reference else est
-            steps = np.linalg.norm(np.diff(src.positions, axis=0), axis=1)
-            s = np.concatenate([[0.0], np.cumsum(steps)])
-        else:
-            s = (ref if pairs_from_reference else est).timestamps
-            if np.any(np.diff(s) < 0):
-                raise ValueError("delta_unit='seconds' needs non-decreasing timestamps")
-        delta_out = float(delta)
-        pairs = _pairs_all(s, delta_out, rel_delta_tol * delta_out) if all_pairs else _pairs_consecutive(s, delta_out)
+        s = src.timestamps
+        if np.any(np.diff(s) < 0):
+            raise ValueError("delta_unit='seconds' needs non-decreasing timestamps")
+    pairs = _core.evaluation.relative_pose_pairs(s, delta_out, bool(all_pairs), tol)
     if pairs.shape[0] == 0:
         raise ValueError(f"relative_pose_error: delta = {delta} {delta_unit} gives no pose pair among {n} poses")
     i, j = pairs[:, 0], pairs[:, 1]
