@@ -8,17 +8,11 @@ maps camera coordinates into the trajectory's world frame.  Error statistics rep
 translations in metres and rotations in **degrees** (like the TUM benchmark tools and
 ``evo``'s ``rotation_angle_deg``).
 
-- :func:`absolute_trajectory_error` (ATE): after the least-squares rigid (optionally
-  similarity) alignment of the estimated camera centres to the reference ones (Horn 1987 /
-  Umeyama 1991), the per-pose distance ``|| q_i - (s R p_i + t) ||`` between reference centre
-  ``q_i`` and aligned estimated centre.  Identical to ``evo``'s APE with
-  ``PoseRelation.translation_part`` after ``traj_est.align(traj_ref)``.
-- :func:`relative_pose_error` (RPE): for index pairs (i, j), with Q the reference and P the
-  estimate, ``E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)``; the translational error is
-  ``||trans(E_ij)||`` (m), the rotational error the angle of ``rot(E_ij)`` (degrees).
-  Pairs are chosen as ``evo``'s ``RPE`` does (see :func:`relative_pose_error`).
-- :func:`point_to_mesh_distance` and :func:`mesh_distance_stats`: exact cloud-to-mesh
-  distances, from :mod:`scanalign.mesh_metrics` (re-exported here).
+:func:`absolute_trajectory_error` (ATE, after a least-squares alignment, Horn 1987 /
+Umeyama 1991) and :func:`relative_pose_error` (RPE) equal ``evo``'s APE
+(``PoseRelation.translation_part``) and RPE; :func:`point_to_mesh_distance` and
+:func:`mesh_distance_stats` (exact cloud-to-mesh distances) come from
+:mod:`scanalign.mesh_metrics`.
 """
 
 from __future__ import annotations
@@ -33,20 +27,9 @@ from ._core.evaluation import ErrorStats
 from .mesh_metrics import MeshDistanceIndex, MeshDistanceStats, mesh_distance_stats, point_to_mesh_distance
 from .trajectory import Trajectory, associate_timestamps
 
-__all__ = [
-    "umeyama_alignment",
-    "associate",
-    "ErrorStats",
-    "AteResult",
-    "RpeResult",
-    "absolute_trajectory_error",
-    "relative_pose_error",
-    "MeshDistanceIndex",
-    "MeshDistanceStats",
-    "point_to_mesh_distance",
-    "mesh_distance_stats",
-    "evaluate_reconstruction",
-]
+__all__ = ["umeyama_alignment", "associate", "ErrorStats", "AteResult", "RpeResult",
+           "absolute_trajectory_error", "relative_pose_error", "MeshDistanceIndex", "MeshDistanceStats",
+           "point_to_mesh_distance", "mesh_distance_stats", "evaluate_reconstruction"]
 
 TrajectoryLike = Union[Trajectory, np.ndarray]
 

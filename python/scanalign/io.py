@@ -32,16 +32,8 @@ from plyfile import PlyData, PlyElementParseError, PlyHeaderParseError
 
 from ._core import io as _io
 
-__all__ = [
-    "Mesh",
-    "lzf_decompress",
-    "read_mesh",
-    "read_pcd",
-    "read_pcd_points",
-    "read_ply_points",
-    "unpack_rgb",
-    "write_ply",
-]
+__all__ = ["Mesh", "lzf_decompress", "read_mesh", "read_pcd", "read_pcd_points", "read_ply_points",
+           "unpack_rgb", "write_ply"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 

@@ -21,18 +21,9 @@ import numpy as np
 
 from . import _core, se3
 
-__all__ = [
-    "Trajectory",
-    "quaternion_from_matrix",
-    "matrix_from_quaternion",
-    "pose_from_tum",
-    "read_tum_trajectory",
-    "write_tum_trajectory",
-    "associate_timestamps",
-    "TumFormatError",
-    "read_tum_rows",
-    "time_order",
-]
+__all__ = ["Trajectory", "quaternion_from_matrix", "matrix_from_quaternion", "pose_from_tum",
+           "read_tum_trajectory", "write_tum_trajectory", "associate_timestamps", "TumFormatError",
+           "read_tum_rows", "time_order"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 

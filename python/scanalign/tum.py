@@ -192,7 +192,9 @@ class TumSequence:
         intrinsics (of the depth images, pixels), depth_scale (metres per depth unit),
         camera_file (the file the intrinsics came from; None for a preset or an
         :class:`Intrinsics`), has_rgb, dropped_depth_frames, groundtruth (the whole
-        ground-truth :class:`Trajectory`, time-sorted, or None).
+        ground-truth :class:`Trajectory`, time-sorted, or None); per selected frame:
+        timestamps ((N,) float64 depth timestamps, s), depth_files, and rgb_timestamps and
+        rgb_files of the paired colour images (None when depth-only).
 
     Timestamps in the lists may be out of order (they are sorted); the same timestamp
     twice in one list is an error.  The lists and the existence of every selected image
@@ -249,13 +251,13 @@ class TumSequence:
         self.dropped_depth_frames = int(len(d_ts) - len(di))
         self._source_index = np.arange(len(di))[start::stride][:limit]
         di = di[self._source_index]
-        self._timestamps = d_ts[di]
-        self._depth_files = self._listed(depth_list, "depth", d_names, d_lines, di)
-        self._rgb_timestamps = None if ri is None else rgb_ts[ri[self._source_index]]
-        self._rgb_files = None if ri is None else self._listed(rgb_list, "colour", rgb_names, rgb_lines,
+        self.timestamps = d_ts[di]
+        self.depth_files = self._listed(depth_list, "depth", d_names, d_lines, di)
+        self.rgb_timestamps = None if ri is None else rgb_ts[ri[self._source_index]]
+        self.rgb_files = None if ri is None else self._listed(rgb_list, "colour", rgb_names, rgb_lines,
                                                                ri[self._source_index])
         if len(self) > 0:  # early, cheap check of the first frame's headers
-            for path, what in ((self._depth_files[0], "depth"), (self._rgb_files and self._rgb_files[0], "colour")):
+            for path, what in ((self.depth_files[0], "depth"), (self.rgb_files and self.rgb_files[0], "colour")):
                 if path:
                     with _open_image(path, what) as im:
                         self._check_size(path, im.size, what)
@@ -267,7 +269,7 @@ class TumSequence:
             rows, _, lines = read_tum_rows(gt_path, 8, "8 values (timestamp tx ty tz qx qy qz qw)")
             self.groundtruth = Trajectory.from_tum_rows(rows[time_order(rows[:, 0], gt_path, lines)])
             if len(self.groundtruth) > 0:
-                self._poses = _interpolate_where_covered(self.groundtruth, self._timestamps, max_gap)
+                self._poses = _interpolate_where_covered(self.groundtruth, self.timestamps, max_gap)
 
     def _listed(self, list_file: Path, what: str, names: List[str], lines: List[int], keep: np.ndarray) -> List[Path]:
         """The selected images of a list, each checked to exist."""
@@ -322,28 +324,8 @@ class TumSequence:
                                  f"{self.intrinsics.width}x{self.intrinsics.height}; pass matching intrinsics "
                                  "(Intrinsics.scaled for a resized sequence)", path)
 
-    @property
-    def timestamps(self) -> np.ndarray:
-        """(N,) float64 depth timestamps of the selected frames, seconds (a copy)."""
-        return self._timestamps.copy()
-
-    @property
-    def rgb_timestamps(self) -> Optional[np.ndarray]:
-        """(N,) float64 timestamps of the paired colour images (s), or None when depth-only."""
-        return None if self._rgb_timestamps is None else self._rgb_timestamps.copy()
-
-    @property
-    def depth_files(self) -> List[Path]:
-        """The selected depth images."""
-        return list(self._depth_files)
-
-    @property
-    def rgb_files(self) -> Optional[List[Path]]:
-        """The paired colour images, or None when depth-only."""
-        return None if self._rgb_files is None else list(self._rgb_files)
-
     def __len__(self) -> int:
-        return int(self._timestamps.shape[0])
+        return int(self.timestamps.shape[0])
 
     def __getitem__(self, i: int) -> Frame:
         """Frame ``i`` (negative indices count from the end), PNGs decoded now.
@@ -360,16 +342,16 @@ class TumSequence:
         k = int(i) + n if i < 0 else int(i)
         if not 0 <= k < n:
             raise IndexError(f"frame index {i} out of range for a sequence of {n} frames")
-        meta: Dict[str, Any] = {"depth_file": str(self._depth_files[k]), "source_index": int(self._source_index[k]),
+        meta: Dict[str, Any] = {"depth_file": str(self.depth_files[k]), "source_index": int(self._source_index[k]),
                                 "sequence": self.name, "rgb_file": None, "rgb_timestamp": None}
-        depth = self._load(self._depth_files[k], "depth")
+        depth = self._load(self.depth_files[k], "depth")
         rgb = None
-        if self._rgb_files is not None:
-            rgb = self._load(self._rgb_files[k], "colour")
-            meta.update(rgb_file=str(self._rgb_files[k]), rgb_timestamp=float(self._rgb_timestamps[k]))
+        if self.rgb_files is not None:
+            rgb = self._load(self.rgb_files[k], "colour")
+            meta.update(rgb_file=str(self.rgb_files[k]), rgb_timestamp=float(self.rgb_timestamps[k]))
         pose = self._poses[k]
         return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
-                     timestamp=float(self._timestamps[k]), T_base_camera=None if pose is None else pose.copy(),
+                     timestamp=float(self.timestamps[k]), T_base_camera=None if pose is None else pose.copy(),
                      index=k, meta=meta)
 
     def _load(self, path: Path, what: str) -> np.ndarray:
@@ -389,7 +371,7 @@ class TumSequence:
         """Ground-truth poses of the frames that have one, at their depth timestamps, as a
         :class:`Trajectory` of ``T_world_camera``; None when no frame has ground truth."""
         idx = [k for k, p in enumerate(self._poses) if p is not None]
-        return Trajectory(self._timestamps[idx], np.stack([self._poses[k] for k in idx])) if idx else None
+        return Trajectory(self.timestamps[idx], np.stack([self._poses[k] for k in idx])) if idx else None
 
     def __repr__(self) -> str:
         n_gt = sum(p is not None for p in self._poses)
