@@ -32,6 +32,32 @@ CloudView<Scalar> cloudView(const py::array& a, const char* what) {
   return CloudView<Scalar>(static_cast<const Scalar*>(a.data()), static_cast<std::size_t>(a.shape(0)), stride);
 }
 
+/// `a` as an array cloudView<Scalar> can view: `a` itself when it already is one (no copy),
+/// else a C-contiguous Scalar copy. TypeError naming `what` unless `a` holds floats.
+template <typename Scalar>
+py::array asCloudArray(const py::array& a, const char* what) {
+  if (a.dtype().kind() != 'f')
+    throw py::type_error(std::string(what) + ": expected a float32 or float64 array, got dtype " +
+                         std::string(py::str(a.dtype())));
+  const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
+  const bool viewable = a.dtype().is(py::dtype::of<Scalar>()) && a.ndim() == 2 && a.strides(1) == item &&
+                        (a.shape(0) <= 1 || (a.strides(0) >= 3 * item && a.strides(0) % item == 0));
+  return viewable ? a : py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
+}
+
+/// Calls f(CloudView<float>) or f(CloudView<double>) in the precision of `o` (any float
+/// array-like; copied only when its layout demands it). TypeError naming `what` for a
+/// non-float array, ValueError for a shape other than (N, 3).
+template <typename F>
+auto withCloud(const py::object& o, const char* what, F&& f) {
+  const py::array a = py::array::ensure(o);
+  if (!a || a.dtype().kind() != 'f')
+    throw py::type_error(std::string(what) + ": expected a float32 or float64 array" +
+                         (a ? ", got dtype " + std::string(py::str(a.dtype())) : std::string()));
+  if (a.dtype().is(py::dtype::of<float>())) return f(cloudView<float>(asCloudArray<float>(a, what), what));
+  return f(cloudView<double>(asCloudArray<double>(a, what), what));
+}
+
 /// An empty view for None.
 template <typename Scalar>
 CloudView<Scalar> optionalCloudView(const py::object& o, const char* what) {

@@ -12,26 +12,6 @@ namespace scanalign::python {
 
 namespace {
 
-/// Calls f(CloudView<float>) for float32 points, else f(CloudView<double>). Any float layout
-/// is accepted (a view when the rows can be viewed, else a C-contiguous copy); TypeError
-/// names `what` for a non-float array, ValueError for a shape other than (N, 3).
-template <typename F>
-auto withCloud(const py::object& o, const char* what, F&& f) {
-  const py::array a = py::array::ensure(o);
-  if (!a || a.dtype().kind() != 'f')
-    throw py::type_error(std::string(what) + ": expected a float32 or float64 array" +
-                         (a ? ", got dtype " + std::string(py::str(a.dtype())) : std::string()));
-  auto call = [&](auto zero) {
-    using Scalar = decltype(zero);
-    const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
-    const bool viewable = a.dtype().is(py::dtype::of<Scalar>()) && a.ndim() == 2 && a.strides(1) == item &&
-                          (a.shape(0) <= 1 || (a.strides(0) >= 3 * item && a.strides(0) % item == 0));
-    const py::array held = viewable ? a : py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
-    return f(cloudView<Scalar>(held, what));
-  };
-  return a.dtype().is(py::dtype::of<float>()) ? call(0.0f) : call(0.0);
-}
-
 /// `o` as a contiguous Scalar array; TypeError naming `what` unless its dtype kind is one of
 /// `kinds` ("f": float, "biuf": real, "iu": integer).
 template <typename Scalar>

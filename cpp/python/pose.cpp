@@ -54,13 +54,6 @@ py::array_t<double> stack(const std::vector<E>& v, std::vector<py::ssize_t> tail
   return a;
 }
 
-/// Calls f(CloudView<float>) or f(CloudView<double>) by the array's dtype.
-template <typename F>
-auto byDtype(const py::array& a, const char* what, F&& f) {
-  if (a.dtype().is(py::dtype::of<float>())) return f(cloudView<float>(a, what));
-  return f(cloudView<double>(a, what));
-}
-
 std::vector<NeighbourhoodPca> pcaFrom(const U32& count, const F64& ev) {
   if (ev.ndim() != 2 || ev.shape(1) != 3 || count.ndim() != 1 || count.shape(0) != ev.shape(0))
     throw py::value_error("expected counts (N,) and eigenvalues (N, 3)");
@@ -163,7 +156,7 @@ void bindCbd(py::module_& m) {
   m.def(
       "compute_cbd",
       [](const py::array& points, const CbdSettings& s, std::optional<ShapeThresholds> t) {
-        return byDtype(points, "points", [&](auto view) {
+        return withCloud(points, "points", [&](auto view) {
           py::gil_scoped_release release;
           return computeCbd(view, s, t ? &*t : nullptr);
         });
@@ -174,7 +167,7 @@ void bindCbd(py::module_& m) {
   m.def(
       "neighbourhood_pca",
       [](const py::array& points, double radius, int threads) {
-        const auto p = byDtype(points, "points", [&](auto view) {
+        const auto p = withCloud(points, "points", [&](auto view) {
           py::gil_scoped_release release;
           return neighbourhoodPca(view, radius, threads);
         });

@@ -102,18 +102,6 @@ struct ScalarOf<LeftBalancedKdTree<S>> {
   using type = S;
 };
 
-/// A float array (any layout) as Scalar: a view when it already is, else a C-contiguous copy.
-template <typename Scalar>
-py::array asScalar(const py::array& a, const char* what) {
-  if (a.dtype().kind() != 'f')
-    throw py::type_error(std::string(what) + ": expected a float32 or float64 array, got dtype " +
-                         std::string(py::str(a.dtype())));
-  const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
-  const bool viewable = a.dtype().is(py::dtype::of<Scalar>()) && a.ndim() == 2 && a.strides(1) == item &&
-                        (a.shape(0) <= 1 || (a.strides(0) >= 3 * item && a.strides(0) % item == 0));
-  return viewable ? a : py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
-}
-
 bool isDouble(const py::array& a) { return a.dtype().is(py::dtype::of<double>()); }
 
 /// The ICP engine in the target's precision: float32 when target and normals are float32
@@ -129,8 +117,8 @@ class AnyIcp {
     std::visit(
         [&](auto& icp) {
           using Scalar = typename ScalarOf<std::decay_t<decltype(icp)>>::type;
-          const py::array t = asScalar<Scalar>(target, "target");
-          const py::object n = normals.is_none() ? normals : asScalar<Scalar>(py::cast<py::array>(normals), "target_normals");
+          const py::array t = asCloudArray<Scalar>(target, "target");
+          const py::object n = normals.is_none() ? normals : asCloudArray<Scalar>(py::cast<py::array>(normals), "target_normals");
           const auto tv = cloudView<Scalar>(t, "target");
           const auto nv = optionalCloudView<Scalar>(n, "target_normals");
           // Fail here rather than at the first align().
@@ -145,7 +133,7 @@ class AnyIcp {
     return std::visit(
         [&](auto& icp) {
           using Scalar = typename ScalarOf<std::decay_t<decltype(icp)>>::type;
-          const py::array s = asScalar<Scalar>(source, "source");
+          const py::array s = asCloudArray<Scalar>(source, "source");
           const auto view = cloudView<Scalar>(s, "source");
           py::gil_scoped_release release;
           return icp.align(view, init);
@@ -207,7 +195,7 @@ class AnyKdTree {
     std::visit(
         [&](auto& tree) {
           using Scalar = typename ScalarOf<std::decay_t<decltype(tree)>>::type;
-          const py::array p = asScalar<Scalar>(points, "points");
+          const py::array p = asCloudArray<Scalar>(points, "points");
           const auto view = cloudView<Scalar>(p, "points");
           py::gil_scoped_release release;
           tree.build(view);
@@ -224,7 +212,7 @@ class AnyKdTree {
         [&](const auto& tree) {
           using Scalar = typename ScalarOf<std::decay_t<decltype(tree)>>::type;
           const py::tuple r = nearestAll<Scalar>(
-              asScalar<Scalar>(queries, "queries"), max_distance,
+              asCloudArray<Scalar>(queries, "queries"), max_distance,
               [&](const Scalar* q, Scalar max_d2) { return tree.nearest(q, max_d2, stack_depth); },
               [&](std::uint32_t node) { return tree.node(node).index(); });
           const auto d2 = r[1].cast<py::array_t<Scalar>>();
