@@ -12,6 +12,7 @@
 
 #include "arrays.hpp"
 #include "scanalign/evaluation/associate.hpp"
+#include "scanalign/evaluation/associate_nearest.hpp"
 #include "scanalign/evaluation/error_stats.hpp"
 #include "scanalign/evaluation/mesh_distance.hpp"
 #include "scanalign/evaluation/pose_interpolation.hpp"
@@ -309,6 +310,15 @@ Raises:
     ValueError: a negative or non-finite ``max_difference``, unsorted or non-finite
         timestamps.
 )doc");
+  m.def(
+      "associate_nearest",
+      [](const Stack& shorter, const Stack& longer, double max_difference) {
+        return pairArray(associateNearest(values(shorter), values(longer), max_difference));
+      },
+      py::arg("shorter"), py::arg("longer"), py::arg("max_difference"),
+      "(K, 2) int64 pairs (i, j): for every time shorter[i], the nearest time longer[j] (longer sorted "
+      "ascending) within max_difference seconds (inclusive; ties to the earlier one), as evo's "
+      "associate_trajectories; a j may repeat. ValueError when longer is not sorted.");
   m.def(
       "relative_pose_pairs",
       [](const Stack& s, double delta, bool all_pairs, double tol) {

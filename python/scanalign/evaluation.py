@@ -141,20 +141,7 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
         # moves the longer trajectory's stamps (sign chosen so it always applies to the estimate)
         est_short = len(est) <= len(ref)
         ts, tl = (est.timestamps, tr - float(offset)) if est_short else (tr, te)
-        if np.any(np.diff(tl) < 0):
-            raise ValueError("method='nearest' needs the longer trajectory's timestamps sorted")
-        if tl.size == 0 or ts.size == 0:
-            i_s = i_l = np.zeros(0, dtype=np.intp)
-        else:
-            k = np.minimum(np.searchsorted(tl, ts, side="right"), tl.size - 1)
-            d_ub = tl[k] - ts
-            d_lb = np.where(k > 0, ts - tl[np.maximum(k - 1, 0)], np.inf)
-            in_range = (ts >= tl[0] - max_difference) & (ts <= tl[-1] + max_difference)
-            take_ub = (d_ub <= max_difference) & (d_ub < d_lb)
-            take_lb = ~take_ub & (d_lb <= max_difference) & (d_lb <= d_ub)
-            ok = in_range & (take_ub | take_lb)
-            i_s = np.flatnonzero(ok)
-            i_l = np.where(take_ub, k, k - 1)[ok]
+        i_s, i_l = _core.evaluation.associate_nearest(ts, tl, max_difference).T
         ie, ir = (i_s, i_l) if est_short else (i_l, i_s)
     else:
         raise ValueError(f"unknown association method {method!r} (use 'greedy' or 'nearest')")

@@ -69,17 +69,13 @@ def read_pcd(path: PathLike) -> dict[str, np.ndarray]:
         ValueError: malformed header, unknown DATA type, truncated or corrupt payload,
             or a header claiming more data than the file holds.
     """
-    raw = Path(path).read_bytes()
     try:
-        _header, fields = _io.parse_pcd(raw)
+        return _io.parse_pcd(Path(path).read_bytes())[1]
     except ValueError as exc:
         raise _error(path, str(exc)) from None
-    return fields
 
 
-def read_pcd_points(
-    path: PathLike, dtype: npt.DTypeLike = np.float64, remove_nan: bool = True
-) -> np.ndarray:
+def read_pcd_points(path: PathLike, dtype: npt.DTypeLike = np.float64, remove_nan: bool = True) -> np.ndarray:
     """Read the ``x y z`` coordinates of a ``.pcd`` file.
 
     Args:
@@ -118,12 +114,8 @@ def unpack_rgb(field: npt.ArrayLike) -> np.ndarray:
         ``(N, 3)`` uint8 array of ``red, green, blue``.
     """
     values = np.asarray(field)
-    if values.dtype.kind == "f":
-        bits = values.astype(np.float32).view(np.uint32)
-    else:
-        bits = values.astype(np.uint32)
-    shifts = np.array([16, 8, 0], dtype=np.uint32)
-    return ((bits[..., None] >> shifts) & 0xFF).astype(np.uint8)
+    bits = values.astype(np.float32).view(np.uint32) if values.dtype.kind == "f" else values.astype(np.uint32)
+    return ((bits[..., None] >> np.array([16, 8, 0], dtype=np.uint32)) & 0xFF).astype(np.uint8)
 
 
 # --------------------------------------------------------------------------- meshes
@@ -150,10 +142,7 @@ class Mesh:
         if faces.ndim != 2 or faces.shape[1] != 3:
             raise ValueError(f"Mesh faces must have shape (F, 3), got {faces.shape}")
         if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
-            raise ValueError(
-                f"Mesh face indices must lie in [0, {len(vertices)}), "
-                f"got [{faces.min()}, {faces.max()}]"
-            )
+            raise ValueError(f"Mesh face indices must lie in [0, {len(vertices)}), got [{faces.min()}, {faces.max()}]")
         object.__setattr__(self, "vertices", vertices)
         object.__setattr__(self, "faces", faces)
 
@@ -306,14 +295,8 @@ def write_ply(
         columns += [("red", rgb[:, 0]), ("green", rgb[:, 1]), ("blue", rgb[:, 2])]
 
     ply_type = {np.dtype(np.float32): "float", np.dtype(np.uint8): "uchar"}
-    header = [
-        "ply",
-        f"format {'binary_little_endian' if binary else 'ascii'} 1.0",
-        "comment written by scanalign",
-        f"element vertex {n}",
-        *(f"property {ply_type[c.dtype]} {name}" for name, c in columns),
-        "end_header",
-    ]
+    header = [f"ply\nformat {'binary_little_endian' if binary else 'ascii'} 1.0\ncomment written by scanalign",
+              f"element vertex {n}", *(f"property {ply_type[c.dtype]} {name}" for name, c in columns), "end_header"]
     with open(path, "wb") as fh:
         fh.write(("\n".join(header) + "\n").encode("ascii"))
         if binary:
