@@ -34,8 +34,6 @@ __all__ = ["umeyama_alignment", "associate", "ErrorStats", "AteResult", "RpeResu
 TrajectoryLike = Union[Trajectory, np.ndarray]
 
 
-# -------------------------------------------------------------------------------- Inputs
-
 def _as_trajectory(x: TrajectoryLike, name: str) -> Trajectory:
     if isinstance(x, Trajectory):
         return x
@@ -61,8 +59,6 @@ def _paired(estimate: TrajectoryLike, reference: TrajectoryLike, associate: bool
         raise ValueError(f"{what} needs at least {minimum} poses, got {len(est)}")
     return est, ref
 
-
-# -------------------------------------------------------------- Umeyama / Horn alignment
 
 def umeyama_alignment(source: np.ndarray, target: np.ndarray,
                       with_scale: bool = False) -> Tuple[np.ndarray, np.ndarray, float]:
@@ -92,11 +88,8 @@ def umeyama_alignment(source: np.ndarray, target: np.ndarray,
     return np.asarray(R), np.asarray(t), float(s)
 
 
-# ----------------------------------------------------------------- Timestamp association
-
-def associate(estimate: Trajectory, reference: Trajectory, max_difference: float = 0.02,
-              offset: float = 0.0, method: str = "greedy",
-              return_indices: bool = False):
+def associate(estimate: Trajectory, reference: Trajectory, max_difference: float = 0.02, offset: float = 0.0,
+              method: str = "greedy", return_indices: bool = False):
     """Pairs the poses of two trajectories by timestamp.
 
     ``offset`` (s) is added to the estimate's timestamps before matching (the TUM tools'
@@ -157,8 +150,6 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
     return est_m, ref_m
 
 
-# ---------------------------------------------------------- Error statistics and results
-
 @dataclass
 class AteResult:
     """Absolute trajectory error.
@@ -215,8 +206,6 @@ class RpeResult:
                 "delta": self.delta, "delta_unit": self.delta_unit, "all_pairs": self.all_pairs}
 
 
-# ----------------------------------------------------------------------------------- ATE
-
 def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLike, align: bool = True,
                               with_scale: bool = False, associate: bool = False,
                               max_difference: float = 0.02, offset: float = 0.0) -> AteResult:
@@ -258,8 +247,6 @@ def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLik
 
 _associate = associate  # absolute_trajectory_error / relative_pose_error shadow the name
 
-
-# ----------------------------------------------------------------------------------- RPE
 
 _DELTA_UNITS = ("frames", "seconds", "meters")
 
@@ -324,8 +311,6 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
     return RpeResult(translation=ErrorStats.from_errors(trans), rotation=ErrorStats.from_errors(rot),
                      pairs=pairs.astype(np.intp), delta=delta_out, delta_unit=delta_unit, all_pairs=bool(all_pairs))
 
-
-# ------------------------------------------------------------------------- Report helper
 
 def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike, *, associate: bool = False,
                             max_difference: float = 0.02, offset: float = 0.0, with_scale: bool = False,

@@ -42,9 +42,6 @@ def _error(path: PathLike, message: str) -> ValueError:
     return ValueError(f"{os.fspath(path)}: {message}")
 
 
-# --------------------------------------------------------------------------- PCD
-
-
 #: Decompresses an LZF stream (the liblzf format PCL uses for ``binary_compressed``).
 lzf_decompress = _io.lzf_decompress
 
@@ -118,9 +115,6 @@ def unpack_rgb(field: npt.ArrayLike) -> np.ndarray:
     return ((bits[..., None] >> np.array([16, 8, 0], dtype=np.uint32)) & 0xFF).astype(np.uint8)
 
 
-# --------------------------------------------------------------------------- meshes
-
-
 @dataclasses.dataclass(frozen=True, eq=False)
 class Mesh:
     """A triangle mesh.
@@ -146,8 +140,6 @@ class Mesh:
         object.__setattr__(self, "vertices", vertices)
         object.__setattr__(self, "faces", faces)
 
-
-# PLY (through plyfile) ---------------------------------------------------------
 
 # Triangle meshes first: a known list length lets plyfile read faces with one array
 # read instead of row by row; files with other polygons are read again without it.
@@ -241,9 +233,6 @@ def read_mesh(path: PathLike) -> Mesh:
         return Mesh(*_io.parse_mesh(Path(path).read_bytes(), suffix[1:]))
     except ValueError as exc:
         raise _error(path, str(exc)) from None
-
-
-# --------------------------------------------------------------------------- PLY points
 
 
 def write_ply(

@@ -16,20 +16,10 @@ __all__ = ["MeshDistanceIndex", "MeshDistanceStats", "point_to_mesh_distance", "
 
 
 def point_to_mesh_distance(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Exact Euclidean distance (m) from each point to a triangle mesh (its surface).
-
-    Args:
-        points: (N, 3) float32/float64, in the mesh's frame.  Rows with NaN/Inf are not
-            an error: their distance is NaN.
-        vertices: (V, 3) float32/float64 (m).
-        faces: (F, 3) integer vertex indices in [0, V).
-
-    Returns:
-        (N,) float64 distances.
-
-    See :class:`MeshDistanceIndex` (to reuse the index over several clouds) for the method
-    and the errors raised.
-    """
+    """Exact Euclidean distance (m, (N,) float64) from each of the (N, 3) ``points`` to the
+    surface of the mesh ``(vertices (V, 3), faces (F, 3))`` in the same frame; rows with
+    NaN/Inf give NaN.  :class:`MeshDistanceIndex` reuses the index over several clouds and
+    documents the method and the errors raised."""
     return MeshDistanceIndex(vertices, faces).distance(points)
 
 

@@ -20,6 +20,7 @@ from typing import List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _core, se3
+from ._arrays import as_transform
 
 __all__ = ["Trajectory", "quaternion_from_matrix", "matrix_from_quaternion", "pose_from_tum",
            "read_tum_trajectory", "write_tum_trajectory", "associate_timestamps", "TumFormatError",
@@ -39,10 +40,9 @@ def pose_from_tum(values: np.ndarray) -> np.ndarray:
     v = np.asarray(values, dtype=np.float64)
     if v.shape[-1] != 7:
         raise ValueError(f"expected (..., 7) rows tx ty tz qx qy qz qw, got {v.shape}")
-    T = np.zeros(v.shape[:-1] + (4, 4))
+    T = np.tile(np.eye(4), v.shape[:-1] + (1, 1))
     T[..., :3, :3] = matrix_from_quaternion(v[..., 3:])
     T[..., :3, 3] = v[..., :3]
-    T[..., 3, 3] = 1.0
     return T
 
 
@@ -90,22 +90,17 @@ class Trajectory:
         return float(np.linalg.norm(np.diff(self.positions, axis=0), axis=1).sum()) if len(self) > 1 else 0.0
 
     def transformed(self, T_new_world: np.ndarray) -> "Trajectory":
-        """The same trajectory expressed in another world frame: poses ``T_new_world @ T``."""
-        T = np.asarray(T_new_world, dtype=np.float64)
-        if T.shape != (4, 4):
-            raise ValueError("T_new_world must be 4x4")
-        return Trajectory(self.timestamps.copy(), T @ self.poses)
+        """The same trajectory expressed in another world frame: poses ``T_new_world @ T``
+        (ValueError for a matrix that is not a finite 4x4)."""
+        return Trajectory(self.timestamps.copy(), as_transform(T_new_world, "T_new_world") @ self.poses)
 
     def relative_to_first(self) -> "Trajectory":
         """Expressed in the first camera's frame: the first pose becomes the identity."""
-        if len(self) == 0:
-            return Trajectory(self.timestamps.copy(), self.poses.copy())
-        return self.transformed(se3.inverse(self.poses[0]))
+        return self.transformed(se3.inverse(self.poses[0]) if len(self) else np.eye(4))
 
     def to_tum_rows(self) -> np.ndarray:
         """(N, 8) rows ``timestamp tx ty tz qx qy qz qw``."""
-        q = quaternion_from_matrix(self.rotations) if len(self) else np.zeros((0, 4))
-        return np.column_stack([self.timestamps, self.positions, q])
+        return np.column_stack([self.timestamps, self.positions, quaternion_from_matrix(self.rotations)])
 
     @classmethod
     def from_tum_rows(cls, rows: np.ndarray) -> "Trajectory":

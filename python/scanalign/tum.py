@@ -204,7 +204,8 @@ class TumSequence:
     Raises:
         FileNotFoundError: no such folder, no ``depth.txt``, or a listed image is missing.
         NotADirectoryError: ``folder`` is a file.
-        TypeError: a non-integer ``stride`` or ``start``, an ``intrinsics`` of another type.
+        TypeError: a non-integer ``stride``, ``start`` or ``limit``, an ``intrinsics`` of
+            another type.
         ValueError: a bad ``stride``, ``start``, ``limit``, ``depth_scale``, time bound.
         TumFormatError (a ValueError): a malformed list or camera file, no intrinsics, an
             image that is unreadable, not 16-bit (depth), or of the wrong size, no depth
@@ -224,13 +225,10 @@ class TumSequence:
         if not depth_list.is_file():
             raise FileNotFoundError(f"{depth_list}: missing; a TUM sequence folder lists its depth images in "
                                     "depth.txt ('timestamp filename' per line)")
-        for name, v in (("stride", stride), ("start", start)):
+        for name, v, low in (("stride", stride, 1), ("start", start, 0), ("limit", 0 if limit is None else limit, 0)):
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
-                raise TypeError(f"{name} must be an integer, got {v!r}")
-        _number("stride", stride, 1, True, ">= 1")
-        _number("start", start, 0, True, ">= 0")
-        if limit is not None and (isinstance(limit, bool) or not isinstance(limit, (int, np.integer)) or limit < 0):
-            raise ValueError(f"limit must be None or an integer >= 0, got {limit!r}")
+                raise TypeError(f"{name} must be an integer{' or None' * (name == 'limit')}, got {v!r}")
+            _number(name, v, low, True, f">= {low}")
         max_dt = _number("max_time_difference", max_time_difference, 0.0, True, "a finite number >= 0 (s)")
         max_gap = _number("max_groundtruth_gap", max_groundtruth_gap, 0.0, False, "a finite number > 0 (s)")
         self.intrinsics, self.depth_scale, self.camera_file = self._resolve_camera(intrinsics, depth_scale)
