@@ -234,6 +234,9 @@ def test_lzf_roundtrip_with_test_compressor() -> None:
     assert len(packed) < len(data) // 2
     assert io.lzf_decompress(packed, len(data)) == data
     assert io.lzf_decompress(lzf_literals(data), len(data)) == data
+    # any bytes-like stream is accepted
+    assert io.lzf_decompress(bytearray(packed), len(data)) == data
+    assert io.lzf_decompress(memoryview(packed), len(data)) == data
 
 
 # --------------------------------------------------------------------------- PCD
