@@ -50,13 +50,26 @@ def as_transform(T: object, name: str = "init") -> np.ndarray:
     return m
 
 
+def fields_of(obj: object) -> dict:
+    """The fields of a bound C++ struct (its properties) and their values."""
+    t = type(obj)
+    return {k: getattr(obj, k) for k in dir(t) if not k.startswith("_") and isinstance(getattr(t, k), property)}
+
+
 def set_fields(obj: object, values: dict, what: str) -> object:
-    """Sets fields of a bound C++ settings struct by name and returns it; TypeError names an
-    unknown field (the C++ type converters raise TypeError for a wrong value type)."""
+    """Sets fields of a bound C++ settings struct by name and returns it. An enum field also
+    takes its value's name as a string. TypeError names an unknown field or a value of the
+    wrong type, ValueError an unknown enum name."""
+    t = type(obj)
     for name, value in values.items():
-        if name.startswith("_") or not isinstance(getattr(type(obj), name, None), property):
-            known = sorted(k for k in dir(type(obj)) if isinstance(getattr(type(obj), k), property))
+        if name.startswith("_") or not isinstance(getattr(t, name, None), property):
+            known = sorted(k for k in dir(t) if isinstance(getattr(t, k), property))
             raise TypeError(f"unknown {what} setting {name!r}; known: {', '.join(known)}")
+        members = getattr(type(getattr(obj, name)), "__members__", None)
+        if isinstance(value, str) and members is not None:
+            if value not in members:
+                raise ValueError(f"{what} setting {name}: unknown value {value!r}; expected one of {sorted(members)}")
+            value = members[value]
         try:
             setattr(obj, name, value)
         except TypeError as e:

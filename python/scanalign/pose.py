@@ -31,7 +31,7 @@ from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _core, cbd as _cbd
-from ._arrays import as_points, as_transform, set_fields
+from ._arrays import as_points, as_transform, fields_of, set_fields
 
 __all__ = [
     "MotorEstimate", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag", "FlagAlignmentResult",
@@ -77,21 +77,11 @@ def _pairs(source: object, target: object) -> Tuple[np.ndarray, np.ndarray]:
 
 def estimate_motor(source: np.ndarray, target: np.ndarray, weights: Optional[np.ndarray] = None, *,
                    normalize: bool = True) -> MotorEstimate:
-    """Valkenburg-Dorst motor from pairs ``source[i] <-> target[i]`` (paper 5, (36)-(44)).
-
-    Maximises ``Σ w_k ⟨M̃ Y_k M X_k⟩ = −½ Σ w_k |y_k − M x_k M̃|²`` over unit motors: the rotor
-    is the top eigenvector of ``Q_rr − Q_rt Q_tt⁺ Q_tr``, the translation part follows from (44).
-
-    Args:
-        source, target: (N, 3) paired points, metres (source frame / target frame).
-        weights: optional (N,) non-negative weights.
-        normalize: centre and scale the data before forming Q (better conditioned; the
-            estimator is equivariant, so only rounding changes).
-
-    Returns:
-        :class:`MotorEstimate`; ``valid`` is False (identity pose) for fewer than 3 pairs or
-        collinear data. Raises ValueError for unpaired or non-finite pairs and bad weights.
-    """
+    """Valkenburg-Dorst motor from pairs ``source[i] <-> target[i]`` ((N, 3) each, metres;
+    paper 5, (36)-(44)): the unit motor maximising ``Σ w_k ⟨M̃ Y_k M X_k⟩``, optionally
+    weighted; ``normalize`` centres and scales first (only rounding changes). ``valid`` is
+    False (identity) for fewer than 3 pairs or collinear data; ValueError for unpaired or
+    non-finite pairs and bad weights."""
     s, t = _pairs(source, target)
     return _P.estimate_motor(s, t, weights, bool(normalize))
 
@@ -110,7 +100,7 @@ def motor_to_matrix(motor: Sequence[float]) -> np.ndarray:
 def _ransac_settings(base: Any = None, **fields: Any) -> Any:
     s = _P.CorrespondenceRansacSettings()
     if base is not None:
-        set_fields(s, {k: getattr(base, k) for k in _fields(base)}, "RANSAC")
+        set_fields(s, fields_of(base), "RANSAC")
     if "seed" in fields:
         fields["seed"] = int(fields["seed"]) & (2**64 - 1)
     return set_fields(s, fields, "RANSAC")
@@ -119,17 +109,11 @@ def _ransac_settings(base: Any = None, **fields: Any) -> Any:
 def ransac_rigid_motion(source: np.ndarray, target: np.ndarray, pairs: np.ndarray, *, max_iterations: int = 1000,
                         inlier_threshold: float = 0.005, edge_similarity: float = 0.9, confidence: float = 0.999,
                         seed: int = 0, num_threads: int = 0) -> CorrespondenceRansacResult:
-    """Rigid motion from putative pairs with outliers: RANSAC over 3-pair samples (prerejected
-    unless their triangles' edge lengths agree within ``edge_similarity``), Kabsch hypotheses,
-    then a motor refit on the inliers.
-
-    Args:
-        source, target: (N, 3) / (M, 3) points, metres.
-        pairs: (K, 2) integer indices (into source, into target).
-        max_iterations: hypotheses (thesis baselines: 1000); stops early at ``confidence``.
-        inlier_threshold: metres (thesis: 0.005).
-        seed: random seed; results do not depend on the thread count.
-    """
+    """Rigid motion from putative pairs ``(K, 2)`` (indices into source and target, metres)
+    with outliers: RANSAC over 3-pair samples prerejected unless their edge lengths agree
+    within ``edge_similarity``, Kabsch hypotheses ranked by MSAC cost, adaptive stop at
+    ``confidence``, a motor refit on the inliers (``inlier_threshold`` m). Deterministic for a
+    ``seed`` whatever the thread count."""
     s, t = _pairs(source, target)
     p = np.asarray(pairs)
     if p.size and not np.issubdtype(p.dtype, np.integer):
@@ -151,10 +135,6 @@ def alignment_fitness(source: np.ndarray, target: np.ndarray, T_target_source: n
 
 # --- coarse alignment ---------------------------------------------------------------------------
 
-def _fields(obj: Any) -> List[str]:
-    return [k for k in dir(type(obj)) if not k.startswith("_") and isinstance(getattr(type(obj), k), property)]
-
-
 def _cbd_alignment_settings(cbd_settings: Optional[_cbd.CbdSettings], cbd_overrides: Dict[str, object],
                             ransac: Optional[Dict[str, Any]], base: Optional[Any] = None) -> Any:
     s = base if base is not None else _P.CbdAlignmentSettings()
@@ -166,20 +146,12 @@ def _cbd_alignment_settings(cbd_settings: Optional[_cbd.CbdSettings], cbd_overri
 def align_cbd(source: np.ndarray, target: np.ndarray, settings: Optional[_cbd.CbdSettings] = None, *,
               ransac: Optional[Dict[str, Any]] = None, matches_per_keypoint: int = 1,
               **cbd_overrides: object) -> CbdAlignmentResult:
-    """Coarse alignment with the curvature-based descriptor (paper 5): CBD on both clouds,
-    nearest-descriptor matches, RANSAC + motor refit.
-
-    Args:
-        source: (N, 3) e.g. a model view, metres; ``target``: (M, 3) e.g. a scene object.
-        settings / **cbd_overrides: :class:`scanalign.cbd.CbdSettings` fields (thesis defaults:
-            radius 6.3 mm, gamma 200 /m, n_min 200, 2000 keypoints).
-        ransac: :func:`ransac_rigid_motion` keywords (default 10000 iterations, 5 mm).
-        matches_per_keypoint: k nearest target descriptors per source keypoint.
-
-    Returns:
-        :class:`CbdAlignmentResult` (``found`` False with a message when there are too few
-        keypoints or no consensus).
-    """
+    """Coarse alignment of ``source`` (e.g. a model view) onto ``target`` (e.g. a scene object),
+    (N, 3) metres, with the curvature-based descriptor (paper 5): CBD on both clouds
+    (:class:`scanalign.cbd.CbdSettings` or field overrides; thesis defaults), nearest-descriptor
+    matches (``matches_per_keypoint``), RANSAC (``ransac``: :func:`ransac_rigid_motion`
+    keywords; 10000 iterations) and a motor refit. ``found`` is False with a message when
+    there are too few keypoints or no consensus."""
     s = as_points(source, "source")
     t = as_points(target, "target", s.dtype)
     if len(s) == 0 or len(t) == 0:
@@ -198,13 +170,10 @@ def normal_line_flag(points: np.ndarray, normals: np.ndarray) -> NormalLineFlag:
 
 def align_flags(source: np.ndarray, source_normals: np.ndarray, target: np.ndarray, target_normals: np.ndarray, *,
                 min_mean_normal_length: float = 0.05, max_iterations: int = 100) -> FlagAlignmentResult:
-    """Paper 4 initial alignment with motors: the motor mapping the source flag (centroid +
-    average normal line) onto the target's, by Levenberg-Marquardt on the motor manifold.
-
-    Works on partial (single-view) clouds only: on a closed surface the normals average to
-    zero and the result is refused (``valid`` False) when the mean unit normal is shorter
-    than ``min_mean_normal_length``.
-    """
+    """Paper 4 initial alignment: the motor mapping the source flag (centroid + average normal
+    line) onto the target's, by Levenberg-Marquardt on the motor manifold. Partial views only:
+    refused (``valid`` False) when a mean unit normal is shorter than
+    ``min_mean_normal_length`` (a closed surface's normals average to zero)."""
     clouds = [as_points(a, name, np.dtype(np.float64)) for a, name in
               ((source, "source"), (source_normals, "source_normals"), (target, "target"),
                (target_normals, "target_normals"))]
@@ -221,16 +190,11 @@ def _pcl_settings(method: str, overrides: Dict[str, object]) -> Any:
 
 def pcl_feature_alignment(source: np.ndarray, target: np.ndarray, method: str = "fpfh",
                           **settings: object) -> PclFeatureAlignmentResult:
-    """A stock PCL 1.13 coarse registration (the thesis's baselines, §7.6).
-
-    Args:
-        source, target: (N, 3) / (M, 3) points, metres (converted to float32 for PCL).
-        method: ``"fpfh"`` (FPFHEstimationOMP + SampleConsensusPrerejective), ``"fpfh_sac_ia"``
-            (SampleConsensusInitialAlignment), ``"shot"``, ``"3dsc"`` (both with the
-            prerejective matcher) or ``"ppf"`` (PPFRegistration).
-        **settings: override fields of :data:`THESIS_PCL_PRESET` (see
-            ``scanalign._core.pose.PclFeatureAlignmentSettings`` for each field and unit).
-    """
+    """A stock PCL 1.13 coarse registration of ``source`` onto ``target`` ((N, 3) metres, run in
+    float32), the thesis's baselines (§7.6): ``"fpfh"`` (FPFHEstimationOMP +
+    SampleConsensusPrerejective), ``"fpfh_sac_ia"`` (SAC-IA), ``"shot"``, ``"3dsc"`` or ``"ppf"``
+    (PPFRegistration). ``**settings`` override fields of the method's
+    :data:`THESIS_PCL_PRESET` (``PclFeatureAlignmentSettings``, each field with its unit)."""
     st = _pcl_settings(method, settings)
     s = as_points(source, "source", np.dtype(np.float32))
     t = as_points(target, "target", np.dtype(np.float32))
@@ -282,10 +246,9 @@ def _pose_settings(method: str, inlier_threshold: float, icp_distance: float, no
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     cbd_overrides.setdefault("min_neighbors", 0)  # automatic: scan density varies
-    s = _P.PoseSettings()
-    s.method = getattr(_P.CoarseMethod, method if method in ("cbd", "flags") else "external")
-    set_fields(s, dict(inlier_threshold=inlier_threshold, icp_distance=icp_distance, normal_radius=normal_radius,
-                       num_threads=num_threads), "pose")
+    s = set_fields(_P.PoseSettings(), dict(method=method if method in ("cbd", "flags") else "external",
+                                           inlier_threshold=inlier_threshold, icp_distance=icp_distance,
+                                           normal_radius=normal_radius, num_threads=num_threads), "pose")
     s.cbd = _cbd_alignment_settings(cbd_settings, cbd_overrides, ransac, s.cbd)
     return s
 
