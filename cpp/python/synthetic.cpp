@@ -8,7 +8,7 @@
 #include "arrays.hpp"
 #include "scanalign/reconstruction/depth_renderer.hpp"
 #include "scanalign/synthetic/builtin_part.hpp"
-#include "scanalign/synthetic/morton_order.hpp"
+#include "scanalign/common/morton_order.hpp"
 #include "scanalign/synthetic/scan_paths.hpp"
 #include "scanalign/synthetic/sensor_noise.hpp"
 
@@ -197,9 +197,10 @@ void bindSynthetic(py::module_& m) {
       [](const py::array& points) {
         const CloudView<double> view = cloudView<double>(points, "points");
         std::vector<std::int64_t> order;
+        std::vector<std::pair<std::uint64_t, std::int64_t>> keyed;
         {
           py::gil_scoped_release release;
-          order = mortonOrder(view);
+          mortonOrder(view, order, keyed);
         }
         return py::array_t<std::int64_t>(static_cast<py::ssize_t>(order.size()), order.data());
       },

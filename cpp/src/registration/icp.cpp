@@ -4,6 +4,7 @@
 #include "scanalign/registration/icp.hpp"
 
 #include "scanalign/common/block_reduce.hpp"
+#include "scanalign/common/morton_order.hpp"
 #include "scanalign/common/rigid.hpp"
 
 #include <omp.h>
@@ -92,48 +93,6 @@ struct Partial {
     exact = exact && o.exact;
   }
 };
-
-/// Spreads the low 21 bits of v to every third bit (for a 63-bit Morton code).
-std::uint64_t spreadBits(std::uint64_t v) {
-  v &= 0x1fffff;
-  v = (v | v << 32) & 0x1f00000000ffffULL;
-  v = (v | v << 16) & 0x1f0000ff0000ffULL;
-  v = (v | v << 8) & 0x100f00f00f00f00fULL;
-  v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
-  v = (v | v << 2) & 0x1249249249249249ULL;
-  return v;
-}
-
-/// Source indices in Morton (Z-curve) order, non-finite points last. Consecutive
-/// queries then touch the same part of the tree, and each one's neighbour is a good
-/// search hint for the next.
-template <typename Scalar>
-void mortonOrder(const CloudView<Scalar>& cloud, std::vector<std::uint32_t>& order,
-                 std::vector<std::pair<std::uint64_t, std::uint32_t>>& keyed) {
-  Eigen::Array3d lo = Eigen::Array3d::Constant(std::numeric_limits<double>::max());
-  Eigen::Array3d hi = Eigen::Array3d::Constant(std::numeric_limits<double>::lowest());
-  for (std::size_t i = 0; i < cloud.size; ++i)
-    if (cloud.isFinite(i)) {
-      const Eigen::Array3d p = cloud[i].template cast<double>().array();
-      lo = lo.min(p);
-      hi = hi.max(p);
-    }
-  const double extent = std::max((hi - lo).maxCoeff(), 1e-12);
-  const double scale = double((1 << 21) - 1) / extent;
-  keyed.resize(cloud.size);
-  for (std::size_t i = 0; i < cloud.size; ++i) {
-    std::uint64_t key = std::numeric_limits<std::uint64_t>::max();
-    if (cloud.isFinite(i)) {
-      const Eigen::Array3d c = (cloud[i].template cast<double>().array() - lo) * scale;
-      key = spreadBits(std::uint64_t(c[0])) | spreadBits(std::uint64_t(c[1])) << 1 |
-            spreadBits(std::uint64_t(c[2])) << 2;
-    }
-    keyed[i] = {key, static_cast<std::uint32_t>(i)};
-  }
-  std::sort(keyed.begin(), keyed.end());
-  order.resize(cloud.size);
-  for (std::size_t i = 0; i < cloud.size; ++i) order[i] = keyed[i].second;
-}
 
 /// Bucket size of the ICP's tree. Larger than the tree's generic default: ICP queries
 /// start from their last neighbour's leaf, and a wider leaf holds more of them whole
