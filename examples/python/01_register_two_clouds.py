@@ -5,12 +5,12 @@ Run after the README's set-up:  .venv/bin/python examples/python/01_register_two
 
 import numpy as np
 
-from scanalign import datasets
+from scanalign import parts
 from scanalign.features import estimate_normals
 from scanalign.registration import Box, icp
 
 # Model (target frame): the built-in part 40 cm in front of the camera, metres.
-part, _ = datasets.builtin_object(n_points=30000)
+part, _ = parts.builtin_object(n_points=30000)
 model = part + [0.0, 0.0, 0.4]
 model_normals = estimate_normals(model, radius=0.005, viewpoint=(0, 0, 0))
 

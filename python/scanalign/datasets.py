@@ -15,8 +15,7 @@ from CGAL's data.tar.gz the first time each is asked for).
   its ``data/`` unpacked into ``<cache>/small_gicp_data/``).
 
 ``python -m scanalign.datasets fetch`` downloads everything ahead of time. The built-in part
-and mesh sampling live in :mod:`scanalign.parts` (no download); they are re-exported here
-only for older callers.
+and mesh sampling live in :mod:`scanalign.parts` (no download).
 """
 
 from __future__ import annotations
@@ -35,11 +34,10 @@ from typing import Sequence
 import numpy as np
 
 from scanalign import io
-from scanalign.parts import builtin_object, sample_mesh  # re-exported for older callers
 
 __all__ = ["CGAL_PACKAGE", "PCL_PACKAGE", "DatasetUnavailableError", "cache_dir", "cgal_mesh_names", "cgal_mesh_path",
            "fetch_all", "load_cgal_mesh", "load_pcl_cloud", "pcl_cloud_names", "pcl_cloud_path",
-           "small_gicp_lidar_pair", "builtin_object", "sample_mesh"]
+           "small_gicp_lidar_pair"]
 
 CGAL_PACKAGE = "libcgal-demo"
 PCL_PACKAGE = "python3-pcl"

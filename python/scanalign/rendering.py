@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence, Union
+from typing import Union
 
 import numpy as np
 
@@ -101,17 +101,7 @@ def render_depth(
     return RenderResult(depth, face_id, cos)
 
 
-def look_at(eye: Sequence[float], target: Sequence[float], up: Sequence[float] = (0.0, 0.0, 1.0)) -> np.ndarray:
-    """The camera pose ``T_world_camera`` (camera -> world, 4x4, metres) at ``eye`` whose
-    optical axis (camera z) points at ``target``, with the image's up direction (camera -y)
-    as close as possible to ``up`` (world frame). The C++ core's ``lookAt``.
-
-    Raises:
-        ValueError: not three finite coordinates each, eye == target, or the viewing
-            direction parallel to ``up``.
-    """
-    points = [np.asarray(p, dtype=np.float64) for p in (eye, target, up)]
-    for name, p in zip(("eye", "target", "up"), points):
-        if p.shape != (3,) or not np.all(np.isfinite(p)):  # the C++ side assumes finite 3-vectors
-            raise ValueError(f"{name}: expected three finite coordinates (m), got {p.tolist()!r}")
-    return _core.pose.look_at(*points)
+#: ``look_at(eye, target, up=(0, 0, 1))``: the camera pose ``T_world_camera`` (4x4, metres) at
+#: ``eye`` whose optical axis (camera z) points at ``target``, image up (camera -y) as close as
+#: possible to ``up``; ValueError for non-finite input, eye == target or a view along ``up``.
+look_at = _core.pose.look_at

@@ -58,6 +58,8 @@ PinholeIntrinsics viewIntrinsics(int resolution, double view_angle) {
 }
 
 Eigen::Matrix4d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, const Eigen::Vector3d& up) {
+  for (const auto& [v, name] : {std::pair{&eye, "eye"}, std::pair{&target, "target"}, std::pair{&up, "up"}})
+    if (!v->allFinite()) throw std::invalid_argument(std::string(name) + ": expected three finite coordinates (m)");
   Eigen::Vector3d z = target - eye;
   if (!(z.norm() > 0)) throw std::invalid_argument("lookAt: eye and target coincide");
   z.normalize();

@@ -40,7 +40,8 @@ PinholeIntrinsics viewIntrinsics(int resolution, double view_angle = kDefaultVie
 
 /// Camera pose looking from `eye` at `target` (model frame, m): the camera's z axis points
 /// at the target, its y axis down (against `up`). Returns T_model_camera.
-/// @throws std::invalid_argument when eye == target or `up` is parallel to the view direction.
+/// @throws std::invalid_argument for non-finite input, eye == target, or `up` parallel to the
+///         view direction.
 Eigen::Matrix4d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
                        const Eigen::Vector3d& up = Eigen::Vector3d::UnitZ());
 
