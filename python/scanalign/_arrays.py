@@ -33,13 +33,6 @@ def as_points(array: object, name: str, dtype: Optional[np.dtype] = None) -> np.
     return a
 
 
-def common_dtype(*arrays: Optional[np.ndarray]) -> np.dtype:
-    """float64 if any given array is float64, else float32."""
-    return np.dtype(np.float64) if any(a is not None and a.dtype == np.float64 for a in arrays) else np.dtype(
-        np.float32
-    )
-
-
 def as_transform(T: object, name: str = "init") -> np.ndarray:
     """A 4x4 float64 rigid transform (checked for shape and finiteness here, rigidity in C++)."""
     m = np.asarray(T, dtype=np.float64)

@@ -115,7 +115,7 @@ def register(args: argparse.Namespace) -> int:
 
 def _load_source(source: str, args: argparse.Namespace) -> tuple:
     """Frames and, for synthetic scans, the scan (for its mesh) from a SOURCE argument."""
-    from . import synthetic, tum
+    from . import tum
 
     if source == "builtin":
         scan = _builtin_config(args).build()
@@ -128,17 +128,20 @@ def _load_source(source: str, args: argparse.Namespace) -> tuple:
                               stride=args.frame_stride, limit=args.limit)
         return seq, None, f"TUM RGB-D folder {path}"
     if path.suffix.lower() in (".json", ".yaml", ".yml"):
-        config = synthetic.SyntheticConfig.from_file(path)
-        overrides = {k: v for k, v in (("n_frames", args.frames), ("noise", args.noise), ("seed", args.seed))
-                     if v is not None}
-        overrides.update(_robot_overrides(args))
-        if overrides:
-            config = synthetic.SyntheticConfig(**{**config.to_dict(), **overrides})
-        scan = config.build()
+        scan = _config_file(path, args, n_frames=args.frames, noise=args.noise, seed=args.seed).build()
         return scan.frames, scan, f"synthetic scan from {path}" + _robot_note(scan)
     if not path.exists():
         raise FileNotFoundError(f"{source}: no such folder or file")
     raise ValueError(f"{source}: expected a TUM RGB-D folder, a synthetic config (.json/.yaml) or 'builtin'")
+
+
+def _config_file(path: Path, args: argparse.Namespace, **given):
+    """A synthetic-scan config file with the command line's overrides (those given)."""
+    from . import synthetic
+
+    overrides = {**{k: v for k, v in given.items() if v is not None}, **_robot_overrides(args)}
+    config = synthetic.SyntheticConfig.from_file(path)
+    return synthetic.SyntheticConfig(**{**config.to_dict(), **overrides}) if overrides else config
 
 
 def _robot_overrides(args: argparse.Namespace) -> dict:
@@ -310,17 +313,10 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
 
 def synth(args: argparse.Namespace) -> int:
     """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder."""
-    from . import synthetic, tum
-
+    from . import tum
     from .pipeline import write_joints_csv
 
-    if args.config != "builtin":
-        config = synthetic.SyntheticConfig.from_file(args.config)
-        overrides = _robot_overrides(args)
-        if overrides:
-            config = synthetic.SyntheticConfig(**{**config.to_dict(), **overrides})
-    else:
-        config = _builtin_config(args)
+    config = _builtin_config(args) if args.config == "builtin" else _config_file(Path(args.config), args)
     scan = config.build()
     folder = tum.write_tum_sequence(args.out, scan.frames, intrinsics=scan.intrinsics,
                                     depth_scale=scan.frames[0].depth_scale)
@@ -348,12 +344,8 @@ def ik_command(args: argparse.Namespace) -> int:
         v = np.asarray(args.pose, dtype=np.float64)
         if not np.all(np.isfinite(v)):
             raise ValueError("--pose: non-finite value")
-        theta = float(np.linalg.norm(v[3:]))
-        K = np.zeros((3, 3)) if theta == 0 else np.array(
-            [[0, -v[5], v[4]], [v[5], 0, -v[3]], [-v[4], v[3], 0]]) / theta
-        T = np.eye(4)
-        T[:3, :3] = np.eye(3) + np.sin(theta) * K + (1 - np.cos(theta)) * (K @ K)  # Rodrigues
-        T[:3, 3] = v[:3]
+        theta = float(np.linalg.norm(v[3:]))  # rotation vector: axis * angle
+        T = se3.rigid(v[3:] if theta > 0 else (0.0, 0.0, 1.0), theta, v[:3])
         source = "the given pose"
     sol = robot.ik(T, respect_limits=not args.ignore_limits)
     p = T[:3, 3]
