@@ -139,13 +139,8 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory
     return _save(fig, path, dpi)
 
 
-_ALIASES = {
-    "time": ("time", "seconds", "time_s", "registration_time", "registration_seconds"),
-    "iterations": ("iterations", "iters"),
-    "fitness": ("fitness",),
-    "model_size": ("model_size", "model_points", "model_size_points", "points"),
-    "skipped": ("skipped",),
-}
+_ALIASES = {"time": ("time", "seconds"), "iterations": ("iterations",), "fitness": ("fitness",),
+            "model_size": ("model_size", "model_points"), "skipped": ("skipped",)}
 
 
 def _columns(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]]) -> Dict[str, np.ndarray]:
@@ -181,11 +176,9 @@ def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, 
     or a missing / NaN time) are shaded red with an ``x`` on the frame axis.
 
     Args:
-        per_frame: one dict per frame, or a dict of equal-length columns.  Recognised keys
-            (first found wins): time in seconds ``time`` / ``seconds`` / ``time_s`` /
-            ``registration_time``; ``iterations``; ``fitness``; model size in points
-            ``model_size`` / ``model_points`` / ``points``; ``skipped`` (bool).  Only the
-            time is required.
+        per_frame: one dict per frame, or a dict of equal-length columns, with the time in
+            seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``, the
+            model size in points (``model_size`` or ``model_points``) and ``skipped``.
         path: PNG file to write.
 
     Returns:

@@ -429,42 +429,19 @@ def _write_list(path: Path, title: str, lines: List[str]) -> None:
 
 def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Optional[Intrinsics] = None,
                        depth_scale: float = TUM_DEPTH_SCALE, write_groundtruth: bool = True) -> str:
-    """Writes RGB-D frames into the TUM RGB-D layout, readable by :class:`TumSequence`.
+    """Writes RGB-D frames into the TUM RGB-D layout, readable by :class:`TumSequence`:
+    ``depth/<timestamp>.png`` (16-bit, units of ``depth_scale`` m; integer images converted
+    from ``Frame.depth_scale``, float images in metres; rounded, with 0/negative/NaN/Inf
+    written as 0) and ``depth.txt``; with colour, ``rgb/<timestamp>.png`` and ``rgb.txt``;
+    ``camera.json`` (``intrinsics``, default the frames' own, which must then agree, and
+    ``depth_scale``); and, unless ``write_groundtruth`` is False, ``groundtruth.txt`` with
+    each frame's ``T_base_camera`` (as ``T_world_camera``, metres) when it has one.
+    Timestamps get 6 decimals; frames are written in time order; PNGs use zlib level 1.
 
-    Writes ``depth/<timestamp>.png`` (16-bit greyscale, units of ``depth_scale`` m) and
-    ``depth.txt``; when the frames have colour, ``rgb/<timestamp>.png`` (8-bit RGB) and
-    ``rgb.txt`` with the depth timestamps; ``camera.json`` (intrinsics and depth_scale);
-    and ``groundtruth.txt`` with ``Frame.T_base_camera`` (as ``T_world_camera``, metres)
-    of every frame that has one, at its timestamp (no file when none has one).  When only
-    some frames have a pose, :class:`TumSequence` reads the others back with poses
-    interpolated from their neighbours (or None outside the span).  Timestamps are
-    written with 6 decimals (microseconds) like the benchmark.  PNGs use zlib level 1
-    (several times faster than Pillow's default on noisy depth, files a little larger).
-
-    Depth: integer images are converted from ``Frame.depth_scale`` to ``depth_scale``
-    (copied bit for bit when both agree), float images are in metres; values are rounded
-    to the nearest unit, and 0, negative, NaN and Inf become 0 (no measurement).
-
-    Args:
-        folder: the output folder; created if missing, and must not already hold a
-            sequence (``depth.txt``, ``rgb.txt``, ``groundtruth.txt``, images).
-        frames: the frames, in any iterable; written in time order.
-        intrinsics: the camera written to ``camera.json``; default: the frames' own
-            intrinsics, which must then all be equal.  Its size must match every depth
-            image.
-        depth_scale: metres per depth unit in the PNGs (default 1/5000, TUM).
-        write_groundtruth: False to skip ``groundtruth.txt``.
-
-    Returns:
-        The folder path, as a string.
-
-    Raises:
-        TypeError: an item that is not a :class:`Frame`, ``intrinsics`` of another type.
-        ValueError: no frames, frames of different intrinsics, a size mismatch, colour in
-            only some frames, a malformed colour image or pose, timestamps that coincide at
-            6 decimals, a non-finite timestamp, or a depth beyond ``65535 * depth_scale`` m.
-        FileExistsError: the folder already holds a sequence.
-        NotADirectoryError: ``folder`` is a file.
+    Returns the folder path. Raises TypeError (not a :class:`Frame`, bad ``intrinsics``),
+    ValueError (no frames, mixed intrinsics or colour, size mismatch, malformed colour or
+    pose, timestamps equal at 6 decimals or non-finite, depth beyond ``65535 * depth_scale``),
+    FileExistsError (``folder`` already holds a sequence) or NotADirectoryError.
     """
     depth_scale = _depth_scale(depth_scale)
     frames = list(frames)
