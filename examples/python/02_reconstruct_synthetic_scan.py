@@ -33,6 +33,7 @@ for frame in scan.frames:
 
 ate = absolute_trajectory_error(rec.trajectory, scan.reference)
 print(f"ATE RMSE {ate.translation.rmse * 1000:.2f} mm over {ate.translation.count} poses")
+assert ate.translation.count == len(scan.frames) and ate.translation.rmse < 0.006  # every frame, under 6 mm
 rec.model.write_ply(f"{out}-model.ply")
 rec.trajectory.write_tum(f"{out}-trajectory.txt")
 print(f"wrote {out}-model.ply and {out}-trajectory.txt")
