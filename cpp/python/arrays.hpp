@@ -14,11 +14,19 @@ namespace scanalign::python {
 
 namespace py = pybind11;
 
+/// True when `a` holds native-order Scalar values. Compares the element type, not the dtype
+/// object's identity: an array that went through pickle (multiprocessing, joblib, Ray)
+/// carries an equal but distinct dtype object.
+template <typename Scalar>
+bool holds(const py::array& a) {
+  return py::isinstance<py::array_t<Scalar>>(a);
+}
+
 /// View of an (N,3) array of Scalar whose rows may be strided (e.g. a[:, :3] of an (N,8)
 /// PCL-layout array) but whose 3 coordinates are contiguous.
 template <typename Scalar>
 CloudView<Scalar> cloudView(const py::array& a, const char* what) {
-  if (!a.dtype().is(py::dtype::of<Scalar>()))
+  if (!holds<Scalar>(a))
     throw py::type_error(std::string(what) + ": expected dtype " + std::string(py::str(py::dtype::of<Scalar>())) +
                          ", got " + std::string(py::str(a.dtype())));
   if (a.ndim() != 2 || a.shape(1) != 3)
@@ -40,7 +48,7 @@ py::array asCloudArray(const py::array& a, const char* what) {
     throw py::type_error(std::string(what) + ": expected a float32 or float64 array, got dtype " +
                          std::string(py::str(a.dtype())));
   const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
-  const bool viewable = a.dtype().is(py::dtype::of<Scalar>()) && a.ndim() == 2 && a.strides(1) == item &&
+  const bool viewable = holds<Scalar>(a) && a.ndim() == 2 && a.strides(1) == item &&
                         (a.shape(0) <= 1 || (a.strides(0) >= 3 * item && a.strides(0) % item == 0));
   return viewable ? a : py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
 }
@@ -54,7 +62,7 @@ auto withCloud(const py::object& o, const char* what, F&& f) {
   if (!a || a.dtype().kind() != 'f')
     throw py::type_error(std::string(what) + ": expected a float32 or float64 array" +
                          (a ? ", got dtype " + std::string(py::str(a.dtype())) : std::string()));
-  if (a.dtype().is(py::dtype::of<float>())) return f(cloudView<float>(asCloudArray<float>(a, what), what));
+  if (holds<float>(a)) return f(cloudView<float>(asCloudArray<float>(a, what), what));
   return f(cloudView<double>(asCloudArray<double>(a, what), what));
 }
 

@@ -33,7 +33,7 @@ void defineFeatures(py::module_& m) {
         s.viewpoint = Eigen::Vector3d(viewpoint.data()[0], viewpoint.data()[1], viewpoint.data()[2]);
         s.min_neighbors = min_neighbors;
         s.num_threads = num_threads;
-        if (points.dtype().is(py::dtype::of<float>())) return normals(cloudView<float>(points, "points"), s);
+        if (holds<float>(points)) return normals(cloudView<float>(points, "points"), s);
         return normals(cloudView<double>(points, "points"), s);
       },
       py::arg("points"), py::arg("radius"), py::arg("viewpoint"), py::arg("min_neighbors"), py::arg("num_threads"),

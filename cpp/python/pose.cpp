@@ -320,8 +320,8 @@ void bindAlignment(py::module_& m) {
   m.def(
       "align_cbd",
       [](const py::array& source, const py::array& target, const CbdAlignmentSettings& s) {
-        if (!source.dtype().is(target.dtype())) throw py::type_error("source and target must have the same dtype");
-        if (source.dtype().is(py::dtype::of<float>())) {
+        if (holds<float>(source) != holds<float>(target)) throw py::type_error("source and target must have the same dtype");
+        if (holds<float>(source)) {
           const auto a = cloudView<float>(source, "source"), b = cloudView<float>(target, "target");
           py::gil_scoped_release release;
           return alignCbd(a, b, s);

@@ -66,7 +66,7 @@ std::pair<py::array, bool> depthImage(const py::array& depth) {
   if (kind == 'f') return {py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(depth), true};
   if (kind != 'u' && kind != 'i')
     throw py::type_error("depth: expected uint16 or float, got dtype " + std::string(py::str(depth.dtype())));
-  if (!depth.dtype().is(py::dtype::of<std::uint16_t>()) && depth.size() > 0) {
+  if (!holds<std::uint16_t>(depth) && depth.size() > 0) {
     const auto wide = py::array_t<std::int64_t, py::array::forcecast>::ensure(depth);
     const auto* d = wide.data();
     for (py::ssize_t i = 0; i < wide.size(); ++i)
@@ -85,7 +85,7 @@ py::tuple depthToCloudPy(const py::array& depth_in, const PinholeIntrinsics& K, 
     if (a.ndim() != 3 || a.shape(0) != K.height || a.shape(1) != K.width || a.shape(2) != 3)
       throw py::value_error("rgb: expected shape (" + std::to_string(K.height) + ", " + std::to_string(K.width) +
                             ", 3) matching the depth image");
-    if (!a.dtype().is(py::dtype::of<std::uint8_t>()))
+    if (!holds<std::uint8_t>(a))
       throw py::type_error("rgb: expected uint8, got " + std::string(py::str(a.dtype())));
     rgb = py::array_t<std::uint8_t, py::array::c_style>::ensure(a);
   }
@@ -426,7 +426,7 @@ void defineReconstruction(py::module_& m) {
   m.def(
       "voxel_grid",
       [](const py::array& points, double leaf_size, const py::object& attributes, int min_points_per_voxel) {
-        if (points.dtype().is(py::dtype::of<float>()))
+        if (holds<float>(points))
           return voxel(cloudView<float>(points, "points"), leaf_size, attributes, min_points_per_voxel);
         return voxel(cloudView<double>(points, "points"), leaf_size, attributes, min_points_per_voxel);
       },

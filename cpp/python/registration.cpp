@@ -102,7 +102,7 @@ struct ScalarOf<LeftBalancedKdTree<S>> {
   using type = S;
 };
 
-bool isDouble(const py::array& a) { return a.dtype().is(py::dtype::of<double>()); }
+bool isDouble(const py::array& a) { return holds<double>(a); }
 
 /// The ICP engine in the target's precision: float32 when target and normals are float32
 /// (half the memory, faster), else float64; sources are cast to it.

@@ -39,7 +39,7 @@ py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, int w
                         bool cull_backfaces, int num_threads) {
   if (width < 1 || height < 1 || width > 32768 || height > 32768)
     throw py::value_error("image size must be in [1, 32768] pixels");
-  const bool f32 = vertices.dtype().is(py::dtype::of<float>());
+  const bool f32 = holds<float>(vertices);
   CloudView<float> vf;
   CloudView<double> vd;
   if (f32)

@@ -124,9 +124,8 @@ def _package_root(package: str) -> Path:
 
 def _write_atomic(path: Path, data: bytes) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
-    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
-    partial.write_bytes(data)
-    os.replace(partial, path)
+    with io.atomic_open(path, "wb") as fh:
+        fh.write(data)
 
 
 def fetch_all() -> list[Path]:

@@ -20,6 +20,7 @@ raises :class:`ValueError` whose message starts with the file path.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import warnings
@@ -32,7 +33,7 @@ from plyfile import PlyData, PlyElementParseError, PlyHeaderParseError
 
 from ._core import io as _io
 
-__all__ = ["Mesh", "lzf_decompress", "read_mesh", "read_pcd", "read_pcd_points", "read_ply_points",
+__all__ = ["Mesh", "atomic_open", "lzf_decompress", "read_mesh", "read_pcd", "read_pcd_points", "read_ply_points",
            "unpack_rgb", "write_ply"]
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -235,6 +236,21 @@ def read_mesh(path: PathLike) -> Mesh:
         raise _error(path, str(exc)) from None
 
 
+@contextlib.contextmanager
+def atomic_open(path: PathLike, mode: str = "w", **kwargs):
+    """``open(path, mode)`` for writing, all or nothing: the data goes to a hidden partial file
+    beside ``path`` that replaces it only when the block completes, so an interrupted or
+    failing write never leaves a truncated file (nor touches an existing one)."""
+    path = Path(path)
+    partial = path.with_name(f".{path.name}.{os.getpid()}.partial")
+    try:
+        with open(partial, mode, **kwargs) as fh:
+            yield fh
+        os.replace(partial, path)
+    finally:
+        partial.unlink(missing_ok=True)
+
+
 def write_ply(
     path: PathLike,
     points: npt.ArrayLike,
@@ -286,7 +302,7 @@ def write_ply(
     ply_type = {np.dtype(np.float32): "float", np.dtype(np.uint8): "uchar"}
     header = [f"ply\nformat {'binary_little_endian' if binary else 'ascii'} 1.0\ncomment written by scanalign",
               f"element vertex {n}", *(f"property {ply_type[c.dtype]} {name}" for name, c in columns), "end_header"]
-    with open(path, "wb") as fh:
+    with atomic_open(path, "wb") as fh:
         fh.write(("\n".join(header) + "\n").encode("ascii"))
         if binary:
             record = np.dtype([(name, c.dtype.newbyteorder("<")) for name, c in columns])

@@ -32,6 +32,7 @@ from tqdm.auto import tqdm
 
 from .camera import Frame
 from .reconstruction import DepthFilter, FrameReport, FrameToModelSettings, Model, Reconstructor
+from .io import atomic_open
 from .se3 import inverse
 from .trajectory import Trajectory
 
@@ -130,7 +131,7 @@ class ReconstructionResult:
             paths["reference"] = out / "reference.txt"
             self.reference.write_tum(paths["reference"], header="reference: T_base_camera (camera -> robot base frame)")
         cols = [k for k in FrameReport().to_dict() if k != "T_model_camera"]
-        with open(paths["frames"], "w", newline="", encoding="utf-8") as f:
+        with atomic_open(paths["frames"], "w", newline="", encoding="utf-8") as f:
             w = csv.writer(f)
             w.writerow(cols)
             for r in self.records:
@@ -147,7 +148,7 @@ class ReconstructionResult:
             "units": "metres, radians, seconds",
         }
         paths["report"] = out / "report.json"
-        with open(paths["report"], "w", encoding="utf-8") as f:
+        with atomic_open(paths["report"], "w", encoding="utf-8") as f:
             json.dump(_jsonable(report), f, indent=2)
         if plots:
             from . import plots as _plots
@@ -188,7 +189,7 @@ def write_joints_csv(path: Union[str, Path], indices: Iterable[int], timestamps:
     per frame (timestamp in seconds, joints in radians, 17 significant digits so the values
     read back exactly; empty cells for unknown joints)."""
     q = np.asarray(joints, dtype=np.float64)
-    with open(path, "w", newline="", encoding="utf-8") as f:
+    with atomic_open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
         w.writerow(["index", "timestamp", "q1", "q2", "q3", "q4", "q5", "q6"])
         for i, t, row in zip(indices, timestamps, q):

@@ -21,6 +21,7 @@ import numpy as np
 
 from . import _core, se3
 from ._arrays import as_transform
+from .io import atomic_open
 
 __all__ = ["Trajectory", "quaternion_from_matrix", "matrix_from_quaternion", "pose_from_tum",
            "read_tum_trajectory", "write_tum_trajectory", "associate_timestamps", "TumFormatError",
@@ -227,7 +228,7 @@ def read_tum_trajectory(path: PathLike) -> Trajectory:
 def write_tum_trajectory(path: PathLike, trajectory: Trajectory, header: Optional[str] = None) -> None:
     """Writes a trajectory in the TUM format: timestamps to the microsecond, poses in full
     double precision; ``header`` lines become ``#`` comments."""
-    with open(path, "w", encoding="utf-8") as f:
+    with atomic_open(path, "w", encoding="utf-8") as f:
         f.writelines(f"# {line}\n" for line in (header or "").splitlines())
         f.write("# timestamp tx ty tz qx qy qz qw\n")
         f.writelines(f"{r[0]:.6f} " + " ".join(f"{v:.17g}" for v in r[1:]) + "\n" for r in trajectory.to_tum_rows())

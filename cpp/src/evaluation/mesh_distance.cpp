@@ -1,5 +1,6 @@
 // Exact point-to-mesh distance through a bounding-volume hierarchy; see mesh_distance.hpp.
 #include "scanalign/evaluation/mesh_distance.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -176,7 +177,7 @@ void MeshDistanceIndex::closestPoints(const CloudView<double>& points, double* d
   if (num_threads < 0) throw std::invalid_argument("num_threads must be >= 0");
   const auto n = static_cast<std::int64_t>(points.size);
 #ifdef _OPENMP
-  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
+  const int threads = resolveThreads(num_threads);
 #endif
   // Dynamic chunks: points far from the surface visit many more nodes than near ones.
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads)

@@ -1,4 +1,5 @@
 #include "scanalign/features/normals.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include <omp.h>
 
@@ -327,7 +328,7 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
   };
   const double r2_in = r2 * (1.0 - 1e-12), r2_out = r2 * (1.0 + 1e-12);
   const std::size_t nrows = row_keys.size();
-  const int threads = settings.num_threads > 0 ? settings.num_threads : omp_get_max_threads();
+  const int threads = resolveThreads(settings.num_threads);
 #pragma omp parallel num_threads(threads)
   {
     struct Window {
@@ -452,7 +453,7 @@ void estimateNormals(const CloudView<Scalar>& points, const LeftBalancedKdTree<S
   if (points.size > 0 && normals == nullptr) throw std::invalid_argument("normal estimation: null output");
   const Scalar r2 = static_cast<Scalar>(settings.radius * settings.radius);
   const Scalar nan = std::numeric_limits<Scalar>::quiet_NaN();
-  const int threads = settings.num_threads > 0 ? settings.num_threads : omp_get_max_threads();
+  const int threads = resolveThreads(settings.num_threads);
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads)
   for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(points.size); ++ii) {
     const std::size_t i = static_cast<std::size_t>(ii);

@@ -11,6 +11,7 @@
 // which PCL's accumulator indexing stays in bounds, and PPF models too large for PCL's
 // hash map are refused with a message.
 #include "scanalign/features/pcl/feature_alignment.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -182,7 +183,7 @@ Cloud::Ptr voxelize(const Cloud::Ptr& cloud, double leaf, const char* which, std
 /// was too small for a normal: NaN normals would poison every descriptor and PPF.
 Cloud::Ptr estimateNormals(const Cloud::Ptr& cloud, const PclFeatureAlignmentSettings& s) {
   if (cloud->empty()) return cloud;
-  pcl::NormalEstimationOMP<PointT, PointT> ne(static_cast<unsigned int>(s.num_threads));
+  pcl::NormalEstimationOMP<PointT, PointT> ne(static_cast<unsigned int>(resolveThreads(s.num_threads)));
   ne.setInputCloud(cloud);
   ne.setSearchMethod(pcl::make_shared<Tree>());
   ne.setRadiusSearch(s.normal_radius);
@@ -205,7 +206,7 @@ typename FeatureCloud<FeatureT>::Ptr computeDescriptors(const Cloud::Ptr& cloud,
 template <>
 FeatureCloud<pcl::FPFHSignature33>::Ptr computeDescriptors<pcl::FPFHSignature33>(const Cloud::Ptr& cloud,
                                                                                  const PclFeatureAlignmentSettings& s) {
-  pcl::FPFHEstimationOMP<PointT, PointT, pcl::FPFHSignature33> est(static_cast<unsigned int>(s.num_threads));
+  pcl::FPFHEstimationOMP<PointT, PointT, pcl::FPFHSignature33> est(static_cast<unsigned int>(resolveThreads(s.num_threads)));
   est.setInputCloud(cloud);
   est.setInputNormals(cloud);
   est.setSearchMethod(pcl::make_shared<Tree>());
@@ -218,7 +219,7 @@ FeatureCloud<pcl::FPFHSignature33>::Ptr computeDescriptors<pcl::FPFHSignature33>
 template <>
 FeatureCloud<pcl::SHOT352>::Ptr computeDescriptors<pcl::SHOT352>(const Cloud::Ptr& cloud,
                                                                  const PclFeatureAlignmentSettings& s) {
-  pcl::SHOTEstimationOMP<PointT, PointT, pcl::SHOT352> est(static_cast<unsigned int>(s.num_threads));
+  pcl::SHOTEstimationOMP<PointT, PointT, pcl::SHOT352> est(static_cast<unsigned int>(resolveThreads(s.num_threads)));
   est.setInputCloud(cloud);
   est.setInputNormals(cloud);
   est.setSearchMethod(pcl::make_shared<Tree>());

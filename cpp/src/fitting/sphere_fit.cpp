@@ -21,6 +21,7 @@
 // (thesis (6.6)), so this changes the solution only by the known similarity, which is undone at the
 // end; it keeps D well scaled for data far from the origin or in any unit.
 #include "scanalign/fitting/sphere_fit.hpp"
+#include "scanalign/common/threads.hpp"
 #include "scanalign/fitting/detail/pencil.hpp"
 
 #include <algorithm>
@@ -155,7 +156,7 @@ std::vector<SphereFit> fitSpheres(const CloudView<Scalar>& points, const std::in
       throw std::invalid_argument("fitSpheres: offsets must be non-decreasing, >= 0 and <= the number of points");
   std::vector<SphereFit> out(n_groups);
   const long long n = static_cast<long long>(n_groups);
-#pragma omp parallel for schedule(dynamic, 64) num_threads(num_threads > 0 ? num_threads : omp_get_max_threads())
+#pragma omp parallel for schedule(dynamic, 64) num_threads(resolveThreads(num_threads))
   for (long long g = 0; g < n; ++g) {
     const std::size_t begin = static_cast<std::size_t>(offsets[g]);
     const std::size_t size = static_cast<std::size_t>(offsets[g + 1]) - begin;

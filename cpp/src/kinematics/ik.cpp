@@ -1,6 +1,7 @@
 // Analytic inverse kinematics with CGA (Kleppe, PhD thesis, NTNU 2018, Paper 1 §4-5 and §5.3).
 // See ik.hpp for the construction, the configuration labels and the singularity choices.
 #include "scanalign/kinematics/ik.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -680,7 +681,7 @@ IKSolution ikClosest(const Robot& robot, const Eigen::Isometry3d& T_base_tool, c
 void ikBatch(const Robot& robot, const double* poses, std::size_t n, IKResult* out, const IKSettings& options,
              int num_threads) {
   const long long N = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) num_threads(num_threads > 0 ? num_threads : omp_get_max_threads()) if (num_threads != 1 && N > 64)
+#pragma omp parallel for schedule(static) num_threads(resolveThreads(num_threads)) if (num_threads != 1 && N > 64)
   for (long long i = 0; i < N; ++i) out[i] = solve(robot, poseAt(poses, static_cast<std::size_t>(i)), options, nullptr);
 }
 

@@ -1,5 +1,6 @@
 // DH robots and forward kinematics (Kleppe, PhD thesis, NTNU 2018, Paper 1 eqs. (1)-(3)).
 #include "scanalign/kinematics/robot.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include <cmath>
 #include <stdexcept>
@@ -108,7 +109,7 @@ std::array<Eigen::Isometry3d, 7> Robot::jointFrames(const Vector6d& q) const {
 
 void Robot::forwardBatch(const double* q, std::size_t n, double* out, int num_threads) const {
   const long long N = static_cast<long long>(n);
-#pragma omp parallel for schedule(static) num_threads(num_threads > 0 ? num_threads : omp_get_max_threads()) if (num_threads != 1 && N > 256)
+#pragma omp parallel for schedule(static) num_threads(resolveThreads(num_threads)) if (num_threads != 1 && N > 256)
   for (long long i = 0; i < N; ++i) {
     const Eigen::Map<const Vector6d> qi(q + 6 * i);
     const Eigen::Matrix4d T = forward(qi).matrix();

@@ -1,5 +1,6 @@
 // Curvature-based descriptor (thesis ch. 6, paper 5). See cbd.hpp.
 #include "scanalign/pose/cbd.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include <omp.h>
 
@@ -22,7 +23,7 @@ namespace scanalign {
 
 namespace {
 
-int threadsOf(int n) { return n > 0 ? n : omp_get_max_threads(); }
+int threadsOf(int n) { return resolveThreads(n); }
 
 void validate(const CbdSettings& s) {
   if (!(s.radius > 0) || !std::isfinite(s.radius))

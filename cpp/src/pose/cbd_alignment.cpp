@@ -1,5 +1,6 @@
 // CBD coarse alignment. See cbd_alignment.hpp.
 #include "scanalign/pose/cbd_alignment.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include <omp.h>
 
@@ -33,7 +34,7 @@ std::pair<double, double> alignmentFitness(const CloudView<Scalar>& source, cons
   std::size_t finite = 0, inl = 0;
   double acc = 0;
 #pragma omp parallel for reduction(+ : finite, inl, acc) schedule(static) \
-    num_threads(num_threads > 0 ? num_threads : omp_get_max_threads())
+    num_threads(resolveThreads(num_threads))
   for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(source.size); ++ii) {
     if (!source.isFinite(ii)) continue;
     ++finite;

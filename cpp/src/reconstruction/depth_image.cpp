@@ -1,4 +1,5 @@
 #include "scanalign/reconstruction/depth_image.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include <omp.h>
 
@@ -202,7 +203,7 @@ void bilateralFilterDepth(const float* depth, int width, int height, float* out,
   const int padded_width = (width + kRowLanes - 1) / kRowLanes * kRowLanes;
   const std::size_t stride = static_cast<std::size_t>(padded_width) + 2 * radius;
   std::vector<float> padded(stride * (static_cast<std::size_t>(height) + 2 * radius), 0.0f);
-  const int threads = num_threads > 0 ? num_threads : omp_get_max_threads();
+  const int threads = resolveThreads(num_threads);
 #pragma omp parallel num_threads(threads)
   {
 #pragma omp for schedule(static)

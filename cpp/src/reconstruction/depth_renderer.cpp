@@ -4,6 +4,7 @@
 // the two triangles of a shared edge evaluating bit-identical expressions, which a fused
 // multiply-add in one code path (e.g. a vectorised loop body) and not in another would break.
 #include "scanalign/reconstruction/depth_renderer.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include "scanalign/common/rigid.hpp"
 
@@ -356,7 +357,7 @@ void renderDepth(const CloudView<Scalar>& vertices, const std::int32_t* faces, s
                  const PinholeCamera& camera, const Eigen::Matrix4d& T_camera_world, const DepthRenderSettings& settings,
                  const DepthRenderOutput& out) {
   checkInputs(vertices.size, faces, n_faces, camera, T_camera_world, settings, out);
-  const int threads = settings.num_threads > 0 ? settings.num_threads : omp_get_max_threads();
+  const int threads = resolveThreads(settings.num_threads);
   const int width = camera.width, height = camera.height;
   const std::size_t n_vertices = vertices.size;
 

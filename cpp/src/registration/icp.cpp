@@ -2,6 +2,7 @@
 // (Comput. Electron. Agric. 180 (2021) 105929)), explicitly instantiated
 // for float and double clouds.
 #include "scanalign/registration/icp.hpp"
+#include "scanalign/common/threads.hpp"
 
 #include "scanalign/common/block_reduce.hpp"
 #include "scanalign/common/morton_order.hpp"
@@ -209,7 +210,7 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
   const std::optional<Box> box = settings_.box;
   const RobustKernel kernel = settings_.robust_kernel;
   const double robust_k = settings_.robust_scale;
-  const int threads = settings_.num_threads > 0 ? settings_.num_threads : omp_get_max_threads();
+  const int threads = resolveThreads(settings_.num_threads);
   const std::size_t min_corr =
       static_cast<std::size_t>(std::max(settings_.min_correspondences, plane ? 6 : 3));
   neighbor_.assign(n, NearestNeighbor<Scalar>::kNone);

@@ -7,6 +7,8 @@
 // depend on the number of threads or on scheduling, and a GPU backend can reproduce it.
 #pragma once
 
+#include "scanalign/common/threads.hpp"
+
 #include <algorithm>
 #include <cstddef>
 #include <vector>
@@ -33,7 +35,7 @@ template <typename Partial, typename Fn>
 Partial blockReduce(std::size_t n, int threads, std::vector<Partial>& scratch, Fn&& fn) {
   const std::size_t nblocks = (n + kReduceBlock - 1) / kReduceBlock;
   scratch.resize(nblocks);
-#pragma omp parallel for schedule(dynamic, 1) num_threads(threads > 0 ? threads : omp_get_max_threads())
+#pragma omp parallel for schedule(dynamic, 1) num_threads(resolveThreads(threads))
   for (std::ptrdiff_t b = 0; b < static_cast<std::ptrdiff_t>(nblocks); ++b) {
     Partial part{};
     const std::size_t begin = static_cast<std::size_t>(b) * kReduceBlock;

@@ -30,6 +30,7 @@
 #include <Eigen/Core>
 
 #include "scanalign/cga/vector5.hpp"
+#include "scanalign/common/threads.hpp"
 #include "scanalign/common/cloud_view.hpp"
 
 #ifdef _OPENMP
@@ -257,7 +258,7 @@ RansacLoopStats ransacLoop(std::size_t n, int sample_size, Build&& build, Error&
   const double threshold = settings.threshold;
   int threads = settings.num_threads;
 #ifdef _OPENMP
-  if (threads <= 0) threads = omp_get_max_threads();
+  threads = resolveThreads(threads);
 #else
   threads = 1;
 #endif

@@ -38,6 +38,7 @@
 #include <omp.h>
 
 #include "scanalign/common/cloud_view.hpp"
+#include "scanalign/common/threads.hpp"
 #include "scanalign/registration/kdtree.hpp"  // NearestNeighbor
 
 namespace scanalign {
@@ -210,7 +211,7 @@ void BucketKdTree<Scalar>::build(const CloudView<Scalar>& cloud, Keep&& keep, in
   if (n == 0) return;
   const Scalar inf = std::numeric_limits<Scalar>::infinity();
   const Scalar root_cell[6] = {-inf, -inf, -inf, inf, inf, inf};
-#pragma omp parallel num_threads(num_threads > 0 ? num_threads : omp_get_max_threads())
+#pragma omp parallel num_threads(resolveThreads(num_threads))
 #pragma omp single nowait
   buildNode(records.data(), n, 0, 0, 0, NearestNeighbor<Scalar>::kNone, root_cell);
 }

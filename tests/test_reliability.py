@@ -1,0 +1,106 @@
+"""Inputs that used to crash the process or be refused: arrays that went through pickle (as
+multiprocessing, joblib and Ray pass them), absurd thread counts, and interrupted writes."""
+
+from __future__ import annotations
+
+import pickle
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from scanalign import features, fitting, io, registration, segmentation
+from scanalign.reconstruction import voxel_grid
+
+
+@pytest.fixture(scope="module")
+def cloud():
+    rng = np.random.default_rng(3)
+    u, v = rng.uniform(-0.1, 0.1, (2, 3000))
+    return np.c_[u, v, 0.4 + 0.01 * np.sin(30 * u)]  # a wavy patch, metres
+
+
+def _pickled(a: np.ndarray) -> np.ndarray:
+    b = pickle.loads(pickle.dumps(a))
+    assert b.dtype == a.dtype and b.dtype is not a.dtype  # equal type, another dtype object
+    return b
+
+
+def test_pickled_arrays_are_accepted_and_give_the_same_answers(cloud):
+    """A dtype equal to float64 but not the same object used to be refused with
+    'expected dtype float64, got float64'."""
+    p = _pickled(cloud)
+    n = features.estimate_normals(cloud, radius=0.01, viewpoint=(0, 0, 0))
+    np.testing.assert_array_equal(features.estimate_normals(p, radius=0.01, viewpoint=(0, 0, 0)), n)
+    T = np.eye(4)
+    T[:3, 3] = (0.002, -0.001, 0.001)
+    moved = cloud @ T[:3, :3].T + T[:3, 3]
+    a = registration.icp(_pickled(moved), cloud, _pickled(n), max_correspondence_distance=0.01)
+    b = registration.icp(moved, cloud, n, max_correspondence_distance=0.01)
+    np.testing.assert_array_equal(a.T_target_source, b.T_target_source)
+    np.testing.assert_allclose(a.T_target_source @ T, np.eye(4), atol=1e-6)
+    np.testing.assert_array_equal(voxel_grid(p, 0.01).points, voxel_grid(cloud, 0.01).points)
+    assert segmentation.ransac_plane(p, threshold=0.02).inliers.size == \
+        segmentation.ransac_plane(cloud, threshold=0.02).inliers.size
+    s, t = fitting.fit_sphere(_pickled(cloud[:100])), fitting.fit_sphere(cloud[:100])
+    assert s.radius == t.radius and np.array_equal(s.dual, t.dual)
+
+
+def test_a_foreign_byte_order_is_a_clear_type_error_not_a_crash(cloud):
+    with pytest.raises(TypeError, match="float32 or float64"):
+        features.estimate_normals(cloud.astype(">f8"), radius=0.01)
+
+
+def test_absurd_thread_counts_are_clamped_to_the_machine():
+    """num_threads=5000 or 100000 used to exhaust the stack (SIGSEGV) in every OpenMP
+    region; now every entry point clamps to the processor count and gives the answer of a
+    1-thread run (the engines are thread-count independent). Run in a subprocess so a
+    regression fails this test, not the whole run."""
+    script = textwrap.dedent("""
+        import numpy as np
+        from scanalign import features, fitting, kinematics, registration, segmentation
+        from scanalign.reconstruction import bilateral_filter_depth, DepthFilter
+        rng = np.random.default_rng(0)
+        u, v = rng.uniform(-0.1, 0.1, (2, 4000))
+        p = np.c_[u, v, 0.4 + 0.01 * np.sin(30 * u)]
+        for threads in (5000, 100000):
+            n1 = features.estimate_normals(p, radius=0.01, num_threads=1)
+            assert np.array_equal(features.estimate_normals(p, radius=0.01, num_threads=threads), n1, equal_nan=True)
+            r1 = registration.icp(p + 0.001, p, n1, num_threads=1)
+            r = registration.icp(p + 0.001, p, n1, num_threads=threads)
+            assert np.array_equal(r.T_target_source, r1.T_target_source)
+            a = segmentation.ransac_plane(p, threshold=0.02, num_threads=threads)
+            assert np.array_equal(a.inliers, segmentation.ransac_plane(p, threshold=0.02, num_threads=1).inliers)
+            plane, objects = segmentation.segment_table(p, threshold=0.005, num_threads=threads)
+            b = fitting.fit_spheres(p, np.arange(0, 4001, 100), num_threads=threads)
+            assert len(b) == 40
+            robot = kinematics.ur5()
+            poses = np.stack([robot.fk(q) for q in rng.uniform(-2, 2, (300, 6))])
+            assert np.array_equal(robot.ik_batch(poses, num_threads=threads).q,
+                                  robot.ik_batch(poses, num_threads=1).q, equal_nan=True)
+            depth = np.full((48, 64), 0.5, np.float32)
+            bilateral_filter_depth(depth, DepthFilter(), num_threads=threads)
+        print("ok")
+    """)
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr[-3000:]
+
+
+def test_an_interrupted_write_leaves_the_old_file_whole(tmp_path, monkeypatch):
+    path = tmp_path / "model.ply"
+    io.write_ply(path, np.zeros((5, 3)))
+    before = path.read_bytes()
+
+    class Boom(Exception):
+        pass
+
+    def fail(*args, **kwargs):
+        raise Boom
+
+    monkeypatch.setattr(io.np, "empty", fail)  # the writer dies after the header is out
+    with pytest.raises(Boom):
+        io.write_ply(path, np.ones((7, 3)))
+    assert path.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["model.ply"]  # no partial file left behind
