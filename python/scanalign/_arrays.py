@@ -10,16 +10,9 @@ _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 
 
 def as_points(array: object, name: str, dtype: Optional[np.dtype] = None) -> np.ndarray:
-    """Returns ``array`` as an (N, 3) float32/float64 array the C++ core can view.
-
-    No copy is made when the array already has a float dtype (and ``dtype`` is None or
-    equal), three contiguous coordinates per row and a positive row stride -- e.g. a
-    C-contiguous (N, 3) array, or ``a[:, :3]`` of a PCL-layout (N, 4) / (N, 8) array.
-
-    Raises:
-        TypeError: not a NumPy-convertible float array (integer, bool, object, complex ...).
-        ValueError: not of shape (N, 3).
-    """
+    """``array`` as an (N, 3) float32/float64 array the C++ core can view, without a copy when
+    its layout allows (e.g. ``a[:, :3]`` of an (N, 8) PCL-layout array). TypeError for a
+    non-float array (integer, bool, object, complex), ValueError for another shape."""
     a = np.asarray(array)
     if a.dtype not in _FLOATS:
         raise TypeError(f"{name}: expected a float32 or float64 array, got dtype {a.dtype}")

@@ -1,19 +1,11 @@
 """The reconstruction job end to end: frames in, model + trajectory + report out.
 
-:func:`reconstruct` runs :class:`scanalign.reconstruction.Reconstructor` over a sequence
-of :class:`scanalign.camera.Frame` (a synthetic scan, a TUM RGB-D folder, any iterable)
-with a progress bar, and evaluates the estimated trajectory against the frames'
-reference poses (``Frame.T_base_camera``, e.g. the robot's forward kinematics and
-hand-eye calibration) when they have them. :meth:`ReconstructionResult.save` writes
-``model.ply`` (model frame, colours and normals), ``trajectory.txt`` (estimated poses,
-TUM format, model frame), ``reference.txt`` (reference poses of the same frames, base
-frame), ``frames.csv`` (per-frame status, times, iterations, fitness, RMSE, sizes),
-``report.json`` (settings, ATE, RPE, times, model size), ``joints.csv`` when the frames
-carry robot joints (``Frame.meta["joints"]``: index, timestamp (s), q1 ... q6 (rad)),
-and plots: ``trajectory.png`` (top-down estimate vs reference with error segments, like
-Fig. 4 of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)),
-``frames.png`` (per-frame time and model size) and ``joints.png`` (joint angles with
-the robot's limits).
+:func:`reconstruct` runs :class:`scanalign.reconstruction.Reconstructor` over a sequence of
+:class:`scanalign.camera.Frame` (a synthetic scan, a TUM RGB-D folder, any iterable) with a
+progress bar and evaluates the estimated trajectory against the frames' reference poses
+(``Frame.T_base_camera``, e.g. the robot's forward kinematics and hand-eye calibration) when
+they have them; :meth:`ReconstructionResult.save` writes the model, trajectories, per-frame
+table, report and plots.
 """
 
 from __future__ import annotations
