@@ -104,3 +104,55 @@ def test_an_interrupted_write_leaves_the_old_file_whole(tmp_path, monkeypatch):
         io.write_ply(path, np.ones((7, 3)))
     assert path.read_bytes() == before
     assert [p.name for p in tmp_path.iterdir()] == ["model.ply"]  # no partial file left behind
+
+
+def test_pcl_baselines_never_see_a_point_that_makes_pcl_assert():
+    """NaN/Inf points, NaN or zero normals used to abort the process inside PCL; identical,
+    collinear and too few points were reported converged. Now: non-finite data is left out,
+    an undetermined problem is the status not_enough_correspondences (degenerate when enough
+    points do not span a plane), and an absurd initial guess is a ValueError."""
+    script = textwrap.dedent("""
+        import numpy as np
+        from scanalign import features, registration
+        rng = np.random.default_rng(0)
+        u, v = rng.uniform(-0.1, 0.1, (2, 3000))
+        p = np.c_[u, v, 0.4 + 0.02 * np.sin(30 * u) * np.cos(25 * v)]  # a wavy patch, metres
+        n = features.estimate_normals(p, radius=0.01, viewpoint=(0, 0, 0))
+        T = np.eye(4); T[:3, 3] = (0.003, -0.002, 0.001)
+        moved = p @ T[:3, :3].T - T[:3, 3]  # the source, T maps it back onto the target
+        for variant in ("svd", "dual_quaternion", "point_to_plane_lls"):
+            normals = n if variant == "point_to_plane_lls" else None
+            def run(src, tgt=p, nrm=normals, init=None):
+                return registration.pcl_icp(src, tgt, nrm, init, variant=variant, max_correspondence_distance=0.02)
+            bad = moved.copy(); bad[3] = np.nan; bad[7] = np.inf
+            r = run(bad)
+            assert r.converged and np.abs(r.T_target_source[:3, 3] - T[:3, 3]).max() < 5e-4, (variant, r)
+            t = p.copy(); t[5] = np.nan
+            assert run(moved, t, None if normals is None else normals).converged
+            for src in (np.tile(p[:1], (50, 1)), np.c_[np.linspace(0, 0.1, 50), np.zeros(50), np.full(50, 0.4)]):
+                r = run(src)
+                assert not r.converged and r.status == "not_enough_correspondences" and r.degenerate, (variant, r)
+            r = run(moved, p[:1], None if normals is None else normals[:1])
+            assert not r.converged and r.status == "not_enough_correspondences"
+            if normals is not None:
+                for bad_n in (np.full_like(n, np.nan), np.zeros_like(n)):
+                    r = run(moved, p, bad_n)
+                    assert not r.converged and r.status == "not_enough_correspondences"
+            huge = np.eye(4); huge[:3, 3] = 1e30
+            try:
+                run(moved, init=huge)
+                raise AssertionError("accepted a 1e30 m initial translation")
+            except ValueError as e:
+                assert "1e6 m" in str(e)
+        print("ok")
+    """)
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0 and r.stdout.strip().endswith("ok"), r.stderr[-3000:]
+
+
+def test_register_demo_refuses_a_nan_noise_level(tmp_path, monkeypatch, capsys):
+    from scanalign import cli
+
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["register-demo", "--noise", "nan"]) == 2  # used to abort inside PCL
+    assert "--noise must be a finite" in capsys.readouterr().err

@@ -29,6 +29,8 @@ def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
     from .features import estimate_normals
     from .registration import icp, pcl_icp
 
+    if not (np.isfinite(noise) and noise >= 0):
+        raise ValueError(f"--noise must be a finite depth noise >= 0 (m), got {noise}")
     rng = np.random.default_rng(seed)
     out.mkdir(parents=True, exist_ok=True)
     # Model: the built-in part, in the model frame, 40 cm in front of the first camera.

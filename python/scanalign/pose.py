@@ -340,16 +340,11 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
 def write_pose_outputs(model: object, scene: np.ndarray, result: PoseResult, prefix: Union[str, Path], *,
                        object_indices: Optional[np.ndarray] = None, samples: int = 20000) -> Dict[str, Path]:
     """Files to inspect a pose: ``<prefix>_model.ply`` (the model surface, sampled, placed in
-    the scene frame by ``T_scene_model``; open it together with the scan in a viewer),
-    ``<prefix>_scene.ply`` (the scene, the object in orange, the rest grey, the model in
-    blue) and ``<prefix>_overlay.png`` (three orthographic projections of object and model).
-
-    Args:
-        model: a mesh (or (vertices, faces), or an (N, 3) model cloud), metres.
-        scene: (M, 3) scene points, metres.
-        result: the :class:`PoseResult` to draw.
-        object_indices: the object's points in ``scene`` (default all).
-    """
+    the scene frame by ``T_scene_model``), ``<prefix>_scene.ply`` (the scene, the object in
+    orange, the rest grey, the model in blue) and ``<prefix>_overlay.png`` (three
+    orthographic projections). ``model``: a mesh, (vertices, faces) or an (N, 3) cloud, and
+    ``scene`` (M, 3), metres; ``object_indices``: the object's points in ``scene`` (default
+    all). Returns the paths written."""
     from . import io as _io
     from .parts import sample_mesh
 

@@ -5,12 +5,17 @@
 
 #include <chrono>
 #include <stdexcept>
+#include <type_traits>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
 
 #include <pcl/point_types.h>
 #include <pcl/registration/icp.h>
 #include <pcl/registration/transformation_estimation_dual_quaternion.h>
 #include <pcl/registration/transformation_estimation_point_to_plane_lls.h>
 
+#include "scanalign/common/rigid.hpp"
 #include "scanalign/registration/pcl/box_rejector.hpp"
 #include "scanalign/registration/pcl/point_to_plane_lls.hpp"
 
@@ -65,11 +70,76 @@ IcpStatus fromPcl(pcl::registration::DefaultConvergenceCriteria<float>::Converge
   }
 }
 
+/// The usable part of a cloud for PCL: finite points (with, for point-to-plane targets, a
+/// finite non-zero normal). PCL asserts on a non-finite point, so none may reach it.
+struct Usable {
+  std::vector<float> points, normals;
+  std::size_t size() const { return points.size() / 3; }
+  CloudView<float> view() const { return {points.data(), size()}; }
+  CloudView<float> normalView() const { return normals.empty() ? CloudView<float>() : CloudView<float>(normals.data(), size()); }
+};
+
+Usable usable(const CloudView<float>& points, const CloudView<float>& normals, bool need_normals) {
+  Usable u;
+  for (std::size_t i = 0; i < points.size; ++i) {
+    if (!points.isFinite(i)) continue;
+    if (need_normals && (!normals.isFinite(i) || normals[i].squaredNorm() == 0.f)) continue;
+    u.points.insert(u.points.end(), points.ptr(i), points.ptr(i) + 3);
+    if (need_normals) u.normals.insert(u.normals.end(), normals.ptr(i), normals.ptr(i) + 3);
+  }
+  return u;
+}
+
+/// A rigid motion is determined only by points spanning a plane: identical or collinear
+/// points leave a rotation free (the second eigenvalue of their scatter vanishes).
+bool spansAPlane(const CloudView<float>& c) {
+  if (c.size < 3) return false;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < c.size; ++i) mean += c[i].cast<double>();
+  mean /= double(c.size);
+  Eigen::Matrix3d S = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < c.size; ++i) {
+    const Eigen::Vector3d d = c[i].cast<double>() - mean;
+    S += d * d.transpose();
+  }
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(S).eigenvalues();  // ascending
+  return ev(2) > 0 && ev(1) > 1e-10 * ev(2);
+}
+
+/// The engine's quality figures at T (the same measure for PCL and scanalign runs).
+IcpResult evaluateAt(const CloudView<float>& source, const CloudView<float>& target, Eigen::Matrix4d T,
+                     const IcpSettings& settings) {
+  Icp<float> evaluator(settings);
+  evaluator.settings().estimator = IcpEstimator::PointToPoint;
+  evaluator.settings().max_iterations = 0;
+  evaluator.setTarget(target);
+  // PCL composes in float; re-orthonormalise so the evaluator accepts it as rigid.
+  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(T.topLeftCorner<3, 3>(), Eigen::ComputeFullU | Eigen::ComputeFullV);
+  T.topLeftCorner<3, 3>() = svd.matrixU() * svd.matrixV().transpose();
+  return evaluator.align(source, T);
+}
+
 template <typename PointT, class Registration>
-IcpResult runPcl(Registration& icp, const CloudView<float>& source, const CloudView<float>& target,
+IcpResult runPcl(Registration& icp, const CloudView<float>& source_in, const CloudView<float>& target_in,
                  const CloudView<float>& target_normals, const Eigen::Matrix4d& init, const IcpSettings& settings) {
-  const auto src = toCloud<PointT>(source, {});
-  const auto tgt = toCloud<PointT>(target, target_normals);
+  constexpr bool plane = std::is_same_v<PointT, pcl::PointNormal>;
+  const Usable source = usable(source_in, {}, false), target = usable(target_in, target_normals, plane);
+  // An undetermined problem is a status, not a run: too few points (3 pairs fix a rigid
+  // motion; point-to-plane constrains one direction per pair, so 6), or points that do not
+  // span a plane, on either side.
+  const std::size_t needed = plane ? 6 : 3;
+  if (source.size() < needed || target.size() < needed || !spansAPlane(source.view()) || !spansAPlane(target.view())) {
+    IcpResult result = target.size() ? evaluateAt(source.view(), target.view(), init, settings) : IcpResult{};
+    result.T_target_source = init;
+    result.status = IcpStatus::NotEnoughCorrespondences;
+    result.converged = false;
+    result.iterations = 0;
+    result.degenerate = source.size() >= needed && target.size() >= needed;
+    result.min_rank = 0;
+    return result;
+  }
+  const auto src = toCloud<PointT>(source.view(), {});
+  const auto tgt = toCloud<PointT>(target.view(), target.normalView());
   icp.setMaxCorrespondenceDistance(settings.max_correspondence_distance);
   icp.setMaximumIterations(settings.max_iterations);
   icp.setTransformationEpsilon(settings.transformation_epsilon);
@@ -89,23 +159,16 @@ IcpResult runPcl(Registration& icp, const CloudView<float>& source, const CloudV
   icp.align(aligned, init.cast<float>());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
-  // Quality at PCL's final transform, measured the same way as the engine's.
-  Icp<float> evaluator(settings);
-  evaluator.settings().estimator = IcpEstimator::PointToPoint;
-  evaluator.settings().max_iterations = 0;
-  evaluator.setTarget(target);
-  Eigen::Matrix4d T = icp.getFinalTransformation().template cast<double>();
-  // PCL composes in float; re-orthonormalise so the evaluator accepts it as rigid.
-  const Eigen::JacobiSVD<Eigen::Matrix3d> svd(T.topLeftCorner<3, 3>(), Eigen::ComputeFullU | Eigen::ComputeFullV);
-  T.topLeftCorner<3, 3>() = svd.matrixU() * svd.matrixV().transpose();
-  IcpResult result = evaluator.align(source, T);
+  const Eigen::Matrix4d T = icp.getFinalTransformation().template cast<double>();
+  const bool finite = T.allFinite();
+  IcpResult result = evaluateAt(source.view(), target.view(), finite ? T : init, settings);
   result.iterations = icp.iterations();
-  result.status = fromPcl(icp.getConvergeCriteria()->getConvergenceState());
-  result.converged = icp.hasConverged() && result.status != IcpStatus::MaxIterations &&
+  result.status = finite ? fromPcl(icp.getConvergeCriteria()->getConvergenceState()) : IcpStatus::NotEnoughCorrespondences;
+  result.converged = finite && icp.hasConverged() && result.status != IcpStatus::MaxIterations &&
                      result.status != IcpStatus::NotEnoughCorrespondences;
   result.mse = 0.0;
-  result.degenerate = false;
-  result.min_rank = 6;
+  result.degenerate = !finite;
+  result.min_rank = finite ? 6 : 0;
   result.seconds = seconds;
   return result;
 }
@@ -125,7 +188,10 @@ IcpResult pclIcp(const CloudView<float>& source, const CloudView<float>& target,
   validate(settings);
   const bool plane = variant == PclIcpVariant::PointToPlaneLLS || variant == PclIcpVariant::ScanalignPointToPlaneLLS;
   checkInputs(source, target, target_normals, plane);
-  if (!T_target_source_init.allFinite()) throw std::invalid_argument("PCL ICP: non-finite initial transform");
+  requireRigid(T_target_source_init, "PCL ICP: the initial transform");
+  // PCL works in float: beyond ~1e6 m a millimetre is below float resolution.
+  if (T_target_source_init.topRightCorner<3, 1>().norm() > 1e6)
+    throw std::invalid_argument("PCL ICP: the initial transform's translation is beyond 1e6 m");
   switch (variant) {
     case PclIcpVariant::Svd: {
       WithIterations<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>> icp;
