@@ -156,3 +156,25 @@ def test_register_demo_refuses_a_nan_noise_level(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     assert cli.main(["register-demo", "--noise", "nan"]) == 2  # used to abort inside PCL
     assert "--noise must be a finite" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("method", ["cbd", "flags"])
+def test_a_scene_without_the_part_is_not_a_detection(method):
+    """A cloud of random points the size of the part used to give found=True (fitness ~0.8 on
+    clutter, coverage ~0.05): a false detection a picking cell would act on. The same part,
+    really present, is still found."""
+    from scanalign import cad, parts, pose
+
+    mesh = parts.builtin_mesh()
+    views = cad.render_views(mesh, resolution=100)
+    rng = np.random.default_rng(11)
+    lo, hi = mesh.vertices.min(axis=0), mesh.vertices.max(axis=0)
+    clutter = rng.uniform(lo, hi, (6000, 3)) - 0.5 * (lo + hi) + [0.0, 0.0, 0.3]
+    r = pose.estimate_pose(views, clutter, method=method, views=[3, 9, 17])
+    assert not r.found and ("min_coverage" in r.message or "no model view" in r.message), r.message
+    present = views[9].points_in_camera()  # what view 9's camera saw, camera at the origin
+    r = pose.estimate_pose(views, present, method=method, views=[3, 9, 17])
+    assert r.found and r.coverage > 0.9, r.message
+    np.testing.assert_allclose(r.T_scene_model, np.linalg.inv(views[9].T_model_camera), atol=2e-3)
+    with pytest.raises(ValueError, match="min_fitness"):
+        pose.estimate_pose(views, present, views=[9], min_coverage=2.0)

@@ -493,6 +493,8 @@ void bindPipeline(py::module_& m) {
                      "m; fitness/coverage distance and the CBD RANSAC inlier threshold (thesis: 0.005)")
       .def_readwrite("icp_distance", &PoseSettings::icp_distance, "m; ICP maximum correspondence distance")
       .def_readwrite("normal_radius", &PoseSettings::normal_radius, "m; scene normals for point-to-plane ICP and flags")
+      .def_readwrite("min_fitness", &PoseSettings::min_fitness, "found only if the best view's fitness reaches this")
+      .def_readwrite("min_coverage", &PoseSettings::min_coverage, "found only if the best view's coverage reaches this")
       .def_readwrite("cbd", &PoseSettings::cbd, "CbdAlignmentSettings (min_neighbors 0: automatic)")
       .def_readwrite("flags", &PoseSettings::flags, "FlagAlignmentSettings")
       .def_readwrite("num_threads", &PoseSettings::num_threads, "0 = all cores");

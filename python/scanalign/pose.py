@@ -243,12 +243,13 @@ class _Progress:
 def _pose_settings(method: str, inlier_threshold: float, icp_distance: float, normal_radius: float,
                    cbd_settings: Optional[_cbd.CbdSettings], ransac: Optional[Dict[str, Any]], num_threads: int,
                    cbd_overrides: Dict[str, object]) -> Any:
+    limits = {k: cbd_overrides.pop(k) for k in ("min_fitness", "min_coverage") if k in cbd_overrides}
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     cbd_overrides.setdefault("min_neighbors", 0)  # automatic: scan density varies
     s = set_fields(_P.PoseSettings(), dict(method=method if method in ("cbd", "flags") else "external",
                                            inlier_threshold=inlier_threshold, icp_distance=icp_distance,
-                                           normal_radius=normal_radius, num_threads=num_threads), "pose")
+                                           normal_radius=normal_radius, num_threads=num_threads, **limits), "pose")
     s.cbd = _cbd_alignment_settings(cbd_settings, cbd_overrides, ransac, s.cbd)
     return s
 
@@ -275,12 +276,13 @@ def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", v
         icp_distance: ICP max correspondence distance, metres.
         normal_radius: scene normal radius for point-to-plane ICP and flags, metres.
         cbd_settings / **cbd_overrides: CBD settings (``min_neighbors`` defaults to 0 here:
-            automatic, since scan density varies).
+            automatic, since scan density varies); also ``min_fitness`` / ``min_coverage`` (0.5).
         ransac: RANSAC keywords for CBD; ``pcl_settings``: PCL baseline overrides.
         progress: print a progress bar over the views on stderr.
 
     Returns:
-        :class:`PoseResult` (``found`` False with a message when no view aligned).
+        :class:`PoseResult`: ``found`` False with a message when no view aligned or the best
+        one's fitness or coverage is below ``min_fitness`` / ``min_coverage``.
     """
     settings = _pose_settings(method, inlier_threshold, icp_distance, normal_radius, cbd_settings, ransac, num_threads,
                               cbd_overrides)

@@ -92,6 +92,8 @@ void validate(const PoseSettings& s) {
   requirePositive(s.inlier_threshold, "inlier_threshold");
   requirePositive(s.icp_distance, "icp_distance");
   requirePositive(s.normal_radius, "normal_radius");
+  if (!(s.min_fitness >= 0 && s.min_fitness <= 1) || !(s.min_coverage >= 0 && s.min_coverage <= 1))
+    throw std::invalid_argument("min_fitness and min_coverage must be in [0, 1]");
   if (s.num_threads < 0) throw std::invalid_argument("num_threads must be >= 0 (0 = all cores)");
 }
 
@@ -167,7 +169,15 @@ PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<dou
       best.candidates.push_back(c);
       if (progress) progress(k + 1, ids.size());
     }
-    if (!best.found) best.message = "no model view aligned with " + best.method + " (coarse alignment found no consensus)";
+    if (!best.found) {
+      best.message = "no model view aligned with " + best.method + " (coarse alignment found no consensus)";
+    } else if (best.fitness < s.min_fitness || best.coverage < s.min_coverage) {
+      best.found = false;
+      best.message = "the best view (" + std::to_string(best.view) + ") has fitness " + std::to_string(best.fitness) +
+                     " and coverage " + std::to_string(best.coverage) + ", below min_fitness " +
+                     std::to_string(s.min_fitness) + " / min_coverage " + std::to_string(s.min_coverage) +
+                     ": the part is not in this cloud, or only a small piece of it";
+    }
   }
   best.seconds = since(t0);
   return best;

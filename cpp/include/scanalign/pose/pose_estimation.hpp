@@ -38,6 +38,11 @@ struct PoseSettings {
   double inlier_threshold = 0.005;  ///< m; fitness/coverage distance and the CBD RANSAC inlier threshold (thesis: 5 mm)
   double icp_distance = 0.01;       ///< m; ICP maximum correspondence distance
   double normal_radius = 0.005;     ///< m; scene normals for point-to-plane ICP and flags
+  /// A pose counts as found only when the best view's points lie on the object (fitness) and
+  /// cover it (coverage) at least this much: a scene without the part still has a "best"
+  /// view, typically with high fitness on clutter but low coverage.
+  double min_fitness = 0.5;
+  double min_coverage = 0.5;
   /// CBD settings. min_neighbors defaults to 0 (automatic) here, since scan density varies;
   /// ransac.inlier_threshold is replaced by inlier_threshold.
   CbdAlignmentSettings cbd = [] {
@@ -91,7 +96,7 @@ struct PoseResult {
   double seconds = 0;          ///< wall time, all views
   double coarse_seconds = 0;   ///< the part spent in coarse alignment
   std::vector<PoseCandidate> candidates;  ///< one per view tried
-  std::string message;         ///< why nothing was found
+  std::string message;         ///< why nothing was found (a best view below the thresholds keeps its figures)
 };
 
 /// Pose of the model in one object cloud (scene frame, m; non-finite rows ignored).
