@@ -178,3 +178,16 @@ def test_a_scene_without_the_part_is_not_a_detection(method):
     np.testing.assert_allclose(r.T_scene_model, np.linalg.inv(views[9].T_model_camera), atol=2e-3)
     with pytest.raises(ValueError, match="min_fitness"):
         pose.estimate_pose(views, present, views=[9], min_coverage=2.0)
+
+
+def test_values_that_used_to_be_silently_mangled_are_refused(cloud):
+    from scanalign import kinematics
+
+    n = features.estimate_normals(cloud, radius=0.01)
+    with pytest.raises(TypeError, match="real 4x4"):  # the imaginary part used to be dropped
+        registration.icp(cloud, cloud, n, np.eye(4) * (1 + 1j))
+    with pytest.raises(ValueError, match="colors: expected real"):
+        voxel_grid(cloud, 0.01, colors=np.ones(cloud.shape) * 1j)
+    robot = kinematics.ur5()
+    with pytest.raises(ValueError, match="q_current"):  # used to return 'ok' with NaN joints
+        robot.ik_closest(robot.fk(np.zeros(6)), np.full(6, 1e154))

@@ -28,7 +28,9 @@ def as_points(array: object, name: str, dtype: Optional[np.dtype] = None) -> np.
 
 def as_transform(T: object, name: str = "init") -> np.ndarray:
     """A 4x4 float64 rigid transform (checked for shape and finiteness here, rigidity in C++)."""
-    m = np.asarray(T, dtype=np.float64)
+    if (m := np.asarray(T)).dtype.kind not in "biuf":  # complex would silently lose its imaginary part
+        raise TypeError(f"{name}: expected a real 4x4 matrix, got dtype {m.dtype}")
+    m = m.astype(np.float64)
     if m.shape != (4, 4):
         raise ValueError(f"{name}: expected a 4x4 homogeneous transform, got shape {m.shape}")
     if not np.all(np.isfinite(m)):

@@ -13,15 +13,9 @@ from ._arrays import as_points
 __all__ = ["estimate_normals", "shape_factors"]
 
 
-def estimate_normals(
-    points: np.ndarray,
-    radius: float = 0.005,
-    viewpoint: Sequence[float] = (0.0, 0.0, 0.0),
-    *,
-    min_neighbors: int = 3,
-    return_curvature: bool = False,
-    num_threads: int = 0,
-) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
+def estimate_normals(points: np.ndarray, radius: float = 0.005, viewpoint: Sequence[float] = (0.0, 0.0, 0.0), *,
+                     min_neighbors: int = 3, return_curvature: bool = False,
+                     num_threads: int = 0) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
     """Unit normals by PCA over a radius neighbourhood, oriented towards a viewpoint.
 
     The normal of point p is the eigenvector of the smallest eigenvalue of the covariance

@@ -78,8 +78,8 @@ def voxel_grid(points: np.ndarray, leaf_size: float = 0.001, *, normals: Optiona
     p = as_points(points, "points")
     attributes = []
     for name, a in (("normals", normals), ("colors", colors)):
-        if a is not None and np.shape(a) != (p.shape[0], 3):
-            raise ValueError(f"{name}: expected shape ({p.shape[0]}, 3), got {np.shape(a)}")
+        if a is not None and (np.shape(a) != (p.shape[0], 3) or np.asarray(a).dtype.kind not in "biuf"):
+            raise ValueError(f"{name}: expected real ({p.shape[0]}, 3) values, got {np.asarray(a).dtype} {np.shape(a)}")
         attributes += [] if a is None else [np.asarray(a, dtype=np.float64)]
     centroids, means, counts = _core.reconstruction.voxel_grid(
         p, float(leaf_size), np.hstack(attributes) if attributes else None, int(min_points_per_voxel))

@@ -643,6 +643,10 @@ IKConstruction ikConstruction(const Robot& robot, const Eigen::Isometry3d& T_bas
 
 IKSolution ikClosest(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const Vector6d& q_current,
                      const IKSettings& options, const ClosestSettings& closest) {
+  // Joint values beyond any real joint's travel (here |q| > 1e6 rad) are not a configuration:
+  // wrapping them loses every digit, and the "closest" solution would be arbitrary.
+  if (q_current.allFinite() && q_current.cwiseAbs().maxCoeff() > 1e6)
+    throw std::invalid_argument("q_current: joint values must lie within +-1e6 rad");
   IKSettings o = options;
   if (q_current.allFinite()) o.q_free = q_current;
   const IKResult r = solve(robot, T_base_tool, o, nullptr);
