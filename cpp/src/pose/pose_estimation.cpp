@@ -59,15 +59,21 @@ CoarseResult coarse(const ModelView& view, const PreparedScene& scene, const Pos
   return out;
 }
 
-// ICP refinement of one view and its score 2 fitness coverage / (fitness + coverage).
-void refine(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, const Eigen::Matrix4d& init,
-            PoseCandidate& c, Eigen::Matrix4d& T) {
+/// Point-to-plane ICP against the scene's oriented points: the tree is built once per scene
+/// and every view is aligned to it.
+Icp<double> sceneIcp(const PreparedScene& scene, const PoseSettings& s) {
   IcpSettings is;
   is.max_correspondence_distance = s.icp_distance;
   is.num_threads = s.num_threads;
   Icp<double> icp(is);
   const std::size_t n = scene.oriented_points.size() / 3;
   icp.setTarget(CloudView<double>(scene.oriented_points.data(), n), CloudView<double>(scene.oriented_normals.data(), n));
+  return icp;
+}
+
+// ICP refinement of one view and its score 2 fitness coverage / (fitness + coverage).
+void refine(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, Icp<double>& icp,
+            const Eigen::Matrix4d& init, PoseCandidate& c, Eigen::Matrix4d& T) {
   T = icp.align(view.cloud(), init).T_target_source;
   const auto fit = alignmentFitness(view.cloud(), scene.cloud(), T, s.inlier_threshold, s.num_threads);
   const auto cov = alignmentFitness(scene.cloud(), view.cloud(), rigidInverse(T), s.inlier_threshold, s.num_threads);
@@ -143,6 +149,7 @@ PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<dou
                    std::to_string(s.cbd.cbd.radius) + " m";
   } else {
     double best_score = -1;
+    Icp<double> icp = sceneIcp(prepared, s);
     for (std::size_t k = 0; k < ids.size(); ++k) {
       const ModelView& view = views[ids[k]];
       PoseCandidate c;
@@ -155,7 +162,7 @@ PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<dou
         c.coarse_fitness = alignmentFitness(view.cloud(), prepared.cloud(), cr.T_scene_model, s.inlier_threshold,
                                             s.num_threads).first;
         Eigen::Matrix4d T;
-        refine(view, prepared, s, cr.T_scene_model, c, T);
+        refine(view, prepared, s, icp, cr.T_scene_model, c, T);
         if (c.score > best_score) {
           best_score = c.score;
           best.T_scene_model = T;
