@@ -138,6 +138,14 @@ def test_pcl_baselines_never_see_a_point_that_makes_pcl_assert():
                 for bad_n in (np.full_like(n, np.nan), np.zeros_like(n)):
                     r = run(moved, p, bad_n)
                     assert not r.converged and r.status == "not_enough_correspondences"
+            # unrelated clouds with normals that constrain one direction: PCL's LLS step went
+            # NaN, moved the source to NaN and asserted in its k-d tree on the next iteration
+            box = rng.uniform(-0.1, 0.1, (50, 3)) + (0, 0, 0.4)
+            r = run(p[::60], box, None if normals is None else np.tile((0.0, 0.0, 1.0), (50, 1)))
+            assert np.isfinite(r.T_target_source).all()
+            assert not r.converged or np.abs(r.T_target_source - np.eye(4)).max() < 1.0, (variant, r)
+            if variant == "point_to_plane_lls":
+                assert not r.converged and r.degenerate, r
             huge = np.eye(4); huge[:3, 3] = 1e30
             try:
                 run(moved, init=huge)

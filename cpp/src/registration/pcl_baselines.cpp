@@ -14,6 +14,7 @@
 #include <pcl/registration/icp.h>
 #include <pcl/registration/transformation_estimation_dual_quaternion.h>
 #include <pcl/registration/transformation_estimation_point_to_plane_lls.h>
+#include <pcl/registration/transformation_estimation_svd.h>
 
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/registration/pcl/box_rejector.hpp"
@@ -38,6 +39,53 @@ template <class Registration>
 struct WithIterations : Registration {
   int iterations() const { return this->nr_iterations_; }
 };
+
+/// Wraps a PCL estimator so a non-finite step (an undetermined LLS system on unrelated or
+/// degenerate correspondences) becomes no step: PCL would apply it, move the source to NaN
+/// and assert in its k-d tree on the next iteration. The run is then reported degenerate.
+template <typename PointT>
+class FiniteStep : public pcl::registration::TransformationEstimation<PointT, PointT, float> {
+ public:
+  using Base = pcl::registration::TransformationEstimation<PointT, PointT, float>;
+  using Cloud = pcl::PointCloud<PointT>;
+  using Matrix4 = typename Base::Matrix4;
+  explicit FiniteStep(typename Base::Ptr inner) : inner_(std::move(inner)) {}
+  bool failed() const { return failed_; }
+
+  void estimateRigidTransformation(const Cloud& s, const Cloud& t, Matrix4& T) const override {
+    inner_->estimateRigidTransformation(s, t, T);
+    guard(T);
+  }
+  void estimateRigidTransformation(const Cloud& s, const pcl::Indices& is, const Cloud& t, Matrix4& T) const override {
+    inner_->estimateRigidTransformation(s, is, t, T);
+    guard(T);
+  }
+  void estimateRigidTransformation(const Cloud& s, const pcl::Indices& is, const Cloud& t, const pcl::Indices& it,
+                                   Matrix4& T) const override {
+    inner_->estimateRigidTransformation(s, is, t, it, T);
+    guard(T);
+  }
+  void estimateRigidTransformation(const Cloud& s, const Cloud& t, const pcl::Correspondences& c, Matrix4& T) const override {
+    inner_->estimateRigidTransformation(s, t, c, T);
+    guard(T);
+  }
+
+ private:
+  void guard(Matrix4& T) const {
+    if (T.allFinite()) return;
+    T.setIdentity();
+    failed_ = true;
+  }
+  typename Base::Ptr inner_;
+  mutable bool failed_ = false;
+};
+
+template <typename PointT, class Registration, class Estimator>
+std::shared_ptr<FiniteStep<PointT>> guardSteps(Registration& icp, pcl::shared_ptr<Estimator> inner) {
+  auto guard = pcl::make_shared<FiniteStep<PointT>>(std::move(inner));
+  icp.setTransformationEstimation(guard);
+  return guard;
+}
 
 template <typename PointT>
 typename pcl::PointCloud<PointT>::Ptr toCloud(const CloudView<float>& points, const CloudView<float>& normals) {
@@ -119,9 +167,10 @@ IcpResult evaluateAt(const CloudView<float>& source, const CloudView<float>& tar
   return evaluator.align(source, T);
 }
 
-template <typename PointT, class Registration>
-IcpResult runPcl(Registration& icp, const CloudView<float>& source_in, const CloudView<float>& target_in,
-                 const CloudView<float>& target_normals, const Eigen::Matrix4d& init, const IcpSettings& settings) {
+template <typename PointT, class Registration, class Estimator>
+IcpResult runPcl(Registration& icp, pcl::shared_ptr<Estimator> estimator, const CloudView<float>& source_in,
+                 const CloudView<float>& target_in, const CloudView<float>& target_normals, const Eigen::Matrix4d& init,
+                 const IcpSettings& settings) {
   constexpr bool plane = std::is_same_v<PointT, pcl::PointNormal>;
   const Usable source = usable(source_in, {}, false), target = usable(target_in, target_normals, plane);
   // An undetermined problem is a status, not a run: too few points (3 pairs fix a rigid
@@ -140,6 +189,7 @@ IcpResult runPcl(Registration& icp, const CloudView<float>& source_in, const Clo
   }
   const auto src = toCloud<PointT>(source.view(), {});
   const auto tgt = toCloud<PointT>(target.view(), target.normalView());
+  const auto steps = guardSteps<PointT>(icp, std::move(estimator));
   icp.setMaxCorrespondenceDistance(settings.max_correspondence_distance);
   icp.setMaximumIterations(settings.max_iterations);
   icp.setTransformationEpsilon(settings.transformation_epsilon);
@@ -160,7 +210,7 @@ IcpResult runPcl(Registration& icp, const CloudView<float>& source_in, const Clo
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 
   const Eigen::Matrix4d T = icp.getFinalTransformation().template cast<double>();
-  const bool finite = T.allFinite();
+  const bool finite = T.allFinite() && !steps->failed();
   IcpResult result = evaluateAt(source.view(), target.view(), finite ? T : init, settings);
   result.iterations = icp.iterations();
   result.status = finite ? fromPcl(icp.getConvergeCriteria()->getConvergenceState()) : IcpStatus::NotEnoughCorrespondences;
@@ -192,26 +242,28 @@ IcpResult pclIcp(const CloudView<float>& source, const CloudView<float>& target,
   // PCL works in float: beyond ~1e6 m a millimetre is below float resolution.
   if (T_target_source_init.topRightCorner<3, 1>().norm() > 1e6)
     throw std::invalid_argument("PCL ICP: the initial transform's translation is beyond 1e6 m");
+  using pcl::PointNormal, pcl::PointXYZ;
+  namespace reg = pcl::registration;
   switch (variant) {
     case PclIcpVariant::Svd: {
-      WithIterations<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>> icp;
-      return runPcl<pcl::PointXYZ>(icp, source, target, target_normals, T_target_source_init, settings);
+      WithIterations<pcl::IterativeClosestPoint<PointXYZ, PointXYZ>> icp;
+      return runPcl<PointXYZ>(icp, pcl::make_shared<reg::TransformationEstimationSVD<PointXYZ, PointXYZ>>(), source,
+                              target, target_normals, T_target_source_init, settings);
     }
     case PclIcpVariant::DualQuaternion: {
-      WithIterations<pcl::IterativeClosestPoint<pcl::PointXYZ, pcl::PointXYZ>> icp;
-      icp.setTransformationEstimation(
-          pcl::make_shared<pcl::registration::TransformationEstimationDualQuaternion<pcl::PointXYZ, pcl::PointXYZ>>());
-      return runPcl<pcl::PointXYZ>(icp, source, target, target_normals, T_target_source_init, settings);
+      WithIterations<pcl::IterativeClosestPoint<PointXYZ, PointXYZ>> icp;
+      return runPcl<PointXYZ>(icp, pcl::make_shared<reg::TransformationEstimationDualQuaternion<PointXYZ, PointXYZ>>(),
+                              source, target, target_normals, T_target_source_init, settings);
     }
     case PclIcpVariant::PointToPlaneLLS: {
-      WithIterations<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>> icp;
-      return runPcl<pcl::PointNormal>(icp, source, target, target_normals, T_target_source_init, settings);
+      WithIterations<pcl::IterativeClosestPointWithNormals<PointNormal, PointNormal>> icp;
+      return runPcl<PointNormal>(icp, pcl::make_shared<reg::TransformationEstimationPointToPlaneLLS<PointNormal, PointNormal>>(),
+                                 source, target, target_normals, T_target_source_init, settings);
     }
     case PclIcpVariant::ScanalignPointToPlaneLLS: {
-      WithIterations<pcl::IterativeClosestPointWithNormals<pcl::PointNormal, pcl::PointNormal>> icp;
-      icp.setTransformationEstimation(pcl::make_shared<PointToPlaneLLS<pcl::PointNormal, pcl::PointNormal>>(
-          settings.degeneracy_threshold, settings.num_threads));
-      return runPcl<pcl::PointNormal>(icp, source, target, target_normals, T_target_source_init, settings);
+      WithIterations<pcl::IterativeClosestPointWithNormals<PointNormal, PointNormal>> icp;
+      auto lls = pcl::make_shared<PointToPlaneLLS<PointNormal, PointNormal>>(settings.degeneracy_threshold, settings.num_threads);
+      return runPcl<PointNormal>(icp, lls, source, target, target_normals, T_target_source_init, settings);
     }
   }
   throw std::invalid_argument("PCL ICP: unknown variant");

@@ -1,0 +1,677 @@
+"""Fuzz targets: every public entry point of every module, with the inputs it may be given.
+
+Each target is a hypothesis strategy of printable recipes (see ``inputs``) and a function
+that builds the inputs, calls the entry point through ``contract.call`` and checks what a
+success must satisfy. Targets are grouped by module; ``run.py`` runs one group in a child
+process so a crash or a hang fails that group's test, not the whole run.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Callable, Dict, List, Tuple
+
+import numpy as np
+from hypothesis import strategies as st
+
+from contract import ContractError, call, finite
+from inputs import (INF, NAN, Param, build, cases, choice, clouds, counts, good_clouds, numbers,
+                    rigid_from, transforms)
+
+TARGETS: Dict[str, List[Tuple[str, st.SearchStrategy, Callable]]] = {}
+
+
+def target(module: str, weight: float = 1.0, **strategies: st.SearchStrategy):
+    """Registers a fuzz target; ``weight`` scales its share of the example budget (slow
+    pipelines get fewer examples)."""
+    def register(fn):
+        fn.weight = weight
+        TARGETS.setdefault(module, []).append((fn.__name__, cases(**strategies), fn))
+        return fn
+    return register
+
+
+def iterations(typical):
+    """Iteration counts without the legitimately long ones (those are the interrupt test's)."""
+    return Param(st.sampled_from([typical, 0, -1, 1, 1.5, NAN, "3", None, 2**70]), st.just(typical))
+
+
+def _pair(max_size=None):
+    """A source cloud, its target (the source moved by a known small rigid motion, or an
+    unrelated bad cloud) and target normals."""
+    c = clouds(max_size)
+    seeds = st.integers(0, 2**16)
+    return Param(st.tuples(c.wild, c.wild, seeds, st.booleans()), st.tuples(c.typical, c.typical, seeds, st.just(True)))
+
+
+def _make_pair(pair):
+    src_r, tgt_r, seed, related = pair
+    source = build(src_r)
+    if related and isinstance(source, np.ndarray) and source.ndim == 2 and source.shape[-1] == 3 \
+            and source.dtype.kind == "f":
+        T = rigid_from(np.random.default_rng(seed), 0.03, 0.01)
+        target = source @ T[:3, :3].T + T[:3, 3]
+        return source, np.ascontiguousarray(target, dtype=np.float64), T
+    return source, build(tgt_r), None
+
+
+# -- registration ------------------------------------------------------------------------
+@target("registration", pair=_pair(1500), normals=choice(["unit", "zero", "nan", "short", "estimated"]),
+        init=transforms(), distance=numbers([0.05, 0.2]), estimator=choice(["point_to_plane", "point_to_point", "nope"]),
+        iters=iterations(30), eps=numbers(1e-6), box=choice([None, None, (-1, 1, -1, 1, 0, 9), (1, -1, 0, 0, 0, 0), (NAN,) * 6, (0,) * 5]))
+def icp(case):
+    from scanalign import features, registration
+    source, target_pts, T = _make_pair(case["pair"])
+    normals = _normals_for(target_pts, case["normals"])
+    init = build(case["init"])
+    r = call(registration.icp, source, target_pts, normals, init, max_correspondence_distance=case["distance"],
+             box=case["box"], estimator=case["estimator"], max_iterations=case["iters"],
+             transformation_epsilon=case["eps"])
+    if r is not None and r.converged:
+        finite(r.T_target_source, "T_target_source")
+
+
+def _normals_for(target_pts, how):
+    from scanalign import features
+    n = len(target_pts) if isinstance(target_pts, np.ndarray) and target_pts.ndim >= 1 else 3
+    if how == "estimated":
+        try:
+            return features.estimate_normals(target_pts, radius=0.3)
+        except (ValueError, TypeError):
+            return None
+    unit = np.tile((0.0, 0.0, 1.0), (n, 1))
+    return {"unit": unit, "zero": np.zeros((n, 3)), "nan": np.full((n, 3), NAN), "short": unit[:-1]}[how]
+
+
+@target("registration", pair=_pair(300), normals=choice(["unit", "zero", "nan", "short", "estimated"]),
+        init=transforms(), variant=choice(["point_to_plane_lls", "point_to_plane", "point_to_point", "gicp", "bad"]),
+        distance=numbers(0.2), iters=iterations(20))
+def pcl_icp(case):
+    from scanalign import registration
+    source, target_pts, _ = _make_pair(case["pair"])
+    call(registration.pcl_icp, source, target_pts, _normals_for(target_pts, case["normals"]), build(case["init"]),
+         variant=case["variant"], max_correspondence_distance=case["distance"], max_iterations=case["iters"])
+
+
+@target("registration", pair=_pair(300), normals=choice(["unit", "zero", "nan", "short"]),
+        thr=numbers(1e-10), pcl=st.booleans())
+def point_to_plane_lls(case):
+    from scanalign import registration
+    source, target_pts, _ = _make_pair(case["pair"])
+    n = _normals_for(target_pts, case["normals"])
+    if case["pcl"]:
+        r = call(registration.pcl_point_to_plane_lls, source, target_pts, n)
+    else:
+        r = call(registration.point_to_plane_lls, source, target_pts, n, case["thr"])
+
+
+@target("registration", points=clouds(1500), queries=clouds(300), k=counts(1))
+def kdtree(case):
+    from scanalign import registration
+    tree = call(registration.KdTree, build(case["points"]))
+    if tree is not None:
+        call(tree.nearest, build(case["queries"]))
+
+
+@target("registration", points=clouds(300), idx=choice(["int_idx", "weights"]),
+        box=choice([(-1, 1, -1, 1, 0, 9), (1, -1, 0, 0, 0, 0), (NAN,) * 6, (0,) * 5, "free_hand", None]))
+def box_rejector(case):
+    from scanalign import registration
+    points = build(case["points"])
+    idx = build(("like", case["points"], case["idx"], 1))
+    call(registration.box_rejector_keep, points, idx, case["box"])
+
+
+# -- features ------------------------------------------------------------------------------
+@target("features", points=clouds(1500), radius=numbers([0.05, 0.3]), vp=choice([(0, 0, 0), (NAN, 0, 0), (1e300,) * 3, (0, 0)]),
+        min_nb=counts(3), curvature=st.booleans(), threads=counts(0, 5000))
+def estimate_normals(case):
+    from scanalign import features
+    r = call(features.estimate_normals, build(case["points"]), case["radius"], case["vp"],
+             min_neighbors=case["min_nb"], return_curvature=case["curvature"], num_threads=case["threads"])
+
+
+@target("features", ev=clouds(300))
+def shape_factors(case):
+    from scanalign import features
+    ev = build(case["ev"])
+    r = call(features.shape_factors, np.abs(ev) if isinstance(ev, np.ndarray) and ev.dtype.kind == "f" else ev)
+    if r is not None:
+        finite(r, "shape factors")
+
+
+# -- reconstruction ----------------------------------------------------------------------
+@target("reconstruction", points=clouds(1500), leaf=numbers([0.01, 0.2], 1e-12), extras=choice(["none", "unit", "colors_u8", "colors_f", "colors_c", "strings", "short", "nan"]),
+        min_pts=counts(1))
+def voxel_grid(case):
+    from scanalign.reconstruction import voxel_grid as vg
+    extra = build(("like", case["points"], case["extras"], 3)) if case["extras"] != "none" else None
+    normals = extra if case["extras"] in ("unit", "short", "nan", "strings") else None
+    colors = extra if case["extras"].startswith("colors") else None
+    r = call(vg, build(case["points"]), case["leaf"], normals=normals, colors=colors, min_points_per_voxel=case["min_pts"])
+    if r is not None:
+        finite(r.points, "voxel centroids")
+
+
+def _depth(kind: str, seed: int):
+    rng = np.random.default_rng(seed)
+    d = (rng.uniform(300, 1500, (24, 32))).astype(np.uint16)
+    return {"u16": d, "f32": d.astype(np.float32) / 1000, "nan": np.where(d > 900, np.nan, d / 1000.0),
+            "empty": np.zeros((0, 0), np.uint16), "zeros": np.zeros_like(d), "3d": d[:, :, None].repeat(3, 2),
+            "wrong_size": d[:10], "neg": -d.astype(np.float32), "c": d.astype(complex), "str": "depth"}[kind]
+
+
+_DEPTHS = ["u16"] * 4 + ["f32", "nan", "empty", "zeros", "3d", "wrong_size", "neg", "c", "str"]
+
+
+def _intrinsics(kind: str):
+    from scanalign.camera import Intrinsics
+    base = dict(width=32, height=24, fx=30.0, fy=30.0, cx=16.0, cy=12.0)
+    base.update({"ok": {}, "fx0": {"fx": 0.0}, "nan": {"cx": NAN}, "neg": {"fy": -30.0}, "huge": {"fx": 1e300},
+                 "size0": {"width": 0}}[kind])
+    try:
+        return Intrinsics(**base)
+    except (ValueError, TypeError):
+        return None
+
+
+@target("reconstruction", depth=choice(_DEPTHS), seed=st.integers(0, 99),
+        intr=choice(["ok"] * 4 + ["fx0", "nan", "neg", "huge", "size0"]), scale=numbers([0.001], 1e300),
+        dmin=numbers(0.1), dmax=numbers(2.0), stride=counts(1))
+def depth_to_cloud(case):
+    from scanalign.reconstruction import depth_to_cloud as d2c
+    r = call(d2c, _depth(case["depth"], case["seed"]), _intrinsics(case["intr"]), depth_scale=case["scale"],
+             min_depth=case["dmin"], max_depth=case["dmax"], stride=case["stride"])
+    if r is not None:
+        finite(r[0], "back-projected points")
+
+
+@target("reconstruction", depth=choice(_DEPTHS), seed=st.integers(0, 99), radius=counts(2, 10**6),
+        sigma_s=numbers(1.5), sigma_d=numbers(0.003), scale=numbers(0.001), threads=counts(0, 5000))
+def bilateral_filter_depth(case):
+    from scanalign import reconstruction
+    f = call(reconstruction.DepthFilter, radius=case["radius"], sigma_space=case["sigma_s"], sigma_depth=case["sigma_d"])
+    if f is not None:
+        r = call(reconstruction.bilateral_filter_depth, _depth(case["depth"], case["seed"]), f,
+                 depth_scale=case["scale"], num_threads=case["threads"])
+
+
+@target("reconstruction", frames=st.lists(st.tuples(st.one_of(clouds(1500).typical, clouds(1500).wild), st.one_of(transforms().typical, transforms().wild)),
+                        min_size=1, max_size=4),
+        voxel=numbers(0.01), distance=numbers(0.05))
+def reconstructor(case):
+    """Frames of every kind into one model: a rejected or failed frame leaves the model
+    bit-identical (issue: no lost data under faults)."""
+    from scanalign.reconstruction import Reconstructor
+    rec = call(Reconstructor, model_voxel_size=case["voxel"], frame_voxel_size=case["voxel"], normal_radius=case["distance"])
+    if rec is None:
+        return
+    for cloud_r, guess_r in case["frames"]:
+        before = _model_arrays(rec)
+        report = call(rec.integrate_points, build(cloud_r), guess=build(guess_r))
+        if report is None or not report.merged:
+            after = _model_arrays(rec)
+            if not all(np.array_equal(a, b, equal_nan=True) for a, b in zip(before, after)):
+                raise ContractError("a frame that was not merged changed the model")
+        else:
+            finite(report.T_model_camera, "T_model_camera")
+
+
+def _model_arrays(rec):
+    m = rec.model
+    return [np.array(getattr(m, name), copy=True) for name in ("points", "normals") if hasattr(m, name)]
+
+
+# -- fitting and segmentation ------------------------------------------------------------
+@target("fitting", points=clouds(300), weights=choice(["none", "weights", "neg_weights", "short", "nan"]), tol=numbers(1e-6))
+def fit_sphere(case):
+    from scanalign import fitting
+    w = None if case["weights"] == "none" else build(("like", case["points"], case["weights"], 2))
+    if isinstance(w, np.ndarray) and w.ndim == 2:
+        w = w[:, 0]
+    r = call(fitting.fit_sphere, build(case["points"]), w, plane_tolerance=case["tol"])
+    if r is not None and not r.is_plane and not r.imaginary:
+        finite([r.radius, *r.center], "sphere")
+
+
+@target("fitting", points=clouds(1500), offsets=choice([[0], [0, 5], [5, 0], [0, 10**9], [-1], []]), threads=counts(0, 5000))
+def fit_spheres(case):
+    from scanalign import fitting
+    pts = build(case["points"])
+    offs = np.asarray(case["offsets"] + ([len(pts)] if isinstance(pts, np.ndarray) and pts.ndim >= 1 else [3]), dtype=np.int64)
+    call(fitting.fit_spheres, pts, offs, num_threads=case["threads"])
+
+
+@target("fitting", points=clouds(300))
+def fit_circle_2d(case):
+    from scanalign import fitting
+    p = build(case["points"])
+    r = call(fitting.fit_circle_2d, p[:, :2] if isinstance(p, np.ndarray) and p.ndim == 2 else p)
+
+
+@target("segmentation", points=clouds(1500), thr=numbers(0.01), iters=iterations(200), conf=numbers(0.99, 1.5),
+        rmin=numbers(0.0), rmax=numbers(INF), threads=counts(0, 5000), sphere=st.booleans())
+def ransac(case):
+    from scanalign import segmentation
+    pts = build(case["points"])
+    if case["sphere"]:
+        r = call(segmentation.ransac_sphere, pts, case["thr"], min_radius=case["rmin"], max_radius=case["rmax"],
+                 max_iterations=case["iters"], confidence=case["conf"], num_threads=case["threads"])
+    else:
+        r = call(segmentation.ransac_plane, pts, case["thr"], max_iterations=case["iters"], confidence=case["conf"],
+                 num_threads=case["threads"])
+
+
+@target("segmentation", points=clouds(1500), thr=numbers(0.01), tol=numbers([0.05, 0.5], 1e6), min_size=counts(10))
+def segment_table(case):
+    from scanalign import segmentation
+    call(segmentation.segment_table, build(case["points"]), threshold=case["thr"],
+         cluster_tolerance=case["tol"], min_cluster_size=case["min_size"])
+
+
+@target("segmentation", pts=st.lists(st.sampled_from([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (NAN, 0, 0), (1e300, 0, 0), (2, 0, 0), (0, 0)]), min_size=4, max_size=4))
+def model_from_points(case):
+    from scanalign import segmentation
+    p = [np.asarray(x, dtype=float) for x in case["pts"]]
+    call(segmentation.plane_from_points, *p[:3])
+    call(segmentation.sphere_from_points, *p)
+
+
+# -- cga -----------------------------------------------------------------------------------
+_VEC = [(0.1, 0.2, 0.3)] * 4 + [(0, 0, 0), (NAN, 0, 0), (INF, 0, 0), (1e300, 0, 0), (1e-300, 0, 0), (1, 2), (1, 2, 3, 4),
+                                 (1j, 0, 0), ("a", 0, 0), None]
+_SCALAR = [0.2] * 4 + [0.0, -0.2, NAN, INF, 1e300, 1e-300, 1j, "r", None]
+
+
+@target("cga", x=choice(_VEC), y=choice(_VEC), r=choice(_SCALAR), angle=choice(_SCALAR))
+def cga_objects(case):
+    from scanalign import cga
+    x, y, r = case["x"], case["y"], case["r"]
+    arr = lambda v: np.asarray(v) if v is not None else None  # noqa: E731 - arrays of any dtype, as users pass them
+    P = call(cga.up, arr(x))
+    if P is not None:
+        finite(np.asarray(P), "up(x)")
+        d = call(cga.down, P)
+        if d is not None:
+            finite(d, "down(up(x))")
+    S = call(cga.Sphere, x, r)
+    if S is not None:
+        finite([S.radius if hasattr(S, "radius") else 0.0], "sphere radius")
+    call(cga.Plane, x, r)
+    call(cga.Line, x, y)
+    call(cga.point_pair, x, y)
+    call(cga.rotor, x, case["angle"])
+    call(cga.translator, x)
+    M = call(cga.Motor.from_matrix, build(("transform", "small", 1)))
+    if M is not None:
+        call(M.apply_points, arr(x) if arr(x) is None or arr(x).ndim != 1 else arr(x)[None])
+
+
+@target("cga", a=clouds(12), b=clouds(12))
+def cga_products(case):
+    from scanalign import cga
+    a, b = build(case["a"]), build(case["b"])
+    # (N, 32) multivector coefficient arrays from the clouds' numbers
+    lift = lambda c: np.resize(c, (max(len(c), 1), 32)) if isinstance(c, np.ndarray) and c.ndim == 2 else c  # noqa: E731
+    r = call(cga.geometric_product_many, lift(a), lift(b))
+
+
+# -- kinematics --------------------------------------------------------------------------
+_ROBOTS = ["ur5", "kuka_kr6_r900_sixx", "ur10e"]
+_QS = ["random"] * 5 + ["stretched", "wrist_singular", "nan", "inf", "huge", "five", "seven", "complex", "str", "batch", "batch_bad"]
+
+
+def _q(kind, seed):
+    rng = np.random.default_rng(seed)
+    q = rng.uniform(-np.pi, np.pi, 6)
+    if kind == "stretched":
+        q[2] = rng.normal(0, 1e-3)
+    elif kind == "wrist_singular":
+        q[4] = rng.normal(0, 1e-7)
+    return {"random": q, "stretched": q, "wrist_singular": q, "nan": np.r_[q[:5], NAN], "inf": np.r_[q[:5], INF],
+            "huge": q * 1e300, "five": q[:5], "seven": np.r_[q, 0], "complex": q.astype(complex), "str": "home",
+            "batch": rng.uniform(-3, 3, (7, 6)), "batch_bad": rng.uniform(-3, 3, (7, 5))}.get(kind, q)
+
+
+@target("kinematics", robot=choice(_ROBOTS), q=choice(_QS), seed=st.integers(0, 2**16),
+        pose=choice(["fk"] * 6 + ["transform"] * 3), T=transforms(), threads=counts(0, 5000))
+def ik_round_trip(case):
+    """Every solution flagged ok reaches the pose (FK within 1e-6 m / rad), and a pose made
+    by FK of joint values within the limits is reachable (truth: those joint values)."""
+    from scanalign import kinematics
+    robot = getattr(kinematics, case["robot"])()
+    q = _q(case["q"], case["seed"])
+    T_fk = call(robot.fk, q, num_threads=case["threads"])
+    T = T_fk if case["pose"] == "fk" and T_fk is not None and np.shape(T_fk) == (4, 4) else build(case["T"])
+    sols = call(robot.ik, T)
+    if sols is None:
+        return
+    for qi, ok in zip(np.asarray(sols.q), np.asarray(sols.ok)):
+        if ok:
+            err = np.abs(robot.fk(qi) - T).max()
+            if not err < 1e-6:
+                raise ContractError(f"an ok IK solution misses the pose by {err}")
+    if case["pose"] == "fk" and np.shape(T_fk) == (4, 4) and case["q"] in ("random", "stretched", "wrist_singular"):
+        lo, hi = np.asarray(robot.limits).reshape(2, 6) if np.size(robot.limits) == 12 else (None, None)
+        if lo is not None and np.all((q >= lo) & (q <= hi)) and not np.any(sols.ok):
+            raise ContractError(f"a pose made by FK of joints within the limits came back unreachable: q={q.tolist()}")
+    call(robot.ik_closest, T, q)
+    call(robot.ik_batch, np.asarray(T)[None] if np.ndim(T) == 2 else T, num_threads=case["threads"])
+
+
+# -- CAD views, pose and CBD ---------------------------------------------------------------
+@functools.lru_cache(maxsize=1)
+def _part():
+    from scanalign import parts
+    return parts.builtin_mesh(24)
+
+
+@functools.lru_cache(maxsize=1)
+def _part_cloud():
+    from scanalign import parts
+    return parts.sample_mesh(_part(), 1500, seed=1)[0]
+
+
+_MESHES = ["part"] * 3 + ["nan_vertex", "bad_index", "neg_index", "no_faces", "degenerate", "float_faces", "2d"]
+
+
+def _mesh(kind):
+    m = _part()
+    v, f = np.array(m.vertices, dtype=float), np.array(m.faces)
+    if kind == "nan_vertex":
+        v[0] = NAN
+    elif kind == "bad_index":
+        f[0, 0] = len(v) + 5
+    elif kind == "neg_index":
+        f[0, 0] = -1
+    elif kind == "no_faces":
+        f = f[:0]
+    elif kind == "degenerate":
+        f[:] = f[:, :1]
+    elif kind == "float_faces":
+        f = f.astype(float) + 0.5
+    elif kind == "2d":
+        v = v[:, :2]
+    return v, f
+
+
+@target("cad", mesh=choice(_MESHES), res=counts([24, 40], 10**5), angle=numbers(1.0, 3.2), level=counts(0, 9),
+        dist=choice([None, 0.5, 0.0, -1.0, NAN, 1e300]))
+def render_views(case):
+    from scanalign import cad
+    views = call(cad.render_views, _mesh(case["mesh"]), resolution=case["res"], view_angle=case["angle"],
+                 level=case["level"], distance=case["dist"])
+    for v in views or []:
+        finite(v.points, "view points")
+
+
+@target("pose", src=clouds(300), tgt=clouds(300), w=choice(["none", "weights", "neg_weights", "short"]), svd=st.booleans())
+def estimate_motor(case):
+    from scanalign import pose
+    src = build(case["src"])
+    tgt = build(case["tgt"]) if case["tgt"][1] != "wavy" else src
+    w = None if case["w"] == "none" else build(("like", case["src"], case["w"], 0))
+    w = w[:, 0] if isinstance(w, np.ndarray) and w.ndim == 2 else w
+    r = call(pose.estimate_rigid_svd if case["svd"] else pose.estimate_motor, src, tgt, w)
+
+
+@target("pose", src=clouds(300), nkind=choice(["unit", "zero", "nan", "short", "scaled"]), tgt=clouds(300), moved=st.booleans())
+def align_flags(case):
+    """Truth: when the target is the source moved by a known motion and the result is
+    valid, it is that motion (flags are exact on noise-free data)."""
+    from scanalign import pose
+    src = build(case["src"])
+    n_src = build(("like", case["src"], case["nkind"], 5))
+    T = rigid_from(np.random.default_rng(1), 0.5, 0.1)
+    if case["moved"] and isinstance(src, np.ndarray) and src.ndim == 2 and src.shape[1:] == (3,) and src.dtype.kind == "f" \
+            and isinstance(n_src, np.ndarray) and n_src.shape == src.shape:
+        tgt, n_tgt = src @ T[:3, :3].T + T[:3, 3], n_src @ T[:3, :3].T
+    else:
+        tgt, n_tgt, T = build(case["tgt"]), build(("like", case["tgt"], "unit", 6)), None
+    r = call(pose.align_flags, src, n_src, tgt, n_tgt)
+    if r is not None and r.valid and T is not None and np.all(np.isfinite(src)):
+        err = np.abs(np.asarray(r.T_target_source) - T).max()
+        if err > 1e-6 * max(1.0, np.abs(src).max()):
+            raise ContractError(f"align_flags valid but {err:.3g} from the true motion")
+
+
+@functools.lru_cache(maxsize=1)
+def _views():
+    from scanalign import cad
+    return cad.render_views(_part(), resolution=40)
+
+
+@target("pose", weight=0.25, scene=clouds(1500), method=choice(["cbd", "flags", "fpfh", "nope"], ["cbd", "flags"]),
+        res=counts(40, 10**5, 10**9), moved=choice([True, False], [True, False]), thr=numbers(0.005))
+def estimate_pose(case):
+    """Truth: the scene is one rendered view of the part moved by a known motion, or a bad
+    or unrelated cloud. A found pose must put the scene on the part's surface (exact
+    point-to-mesh distance, median under 1 mm: symmetric parts may be found in any of
+    their equivalent poses)."""
+    from scanalign import evaluation, pose
+    T = rigid_from(np.random.default_rng(2), 0.3, 0.05)
+    scene = np.asarray(_views()[7].points) @ T[:3, :3].T + T[:3, 3] if case["moved"] else build(case["scene"])
+    model = _views() if case["res"] == 40 else _part()
+    r = call(pose.estimate_pose, model, scene, method=case["method"], resolution=case["res"],
+             inlier_threshold=case["thr"], views=[0, 7])
+    if r is not None and r.found and case["moved"]:
+        T_model_scene = np.linalg.inv(np.asarray(r.T_scene_model))
+        in_model = scene @ T_model_scene[:3, :3].T + T_model_scene[:3, 3]
+        gap = np.median(evaluation.point_to_mesh_distance(in_model, _part().vertices, _part().faces))
+        if gap > 0.001:
+            raise ContractError(f"estimate_pose found a pose that puts the scene {gap * 1e3:.1f} mm off the part")
+
+
+@target("pose", src=clouds(1500), tgt=clouds(1500), method=choice(["fpfh", "shot", "nope"]))
+def pcl_feature_alignment(case):
+    from scanalign import pose
+    call(pose.pcl_feature_alignment, build(case["src"]), build(case["tgt"]), method=case["method"])
+
+
+@target("cbd", points=clouds(1500), radius=numbers([0.05, 0.3]), kp=counts([50, 200]), min_nb=counts(0))
+def cbd_compute(case):
+    from scanalign import cbd
+    f = call(cbd.compute, build(case["points"]), radius=case["radius"], max_keypoints=case["kp"], min_neighbors=case["min_nb"])
+    if f is not None:
+        finite(f.descriptors, "CBD descriptors")
+        call(cbd.match, f, f)
+
+
+@target("cbd", points=clouds(1500), radius=numbers(0.3), min_nb=counts(20), k=counts(50))
+def cbd_parts(case):
+    from scanalign import cbd
+    r = call(cbd.neighbourhood_pca, build(case["points"]), case["radius"])
+    if r is not None:
+        counts_, ev = r
+        call(cbd.keypoint_scores, counts_, ev, case["min_nb"])
+        call(cbd.select_keypoints, counts_, ev, min_neighbors=case["min_nb"])
+        call(cbd.automatic_keypoints, counts_, ev, case["k"], case["min_nb"])
+
+
+# -- file readers (mutated valid files; the atheris targets in fuzz/ go further) ---------
+def _valid_files(tmp):
+    from scanalign import io
+    rng = np.random.default_rng(0)
+    p = rng.uniform(-1, 1, (20, 3))
+    files = {}
+    for binary in (False, True):
+        path = f"{tmp}/cloud_{int(binary)}.ply"
+        io.write_ply(path, p, normals=p, binary=binary)
+        files[path] = open(path, "rb").read()
+    header = "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 20\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS 20\n"
+    files[f"{tmp}/a.pcd"] = (header + "DATA ascii\n" + "\n".join(" ".join(map(str, r)) for r in p) + "\n").encode()
+    files[f"{tmp}/b.pcd"] = (header + "DATA binary\n").encode() + p.astype(np.float32).tobytes()
+    files[f"{tmp}/m.off"] = b"OFF\n4 2 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2\n3 0 2 3\n"
+    files[f"{tmp}/m.obj"] = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n"
+    tri = np.array([[0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1, 0]], np.float32)
+    files[f"{tmp}/m.stl"] = b"\0" * 80 + np.uint32(1).tobytes() + tri.tobytes() + b"\0\0"
+    files[f"{tmp}/t.txt"] = b"# timestamp tx ty tz qx qy qz qw\n1.0 0 0 0 0 0 0 1\n2.0 0.1 0 0 0 0 0 1\n"
+    return files
+
+
+def _mutate(data: bytes, edits) -> bytes:
+    b = bytearray(data)
+    for op, pos, value in edits:
+        if not b:
+            break
+        i = pos % len(b)
+        if op == "flip":
+            b[i] = value
+        elif op == "cut":
+            del b[i:]
+        elif op == "insert":
+            b[i:i] = bytes([value]) * (1 + value % 7)
+        elif op == "digits":  # lie in a header: make a number huge or negative
+            b[i:i] = b"-" if value % 2 else b"99999999999"
+    return bytes(b)
+
+
+_EDITS = st.lists(st.tuples(st.sampled_from(["flip", "cut", "insert", "digits"]), st.integers(0, 10**6), st.integers(0, 255)),
+                  max_size=4)
+
+
+@target("io", which=st.integers(0, 8), edits=_EDITS)
+def readers(case):
+    import tempfile
+
+    from scanalign import io, trajectory
+    with tempfile.TemporaryDirectory() as tmp:
+        files = _valid_files(tmp)
+        path, data = sorted(files.items())[case["which"] % len(files)]
+        with open(path, "wb") as fh:
+            fh.write(_mutate(data, case["edits"]))
+        if path.endswith(".pcd"):
+            r = call(io.read_pcd, path)
+            call(io.read_pcd_points, path)
+        elif path.endswith(".ply"):
+            call(io.read_ply_points, path)
+            call(io.read_mesh, path)
+        elif path.endswith(".txt"):
+            t = call(trajectory.read_tum_trajectory, path)
+            if t is not None:
+                finite(t.timestamps, "timestamps")
+                finite(t.poses, "poses")
+        else:
+            m = call(io.read_mesh, path)
+            if m is not None and len(m.faces):
+                f = np.asarray(m.faces)
+                if f.min() < 0 or f.max() >= len(m.vertices):
+                    raise ContractError("a mesh read with face indices out of range")
+
+
+_LZF_OK = b"\x03abcd\x20\x03"  # a literal run "abcd", then a back-reference copying 3 bytes: "abcdbcd"
+
+
+@target("io", data=st.one_of(st.just(_LZF_OK), st.binary(max_size=64).map(lambda b: _LZF_OK + b)), size=counts([7, 16], 2**40))
+def lzf(case):
+    from scanalign import io
+    out = call(io.lzf_decompress, case["data"], case["size"])
+    if out is not None and len(out) != case["size"]:
+        raise ContractError("lzf_decompress returned a length other than expected_size")
+
+
+@target("io", points=clouds(300), extras=choice(["none", "unit", "colors_u8", "colors_f", "colors_c", "strings", "short", "nan"]), binary=st.booleans())
+def write_ply(case):
+    import tempfile
+
+    from scanalign import io
+    extra = build(("like", case["points"], case["extras"], 3)) if case["extras"] != "none" else None
+    normals = extra if case["extras"] in ("unit", "short", "nan", "strings") else None
+    colors = extra if case["extras"].startswith("colors") else None
+    with tempfile.TemporaryDirectory() as tmp:
+        call(io.write_ply, f"{tmp}/out.ply", build(case["points"]), normals=normals, colors=colors, binary=case["binary"])
+
+
+# -- trajectories and evaluation ---------------------------------------------------------
+def _trajectory(kind, seed, n=12):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * 0.1 + 1.0
+    poses = np.stack([rigid_from(rng, 0.3, 1.0) for _ in range(n)])
+    if kind == "static":
+        poses[:] = np.eye(4)
+    elif kind == "nan_time":
+        t[3] = NAN
+    elif kind == "nan_pose":
+        poses[2, 0, 3] = NAN
+    elif kind == "unsorted":
+        t = t[::-1].copy()
+    elif kind == "duplicate_time":
+        t[4] = t[3]
+    elif kind == "scaled":
+        poses[:, :3, :3] *= 2
+    elif kind in ("one", "empty"):
+        t, poses = t[: int(kind == "one")], poses[: int(kind == "one")]
+    return t, poses
+
+
+_TRAJ = ["ok"] * 4 + ["static", "nan_time", "nan_pose", "unsorted", "duplicate_time", "scaled", "one", "empty"]
+
+
+@target("evaluation", est=choice(_TRAJ), ref=choice(_TRAJ), seed=st.integers(0, 99), align=st.booleans(),
+        delta=numbers(1), assoc=st.booleans(), maxdiff=numbers(0.02))
+def trajectory_errors(case):
+    from scanalign import evaluation, trajectory
+    est = call(trajectory.Trajectory, *_trajectory(case["est"], case["seed"]))
+    ref = call(trajectory.Trajectory, *_trajectory(case["ref"], case["seed"] + 1))
+    if est is None or ref is None:
+        return
+    a = call(evaluation.absolute_trajectory_error, est, ref, align=case["align"], associate=case["assoc"], max_difference=case["maxdiff"])
+    if a is not None:
+        finite(a.rmse if hasattr(a, "rmse") else 0.0, "ATE")
+    call(evaluation.relative_pose_error, est, ref, delta=case["delta"], associate=case["assoc"])
+    call(trajectory.associate_timestamps, est.timestamps, ref.timestamps, case["maxdiff"])
+
+
+@target("evaluation", src=clouds(300), tgt=clouds(300), scale=st.booleans())
+def umeyama(case):
+    from scanalign import evaluation
+    call(evaluation.umeyama_alignment, build(case["src"]), build(case["tgt"]), case["scale"])
+
+
+@target("evaluation", points=clouds(1500), mesh=choice(_MESHES))
+def mesh_distance(case):
+    from scanalign import evaluation
+    v, f = _mesh(case["mesh"])
+    d = call(evaluation.point_to_mesh_distance, build(case["points"]), v, f)
+    if d is not None:
+        finite(d, "distances")
+    call(evaluation.mesh_distance_stats, build(case["points"]), v, f)
+
+
+@target("se3", T=transforms(), T2=transforms(), axis=choice(_VEC), angle=choice(_SCALAR))
+def se3_functions(case):
+    from scanalign import se3
+    T, T2 = build(case["T"]), build(case["T2"])
+    call(se3.inverse, T)
+    call(se3.pose_error, T, T2)
+    call(se3.require_rigid, T, "T")
+    call(se3.rotation_angle, T[:3, :3] if isinstance(T, np.ndarray) and T.ndim == 2 and T.shape[0] >= 3 else T)
+    r = call(se3.rigid, case["axis"], case["angle"], (0.0, 0.0, 0.0))
+    if r is not None:
+        finite(r, "rigid")
+
+
+# -- meshes, rendering and the synthetic scanner -------------------------------------------
+@target("rendering", mesh=choice(_MESHES), intr=choice(["ok"] * 4 + ["fx0", "nan", "neg", "huge", "size0"]),
+        T=transforms(), near=numbers(0.01), far=numbers(INF), n=counts(100, 10**12))
+def render_and_sample(case):
+    from scanalign import parts, rendering
+    v, f = _mesh(case["mesh"])
+    T = build(case["T"])
+    if isinstance(T, np.ndarray) and T.shape == (4, 4) and T.dtype.kind == "f":
+        T = T.copy()
+        T[2, 3] += 2.0  # put the part in front of the camera
+    r = call(rendering.render_depth, v, f, _intrinsics(case["intr"]), T, near=case["near"], far=case["far"])
+    s = call(parts.sample_mesh, (v, f), case["n"])
+    if s is not None:
+        finite(s[0], "samples")
+
+
+@target("synthetic", frames=counts(2, 10**9), noise=choice(["sr300", "zivid", "none", "nope", None]),
+        traj=choice(["loop", "hemisphere", "nope"]), scale=numbers(0.1, 1e6), robot=choice(["ur5", "kr6", "nope"]))
+def builtin_scan(case):
+    from scanalign import synthetic
+    scan = call(synthetic.builtin_scan, case["frames"], case["noise"], trajectory=case["traj"],
+                resolution_scale=case["scale"], robot=case["robot"])
+    for frame in getattr(scan, "frames", [])[:2] if scan is not None else []:
+        finite(frame.T_base_camera, "frame pose")
