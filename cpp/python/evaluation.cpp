@@ -4,6 +4,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <cmath>
 #include <memory>
 #include <string>
 #include <tuple>
@@ -129,9 +130,13 @@ py::array_t<double> rotationsFromQuaternions(const py::object& quaternions) {
   shape.insert(shape.end(), {3, 3});
   py::array_t<double> out(shape);
   const py::ssize_t n = q.size() / 4;
-  for (py::ssize_t i = 0; i < n; ++i)
-    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(out.mutable_data() + 9 * i) =
-        rotationFromQuaternion(Eigen::Map<const Eigen::Vector4d>(q.data() + 4 * i));
+  for (py::ssize_t i = 0; i < n; ++i) {
+    // Divided by its largest component first: normalising (1e300, 1e300, 0, 1) directly
+    // overflows the squared norm, and the rotation came back as the identity.
+    Eigen::Vector4d v = Eigen::Map<const Eigen::Vector4d>(q.data() + 4 * i);
+    if (const double s = v.cwiseAbs().maxCoeff(); s > 0 && std::isfinite(s)) v /= s;
+    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(out.mutable_data() + 9 * i) = rotationFromQuaternion(v);
+  }
   return out;
 }
 
@@ -318,7 +323,8 @@ Raises:
       py::arg("shorter"), py::arg("longer"), py::arg("max_difference"),
       "(K, 2) int64 pairs (i, j): for every time shorter[i], the nearest time longer[j] (longer sorted "
       "ascending) within max_difference seconds (inclusive; ties to the earlier one), as evo's "
-      "associate_trajectories; a j may repeat. ValueError when longer is not sorted.");
+      "associate_trajectories; a j may repeat. ValueError when longer is not sorted, a timestamp is not "
+      "finite, or max_difference is NaN, infinite or negative.");
   m.def(
       "relative_pose_pairs",
       [](const Stack& s, double delta, bool all_pairs, double tol) {

@@ -1,4 +1,5 @@
-// _core.io: PCD reading, LZF decompression, OFF / OBJ / STL meshes and fan triangulation.
+// _core.io: PCD reading, LZF decompression, OFF / OBJ / STL meshes, fan triangulation and the
+// PLY header check run before plyfile reads a file.
 // python/scanalign/io.py reads the file, names it in error messages and keeps the public
 // signatures.
 #include <pybind11/numpy.h>
@@ -6,6 +7,7 @@
 #include <pybind11/stl.h>
 
 #include <cstring>
+#include <fstream>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -13,6 +15,7 @@
 #include "scanalign/io/lzf.hpp"
 #include "scanalign/io/mesh_text.hpp"
 #include "scanalign/io/pcd.hpp"
+#include "scanalign/io/ply_header.hpp"
 
 namespace py = pybind11;
 
@@ -151,6 +154,29 @@ Raises:
       "faces (F, 3) int64), polygons fan-triangulated, STL corners with equal coordinates merged in "
       "order of first appearance. Raises ValueError for a malformed or truncated file, a face with "
       "fewer than 3 corners or an index out of range.");
+
+  m.def(
+      "check_ply_header",
+      [](const std::string& path) {
+        std::ifstream in(path, std::ios::binary | std::ios::ate);
+        if (!in) return;  // the reader reports a missing or unreadable file
+        const auto size = static_cast<std::uint64_t>(in.tellg());
+        std::string head(static_cast<std::size_t>(std::min<std::uint64_t>(size, 1u << 20)), '\0');
+        in.seekg(0);
+        in.read(head.data(), static_cast<std::streamsize>(head.size()));
+        head.resize(static_cast<std::size_t>(in.gcount()));
+        try {
+          checkPlyHeader(head, size);
+        } catch (const std::invalid_argument& e) {
+          throw std::invalid_argument(path + ": " + e.what());
+        }
+      },
+      py::arg("path"),
+      "Checks the element counts of a PLY file's header (its first MiB) against the file's size "
+      "before a reader allocates them: every row takes at least its binary record size, or two "
+      "bytes per property in ASCII. Raises ValueError, message starting with the path, for a "
+      "negative or non-integer count or counts the file cannot hold; leaves every other problem "
+      "(not a PLY file, unknown type, no end_header) to the reader.");
 
   m.def(
       "fan_triangulate",

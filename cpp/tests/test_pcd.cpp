@@ -9,7 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "scanalign/io/mesh_text.hpp"
 #include "scanalign/io/pcd.hpp"
+#include "scanalign/io/ply_header.hpp"
 
 namespace {
 
@@ -226,4 +228,76 @@ TEST(Pcd, ReadPcdNamesTheFile) {
   }
   std::ofstream(path, std::ios::binary) << binaryFile();
   expectKnownContent(scanalign::readPcd(path));
+}
+
+// The mesh readers and the PLY header check share the PCD reader's rule (a header's claims are
+// checked against the bytes present before anything is read or allocated); here so that the
+// sanitizer build (scripts/sanitize.sh) watches them for out-of-bounds reads.
+namespace {
+
+std::string meshError(const std::string& bytes, char format) {
+  try {
+    format == 'o' ? scanalign::parseOff(bytes) : scanalign::parseStl(bytes);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+std::string plyError(const std::string& head, std::uint64_t size) {
+  try {
+    scanalign::checkPlyHeader(head, size);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+}  // namespace
+
+TEST(MeshText, OffCountsThatOverflowAreRefusedNotReadPastTheEnd) {
+  // nv + nf wraps to a negative number: the old check passed and vertex lines past the end were read.
+  EXPECT_NE(meshError("OFF\n9223372036854775807 9223372036854775807 0\n0 0 0\n", 'o').find("truncated"),
+            std::string::npos);
+  // A face claiming INT64_MAX corners: k + 1 overflowed and indices past the line were read.
+  EXPECT_NE(meshError("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n9223372036854775807 0 1 2\n", 'o').find("fewer than"),
+            std::string::npos);
+  EXPECT_NE(meshError("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 99999999999999999999\n", 'o').find("64-bit"),
+            std::string::npos);
+  EXPECT_NE(meshError("OFF\n3 1 0\n0 0 inf\n1 0 0\n0 1 0\n3 0 1 2\n", 'o').find("finite"), std::string::npos);
+  const auto good = scanalign::parseOff("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  EXPECT_EQ(good.vertices, (std::vector<double>{0, 0, 0, 1, 0, 0, 0, 1, 0}));
+  EXPECT_EQ(good.faces, (std::vector<std::int64_t>{0, 1, 2}));
+}
+
+TEST(MeshText, StlTruncatedOrLyingIsRefused) {
+  std::string binary = "solid but binary";
+  binary.resize(80, ' ');
+  append(binary, std::uint32_t{2});  // claims 2 triangles, holds 1
+  for (float v : {0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) append(binary, v);
+  binary += std::string(2, '\0');
+  EXPECT_NE(meshError(binary, 's').find("the header claims 2 triangles"), std::string::npos);
+  EXPECT_NE(meshError("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+                      "endloop\nendfacet\n", 's').find("endsolid"),
+            std::string::npos);
+  EXPECT_NE(meshError(std::string(10, '\0'), 's').find("shorter than"), std::string::npos);
+}
+
+TEST(MeshText, PlyHeaderCountsAreCheckedAgainstTheFileSize) {
+  const std::string head =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  EXPECT_EQ(plyError(head, head.size() + 36 + 13), "no error");
+  EXPECT_EQ(plyError(head, head.size() + 36 + 1), "no error");  // the list's items are the reader's business
+  EXPECT_NE(plyError(head, head.size() + 36).find("claims 1 'face' elements"), std::string::npos);
+  std::string huge = head;
+  huge.replace(huge.find("vertex 3"), 8, "vertex 18446744073709551615");
+  EXPECT_NE(plyError(huge, huge.size() + 49).find("claims 18446744073709551615 'vertex'"), std::string::npos);
+  std::string negative = head;
+  negative.replace(negative.find("face 1"), 6, "face -1");
+  EXPECT_NE(plyError(negative, 1 << 20).find("count '-1'"), std::string::npos);
+  std::string ascii = head;
+  ascii.replace(ascii.find("binary_little_endian"), 20, "ascii");
+  EXPECT_NE(plyError(ascii, ascii.size() + 7).find("at least 6 bytes"), std::string::npos);
+  EXPECT_EQ(plyError("not a ply file\n", 10), "no error");  // left to the reader to report
 }

@@ -80,16 +80,15 @@ def _read_cloud(path: Path) -> tuple:
 
     suffix = path.suffix.lower()
     if suffix == ".pcd":
-        fields = io.read_pcd(path)
-        pts = np.column_stack([fields["x"], fields["y"], fields["z"]]).astype(np.float64)
-        normals = None
-        if all(k in fields for k in ("normal_x", "normal_y", "normal_z")):
-            normals = np.column_stack([fields["normal_x"], fields["normal_y"], fields["normal_z"]])
-        return pts, normals
+        fields, n = io.read_pcd(path), ("normal_x", "normal_y", "normal_z")
+        if not all(k in fields for k in "xyz"):
+            raise ValueError(f"{path}: PCD file has no x, y, z fields (it has {', '.join(fields) or 'none'})")
+        normals = np.column_stack([fields[k] for k in n]) if all(k in fields for k in n) else None
+        return np.column_stack([fields[k] for k in "xyz"]).astype(np.float64), normals
     if suffix == ".ply":
         d = io.read_ply_points(path)
         return d["points"], d.get("normals")
-    raise SystemExit(f"scanalign: unsupported cloud format {path.suffix!r} (use .pcd or .ply)")
+    raise ValueError(f"{path}: unsupported cloud format {path.suffix!r} (use .pcd or .ply)")
 
 
 def register(args: argparse.Namespace) -> int:
@@ -161,7 +160,7 @@ def _builtin_config(args: argparse.Namespace):
     """The built-in scan's config with the command line's overrides."""
     from . import synthetic
 
-    return synthetic.SyntheticConfig(n_frames=args.frames or 36, noise=args.noise or "sr300",
+    return synthetic.SyntheticConfig(n_frames=36 if args.frames is None else args.frames, noise=args.noise or "sr300",
                                       seed=0 if args.seed is None else args.seed, **_robot_overrides(args))
 
 
@@ -384,8 +383,6 @@ def ik_command(args: argparse.Namespace) -> int:
 
 def pose_command(args: argparse.Namespace) -> int:
     """``scanalign pose``: find a CAD part in a scan; exit status 1 when no object is found."""
-    import json
-
     from . import io, pose as _pose
 
     model_path = Path(args.model)
@@ -537,7 +534,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             register_demo(Path(args.out), seed=args.seed, noise=args.noise)
             return 0
         return register(args)
-    except (ValueError, FileNotFoundError, TypeError) as e:
+    except (ValueError, TypeError, OSError, RuntimeError) as e:  # OSError: unreadable input, unwritable output
         print(f"scanalign {args.command}: error: {e}", file=sys.stderr)
         return 2
 

@@ -116,11 +116,8 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
         ValueError: no pair within ``max_difference``, a negative ``max_difference``, an
             unknown method.
     """
-    est = _as_trajectory(estimate, "estimate")
-    ref = _as_trajectory(reference, "reference")
-    if not (max_difference >= 0.0 and np.isfinite(max_difference)):
-        raise ValueError(f"max_difference must be a finite number >= 0 (s), got {max_difference}")
-    if not np.isfinite(offset):
+    est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
+    if not np.isfinite(offset):  # max_difference is checked by both C++ association rules
         raise ValueError(f"offset must be finite, got {offset}")
     te = est.timestamps + float(offset)
     tr = ref.timestamps
@@ -144,10 +141,7 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
             f"estimate spans [{est.timestamps.min() if len(est) else 'empty'}, "
             f"{est.timestamps.max() if len(est) else ''}] s, reference "
             f"[{tr.min() if len(ref) else 'empty'}, {tr.max() if len(ref) else ''}] s")
-    est_m, ref_m = est[ie], ref[ir]
-    if return_indices:
-        return est_m, ref_m, ie, ir
-    return est_m, ref_m
+    return (est[ie], ref[ir], ie, ir) if return_indices else (est[ie], ref[ir])
 
 
 @dataclass

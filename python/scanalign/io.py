@@ -132,8 +132,8 @@ class Mesh:
     def __post_init__(self) -> None:
         vertices = np.asarray(self.vertices, dtype=np.float64)
         faces = np.asarray(self.faces, dtype=np.int64)
-        if vertices.ndim != 2 or vertices.shape[1] != 3:
-            raise ValueError(f"Mesh vertices must have shape (V, 3), got {vertices.shape}")
+        if vertices.ndim != 2 or vertices.shape[1] != 3 or not np.isfinite(vertices).all():
+            raise ValueError(f"Mesh vertices must be finite with shape (V, 3), got shape {vertices.shape}")
         if faces.ndim != 2 or faces.shape[1] != 3:
             raise ValueError(f"Mesh faces must have shape (F, 3), got {faces.shape}")
         if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
@@ -147,23 +147,22 @@ class Mesh:
 _TRIANGLES = {"face": {"vertex_indices": 3, "vertex_index": 3}}
 
 
-def _read_ply(path: PathLike) -> PlyData:
-    for known in (_TRIANGLES, {}):
-        try:
-            with warnings.catch_warnings():  # numpy warns about empty ascii elements
-                warnings.simplefilter("ignore", UserWarning)
-                return PlyData.read(os.fspath(path), known_list_len=known)
-        except PlyHeaderParseError as exc:
-            message = str(exc)
-            what = ("not a PLY file" if "expected 'ply'" in message
-                    else "unsupported PLY format" if "format" in message else "malformed PLY header")
-            raise _error(path, f"{what} ({message})") from None
-        except PlyElementParseError as exc:
-            if known and "unexpected list length" in str(exc):
-                continue
-            what = "PLY element is truncated" if "end-of-file" in str(exc) else "malformed PLY element"
-            raise _error(path, f"{what} ({exc})") from None
-    raise AssertionError("unreachable")
+def _read_ply(path: PathLike, triangles: bool = True) -> PlyData:
+    _io.check_ply_header(os.fspath(path))  # counts the file cannot hold, refused before plyfile allocates them
+    try:
+        with warnings.catch_warnings():  # numpy warns about empty ascii elements
+            warnings.simplefilter("ignore", UserWarning)
+            return PlyData.read(os.fspath(path), known_list_len=_TRIANGLES if triangles else {})
+    except PlyHeaderParseError as exc:
+        message = str(exc)
+        what = ("not a PLY file" if "expected 'ply'" in message
+                else "unsupported PLY format" if "format" in message else "malformed PLY header")
+        raise _error(path, f"{what} ({message})") from None
+    except (PlyElementParseError, ValueError, TypeError, IndexError) as exc:  # numpy's, on corrupt data
+        if triangles and "unexpected list length" in str(exc):
+            return _read_ply(path, triangles=False)
+        what = "PLY element is truncated" if "end-of-file" in str(exc) else "malformed PLY element"
+        raise _error(path, f"{what} ({exc})") from None
 
 
 def _ply_vertex_columns(path: PathLike, ply: PlyData, names: tuple[str, ...]) -> np.ndarray | None:
@@ -222,8 +221,9 @@ def read_mesh(path: PathLike) -> Mesh:
         are frequently in millimetres; scale to metres yourself) and ``(F, 3)`` int64 faces.
 
     Raises:
-        ValueError: unknown extension, malformed or truncated file, face index out of
-            range, or a face with fewer than 3 corners.
+        ValueError: unknown extension, malformed or truncated file, a header claiming more
+            vertices or faces than the file holds (refused before allocating), a non-finite
+            vertex, a face index out of range, or a face with fewer than 3 corners.
     """
     suffix = Path(path).suffix.lower()
     if suffix == ".ply":

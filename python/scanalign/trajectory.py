@@ -126,12 +126,15 @@ class Trajectory:
                 (s) raises, so a gap in a ground truth is not papered over.
 
         Raises:
-            ValueError: a query outside the span or across a gap larger than ``max_gap``.
+            ValueError: a query outside the span or across a gap larger than ``max_gap``; a
+                trajectory whose timestamps decrease (sort it first); a NaN or negative max_gap.
         """
         t = np.asarray(timestamps, dtype=np.float64).reshape(-1)
         if len(self) == 0:
             raise ValueError("cannot interpolate an empty trajectory")
         ts = self.timestamps
+        if np.any(np.diff(ts) < 0) or not max_gap >= 0:  # the search below needs time-sorted poses
+            raise ValueError(f"interpolate needs non-decreasing timestamps and max_gap >= 0 s, got max_gap {max_gap}")
         if np.any(t < ts[0] - 1e-9) or np.any(t > ts[-1] + 1e-9):
             raise ValueError(f"query times outside the trajectory's span [{ts[0]}, {ts[-1]}]")
         hi = np.clip(np.searchsorted(ts, t, side="left"), 0, len(ts) - 1)
@@ -174,7 +177,7 @@ def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarra
 
     Raises:
         TumFormatError: not UTF-8 text, a line with another number of fields, a value that
-            is not a finite number (the file and line are named).
+            is not a finite number, a zero quaternion (8 fields) (the file and line are named).
     """
     try:
         text = Path(path).read_text(encoding="utf-8")
@@ -196,6 +199,8 @@ def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarra
             raise TumFormatError(f"not a number in {raw.strip()!r}", path, lineno) from None
         if not all(map(math.isfinite, row)):
             raise TumFormatError(f"a value is not finite in {raw.strip()!r}", path, lineno)
+        if fields == 8 and not any(row[4:]):  # a trajectory row whose qx qy qz qw are all 0: no rotation
+            raise TumFormatError(f"the quaternion qx qy qz qw is zero in {raw.strip()!r}", path, lineno)
         values.append(row)
         lines.append(lineno)
     return np.array(values).reshape(-1, fields - named), names, np.array(lines, dtype=np.int64)
@@ -217,10 +222,12 @@ def time_order(timestamps: np.ndarray, path: PathLike, lines: np.ndarray) -> np.
 
 
 def read_tum_trajectory(path: PathLike) -> Trajectory:
-    """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, in file order).
+    """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, in file order:
+    :meth:`Trajectory.interpolate` refuses one that is not time-sorted).
 
     Raises:
-        TumFormatError (a ValueError): a line without 8 finite numbers (file and line named).
+        TumFormatError (a ValueError): a line without 8 finite numbers or with a zero quaternion
+            (file and line named).
     """
     return Trajectory.from_tum_rows(read_tum_rows(path, 8, "8 values (timestamp tx ty tz qx qy qz qw)")[0])
 

@@ -4,9 +4,11 @@
 #pragma once
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <stdexcept>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -14,10 +16,19 @@ namespace scanalign {
 
 /// For every time of `shorter`, the nearest time of `longer` (sorted ascending) within
 /// `max_difference` (s, inclusive; ties to the earlier one): pairs (i_shorter, i_longer)
-/// in the order of `shorter`. An index of `longer` may be used more than once.
+/// in the order of `shorter`. An index of `longer` may be used more than once. Throws
+/// std::invalid_argument for a NaN, infinite or negative max_difference and for non-finite
+/// timestamps (a NaN compares false both ways: it would be skipped or break the sort check).
 inline std::vector<std::pair<std::int64_t, std::int64_t>> associateNearest(const std::vector<double>& shorter,
                                                                            const std::vector<double>& longer,
                                                                            double max_difference) {
+  if (!(max_difference >= 0 && std::isfinite(max_difference)))
+    throw std::invalid_argument("max_difference must be a finite number >= 0 (s), got " +
+                                std::to_string(max_difference));
+  for (const auto* t : {&shorter, &longer})
+    if (!std::all_of(t->begin(), t->end(), [](double v) { return std::isfinite(v); }))
+      throw std::invalid_argument(std::string("associate_nearest: ") + (t == &shorter ? "shorter" : "longer") +
+                                  " has non-finite timestamps");
   if (!std::is_sorted(longer.begin(), longer.end()))
     throw std::invalid_argument("method='nearest' needs the longer trajectory's timestamps sorted");
   std::vector<std::pair<std::int64_t, std::int64_t>> pairs;

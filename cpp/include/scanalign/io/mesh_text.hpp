@@ -6,6 +6,8 @@
 #pragma once
 
 #include <cctype>
+#include <cerrno>
+#include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <cstring>
@@ -53,19 +55,24 @@ inline std::vector<std::vector<std::string_view>> contentLines(std::string_view 
   return lines;
 }
 
+/// A vertex coordinate: a finite number (a NaN or infinite vertex is a corrupt file, not a shape).
 inline double number(std::string_view token, const std::string& what) {
   const std::string s(token);
   char* end = nullptr;
   const double v = std::strtod(s.c_str(), &end);
   if (s.empty() || end != s.c_str() + s.size()) throw std::invalid_argument(what + ": not a number: '" + s + "'");
+  if (!std::isfinite(v)) throw std::invalid_argument(what + ": not a finite number: '" + s + "'");
   return v;
 }
 
+/// A count or index; one beyond the 64-bit range is refused, not clamped to it.
 inline std::int64_t integer(std::string_view token, const std::string& what) {
   const std::string s(token);
   char* end = nullptr;
+  errno = 0;
   const long long v = std::strtoll(s.c_str(), &end, 10);
-  if (s.empty() || end != s.c_str() + s.size()) throw std::invalid_argument(what + ": not an integer: '" + s + "'");
+  if (s.empty() || end != s.c_str() + s.size() || errno == ERANGE)
+    throw std::invalid_argument(what + ": not a 64-bit integer: '" + s + "'");
   return v;
 }
 
@@ -163,7 +170,9 @@ inline TextMesh parseOff(std::string_view text) {
     for (auto c : counts) joined += (joined.empty() ? "" : " ") + std::string(c);
     throw std::invalid_argument("malformed OFF counts line '" + joined + "'");
   }
-  if (static_cast<std::int64_t>(lines.size() - body) < nv + nf)
+  // Compared without forming nv + nf, which a lying header can overflow.
+  const auto data_lines = static_cast<std::int64_t>(lines.size() - body);
+  if (nv > data_lines || nf > data_lines - nv)
     throw std::invalid_argument("OFF file is truncated: " + std::to_string(lines.size() - body) +
                                 " data lines for " + std::to_string(nv) + " vertices + " + std::to_string(nf) +
                                 " faces");
@@ -178,7 +187,7 @@ inline TextMesh parseOff(std::string_view text) {
   for (std::int64_t i = 0; i < nf; ++i) {
     const auto& t = lines[body + nv + i];
     const std::int64_t k = integer(t[0], what);
-    if (k < 0 || static_cast<std::int64_t>(t.size()) < k + 1)
+    if (k < 0 || static_cast<std::uint64_t>(k) >= t.size())
       throw std::invalid_argument(what + ": face " + std::to_string(i) + " lists fewer than " + std::to_string(k) +
                                   " indices");
     sizes.push_back(k);
@@ -223,40 +232,59 @@ inline TextMesh parseObj(std::string_view text) {
   return m;
 }
 
-/// STL, binary (recognised by its size, 84 + 50 n bytes) or ASCII (`solid` ...); corners
-/// with equal coordinates are merged into shared vertices in order of first appearance.
+/// STL, binary (recognised by its size, 84 + 50 n bytes) or ASCII (`solid` ... `endsolid`);
+/// corners with equal coordinates are merged into shared vertices in order of first
+/// appearance.  A binary file whose size disagrees with its triangle count (truncated, or
+/// a count no file of this size can hold) and an ASCII file without its closing
+/// `endsolid` are refused, as are non-finite coordinates.
 inline TextMesh parseStl(std::string_view bytes) {
   using namespace mesh_text_detail;
   std::vector<double> corners;
+  std::uint32_t n = 0;
   if (bytes.size() >= 84) {
-    std::uint32_t n = 0;
     std::memcpy(&n, bytes.data() + 80, 4);  // little-endian hosts only, as PCD reading
     if (bytes.size() == 84 + 50 * static_cast<std::uint64_t>(n)) {
-      corners.reserve(9 * static_cast<std::size_t>(n));
+      corners.reserve(9 * static_cast<std::size_t>(n));  // bounded: the file holds them all
       for (std::uint32_t i = 0; i < n; ++i)
         for (int k = 0; k < 9; ++k) {
           float v;
           std::memcpy(&v, bytes.data() + 84 + 50 * static_cast<std::size_t>(i) + 12 + 4 * k, 4);
+          if (!std::isfinite(v))
+            throw std::invalid_argument("binary STL triangle " + std::to_string(i) + " has a non-finite coordinate");
           corners.push_back(v);
         }
       return mergeCorners(corners);
     }
   }
+  // Binary files often start with "solid" too (the 80-byte header is free text); ASCII
+  // STL has no NUL byte, binary STL nearly always has some (the count, zero normals).
   const auto first = bytes.find_first_not_of(" \t\r\n\f\v");
-  if (first == std::string_view::npos || bytes.substr(first, 5) != "solid")
-    throw std::invalid_argument("neither a binary STL (size mismatch) nor an ASCII STL ('solid')");
+  const bool ascii = first != std::string_view::npos && bytes.substr(first, 5) == "solid" &&
+                     bytes.find('\0') == std::string_view::npos;
+  if (!ascii)
+    throw std::invalid_argument(
+        "neither a binary STL (" +
+        (bytes.size() < 84 ? std::string("shorter than its 84-byte header")
+                           : "the header claims " + std::to_string(n) + " triangles, 84 + 50 * " + std::to_string(n) +
+                                 " = " + std::to_string(84 + 50 * static_cast<std::uint64_t>(n)) +
+                                 " bytes, but the file has " + std::to_string(bytes.size()) +
+                                 ": truncated or corrupt") +
+        ") nor an ASCII STL ('solid' ... 'endsolid')");
   const auto t = split(bytes);
-  std::size_t loops = 0, endloops = 0, endfacets = 0;
+  std::size_t loops = 0, endloops = 0, endfacets = 0, last_endfacet = 0, endsolid = 0;
   std::vector<std::size_t> vertex_tokens;
   for (std::size_t i = 0; i < t.size(); ++i) {
     loops += t[i] == "outer" && i + 1 < t.size() && t[i + 1] == "loop";
     endloops += t[i] == "endloop";
-    endfacets += t[i] == "endfacet";
+    if (t[i] == "endfacet") ++endfacets, last_endfacet = i;
+    if (t[i] == "endsolid") endsolid = i;
     if (t[i] == "vertex" && i + 3 < t.size()) vertex_tokens.push_back(i);
   }
   // Structure first: a truncated file is reported as such, not by the cut number.
   if (loops != endloops || loops != endfacets)
     throw std::invalid_argument("ASCII STL is truncated or malformed (unbalanced facet/loop)");
+  if (endsolid == 0 || endsolid < last_endfacet)
+    throw std::invalid_argument("ASCII STL is truncated: no 'endsolid' after the last facet");
   if (vertex_tokens.size() != 3 * loops)
     throw std::invalid_argument("ASCII STL has " + std::to_string(vertex_tokens.size()) + " vertices for " +
                                 std::to_string(loops) + " triangles");
