@@ -101,7 +101,10 @@ def register(args: argparse.Namespace) -> int:
     tgt, tgt_normals = _read_cloud(Path(args.target))
     if tgt_normals is None or not np.isfinite(tgt_normals).any():
         tgt_normals = estimate_normals(tgt, radius=args.normal_radius, viewpoint=(0.0, 0.0, 0.0))
-    init = np.loadtxt(args.init).reshape(4, 4) if args.init else None
+    try:
+        init = np.loadtxt(args.init).reshape(4, 4) if args.init else None
+    except (ValueError, OSError) as e:
+        raise ValueError(f"--init {args.init}: expected a text file holding a 4x4 matrix ({e})") from None
     r = icp(src, tgt, tgt_normals, init, max_correspondence_distance=args.max_distance,
             max_iterations=args.max_iterations, estimator=args.estimator,
             box=tuple(args.box) if args.box else None)
@@ -522,11 +525,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return ik_command(args)
         if args.command == "pose":
             return pose_command(args)
-        if args.command == "demo":
-            _run_reconstruction("builtin", args)
-            return 0
-        if args.command == "reconstruct":
-            _run_reconstruction(args.source, args)
+        if args.command in ("demo", "reconstruct"):
+            _run_reconstruction("builtin" if args.command == "demo" else args.source, args)
             return 0
         if args.command == "synth":
             return synth(args)
