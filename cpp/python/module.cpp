@@ -2,6 +2,10 @@
 // python/scanalign, which validates inputs and calls into these submodules.
 #include <pybind11/pybind11.h>
 
+#include <chrono>
+
+#include "scanalign/common/interrupt.hpp"
+
 namespace py = pybind11;
 
 namespace scanalign::python {
@@ -19,8 +23,64 @@ void defineEvaluation(py::module_& m);
 void defineIo(py::module_& m);
 }  // namespace scanalign::python
 
+namespace {
+
+/// The exception a Python signal handler raised (KeyboardInterrupt for Ctrl-C) while a C++
+/// loop ran: fetched in the hook, so that no Python error is pending while the C++ stack
+/// unwinds, and restored by the translator below when the Interrupted it caused arrives.
+struct PendingSignalError {
+  PyObject* type = nullptr;
+  PyObject* value = nullptr;
+  PyObject* traceback = nullptr;
+};
+thread_local PendingSignalError pending_signal_error;
+
+/// scanalign::interrupt_hook for Python: runs the signal handlers (Python only runs them
+/// between bytecodes, never while a C++ call is running). Long calls release the GIL
+/// (py::gil_scoped_release), so it is taken here; PyGILState_Ensure also works when the
+/// thread already holds it. On threads other than the main one PyErr_CheckSignals does
+/// nothing and returns 0.
+/// At most one check per 20 ms and thread: taking the GIL may wait for another Python
+/// thread's switch interval, and a person pressing Ctrl-C does not notice 20 ms.
+bool pythonInterruptHook() {
+  thread_local std::chrono::steady_clock::time_point last_check{};
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_check < std::chrono::milliseconds(20)) return false;
+  last_check = now;
+  const PyGILState_STATE gil = PyGILState_Ensure();
+  bool stop = false;
+  if (PyErr_CheckSignals() != 0) {
+    PendingSignalError& e = pending_signal_error;
+    Py_XDECREF(e.type);
+    Py_XDECREF(e.value);
+    Py_XDECREF(e.traceback);
+    PyErr_Fetch(&e.type, &e.value, &e.traceback);
+    stop = true;
+  }
+  PyGILState_Release(gil);
+  return stop;
+}
+
+}  // namespace
+
 PYBIND11_MODULE(_core, m) {
   m.doc() = "scanalign compiled core (use the scanalign package API)";
+  // Ctrl-C stops long loops: scanalign::Interrupted (common/interrupt.hpp) becomes the
+  // exception the signal handler raised, KeyboardInterrupt by default.
+  scanalign::interrupt_hook.store(&pythonInterruptHook);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const scanalign::Interrupted& e) {
+      PendingSignalError& pending = pending_signal_error;
+      if (pending.type != nullptr) {
+        PyErr_Restore(pending.type, pending.value, pending.traceback);  // steals the references
+        pending = PendingSignalError{};
+      } else {
+        PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
+      }
+    }
+  });
   auto registration = m.def_submodule("registration", "ICP engine, k-d tree, PCL plug-ins and baselines");
   auto features = m.def_submodule("features", "normal estimation");
   auto reconstruction = m.def_submodule("reconstruction", "voxel grid");

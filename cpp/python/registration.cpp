@@ -19,6 +19,19 @@ namespace scanalign::python {
 
 namespace {
 
+/// An int argument or field that must lie in [lo, 2^31 - 1]: ValueError naming it for any
+/// other integer (pybind11's own int conversion answers 10**12 with a TypeError that dumps
+/// the whole signature).
+int boundedInt(const py::int_& v, const char* what, int lo) {
+  int overflow = 0;
+  const long long x = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
+  if (x == -1 && PyErr_Occurred()) throw py::error_already_set();
+  if (overflow != 0 || x < lo || x > std::numeric_limits<int>::max())
+    throw py::value_error(std::string(what) + " must be an integer in [" + std::to_string(lo) + ", " +
+                          std::to_string(std::numeric_limits<int>::max()) + "], got " + std::string(py::str(v)));
+  return static_cast<int>(x);
+}
+
 IcpEstimator estimatorFromString(const std::string& s) {
   if (s == "point_to_plane") return IcpEstimator::PointToPlane;
   if (s == "point_to_point") return IcpEstimator::PointToPoint;
@@ -320,8 +333,11 @@ void defineRegistration(py::module_& m) {
           "'point_to_point' (closed form, Horn / Umeyama)")
       .def_readwrite("max_correspondence_distance", &IcpSettings::max_correspondence_distance,
                      "pairs farther apart are rejected, m (default 0.05)")
-      .def_readwrite("max_iterations", &IcpSettings::max_iterations,
-                     "iteration cap (default 50); reaching it gives status 'max_iterations', converged False")
+      .def_property(
+          "max_iterations", [](const IcpSettings& s) { return s.max_iterations; },
+          [](IcpSettings& s, const py::int_& v) { s.max_iterations = boundedInt(v, "max_iterations", 0); },
+          "iteration cap (default 50), in [0, 2^31 - 1]; reaching it gives status 'max_iterations', converged "
+          "False. Ctrl-C stops a long run between iterations (KeyboardInterrupt)")
       .def_readwrite("transformation_epsilon", &IcpSettings::transformation_epsilon,
                      "converged when the last increment's squared translation is <= this (m^2) and its rotation has "
                      "cos(angle) >= 1 - this (default 1e-8)")
@@ -379,8 +395,10 @@ void defineRegistration(py::module_& m) {
       .def_readonly("converged", &IcpResult::converged, "a convergence criterion (transform or MSE change) was met")
       .def_property_readonly(
           "status", [](const IcpResult& r) { return std::string(toString(r.status)); },
-          "'converged_transform', 'converged_absolute_mse', 'converged_relative_mse', 'max_iterations' or "
-          "'not_enough_correspondences' (the transform is then the last good estimate)")
+          "'converged_transform', 'converged_absolute_mse', 'converged_relative_mse', 'max_iterations', "
+          "'not_enough_correspondences' or 'degenerate' (point-to-point: the source points, or the target points "
+          "they matched, coincide or are collinear, so the rotation is undetermined); for the last two the transform "
+          "is the last good estimate and converged is False")
       .def_readonly("iterations", &IcpResult::iterations, "full-resolution iterations run")
       .def_readonly("coarse_iterations", &IcpResult::coarse_iterations,
                     "iterations of the coarse phase (coarse_stride > 1), each on a subset of the source")

@@ -37,11 +37,24 @@ py::array_t<std::int64_t> indexArray(const std::vector<std::uint32_t>& v) {
 /// Any Python int as a 64-bit seed (taken modulo 2^64, so negative seeds are accepted).
 std::uint64_t seedOf(const py::int_& seed) { return PyLong_AsUnsignedLongLongMask(seed.ptr()); }
 
-RansacSettings ransacSettings(double threshold, int max_iterations, double confidence, const py::int_& seed,
-                              int num_threads, bool refine) {
+/// An int argument or field that must lie in [lo, 2^31 - 1]: ValueError naming it for any
+/// other integer (pybind11's own int conversion answers 10**12 with a TypeError that dumps
+/// the whole signature).
+int boundedInt(const py::int_& v, const char* what, int lo) {
+  int overflow = 0;
+  const long long x = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
+  if (x == -1 && PyErr_Occurred()) throw py::error_already_set();
+  if (overflow != 0 || x < lo || x > std::numeric_limits<int>::max())
+    throw py::value_error(std::string(what) + " must be an integer in [" + std::to_string(lo) + ", " +
+                          std::to_string(std::numeric_limits<int>::max()) + "], got " + std::string(py::str(v)));
+  return static_cast<int>(x);
+}
+
+RansacSettings ransacSettings(double threshold, const py::int_& max_iterations, double confidence,
+                              const py::int_& seed, int num_threads, bool refine) {
   RansacSettings s;
   s.threshold = threshold;
-  s.max_iterations = max_iterations;
+  s.max_iterations = boundedInt(max_iterations, "max_iterations", 1);
   s.confidence = confidence;
   s.seed = seedOf(seed);
   s.num_threads = num_threads;
@@ -157,7 +170,10 @@ void defineSegmentation(py::module_& m) {
   py::class_<RansacSettings>(m, "RansacSettings", "RANSAC settings of a plane/sphere fit")
       .def(py::init<>())
       .def_readwrite("threshold", &RansacSettings::threshold, "inlier distance, m")
-      .def_readwrite("max_iterations", &RansacSettings::max_iterations, "most hypotheses drawn")
+      .def_property(
+          "max_iterations", [](const RansacSettings& s) { return s.max_iterations; },
+          [](RansacSettings& s, const py::int_& v) { s.max_iterations = boundedInt(v, "max_iterations", 1); },
+          "most hypotheses drawn, in [1, 2^31 - 1]")
       .def_readwrite("confidence", &RansacSettings::confidence, "adaptive stop, in [0, 1]; 0 or 1 disables it")
       .def_readwrite("seed", &RansacSettings::seed, "sample k is drawn from a generator seeded by (seed, k)")
       .def_readwrite("num_threads", &RansacSettings::num_threads, "0 = all cores; never changes the result")
@@ -181,7 +197,7 @@ void defineSegmentation(py::module_& m) {
   const RansacSettings dr;
   m.def(
       "ransac_plane",
-      [](const py::object& points, double threshold, int max_iterations, double confidence, const py::int_& seed,
+      [](const py::object& points, double threshold, const py::int_& max_iterations, double confidence, const py::int_& seed,
          bool refine, int num_threads) {
         const RansacSettings s = ransacSettings(threshold, max_iterations, confidence, seed, num_threads, refine);
         validate(s);
@@ -213,7 +229,7 @@ Raises:
     TypeError: non-float points. ValueError: shape, settings, fewer than 3 finite points.)");
   m.def(
       "ransac_sphere",
-      [](const py::object& points, double threshold, double min_radius, double max_radius, int max_iterations,
+      [](const py::object& points, double threshold, double min_radius, double max_radius, const py::int_& max_iterations,
          double confidence, const py::int_& seed, bool refine, int num_threads) {
         const RansacSettings s = ransacSettings(threshold, max_iterations, confidence, seed, num_threads, refine);
         validate(s);
@@ -242,7 +258,7 @@ adaptive stop); at least 4 finite points.)");
       "segment_table_full",
       [](const py::object& points, double threshold, const py::object& crop_min, const py::object& crop_max,
          const py::object& viewpoint, const py::object& up, double cluster_tolerance, std::int64_t min_cluster_size,
-         std::optional<std::int64_t> max_cluster_size, int max_iterations, double confidence, const py::int_& seed,
+         std::optional<std::int64_t> max_cluster_size, const py::int_& max_iterations, double confidence, const py::int_& seed,
          int num_threads) {
         TableSegmentationSettings s;
         s.plane = ransacSettings(threshold, max_iterations, confidence, seed, num_threads, true);

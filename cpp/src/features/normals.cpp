@@ -1,10 +1,12 @@
 #include "scanalign/features/normals.hpp"
+#include "scanalign/common/interrupt.hpp"
 #include "scanalign/common/threads.hpp"
 
 #include <omp.h>
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstring>
@@ -237,7 +239,27 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
     }
   constexpr std::int64_t kAxis = std::int64_t{1} << 21;
   for (int k = 0; k < 3; ++k)
-    if (hi[k] - lo[k] + 2 * R + 1 >= kAxis) return false;  // room for the +-R neighbours
+    if (hi[k] - lo[k] + 2 * R + 1 >= kAxis) {
+      // Too many cells along this axis for the packed keys (a far outlier, or a radius tiny
+      // next to the extent). Close the empty gaps instead: every run of more than R + 1
+      // empty cell coordinates shrinks to R + 1. Two occupied coordinates are then within
+      // R of each other exactly when they were before (a shrunk gap alone exceeds R), and
+      // only such pairs are ever compared, on the points' true coordinates; so the normals
+      // are unchanged. Without this the k-d tree path below took over, and with a radius
+      // spanning most of the cloud it visits N neighbours per point (200k points: minutes).
+      std::vector<std::int64_t> used(m);
+      for (std::size_t j = 0; j < m; ++j) used[j] = icell[3 * j + k];
+      std::sort(used.begin(), used.end());
+      used.erase(std::unique(used.begin(), used.end()), used.end());
+      std::vector<std::int64_t> packed(used.size(), 0);
+      for (std::size_t u = 1; u < used.size(); ++u)
+        packed[u] = packed[u - 1] + std::min<std::int64_t>(used[u] - used[u - 1], R + 1);
+      for (std::size_t j = 0; j < m; ++j)
+        icell[3 * j + k] = packed[std::lower_bound(used.begin(), used.end(), icell[3 * j + k]) - used.begin()];
+      lo[k] = 0;
+      hi[k] = packed.back();
+      if (hi[k] - lo[k] + 2 * R + 1 >= kAxis) return false;  // room for the +-R neighbours
+    }
   auto key = [](std::uint64_t x, std::uint64_t y, std::uint64_t z) { return (z << 42) | (y << 21) | x; };
   // Sort by cell (z, y, x) on compact keys (a few radix passes), then keep the packed keys.
   const auto span_x = static_cast<std::uint64_t>(hi[0] - lo[0] + 1);
@@ -329,6 +351,9 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
   const double r2_in = r2 * (1.0 - 1e-12), r2_out = r2 * (1.0 + 1e-12);
   const std::size_t nrows = row_keys.size();
   const int threads = resolveThreads(settings.num_threads);
+  // Ctrl-C (common/interrupt.hpp): the calling thread (OpenMP thread 0) asks between rows
+  // and raises a flag that makes every thread skip the remaining rows; thrown after the region.
+  std::atomic<bool> interrupted{false};
 #pragma omp parallel num_threads(threads)
   {
     struct Window {
@@ -339,6 +364,11 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
     std::vector<Scalar> bx, by, bz;        // their points, about Q's centroid
 #pragma omp for schedule(dynamic, 1)
     for (std::ptrdiff_t qr = 0; qr < static_cast<std::ptrdiff_t>(nrows); ++qr) {
+      if (interrupted.load(std::memory_order_relaxed)) continue;
+      if (omp_get_thread_num() == 0 && interruptRequested()) {
+        interrupted.store(true, std::memory_order_relaxed);
+        continue;
+      }
       // The rows of cells that can hold neighbours of this row's cells.
       const std::uint64_t y = row_keys[qr] & 0x1FFFFF, z = row_keys[qr] >> 21;
       windows.clear();
@@ -441,6 +471,7 @@ bool gridNormals(const CloudView<Scalar>& points, const NormalEstimationSettings
       }
     }
   }
+  if (interrupted.load()) throw Interrupted();
   return true;
 }
 
@@ -454,26 +485,33 @@ void estimateNormals(const CloudView<Scalar>& points, const LeftBalancedKdTree<S
   const Scalar r2 = static_cast<Scalar>(settings.radius * settings.radius);
   const Scalar nan = std::numeric_limits<Scalar>::quiet_NaN();
   const int threads = resolveThreads(settings.num_threads);
+  // In chunks, so that Ctrl-C is honoured between them (common/interrupt.hpp; never inside
+  // the parallel region).
+  constexpr std::size_t kChunk = 16384;
+  for (std::size_t first = 0; first < points.size; first += kChunk) {
+    checkInterrupt();
+    const auto last = static_cast<std::ptrdiff_t>(std::min(points.size, first + kChunk));
 #pragma omp parallel for schedule(dynamic, 256) num_threads(threads)
-  for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(points.size); ++ii) {
-    const std::size_t i = static_cast<std::size_t>(ii);
-    Scalar* out = normals + 3 * i;
-    out[0] = out[1] = out[2] = nan;
-    if (curvature) curvature[i] = nan;
-    if (!points.isFinite(i)) continue;
-    const Scalar* q = points.ptr(i);
-    // Moments about the query point (not the origin) to avoid cancellation far from it.
-    Eigen::Vector3d s1 = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d s2 = Eigen::Matrix3d::Zero();
-    int k = 0;
-    tree.forEachInRadius(q, r2, [&](std::uint32_t node, Scalar) {
-      const Scalar* p = tree.node(node).p;
-      const Eigen::Vector3d d(double(p[0]) - q[0], double(p[1]) - q[1], double(p[2]) - q[2]);
-      s1 += d;
-      s2.noalias() += d * d.transpose();
-      ++k;
-    });
-    finishNormal(q, s1, s2, k, settings, out, curvature ? curvature + i : nullptr);
+    for (std::ptrdiff_t ii = static_cast<std::ptrdiff_t>(first); ii < last; ++ii) {
+      const std::size_t i = static_cast<std::size_t>(ii);
+      Scalar* out = normals + 3 * i;
+      out[0] = out[1] = out[2] = nan;
+      if (curvature) curvature[i] = nan;
+      if (!points.isFinite(i)) continue;
+      const Scalar* q = points.ptr(i);
+      // Moments about the query point (not the origin) to avoid cancellation far from it.
+      Eigen::Vector3d s1 = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d s2 = Eigen::Matrix3d::Zero();
+      int k = 0;
+      tree.forEachInRadius(q, r2, [&](std::uint32_t node, Scalar) {
+        const Scalar* p = tree.node(node).p;
+        const Eigen::Vector3d d(double(p[0]) - q[0], double(p[1]) - q[1], double(p[2]) - q[2]);
+        s1 += d;
+        s2.noalias() += d * d.transpose();
+        ++k;
+      });
+      finishNormal(q, s1, s2, k, settings, out, curvature ? curvature + i : nullptr);
+    }
   }
 }
 

@@ -2,6 +2,7 @@
 // (Comput. Electron. Agric. 180 (2021) 105929)), explicitly instantiated
 // for float and double clouds.
 #include "scanalign/registration/icp.hpp"
+#include "scanalign/common/interrupt.hpp"
 #include "scanalign/common/threads.hpp"
 
 #include "scanalign/common/block_reduce.hpp"
@@ -29,6 +30,7 @@ const char* toString(IcpStatus status) {
     case IcpStatus::ConvergedRelativeMse: return "converged_relative_mse";
     case IcpStatus::MaxIterations: return "max_iterations";
     case IcpStatus::NotEnoughCorrespondences: return "not_enough_correspondences";
+    case IcpStatus::Degenerate: return "degenerate";
   }
   return "unknown";
 }
@@ -290,6 +292,7 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
                                      ? settings_.transformation_rotation_epsilon
                                      : 1.0 - settings_.transformation_epsilon;
     for (int it = 0; it < settings_.max_iterations; ++it) {
+      checkInterrupt();  // between iterations, outside the parallel pass (interrupt.hpp)
       const auto total = run(search, system_tag, true);
       result.exact_search = result.exact_search && total.exact;
       if (total.inliers < min_corr) {
@@ -304,9 +307,14 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
         result.degenerate = result.degenerate || sol.degenerate;
         delta = transformFromParameters(sol.x);
       } else {
-        const PointToPointSolve sol = solvePointToPoint(total.system);
+        const PointToPointSolve sol = solvePointToPoint(total.system, settings_.degeneracy_threshold);
         result.min_rank = std::min(result.min_rank, sol.rank == 3 ? 6 : sol.rank * 2);
         result.degenerate = result.degenerate || sol.degenerate;
+        if (sol.degenerate) {  // the rotation is not determined: no answer to converge to
+          result.status = IcpStatus::Degenerate;
+          result.converged = false;
+          return;
+        }
         delta = sol.T;
       }
       T = delta * T;

@@ -30,6 +30,7 @@
 #include <Eigen/Core>
 
 #include "scanalign/cga/vector5.hpp"
+#include "scanalign/common/interrupt.hpp"
 #include "scanalign/common/threads.hpp"
 #include "scanalign/common/cloud_view.hpp"
 
@@ -276,6 +277,7 @@ RansacLoopStats ransacLoop(std::size_t n, int sample_size, Build&& build, Error&
   int k0 = 0;
   bool have = false;
   while (k0 < max_it && k0 < required) {
+    checkInterrupt();  // once per batch, outside the parallel region (common/interrupt.hpp)
     const int m = std::min(batch, max_it - k0);
 #pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
     for (int j = 0; j < m; ++j) {

@@ -56,6 +56,12 @@ enum class IcpStatus {
   ConvergedRelativeMse,      ///< |MSE change| / MSE below the fitness epsilon
   MaxIterations,             ///< max_iterations reached first: not converged
   NotEnoughCorrespondences,  ///< fewer than min_correspondences survived rejection
+  /// Point-to-point only: the correspondences do not determine the rotation (the source
+  /// points, or the target points they matched, coincide or lie on one line; rank < 2).
+  /// Not converged; the transform is the estimate before that iteration. (Point-to-plane
+  /// solves rank-deficient systems in their constrained directions and reports it through
+  /// IcpResult::degenerate / min_rank: a plane constrains 3 of the 6 motions.)
+  Degenerate,
 };
 
 const char* toString(IcpStatus status);
@@ -107,6 +113,9 @@ struct IcpSettings {
   /// Kept low on purpose: a small object on a large table legitimately gives ratios near
   /// 1e-7 (the table's points dominate lambda_max), and freezing those motions would be
   /// a silent wrong answer; only (numerically) exact rank loss is treated as degenerate.
+  /// Point-to-point: the same bound on the cross-covariance's singular values relative to
+  /// the spreads of the matched points (solvePointToPoint); rank < 2 ends the run with
+  /// status Degenerate.
   double degeneracy_threshold = 1e-10;
   /// Coarse-to-fine: when > 1, ICP first iterates on every coarse_stride-th source point
   /// (in the Z-order the engine visits points in, so an even spatial subset) until that
@@ -154,7 +163,9 @@ class Icp {
 
   /// Aligns `source` (points in the source camera frame) to the target starting from
   /// T_target_source_init. Throws std::invalid_argument for an empty source, no target,
-  /// invalid settings or a non-rigid/non-finite initial transform.
+  /// invalid settings or a non-rigid/non-finite initial transform, and Interrupted
+  /// (common/interrupt.hpp; KeyboardInterrupt in Python) when the installed interrupt hook
+  /// asks to stop between iterations; the engine and its target stay usable.
   IcpResult align(const CloudView<Scalar>& source,
                   const Eigen::Matrix4d& T_target_source_init = Eigen::Matrix4d::Identity());
 

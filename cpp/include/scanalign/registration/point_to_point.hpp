@@ -3,6 +3,7 @@
 #pragma once
 
 #include <array>
+#include <cmath>
 
 #include <Eigen/Core>
 #include <Eigen/SVD>
@@ -15,12 +16,15 @@ struct PointToPointSystem {
   double count = 0.0;
   std::array<double, 3> sum_s{}, sum_d{};
   std::array<double, 9> sum_sd{};  ///< sum of s d^T, row-major
+  double sum_ss = 0.0, sum_dd = 0.0;  ///< sum of |s|^2 and of |d|^2 (m^2): the scale of the spreads
 
   void add(const double s[3], const double d[3]) {
     count += 1.0;
     for (int r = 0; r < 3; ++r) {
       sum_s[r] += s[r];
       sum_d[r] += d[r];
+      sum_ss += s[r] * s[r];
+      sum_dd += d[r] * d[r];
       for (int c = 0; c < 3; ++c) sum_sd[3 * r + c] += s[r] * d[c];
     }
   }
@@ -31,6 +35,8 @@ struct PointToPointSystem {
       sum_d[k] += o.sum_d[k];
     }
     for (int k = 0; k < 9; ++k) sum_sd[k] += o.sum_sd[k];
+    sum_ss += o.sum_ss;
+    sum_dd += o.sum_dd;
   }
 };
 
@@ -42,6 +48,15 @@ struct PointToPointSolve {
 
 /// Least-squares rigid transform T minimising sum |T s_i - d_i|^2 (Kabsch/Umeyama):
 /// the rotation of the cross-covariance (common/rigid.hpp), t = d_mean - R s_mean.
+///
+/// Rank: singular values of the cross-covariance H above `degeneracy_threshold` times
+/// sqrt(tr C_s tr C_d), the bound |H| <= sqrt(tr C_s tr C_d) (Cauchy-Schwarz) of the spreads
+/// C_s, C_d of the source and matched target points; 0 when either spread is no larger than
+/// the rounding of its centring (1e-12 of the raw second moment: coincident points). Judged
+/// against the largest singular value instead, coincident points -- whose H is pure
+/// rounding -- looked like rank 3 and their arbitrary "rotation" was applied and reported
+/// converged. Rank < 2 (coincident or collinear points) leaves the rotation undetermined:
+/// degenerate, and the step is the translation of the means only.
 inline PointToPointSolve solvePointToPoint(const PointToPointSystem& sys, double degeneracy_threshold = 1e-10) {
   PointToPointSolve out;
   if (sys.count < 1.0) return out;
@@ -51,7 +66,12 @@ inline PointToPointSolve solvePointToPoint(const PointToPointSystem& sys, double
   // sum (s - s_mean)(d - d_mean)^T, transposed: the target-by-source cross-covariance.
   const Eigen::Matrix3d H = sum_sd - sys.count * ms * md.transpose();
   const CrossCovarianceRotation rot = rotationFromCrossCovariance(H.transpose());
-  out.rank = rot.rank(degeneracy_threshold);
+  const double spread_s = sys.sum_ss - sys.count * ms.squaredNorm();  // tr C_s
+  const double spread_d = sys.sum_dd - sys.count * md.squaredNorm();  // tr C_d
+  out.rank = 0;
+  if (spread_s > 1e-12 * sys.sum_ss && spread_d > 1e-12 * sys.sum_dd)
+    for (int k = 0; k < 3; ++k)
+      if (rot.singular_values(k) > degeneracy_threshold * std::sqrt(spread_s * spread_d)) ++out.rank;
   out.degenerate = out.rank < 2;
   const Eigen::Matrix3d R = out.degenerate ? Eigen::Matrix3d::Identity() : rot.R;
   out.T.topLeftCorner<3, 3>() = R;
