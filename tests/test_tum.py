@@ -747,3 +747,30 @@ def test_depth_decoded_as_32_bit_mode_by_older_pillow(tmp_path, monkeypatch):
     frame = TumSequence(folder)[0]
     assert frame.depth.dtype == np.uint16
     np.testing.assert_array_equal(frame.depth, expected)
+
+
+def _png_header_only(w: int, h: int) -> bytes:
+    """A 16-bit greyscale PNG whose header claims w x h pixels, with a few bytes of pixel data."""
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+
+    ihdr = struct.pack(">IIBBBBB", w, h, 16, 0, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT", zlib.compress(bytes(100))) + chunk(b"IEND", b"")
+
+
+def test_huge_image_headers_are_refused_before_decoding(tmp_path):
+    """A header claiming 144 M pixels used to be decoded (about 300 MB) before its size was
+    compared with the intrinsics, so the error was 'unreadable PNG'; one claiming 900 M pixels
+    raised Pillow's DecompressionBombError, which is not a ValueError."""
+    folder = make_folder(tmp_path, n=2)
+    path = _replace_depth(folder, 1, _png_header_only(12000, 12000))
+    s = TumSequence(folder)
+    with pytest.raises(TumFormatError, match="depth image is 12000x12000 pixels but the intrinsics are 16x12") as e:
+        s[1]
+    assert e.value.path == str(path)
+    _replace_depth(folder, 1, _png_header_only(30000, 30000))
+    with pytest.raises(TumFormatError, match="DecompressionBombError"):
+        s[1]
+    _replace_depth(folder, 0, _png_header_only(30000, 30000))
+    with pytest.raises(TumFormatError, match="DecompressionBombError"):
+        TumSequence(folder)

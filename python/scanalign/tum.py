@@ -33,7 +33,7 @@ import math
 import os
 import re
 from pathlib import Path
-from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 from PIL import Image
@@ -97,7 +97,7 @@ def _open_image(path: PathLike, what: str):
     ``what="depth"``, 8 bits per channel for ``"colour"``."""
     try:
         im = Image.open(path)
-    except OSError as e:  # UnidentifiedImageError included
+    except (OSError, Image.DecompressionBombError) as e:  # UnidentifiedImageError included
         kind = "a PNG file" if what == "depth" else "an image file"
         raise TumFormatError(f"{what} image is not {kind}, or one truncated before its header ends "
                              f"({type(e).__name__}: {e})", path) from None
@@ -116,10 +116,11 @@ def _open_image(path: PathLike, what: str):
     raise TumFormatError(message, path)
 
 
-def _load_image(path: PathLike, what: str) -> np.ndarray:
+def _load_image(path: PathLike, what: str, check: Callable[[Any], None] = lambda im: None) -> np.ndarray:
     """A depth PNG as (H, W) uint16, bit-exact, or a colour image as (H, W, 3) uint8
-    (greyscale / palette / alpha converted)."""
+    (greyscale / palette / alpha converted); ``check(im)`` sees the header before decoding."""
     with _open_image(path, what) as im:
+        check(im)  # e.g. the size: a header claiming a huge image is refused before it is decoded
         try:
             im.load()
             arr = np.array(im if what == "depth" or im.mode == "RGB" else im.convert("RGB"))
@@ -353,9 +354,7 @@ class TumSequence:
                      index=k, meta=meta)
 
     def _load(self, path: Path, what: str) -> np.ndarray:
-        image = _load_image(path, what)
-        self._check_size(path, (image.shape[1], image.shape[0]), what)
-        return image
+        return _load_image(path, what, lambda im: self._check_size(path, im.size, what))
 
     def __iter__(self) -> Iterator[Frame]:
         for k in range(len(self)):
