@@ -1,8 +1,10 @@
 // The ICP engine against known rigid motions (PCL-free).
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <random>
 
+#include "scanalign/common/interrupt.hpp"
 #include "scanalign/registration/icp.hpp"
 #include "test_support.hpp"
 
@@ -196,4 +198,67 @@ TEST(IcpEngine, CoarseToFineReachesTheAnswerWithFewerFullIterations) {
   EXPECT_EQ((skipped.T_target_source - full.T_target_source).cwiseAbs().maxCoeff(), 0.0);
   icp.settings().coarse_stride = 0;
   EXPECT_THROW(icp.align(view(src)), std::invalid_argument);
+}
+
+namespace {
+/// An interrupt hook that asks to stop on its `stop_at`-th call, counting its calls.
+std::atomic<int> hook_calls{0};
+int hook_stop_at = 0;
+bool stopOnNthCall() { return ++hook_calls >= hook_stop_at; }
+/// Installs stopOnNthCall for one scope; the hook is process-wide.
+struct ScopedHook {
+  explicit ScopedHook(int stop_at) {
+    hook_calls = 0;
+    hook_stop_at = stop_at;
+    scanalign::interrupt_hook.store(&stopOnNthCall);
+  }
+  ~ScopedHook() { scanalign::interrupt_hook.store(nullptr); }
+};
+}  // namespace
+
+TEST(IcpEngine, InterruptHookStopsAlignBetweenIterationsAndLeavesTheEngineUsable) {
+  const Surface s = wavySurfaceWithSphere(40);
+  const Eigen::Matrix4d T_true = rigid(0.03, -0.02, 0.01, 0.004, 0.002, -0.003);
+  const auto src = transformed(s.points, T_true.inverse());
+  IcpSettings settings;
+  settings.max_iterations = 1000000;  // zero epsilons: only the cap (or the hook) stops it
+  settings.transformation_epsilon = settings.fitness_epsilon = settings.absolute_mse_epsilon = 0.0;
+  Icp<float> icp(settings);
+  icp.setTarget(view(s.points), view(s.normals));
+  {
+    ScopedHook hook(5);
+    EXPECT_THROW(icp.align(view(src)), scanalign::Interrupted);
+    EXPECT_EQ(hook_calls.load(), 5);  // once per iteration: stopped before the 5th
+  }
+  // Nothing was corrupted: the same engine gives a fresh engine's answer.
+  icp.settings().max_iterations = 60;
+  Icp<float> fresh(icp.settings());
+  fresh.setTarget(view(s.points), view(s.normals));
+  const auto a = icp.align(view(src)), b = fresh.align(view(src));
+  EXPECT_EQ(a.iterations, 60);
+  EXPECT_TRUE(a.T_target_source == b.T_target_source);
+  EXPECT_LT(rotationError(a.T_target_source, T_true), 1e-5);
+  EXPECT_LT(translationError(a.T_target_source, T_true), 1e-5);
+}
+
+TEST(IcpEngine, PointToPointOnCoincidentOrCollinearSourceIsDegenerateNotConverged) {
+  const Surface s = wavySurfaceWithSphere(40);
+  IcpSettings settings;
+  settings.estimator = scanalign::IcpEstimator::PointToPoint;
+  Icp<float> icp(settings);
+  icp.setTarget(view(s.points));
+  std::vector<float> same, line;
+  for (int i = 0; i < 100; ++i) {
+    same.insert(same.end(), s.points.begin(), s.points.begin() + 3);
+    line.insert(line.end(), {-0.05f + 0.001f * i, 0.0f, s.points[2]});
+  }
+  for (const auto* cloud : {&same, &line}) {
+    const auto r = icp.align(view(*cloud));
+    EXPECT_EQ(r.status, IcpStatus::Degenerate);
+    EXPECT_STREQ(scanalign::toString(r.status), "degenerate");
+    EXPECT_FALSE(r.converged);
+    EXPECT_TRUE(r.degenerate);
+    EXPECT_LE(r.min_rank, 2);
+    EXPECT_TRUE(r.T_target_source.isIdentity());  // the undetermined step is not applied
+  }
 }

@@ -200,3 +200,33 @@ TEST(NormalsGrid, RejectsBadSubdivisions) {
   s.grid_subdivisions = 17;
   EXPECT_THROW(scanalign::estimateNormals(CloudView<float>(pts.data(), 3), s, n.data()), std::invalid_argument);
 }
+
+TEST(NormalsGrid, FarOutlierWithARadiusSpanningTheCloudMatchesTheTree) {
+  // One point 10^7 m away used to make the grid too large to index; the k-d tree fallback
+  // then visited every neighbour of every point (quadratic with a radius spanning the
+  // cloud). The grid now closes the empty gap and must give the tree's normals.
+  std::vector<double> pts = scanLikeCloud(Eigen::Vector3d::Zero(), 5);
+  pts.insert(pts.end(), {1e7, 0.0, 0.0});
+  const std::size_t n = pts.size() / 3;
+  for (const double radius : {0.004, 0.05, 10.0}) {
+    scanalign::NormalEstimationSettings s;
+    s.radius = radius;
+    std::vector<double> grid(3 * n), grid_c(n), tree(3 * n), tree_c(n);
+    scanalign::estimateNormals(CloudView<double>(pts.data(), n), s, grid.data(), grid_c.data());
+    scanalign::LeftBalancedKdTree<double> kd(CloudView<double>(pts.data(), n));
+    scanalign::estimateNormals(CloudView<double>(pts.data(), n), kd, s, tree.data(), tree_c.data());
+    std::size_t compared = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3d a(grid[3 * i], grid[3 * i + 1], grid[3 * i + 2]);
+      const Eigen::Vector3d b(tree[3 * i], tree[3 * i + 1], tree[3 * i + 2]);
+      ASSERT_EQ(a.allFinite(), b.allFinite()) << "radius " << radius << " point " << i;
+      if (!a.allFinite()) continue;
+      ASSERT_NEAR(grid_c[i], tree_c[i], 1e-9) << "radius " << radius << " point " << i;
+      if (tree_c[i] > 0.2) continue;  // no well-defined normal (near-isotropic neighbourhood)
+      ASSERT_LT((a - b).norm(), 1e-6) << "radius " << radius << " point " << i;
+      ++compared;
+    }
+    if (radius < 1.0) EXPECT_GT(compared, n / 10) << "radius " << radius;  // else: one neighbourhood for all
+    EXPECT_TRUE(std::isnan(grid[3 * (n - 1)]));  // the outlier has too few neighbours
+  }
+}

@@ -5,6 +5,7 @@
 #include <omp.h>
 
 #include <algorithm>
+#include <atomic>
 #include <map>
 #include <numeric>
 #include <random>
@@ -339,6 +340,67 @@ TEST(Segmentation, TableSceneObjectsSeparated) {
     EXPECT_TRUE(*labels.begin() == 1 || *labels.begin() == 2);
   }
   EXPECT_EQ(seg.objects[0].size() + seg.objects[1].size(), 3000u);  // every object point, nothing else
+}
+
+
+std::atomic<int> ransac_hook_calls{0};
+bool stopOnThirdCall() { return ++ransac_hook_calls >= 3; }
+
+TEST(Ransac, InterruptHookStopsTheLoopBetweenBatches) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-1, 1);
+  std::vector<double> xyz;
+  for (int i = 0; i < 2000; ++i) push(xyz, V3(u(rng), u(rng), 0.01 * u(rng)));
+  RansacSettings rs;
+  rs.threshold = 0.001;
+  rs.max_iterations = 1 << 30;
+  rs.confidence = 0;  // no adaptive stop: 2^30 hypotheses unless interrupted
+  ransac_hook_calls = 0;
+  interrupt_hook.store(&stopOnThirdCall);
+  EXPECT_THROW(ransacPlane(view(xyz), rs), Interrupted);
+  interrupt_hook.store(nullptr);
+  EXPECT_EQ(ransac_hook_calls.load(), 3);
+  rs.max_iterations = 50;  // and the next call runs normally
+  EXPECT_EQ(ransacPlane(view(xyz), rs).iterations, 50);
+}
+
+TEST(Segmentation, EuclideanClustersMatchBruteForceAtEveryTolerance) {
+  // Clumps, a sparse scatter, exact duplicates and a tolerance from far below the spacing
+  // to far beyond the extent (one cluster): the cell union-find gives exactly the connected
+  // components of |p - q| <= tolerance.
+  std::mt19937 rng(23);
+  std::normal_distribution<double> g(0, 0.03);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<double> xyz;
+  for (int i = 0; i < 700; ++i) {
+    const V3 p = i % 3 == 0 ? V3(u(rng), u(rng), 0.2 * u(rng)) : V3(0.3 * (i % 3) + g(rng), 0.5 + g(rng), g(rng));
+    push(xyz, p);
+    if (i % 50 == 0) push(xyz, p);  // a duplicate
+  }
+  const auto v = view(xyz);
+  const auto n = static_cast<std::uint32_t>(v.size);
+  std::vector<std::uint32_t> sel;
+  for (std::uint32_t i = 0; i < n; ++i) sel.push_back(i);
+  for (const double tol : {1e-9, 0.005, 0.02, 0.05, 0.1, 0.3, 100.0}) {
+    std::vector<std::uint32_t> parent(n);
+    std::iota(parent.begin(), parent.end(), 0u);
+    auto find = [&](std::uint32_t x) {
+      while (parent[x] != x) x = parent[x] = parent[parent[x]];
+      return x;
+    };
+    for (std::uint32_t i = 0; i < n; ++i)
+      for (std::uint32_t j = i + 1; j < n; ++j)
+        if ((v[i] - v[j]).squaredNorm() <= tol * tol) parent[find(i)] = find(j);
+    std::map<std::uint32_t, std::vector<std::uint32_t>> comps;
+    for (auto i : sel) comps[find(i)].push_back(i);
+    std::vector<std::vector<std::uint32_t>> expect;
+    for (auto& [root, c] : comps) expect.push_back(c);
+    std::sort(expect.begin(), expect.end(), [](const auto& a, const auto& b) {
+      return a.size() != b.size() ? a.size() > b.size() : a.front() < b.front();
+    });
+    EXPECT_EQ(euclideanClusters(v, sel, tol, 1, SIZE_MAX), expect) << "tolerance " << tol;
+    if (tol == 100.0) EXPECT_EQ(expect.size(), 1u);
+  }
 }
 
 }  // namespace
