@@ -25,9 +25,15 @@ py::tuple voxel(const CloudView<Scalar>& view, double leaf_size, const py::objec
   py::array_t<double, py::array::c_style> attrs;
   std::size_t dim = 0;
   if (!attributes.is_none()) {
-    attrs = py::array_t<double, py::array::c_style>::ensure(attributes);
+    // Real numbers only: a string or complex array must not be parsed or lose its
+    // imaginary part on the way to float64.
+    const py::array given = py::array::ensure(attributes);
+    if (!given || std::string("biuf").find(given.dtype().kind()) == std::string::npos)
+      throw py::type_error("attributes: expected real numbers (bool, integer or float), got " +
+                           (given ? "dtype " + std::string(py::str(given.dtype())) : std::string("a non-array")));
+    attrs = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(given);
     if (!attrs || attrs.ndim() != 2 || static_cast<std::size_t>(attrs.shape(0)) != view.size)
-      throw py::value_error("attributes: expected an (N, k) float64 array with one row per point");
+      throw py::value_error("attributes: expected an (N, k) array with one row per point");
     dim = static_cast<std::size_t>(attrs.shape(1));
   }
   VoxelGridResult r;
@@ -135,15 +141,22 @@ FrameReport integrateWithPcl(FrameToModel& self, const CloudView<float>& points,
   FrameReport r;
   r.T_model_camera = guess ? *guess : self.predictedPose();
   requireRigid(r.T_model_camera, "guess");
-  r.index = self.countFrame();
+  // Counted only once nothing can throw any more: a call that throws saw no frame, as in
+  // FrameToModel::integratePrepared.
+  r.index = self.framesSeen();
   r.input_points = points.size;
   const PreparedFrame frame = self.prepare(points, colors);
   r.frame_points = frame.size();
+  r.far_points = frame.far_points;
   r.model_points = self.model().size();
   r.prepare_seconds = frame.seconds;
-  if (frame.size() == 0) return r;
+  if (frame.size() == 0) {
+    self.countFrame();
+    return r;
+  }
   if (frame.size() < static_cast<std::size_t>(self.settings().min_frame_points)) {
     r.status = FrameStatus::SkippedTooFewPoints;
+    self.countFrame();
     return r;
   }
   using Clock = std::chrono::steady_clock;
@@ -157,10 +170,13 @@ FrameReport integrateWithPcl(FrameToModel& self, const CloudView<float>& points,
   r.status = self.check(r.icp, r.T_model_camera);
   if (r.status == FrameStatus::Registered) {
     t0 = Clock::now();
+    std::size_t far = 0;
+    r.model_points = self.merge(frame, r.icp.T_target_source, &far);  // all or nothing
     r.T_model_camera = r.icp.T_target_source;
-    r.model_points = self.merge(frame, r.T_model_camera);
+    r.far_points += far;
     r.merge_seconds = std::chrono::duration<double>(Clock::now() - t0).count();
   }
+  self.countFrame();
   r.total_seconds = std::chrono::duration<double>(Clock::now() - t_start).count();
   return r;
 }
@@ -194,6 +210,7 @@ py::dict frameReportDict(const FrameReport& r) {
   d["input_points"] = r.input_points;
   d["frame_points"] = r.frame_points;
   d["model_points"] = r.model_points;
+  d["far_points"] = r.far_points;
   d["prepare_seconds"] = r.prepare_seconds;
   d["register_seconds"] = r.register_seconds;
   d["merge_seconds"] = r.merge_seconds;
@@ -228,7 +245,8 @@ void defineReconstruction(py::module_& m) {
   py::class_<DepthToCloudSettings>(m, "DepthToCloudSettings")
       .def(py::init<>())
       .def_readwrite("depth_scale", &DepthToCloudSettings::depth_scale,
-                     "metres per unit of an integer image (1e-3: millimetres; TUM: 1/5000); float images are metres")
+                     "metres per unit of an integer image, in (0, 1] (1e-3: millimetres; TUM: 1/5000); float images "
+                     "are metres")
       .def_readwrite("min_depth", &DepthToCloudSettings::min_depth, "nearer pixels are dropped, m along z (0.1)")
       .def_readwrite("max_depth", &DepthToCloudSettings::max_depth, "farther pixels are dropped, m (2.0)")
       .def_readwrite("stride", &DepthToCloudSettings::stride, "use every stride-th pixel in both directions (1)");
@@ -236,6 +254,9 @@ void defineReconstruction(py::module_& m) {
       "bilateral_filter_depth",
       [](const py::array& depth, int radius, double sigma_space, double sigma_depth, double depth_scale,
          int num_threads) {
+        if (depth.ndim() != 2) throw py::value_error("depth: expected a 2-D image, got " + std::to_string(depth.ndim()) + "-D");
+        // Before any conversion or allocation (a broadcast view claims any size for free).
+        if (depth.size() > 0) checkImageSize(depth.shape(1), depth.shape(0), "depth");
         const auto d = depthMetres(depth, depth_scale);
         const int h = static_cast<int>(d.shape(0)), w = static_cast<int>(d.shape(1));
         py::array_t<float> out({d.shape(0), d.shape(1)});
@@ -248,7 +269,9 @@ void defineReconstruction(py::module_& m) {
       },
       py::arg("depth"), py::arg("radius"), py::arg("sigma_space"), py::arg("sigma_depth"), py::arg("depth_scale"),
       py::arg("num_threads"),
-      "(H, W) float32 metres (NaN = invalid) of a uint16 (units of depth_scale m, 0 = invalid) or float (m) image");
+      "(H, W) float32 metres (NaN = invalid) of a uint16 (units of depth_scale m, 0 = invalid) or float (m) image; "
+      "an empty image gives an empty one. ValueError for an image beyond kMaxImagePixels (2^27) pixels, checked "
+      "before allocating, a radius outside [0, 32] pixels, sigma_space < 1e-3 pixels or sigma_depth < 1e-9 m");
   m.def("depth_to_cloud", &depthToCloudPy, py::arg("depth"), py::arg("intrinsics"), py::arg("settings"),
         py::arg("rgb"), "(points (N, 3) float32 m, colors (N, 3) uint8 or None, pixels (N,) int32 row * W + column)");
 
@@ -321,6 +344,9 @@ void defineReconstruction(py::module_& m) {
       .def_readonly("icp", &FrameReport::icp, "IcpResult of the registration (defaults for the first frame)")
       .def_readonly("frame_points", &FrameReport::frame_points, "points after crop, downsampling and normals")
       .def_readonly("model_points", &FrameReport::model_points, "model size after this frame")
+      .def_readonly("far_points", &FrameReport::far_points,
+                    "finite points dropped as beyond the voxel grids' range: over 2^19 frame voxels from the camera "
+                    "along an axis (524 m at 1 mm) or 2^20 model voxels from the first merged camera (1048 m)")
       .def_readonly("prepare_seconds", &FrameReport::prepare_seconds, "crop + downsample + normals, s")
       .def_readonly("register_seconds", &FrameReport::register_seconds, "tree build + ICP, s")
       .def_readonly("merge_seconds", &FrameReport::merge_seconds, "transform + merge + voxel grid, s")
@@ -349,10 +375,15 @@ void defineReconstruction(py::module_& m) {
         return toArray(f.colors, 3);
       }, "(N, 3) uint8 or None")
       .def_readonly("input_points", &PreparedFrame::input_points, "points given to prepare()")
+      .def_readonly("far_points", &PreparedFrame::far_points,
+                    "finite points dropped as beyond 2^19 frame voxels from the camera along an axis")
       .def_readonly("seconds", &PreparedFrame::seconds, "time to crop, downsample and estimate normals, s")
       .def("__len__", &PreparedFrame::size);
 
-  py::class_<FrameToModel>(m, "FrameToModel", "Frame-to-model reconstruction (eye-in-hand paper, Algorithm 1)")
+  py::class_<FrameToModel>(m, "FrameToModel",
+                           "Frame-to-model reconstruction (eye-in-hand paper, Algorithm 1). A frame that is skipped, "
+                           "and a call that raises (bad input, MemoryError, KeyboardInterrupt during the "
+                           "registration), leave the model, the poses and the frame counts exactly as they were.")
       .def(py::init<FrameToModelSettings>(), py::arg("settings"))
       .def("reset", &FrameToModel::reset, py::arg("T_model_camera0"),
            "Empties the model; the next accepted frame is placed at T_model_camera0 (4x4 rigid)")
@@ -397,7 +428,9 @@ void defineReconstruction(py::module_& m) {
             py::gil_scoped_release release;
             return self.merge(f, T);
           },
-          py::arg("frame"), py::arg("T_model_camera"), "Merges a frame at a pose found elsewhere; returns the model size")
+          py::arg("frame"), py::arg("T_model_camera"),
+          "Merges a frame at a pose found elsewhere; returns the model size. Points beyond 2^20 model voxels from "
+          "the first merged camera are dropped. Raises ValueError (nothing merged) for a non-rigid pose")
       .def(
           "check", [](const FrameToModel& self, const IcpResult& r, const Eigen::Matrix4d& guess) {
             return std::string(toString(self.check(r, guess)));
@@ -432,7 +465,8 @@ void defineReconstruction(py::module_& m) {
       },
       py::arg("points"), py::arg("leaf_size"), py::arg("attributes"), py::arg("min_points_per_voxel"),
       "(centroids (M, 3) in the points' dtype, m; attribute means (M, k) float64; counts (M,)): pcl::VoxelGrid "
-      "voxel for voxel");
+      "voxel for voxel. ValueError for a leaf that is not finite and positive or gives over 2^21 voxels along an "
+      "axis; TypeError for attributes that are not real numbers (strings, complex)");
 }
 
 }  // namespace scanalign::python

@@ -1,6 +1,8 @@
 // _core.synthetic: the z-buffer depth renderer, the built-in part's mesh and the Morton
 // order behind scanalign.rendering, scanalign.parts and the simulator's scene.
+#include <cmath>
 #include <limits>
+#include <string>
 
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
@@ -38,7 +40,9 @@ py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, int w
                         double cx, double cy, const Eigen::Matrix4d& T_camera_world, double near_clip, double far_clip,
                         bool cull_backfaces, int num_threads) {
   if (width < 1 || height < 1 || width > 32768 || height > 32768)
-    throw py::value_error("image size must be in [1, 32768] pixels");
+    throw py::value_error("width, height: image size must be in [1, 32768] pixels, got " + std::to_string(width) +
+                          " x " + std::to_string(height));
+  checkImageSize(width, height, "width, height");  // before allocating the three images
   const bool f32 = holds<float>(vertices);
   CloudView<float> vf;
   CloudView<double> vd;
@@ -68,6 +72,27 @@ py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, int w
   return py::make_tuple(depth, face_id, cosine);
 }
 
+/// A count argument (n_frames): a Python or NumPy integer, or a float holding an integer
+/// (2.0), as an int; a TypeError or ValueError naming `what` otherwise, instead of pybind11's
+/// signature dump (1e9 as a float, 2**40, 2.5, NaN, a string).
+int countArg(const py::object& o, const char* what) {
+  const std::string got = std::string(py::repr(o));
+  if (py::isinstance<py::bool_>(o) || !(py::hasattr(o, "__index__") || py::isinstance<py::float_>(o)))
+    throw py::type_error(std::string(what) + ": expected an integer, got " + got);
+  double v;
+  if (py::hasattr(o, "__index__")) {
+    int overflow = 0;
+    const long long i = PyLong_AsLongLongAndOverflow(py::int_(o).ptr(), &overflow);
+    v = overflow ? overflow * std::numeric_limits<double>::infinity() : static_cast<double>(i);
+  } else {
+    v = o.cast<double>();
+    if (!(std::isfinite(v) && v == std::floor(v))) throw py::value_error(std::string(what) + ": expected an integer, got " + got);
+  }
+  if (!(v >= std::numeric_limits<int>::min() && v <= std::numeric_limits<int>::max()))
+    throw py::value_error(std::string(what) + " must be an integer in [1, " + std::to_string(kMaxPathFrames) + "], got " + got);
+  return static_cast<int>(v);
+}
+
 py::array_t<double> posesArray(const Poses& poses) {
   py::array_t<double> out({static_cast<py::ssize_t>(poses.size()), py::ssize_t{4}, py::ssize_t{4}});
   for (std::size_t k = 0; k < poses.size(); ++k)
@@ -94,6 +119,8 @@ py::tuple builtinPartMeshPy(int segments) {
 py::array_t<float> applySensorNoisePy(const SensorNoise& noise, const py::array& depth, const py::array& cos_incidence,
                                       std::uint64_t seed) {
   using Image = py::array_t<float, py::array::c_style | py::array::forcecast>;
+  // The size first, before a conversion allocates (a broadcast view claims any size for free).
+  if (depth.ndim() == 2 && depth.size() > 0) checkImageSize(depth.shape(1), depth.shape(0), "depth");
   const auto z = Image::ensure(depth), c = Image::ensure(cos_incidence);
   if (!z || z.ndim() != 2) throw py::value_error("depth: expected an (H, W) float array");
   if (!c || c.ndim() != 2 || c.shape(0) != z.shape(0) || c.shape(1) != z.shape(1))
@@ -154,7 +181,8 @@ void bindSensorNoise(py::module_& s) {
         py::arg("seed"),
         "Noisy (H, W) float32 depth in metres (NaN = missing) from noise-free `depth` (m, NaN = nothing hit) and the "
         "rendered `cos_incidence`, by the SensorNoise model; all randomness from the 64-bit `seed` (equal seeds give "
-        "identical images with one build of the library).");
+        "identical images with one build of the library). ValueError for an image beyond 2^27 pixels, before "
+        "allocating.");
 }
 
 }  // namespace
@@ -166,32 +194,36 @@ void bindSynthetic(py::module_& m) {
         py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"), py::arg("T_camera_world"), py::arg("near_clip"),
         py::arg("far_clip"), py::arg("cull_backfaces"), py::arg("num_threads"),
         "Renders an (N,3) float32/float64 mesh with (M,3) integer faces (indices checked, naming faces); returns "
-        "(depth float32 m, NaN = no hit; face_id int32, -1 = no hit; cos_incidence float32).");
+        "(depth float32 m, NaN = no hit; face_id int32, -1 = no hit; cos_incidence float32). ValueError for a size "
+        "outside [1, 32768] or beyond 2^27 pixels in all, before allocating.");
   s.def(
       "loop_camera_poses",
-      [](int n_frames, const Eigen::Vector3d& center, double height, double radius, double start_angle, double sweep,
-         const Eigen::Vector3d& target) {
-        return posesArray(loopCameraPoses(n_frames, center, height, radius, start_angle, sweep, target));
+      [](const py::object& n_frames, const Eigen::Vector3d& center, double height, double radius, double start_angle,
+         double sweep, const Eigen::Vector3d& target) {
+        return posesArray(
+            loopCameraPoses(countArg(n_frames, "n_frames"), center, height, radius, start_angle, sweep, target));
       },
       py::arg("n_frames"), py::arg("center"), py::arg("height"), py::arg("radius"), py::arg("start_angle"),
       py::arg("sweep"), py::arg("target"),
       "(n_frames, 4, 4) T_base_camera on a loop: camera k at center + (radius cos a_k, radius sin a_k, height) (m), "
       "a_k = start_angle + sweep k / n_frames (rad), looking at target, image up +z (outwards when radius is 0). "
-      "ValueError naming a bad argument.");
+      "ValueError naming a bad argument (n_frames an integer in [1, 100000]; lengths and coordinates finite, within "
+      "1e6 m), checked before allocating.");
   s.def(
       "hemisphere_camera_poses",
-      [](int n_frames, const Eigen::Vector3d& target, double distance, const std::vector<double>& elevations,
-         double start_angle) {
-        return posesArray(hemisphereCameraPoses(n_frames, target, distance, elevations, start_angle));
+      [](const py::object& n_frames, const Eigen::Vector3d& target, double distance,
+         const std::vector<double>& elevations, double start_angle) {
+        return posesArray(
+            hemisphereCameraPoses(countArg(n_frames, "n_frames"), target, distance, elevations, start_angle));
       },
       py::arg("n_frames"), py::arg("target"), py::arg("distance"), py::arg("elevations"), py::arg("start_angle"),
       "(n_frames, 4, 4) T_base_camera on rings at `distance` (m) from target, one per elevation (rad, in (0, pi/2]), "
       "frames shared in proportion to cos(elevation), successive rings in opposite directions. ValueError naming a "
-      "bad argument.");
+      "bad argument (n_frames an integer in [number of rings, 100000]; distance and target within 1e6 m).");
   s.def("builtin_part_mesh", &builtinPartMeshPy, py::arg("segments"),
         "The built-in part (see scanalign.parts) as a watertight mesh in metres: (vertices (V,3) float64, faces "
         "(F,3) int64 wound counter-clockwise seen from outside, surface (F,) int32: 0 plane, 1 boss cylinder, 2 "
-        "cap sphere). ValueError for segments < 8.");
+        "cap sphere). ValueError for segments outside [8, 4096].");
   s.def(
       "morton_order",
       [](const py::array& points) {

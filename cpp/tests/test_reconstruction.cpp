@@ -1,10 +1,16 @@
 // Depth images to clouds and the frame-to-model pipeline, against analytic scenes whose
 // depth is ray-cast exactly in the test (independent of the library's renderer).
 #include <gtest/gtest.h>
+#include <omp.h>
 
+#include <atomic>
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <limits>
+#include <new>
 #include <random>
+#include <thread>
 #include <vector>
 
 #include <Eigen/Geometry>
@@ -300,4 +306,247 @@ TEST(FrameToModel, ConstantVelocityTracksALoopInFewerIterations) {
     }
   }
   EXPECT_LT(iterations[1], 0.7 * iterations[0]) << iterations[0] << " vs " << iterations[1];
+}
+
+// ---------------------------------------------------------------------------------------
+// No lost data under faults (issue 16): whatever throws during a frame -- bad input, a
+// failed allocation at any point of the registration or the merge, an interrupt -- the
+// model, the poses and the frame counts are exactly as before the call.
+
+#if defined(__SANITIZE_ADDRESS__)
+#define SCANALIGN_TEST_FAULTS 0  // the sanitizer owns operator new
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define SCANALIGN_TEST_FAULTS 0
+#else
+#define SCANALIGN_TEST_FAULTS 1
+#endif
+#else
+#define SCANALIGN_TEST_FAULTS 1
+#endif
+
+namespace {
+// Failure injection: when armed, the `countdown`-th allocation of the armed thread throws
+// std::bad_alloc. Allocations inside OpenMP regions never fail here (an exception must not
+// leave one: std::terminate, a known limit of OpenMP code), so the sweep covers every
+// allocation of the serial steps, where an exception can arise and unwind.
+std::atomic<long> fault_countdown{-1};
+std::atomic<std::thread::id> fault_thread{};
+
+struct ArmFault {
+  explicit ArmFault(long countdown) {
+    fault_thread = std::this_thread::get_id();
+    fault_countdown = countdown;
+  }
+  ~ArmFault() { fault_countdown = -1; }
+};
+
+bool sameBytes(const Model& a, const Model& b) {
+  auto same = [](const auto& x, const auto& y) {
+    return x.size() == y.size() && (x.empty() || std::memcmp(x.data(), y.data(), x.size() * sizeof(x[0])) == 0);
+  };
+  return same(a.points, b.points) && same(a.normals, b.normals) && same(a.colors, b.colors);
+}
+
+struct Snapshot {
+  Model model;
+  Eigen::Matrix4d last_pose, predicted;
+  int seen, merged;
+  explicit Snapshot(const FrameToModel& f)
+      : model(f.model()), last_pose(f.lastPose()), predicted(f.predictedPose()), seen(f.framesSeen()),
+        merged(f.framesMerged()) {}
+  void expectUnchanged(const FrameToModel& f, const std::string& what) const {
+    EXPECT_TRUE(sameBytes(f.model(), model)) << what;
+    EXPECT_EQ(f.lastPose(), last_pose) << what;
+    EXPECT_EQ(f.predictedPose(), predicted) << what;
+    EXPECT_EQ(f.framesSeen(), seen) << what;
+    EXPECT_EQ(f.framesMerged(), merged) << what;
+  }
+};
+
+// A first frame merged (with colours), and the second frame of the loop.
+struct TwoFrames {
+  FrameToModel f2m;
+  DepthCloud second;
+  std::vector<std::uint8_t> colors;
+  TwoFrames() {
+    FrameToModelSettings s;
+    s.motion_model = MotionModel::ConstantVelocity;
+    f2m = FrameToModel(s);
+    const PinholeIntrinsics K = smallCamera();
+    const DepthCloud first = cloudOf(rayCast(loopPose(0, 24), K), K);
+    colors.assign(3 * first.size(), 90);
+    EXPECT_EQ(f2m.integrate(CloudView<float>(first.points.data(), first.size()), colors.data()).status,
+              FrameStatus::Initialized);
+    second = cloudOf(rayCast(loopPose(1, 24), K), K);
+    colors.assign(3 * second.size(), 200);
+  }
+  CloudView<float> view() const { return CloudView<float>(second.points.data(), second.size()); }
+};
+}  // namespace
+
+#if SCANALIGN_TEST_FAULTS
+void* operator new(std::size_t size) {
+  if (fault_countdown.load(std::memory_order_relaxed) >= 0 && std::this_thread::get_id() == fault_thread.load() &&
+      omp_get_level() == 0 && fault_countdown.fetch_sub(1) == 0) {
+    fault_countdown = -1;
+    throw std::bad_alloc();
+  }
+  if (void* p = std::malloc(size > 0 ? size : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#endif
+
+TEST(FrameToModelFaults, AFailedAllocationAnywhereInAFrameLeavesTheModelUnchanged) {
+  if (!SCANALIGN_TEST_FAULTS) GTEST_SKIP() << "operator new belongs to the sanitizer";
+  TwoFrames t;
+  t.f2m.settings().num_threads = 1;
+  // The frame as it is merged without faults: the reference.
+  FrameToModel clean = t.f2m;
+  const FrameReport expected = clean.integrate(t.view(), t.colors.data());
+  ASSERT_EQ(expected.status, FrameStatus::Registered);
+  long failures = 0;
+  for (long k = 0;; ++k) {
+    const Snapshot before(t.f2m);
+    bool threw = false;
+    try {
+      ArmFault arm(k);
+      t.f2m.integrate(t.view(), t.colors.data());
+    } catch (const std::bad_alloc&) {
+      threw = true;
+    }
+    if (!threw) break;
+    ++failures;
+    before.expectUnchanged(t.f2m, "allocation " + std::to_string(k) + " failed");
+    if (HasFailure()) return;
+  }
+  // Allocations fail in preparation, registration and merge alike (dozens of them); the
+  // frame then goes through as if nothing had happened: the same pose and points (after a
+  // failed merge the next one re-grids, re-normalising normals to within float rounding).
+  EXPECT_GT(failures, 20);
+  EXPECT_EQ(t.f2m.framesMerged(), clean.framesMerged());  // the sweep's last call went through
+  EXPECT_EQ(t.f2m.framesSeen(), clean.framesSeen());
+  EXPECT_LT(translationError(t.f2m.lastPose(), expected.T_model_camera), 1e-9);
+  EXPECT_EQ(t.f2m.model().size(), clean.model().size());
+}
+
+TEST(FrameToModelFaults, AFailedAllocationInTheMergeChangesNothing) {
+  if (!SCANALIGN_TEST_FAULTS) GTEST_SKIP() << "operator new belongs to the sanitizer";
+  TwoFrames t;
+  const PreparedFrame frame = t.f2m.prepare(t.view(), t.colors.data());
+  const Eigen::Matrix4d T = loopPose(1, 24) * rigid(0, 0, 0, 0, 0, 0);
+  FrameToModel clean = t.f2m;
+  clean.merge(frame, T);
+  long failures = 0;
+  for (long k = 0;; ++k) {
+    const Snapshot before(t.f2m);
+    bool threw = false;
+    try {
+      ArmFault arm(k);
+      t.f2m.merge(frame, T);
+    } catch (const std::bad_alloc&) {
+      threw = true;
+    }
+    if (!threw) break;
+    ++failures;
+    before.expectUnchanged(t.f2m, "merge allocation " + std::to_string(k) + " failed");
+    if (HasFailure()) return;
+  }
+  EXPECT_GE(failures, 5);  // the transformed frame, keys, index, sums, the model's growth
+  // The merge that finally went through re-gridded (the index was dropped by the first
+  // failure): the same points and colours as the clean merge, bit for bit, up to order.
+  ASSERT_EQ(t.f2m.model().size(), clean.model().size());
+  EXPECT_EQ(t.f2m.lastPose(), clean.lastPose());
+}
+
+TEST(FrameToModelFaults, BadFramesThrowAndChangeNothing) {
+  TwoFrames t;
+  const Snapshot before(t.f2m);
+  Eigen::Matrix4d nan_guess = loopPose(1, 24);
+  nan_guess(0, 3) = std::nan("");
+  Eigen::Matrix4d scaled = Eigen::Matrix4d::Identity();
+  scaled.topLeftCorner<3, 3>() *= 2.0;
+  for (const Eigen::Matrix4d* guess : {&nan_guess, &scaled}) {
+    EXPECT_THROW(t.f2m.integrate(t.view(), nullptr, guess), std::invalid_argument);
+    before.expectUnchanged(t.f2m, "bad guess");
+  }
+  PreparedFrame bad = t.f2m.prepare(t.view());
+  bad.normals.pop_back();
+  EXPECT_THROW(t.f2m.merge(bad, loopPose(1, 24)), std::invalid_argument);
+  EXPECT_THROW(t.f2m.merge(t.f2m.prepare(t.view()), scaled), std::invalid_argument);
+  // A rigid pose 1e30 m away: every point is beyond the model's range (dropped, counted);
+  // as the first pose of an empty model no voxel coordinate can hold it (an error).
+  Eigen::Matrix4d beyond = Eigen::Matrix4d::Identity();
+  beyond(0, 3) = 1e30;
+  const PreparedFrame p = t.f2m.prepare(t.view());
+  std::size_t far = 0;
+  EXPECT_EQ(t.f2m.merge(p, beyond, &far), before.model.size());
+  EXPECT_EQ(far, p.size());
+  FrameToModel empty;
+  EXPECT_THROW(empty.merge(p, beyond), std::invalid_argument);
+  EXPECT_EQ(empty.model().size(), 0u);
+  EXPECT_EQ(empty.framesMerged(), 0);
+  before.expectUnchanged(t.f2m, "bad merge");
+  // Invalid settings are refused before anything happens.
+  t.f2m.settings().min_fitness = std::nan("");
+  EXPECT_THROW(t.f2m.integrate(t.view()), std::invalid_argument);
+  before.expectUnchanged(t.f2m, "bad settings");
+}
+
+#if __has_include("scanalign/common/interrupt.hpp")
+#include "scanalign/common/interrupt.hpp"
+
+namespace {
+std::atomic<long> interrupt_countdown{-1};
+bool interruptAfterCountdown() { return interrupt_countdown.fetch_sub(1) == 0; }
+}  // namespace
+
+TEST(FrameToModelFaults, AnInterruptAnywhereInAFrameLeavesTheModelUnchanged) {
+  TwoFrames t;
+  long interrupts = 0;
+  interrupt_hook.store(&interruptAfterCountdown);
+  for (long k = 0;; ++k) {
+    const Snapshot before(t.f2m);
+    interrupt_countdown = k;
+    bool threw = false;
+    try {
+      t.f2m.integrate(t.view(), t.colors.data());
+    } catch (const Interrupted&) {
+      threw = true;
+    }
+    if (!threw) break;
+    ++interrupts;
+    before.expectUnchanged(t.f2m, "interrupted at check " + std::to_string(k));
+    if (HasFailure()) break;
+  }
+  interrupt_hook.store(nullptr);
+  EXPECT_GT(interrupts, 0) << "the registration checks for interrupts between iterations";
+  EXPECT_EQ(t.f2m.framesMerged(), 2);  // the uninterrupted call merged
+}
+#endif
+
+TEST(FrameToModel, AFarPointIsDroppedAndCountedNotTheFrameRefused) {
+  // One stray reading 1e6 m (and one at 1e30 m) away used to make the frame's voxel grid
+  // refuse the whole frame (more than 2^21 voxels along an axis).
+  const PinholeIntrinsics K = smallCamera();
+  const DepthCloud c = cloudOf(rayCast(loopPose(0, 24), K), K);
+  std::vector<float> with_far = c.points;
+  with_far.insert(with_far.end(), {1e6f, 0.0f, 0.4f, 0.0f, -1e30f, 0.4f});
+  FrameToModel a, b;
+  const FrameReport ra = a.integrate(CloudView<float>(with_far.data(), with_far.size() / 3));
+  const FrameReport rb = b.integrate(CloudView<float>(c.points.data(), c.size()));
+  ASSERT_EQ(ra.status, FrameStatus::Initialized);
+  EXPECT_EQ(ra.far_points, 2u);
+  EXPECT_EQ(rb.far_points, 0u);
+  EXPECT_TRUE(sameBytes(a.model(), b.model()));  // as if the far points had not been there
+  // Model range: a frame merged 1.5 km from the first camera (beyond 2^20 model voxels of
+  // 1 mm) is dropped point by point and counted; the model is unchanged.
+  const PreparedFrame p = a.prepare(CloudView<float>(c.points.data(), c.size()));
+  const Model before = a.model();
+  std::size_t far = 0;
+  EXPECT_EQ(a.merge(p, rigid(0, 0, 0, 1500.0, 0, 0), &far), before.size());
+  EXPECT_EQ(far, p.size());
+  EXPECT_TRUE(sameBytes(a.model(), before));
 }

@@ -114,8 +114,7 @@ class ReconstructionResult:
         joints.csv (when the frames carry robot joints), report.json, and (``plots``)
         trajectory.png, frames.png and joints.png (with joints) into ``out_dir``. Returns the
         paths written."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
+        (out := Path(out_dir)).mkdir(parents=True, exist_ok=True)
         paths = {"model": out / "model.ply", "trajectory": out / "trajectory.txt", "frames": out / "frames.csv"}
         self.model.write_ply(paths["model"])
         self.estimate.write_tum(paths["trajectory"], header="scanalign estimate: T_model_camera (camera -> model frame)")
@@ -146,9 +145,12 @@ class ReconstructionResult:
             from . import plots as _plots
 
             if self.reference is not None and len(self.reference) >= 3:
-                paths["trajectory_png"] = _plots.plot_trajectory_topdown(
-                    self.estimate_at_reference(), self.reference, out / "trajectory.png",
-                    title="estimated (aligned) vs reference camera path")
+                try:  # aligned to the reference, unless it cannot be (it never moves: see metrics)
+                    paths["trajectory_png"] = _plots.plot_trajectory_topdown(
+                        self.estimate_at_reference(), self.reference, out / "trajectory.png",
+                        title="estimated (aligned) vs reference camera path")
+                except ValueError:
+                    paths["trajectory_png"] = _plots.plot_trajectory_topdown(self.estimate, None, out / "trajectory.png")
             elif len(self.estimate) >= 2:
                 paths["trajectory_png"] = _plots.plot_trajectory_topdown(self.estimate, None, out / "trajectory.png")
             rows = [dict(time=r.total_seconds, iterations=r.iterations, fitness=r.fitness,
@@ -199,11 +201,7 @@ def _jsonable(v: Any) -> Any:
     if isinstance(v, (np.floating, float)):
         f = float(v)
         return f if math.isfinite(f) else None
-    if isinstance(v, (np.integer,)):
-        return int(v)
-    if isinstance(v, np.bool_):
-        return bool(v)
-    return v
+    return v.item() if isinstance(v, (np.integer, np.bool_)) else v  # Python int / bool
 
 
 def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings] = None, *,
@@ -231,7 +229,8 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
         depth_filter: a :class:`scanalign.reconstruction.DepthFilter`, ``"default"`` (the
             default bilateral filter) or None (raw depth, as the eye-in-hand paper; the default).
         progress: show a progress bar (True), none (False), or a callable per record.
-        evaluate: compute ATE/RPE against the reference poses when available.
+        evaluate: compute ATE/RPE against the reference poses when available; when that
+            fails (a reference that never moves), ``metrics["evaluation_error"]`` says why.
 
     Returns:
         :class:`ReconstructionResult`.
@@ -295,20 +294,21 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
             bar.close()
     if rec is None:
         raise ValueError("no frames to reconstruct")
-    merged = [r for r in rec.records if r.merged]
-    estimate = rec.trajectory
-    with_ref = [r for r in merged if r.index in ref_of]
+    with_ref = [r for r in rec.records if r.merged and r.index in ref_of]
     reference = None
     if with_ref:
         reference = Trajectory(np.array([r.timestamp for r in with_ref]), np.array([ref_of[r.index] for r in with_ref]))
-    result = ReconstructionResult(model=rec.model, records=rec.records, estimate=estimate, reference=reference,
+    result = ReconstructionResult(model=rec.model, records=rec.records, estimate=rec.trajectory, reference=reference,
                                   T_model_camera0=rec.T_model_camera0, settings=rec.settings,
                                   registration=registration, seconds=time.perf_counter() - t_start)
     if any(q is not None for q in joints):
         result.joints = np.array([np.full(6, np.nan) if q is None else q for q in joints])
         result.robot = robot_name
     if evaluate and reference is not None and len(reference) >= 3:
-        result.metrics.update(trajectory_metrics(result.estimate_at_reference(), reference))
+        try:  # a failed evaluation (e.g. a reference that never moves) must not lose the reconstruction
+            result.metrics.update(trajectory_metrics(result.estimate_at_reference(), reference))
+        except (ValueError, RuntimeError, np.linalg.LinAlgError) as e:
+            result.metrics["evaluation_error"] = f"{type(e).__name__}: {e}"
     return result
 
 
@@ -339,8 +339,7 @@ def model_mesh_distance(result: ReconstructionResult, vertices_base: np.ndarray,
     T_base_model = np.eye(4)
     merged = [r for r in result.records if r.merged]
     if result.reference is not None and merged:
-        first = merged[0]
-        ref = result.reference
+        ref, first = result.reference, merged[0]
         k = np.nonzero(np.isclose(ref.timestamps, first.timestamp, rtol=0, atol=1e-9))[0]
         if k.size:
             T_base_model = ref.poses[k[0]] @ inverse(first.T_model_camera)

@@ -71,15 +71,16 @@ def voxel_grid(points: np.ndarray, leaf_size: float = 0.001, *, normals: Optiona
         min_points_per_voxel: voxels with fewer points are dropped.
 
     Raises:
-        ValueError: non-positive leaf, a leaf too small for the cloud's extent (more than
-        2**21 voxels along an axis), min_points_per_voxel < 1, or attribute arrays with
-        the wrong number of rows.
+        ValueError: bad leaf (not positive, or over 2**21 voxels along an axis of the cloud),
+        min_points_per_voxel < 1, attributes with the wrong number of rows. TypeError:
+        normals or colours that are not real numbers (strings, complex).
     """
     p = as_points(points, "points")
     attributes = []
     for name, a in (("normals", normals), ("colors", colors)):
         if a is not None and (np.shape(a) != (p.shape[0], 3) or np.asarray(a).dtype.kind not in "biuf"):
-            raise ValueError(f"{name}: expected real ({p.shape[0]}, 3) values, got {np.asarray(a).dtype} {np.shape(a)}")
+            raise (ValueError if np.asarray(a).dtype.kind in "biuf" else TypeError)(  # strings, complex: TypeError
+                f"{name}: expected real ({p.shape[0]}, 3) values, got {np.asarray(a).dtype} {np.shape(a)}")
         attributes += [] if a is None else [np.asarray(a, dtype=np.float64)]
     centroids, means, counts = _core.reconstruction.voxel_grid(
         p, float(leaf_size), np.hstack(attributes) if attributes else None, int(min_points_per_voxel))
@@ -116,8 +117,8 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[n
         ``pixels`` (N,) int32 when ``return_pixels``.
 
     Raises:
-        TypeError: unsupported depth dtype. ValueError: image size not matching the
-        intrinsics, bad range, scale or stride.
+        TypeError: unsupported depth dtype. ValueError: image size not matching the intrinsics,
+        bad range, stride or ``depth_scale`` (outside (0, 1] m per unit).
     """
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.camera.Intrinsics")
@@ -165,7 +166,8 @@ def bilateral_filter_depth(depth: np.ndarray, depth_filter: DepthFilter = DepthF
         depth: (H, W) uint16 in units of ``depth_scale`` metres (0 = invalid) or float
             metres (0 / NaN = invalid).
     Returns:
-        (H, W) float32 metres, NaN where the input was invalid.
+        (H, W) float32 metres, NaN where the input was invalid (empty for an empty image).
+        ValueError beyond 2**27 pixels (checked before allocating) or for a bad filter.
     """
     f = depth_filter
     return _core.reconstruction.bilateral_filter_depth(np.asarray(depth), int(f.radius), float(f.sigma_space),
@@ -230,8 +232,7 @@ class Model:
         """Writes the model as PLY with normals (NaN normals written as 0) and colours."""
         from .io import write_ply
 
-        normals = np.nan_to_num(self.normals, nan=0.0)
-        write_ply(path, self.points, normals=normals, colors=self.colors, binary=binary)
+        write_ply(path, self.points, normals=np.nan_to_num(self.normals, nan=0.0), colors=self.colors, binary=binary)
 
 
 class Reconstructor:

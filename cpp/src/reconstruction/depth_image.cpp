@@ -16,20 +16,39 @@
 
 namespace scanalign {
 
-void PinholeIntrinsics::validate() const {
+void checkImageSize(long long width, long long height, const char* what) {
   if (width <= 0 || height <= 0)
-    throw std::invalid_argument("intrinsics: width and height must be positive, got " + std::to_string(width) + "x" +
-                                std::to_string(height));
+    throw std::invalid_argument(std::string(what) + ": width and height must be positive, got " +
+                                std::to_string(width) + "x" + std::to_string(height));
+  // Both below 2^31 here or the product test below fails: no overflow in the product.
+  if (width > (1LL << 31) || height > (1LL << 31) ||
+      static_cast<unsigned long long>(width) * static_cast<unsigned long long>(height) > kMaxImagePixels)
+    throw std::invalid_argument(std::string(what) + ": " + std::to_string(width) + "x" + std::to_string(height) +
+                                " pixels is beyond the limit of " + std::to_string(kMaxImagePixels) +
+                                " pixels (kMaxImagePixels)");
+}
+
+void PinholeIntrinsics::validate() const {
+  checkImageSize(width, height, "intrinsics");
   if (!(std::isfinite(fx) && std::isfinite(fy) && std::isfinite(cx) && std::isfinite(cy)))
     throw std::invalid_argument("intrinsics: fx, fy, cx, cy must be finite");
   if (!(fx > 0.0 && fy > 0.0)) throw std::invalid_argument("intrinsics: focal lengths must be positive");
+  // The steepest ray of the image, at its corners: beyond 1e6 (a field of view within 1e-4
+  // degrees of 180) the intrinsics are garbage, and points would overflow.
+  constexpr double kMaxSlope = 1e6;
+  if (std::max(std::abs(cx), std::abs(width - 1 - cx)) > kMaxSlope * fx)
+    throw std::invalid_argument("intrinsics: fx too small or cx too far off the image (ray slope |u - cx| / fx "
+                                "above 1e6)");
+  if (std::max(std::abs(cy), std::abs(height - 1 - cy)) > kMaxSlope * fy)
+    throw std::invalid_argument("intrinsics: fy too small or cy too far off the image (ray slope |v - cy| / fy "
+                                "above 1e6)");
 }
 
 namespace {
 
 void validate(const DepthToCloudSettings& s) {
-  if (!(std::isfinite(s.depth_scale) && s.depth_scale > 0.0))
-    throw std::invalid_argument("depth to cloud: depth_scale must be a positive number of metres per unit");
+  if (!(s.depth_scale > 0.0 && s.depth_scale <= 1.0))
+    throw std::invalid_argument("depth to cloud: depth_scale must be in (0, 1] metres per unit");
   if (!(s.min_depth >= 0.0 && s.max_depth > s.min_depth) || std::isnan(s.max_depth))
     throw std::invalid_argument("depth to cloud: need 0 <= min_depth < max_depth (metres)");
   if (s.stride < 1) throw std::invalid_argument("depth to cloud: stride must be >= 1");
@@ -61,9 +80,12 @@ DepthCloud backProject(const DepthT* depth, const PinholeIntrinsics& K, const De
         if (!std::isfinite(z)) continue;
       }
       if (!(z >= s.min_depth && z <= s.max_depth) || z <= 0.0) continue;
-      out.points.push_back(static_cast<float>(z * (u - K.cx) * inv_fx));
-      out.points.push_back(static_cast<float>(z * ry));
-      out.points.push_back(static_cast<float>(z));
+      const float p[3] = {static_cast<float>(z * (u - K.cx) * inv_fx), static_cast<float>(z * ry),
+                          static_cast<float>(z)};
+      // A depth beyond float range once multiplied by the ray (1e38 m with max_depth = inf)
+      // is not a measurement: invalid, as a NaN pixel (never a non-finite point).
+      if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) continue;
+      out.points.insert(out.points.end(), p, p + 3);
       out.pixels.push_back(static_cast<std::int32_t>(pixel));
       if (rgb) out.colors.insert(out.colors.end(), rgb + 3 * pixel, rgb + 3 * pixel + 3);
     }
@@ -186,11 +208,15 @@ constexpr int kRowLanes = 1;
 
 void bilateralFilterDepth(const float* depth, int width, int height, float* out, int radius, double sigma_space,
                           double sigma_depth, int num_threads) {
-  if (width <= 0 || height <= 0) throw std::invalid_argument("bilateral filter: width and height must be positive");
-  if (depth == nullptr || out == nullptr) throw std::invalid_argument("bilateral filter: null image");
+  if (width < 0 || height < 0) throw std::invalid_argument("bilateral filter: width and height must be >= 0");
   if (radius < 0 || radius > 32) throw std::invalid_argument("bilateral filter: radius must be in [0, 32] pixels");
-  if (!(sigma_space > 0.0 && std::isfinite(sigma_space)) || !(sigma_depth > 0.0 && std::isfinite(sigma_depth)))
-    throw std::invalid_argument("bilateral filter: sigma_space (pixels) and sigma_depth (m) must be positive");
+  if (!(sigma_space >= 1e-3 && std::isfinite(sigma_space)))
+    throw std::invalid_argument("bilateral filter: sigma_space must be finite and >= 1e-3 pixels");
+  if (!(sigma_depth >= 1e-9 && std::isfinite(sigma_depth)))
+    throw std::invalid_argument("bilateral filter: sigma_depth must be finite and >= 1e-9 m");
+  if (width == 0 || height == 0) return;  // an empty image: nothing to filter
+  checkImageSize(width, height, "bilateral filter");
+  if (depth == nullptr || out == nullptr) throw std::invalid_argument("bilateral filter: null image");
   const int k = 2 * radius + 1;
   std::vector<float> spatial(static_cast<std::size_t>(k) * k);
   for (int dy = -radius; dy <= radius; ++dy)

@@ -329,6 +329,7 @@ void checkInputs(std::size_t n_vertices, const std::int32_t* faces, std::size_t 
   if (cam.width < 1 || cam.height < 1 || cam.width > kMaxSize || cam.height > kMaxSize)
     throw std::invalid_argument("renderDepth: image size must be in [1, 32768] pixels, got " +
                                 std::to_string(cam.width) + " x " + std::to_string(cam.height));
+  checkImageSize(cam.width, cam.height, "renderDepth");  // at most kMaxImagePixels in all
   if (!(std::isfinite(cam.fx) && std::isfinite(cam.fy) && cam.fx > 0.0 && cam.fy > 0.0))
     throw std::invalid_argument("renderDepth: focal lengths fx, fy must be finite and positive (pixels)");
   if (!(std::isfinite(cam.cx) && std::isfinite(cam.cy)))
@@ -471,6 +472,7 @@ DepthImage renderDepth(const CloudView<Scalar>& vertices, const std::vector<std:
   DepthImage img;
   if (camera.width < 1 || camera.height < 1 || camera.width > 32768 || camera.height > 32768)
     throw std::invalid_argument("renderDepth: image size must be in [1, 32768] pixels");
+  checkImageSize(camera.width, camera.height, "renderDepth");  // before allocating the images
   img.width = camera.width;
   img.height = camera.height;
   const std::size_t n = static_cast<std::size_t>(camera.width) * static_cast<std::size_t>(camera.height);

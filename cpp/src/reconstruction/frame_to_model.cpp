@@ -87,10 +87,18 @@ PreparedFrame FrameToModel::prepare(const CloudView<float>& points, const std::u
   std::vector<double> attrs;  // colours as doubles for the voxel grid's averaging
   kept.reserve(3 * points.size);
   if (colors) attrs.reserve(3 * points.size);
+  // The range check in the frame grid's own arithmetic (voxelGrid's p * inv in float): the
+  // kept points span fewer than 2^20 voxels, well inside the grid's 2^21.
+  const double grid_leaf = settings_.frame_voxel_size > 0.0 ? settings_.frame_voxel_size : settings_.model_voxel_size;
+  const float inv_grid = 1.0f / static_cast<float>(grid_leaf), range = static_cast<float>(kFrameRangeVoxels);
   for (std::size_t i = 0; i < points.size; ++i) {
     if (!points.isFinite(i)) continue;
     const float* p = points.ptr(i);
     if (settings_.crop_box && !settings_.crop_box->contains(p)) continue;
+    if (!(std::abs(p[0] * inv_grid) < range && std::abs(p[1] * inv_grid) < range && std::abs(p[2] * inv_grid) < range)) {
+      ++out.far_points;
+      continue;
+    }
     kept.insert(kept.end(), p, p + 3);
     if (colors)
       for (int c = 0; c < 3; ++c) attrs.push_back(colors[3 * i + c]);
@@ -182,22 +190,26 @@ FrameReport FrameToModel::integratePrepared(const PreparedFrame& frame, const Ei
   validate(settings_);
   const auto t0 = Clock::now();
   FrameReport r;
-  r.index = frames_seen_++;
+  r.index = frames_seen_;  // counted at the end: a call that throws saw no frame
   const Eigen::Matrix4d guess = guess_in ? *guess_in : predictedPose();
   requireRigid(guess, "T_model_camera_guess");
   r.T_model_camera = guess;
   r.frame_points = frame.size();
+  r.far_points = frame.far_points;
   r.prepare_seconds = frame.seconds;
   r.model_points = model_.size();
+  std::size_t far = 0;
   if (frame.size() == 0) {
     r.status = FrameStatus::SkippedEmpty;
   } else if (frame.size() < static_cast<std::size_t>(settings_.min_frame_points)) {
     r.status = FrameStatus::SkippedTooFewPoints;
   } else if (!hasModel()) {
     const auto tm = Clock::now();
-    r.model_points = merge(frame, guess);
+    r.model_points = merge(frame, guess, &far);
     r.merge_seconds = since(tm);
-    r.status = FrameStatus::Initialized;
+    // Every point beyond the model grid's range (a frame grid much coarser than the model's)
+    // leaves no model: as an empty frame.
+    r.status = hasModel() ? FrameStatus::Initialized : FrameStatus::SkippedEmpty;
   } else {
     const auto tr = Clock::now();
     icp_.settings() = settings_.icp;
@@ -207,16 +219,18 @@ FrameReport FrameToModel::integratePrepared(const PreparedFrame& frame, const Ei
                      CloudView<float>(model_.normals.data(), model_.size()));
       tree_current_ = true;
     }
-    r.icp = icp_.align(frame.view(), guess);
+    r.icp = icp_.align(frame.view(), guess);  // may throw (Interrupted): nothing changed yet
     r.register_seconds = since(tr);
     r.status = check(r.icp, guess);
     if (accepted(r.status)) {
       const auto tm = Clock::now();
+      r.model_points = merge(frame, r.icp.T_target_source, &far);  // all or nothing
       r.T_model_camera = r.icp.T_target_source;
-      r.model_points = merge(frame, r.T_model_camera);
       r.merge_seconds = since(tm);
     }
   }
+  r.far_points += far;
+  ++frames_seen_;
   r.total_seconds = since(t0) + frame.seconds;
   return r;
 }
@@ -265,21 +279,26 @@ bool modelVoxelKey(const float* p, float inv_leaf, std::uint64_t& key) {
 
 }  // namespace
 
-bool FrameToModel::buildIndex() {
+bool FrameToModel::buildIndex() noexcept {
   voxels_.clear();
   index_leaf_ = 0.0;
   const std::size_t m = model_.size();
   const float inv = 1.0f / static_cast<float>(settings_.model_voxel_size);
-  for (std::size_t i = 0; i < m; ++i) {
-    std::uint64_t key;
-    bool inserted = false;
-    // Two model points in one voxel cannot happen after a re-grid (see above); if it
-    // did, the index could not represent the model and the merge keeps re-gridding.
-    if (!modelVoxelKey(&model_.points[3 * i], inv, key) ||
-        (voxels_.findOrInsert(key, static_cast<std::uint32_t>(i), inserted), !inserted)) {
-      voxels_.clear();
-      return false;
+  try {
+    for (std::size_t i = 0; i < m; ++i) {
+      std::uint64_t key;
+      bool inserted = false;
+      // Two model points in one voxel cannot happen after a re-grid (see above); if it
+      // did, the index could not represent the model and the merge keeps re-gridding.
+      if (!modelVoxelKey(&model_.points[3 * i], inv, key) ||
+          (voxels_.findOrInsert(key, static_cast<std::uint32_t>(i), inserted), !inserted)) {
+        voxels_.clear();
+        return false;
+      }
     }
+  } catch (const std::bad_alloc&) {  // the model is already committed: merges re-grid until an index fits
+    voxels_.clear();
+    return false;
   }
   index_leaf_ = settings_.model_voxel_size;
   return true;
@@ -326,38 +345,68 @@ void FrameToModel::regridMerge(const std::vector<float>& frame_points, const std
   model_ = std::move(next);
 }
 
-std::size_t FrameToModel::merge(const PreparedFrame& frame, const Eigen::Matrix4d& T) {
+std::size_t FrameToModel::merge(const PreparedFrame& frame, const Eigen::Matrix4d& T, std::size_t* far_points) {
+  // Every check and every step that can throw comes before the first change of the model,
+  // the index or the poses (see the header: a failed merge changes nothing).
   requireRigid(T, "T_model_camera");
   validate(settings_);
-  const std::size_t n = frame.size();
-  if (frame.normals.size() != 3 * n || (!frame.colors.empty() && frame.colors.size() != 3 * n))
+  const std::size_t n_in = frame.size();
+  if (frame.normals.size() != 3 * n_in || (!frame.colors.empty() && frame.colors.size() != 3 * n_in))
     throw std::invalid_argument("merge: prepared frame has inconsistent array sizes");
-  if (n == 0) return model_.size();
+  if (far_points) *far_points = 0;
+  if (n_in == 0) return model_.size();
   const std::size_t m = model_.size();
+  const double leaf = settings_.model_voxel_size;
   const bool colored = !model_.colors.empty() || !frame.colors.empty();
   const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
   const Eigen::Vector3d t = T.topRightCorner<3, 1>();
+  // The first merged camera's position anchors the model's range (kModelRangeVoxels).
+  const Eigen::Vector3d anchor = m == 0 ? t : anchor_;
+  const float inv = 1.0f / static_cast<float>(leaf);
+  double anchor_voxels[3];
+  for (int c = 0; c < 3; ++c) {
+    anchor_voxels[c] = static_cast<float>(anchor[c]) * inv;
+    if (!(std::abs(anchor_voxels[c]) < 1e18))  // voxel coordinates must fit int64 (voxelGrid)
+      throw std::invalid_argument("merge: T_model_camera's translation is beyond the model grid's range");
+  }
+  // |v - a| < 2^20 - 1 (v = p * inv in float, as voxelGrid) keeps floor(v) within 2^20 - 1
+  // voxels of floor(a): the model spans fewer than voxelGrid's 2^21 voxels per axis.
+  const double range = static_cast<double>(kModelRangeVoxels - 1);
   // The frame in the model frame: points rounded to float as the model stores them,
-  // normals rotated in double.
-  std::vector<float> points(3 * n);
-  std::vector<double> normals(3 * n);
-  for (std::size_t i = 0; i < n; ++i) {
+  // normals rotated in double; non-finite points are kept (the voxel grid skips them),
+  // points beyond the range dropped.
+  std::vector<float> points;
+  std::vector<double> normals;
+  std::vector<std::uint8_t> colors;
+  points.reserve(3 * n_in);
+  normals.reserve(3 * n_in);
+  if (!frame.colors.empty()) colors.reserve(3 * n_in);
+  std::size_t far = 0;
+  for (std::size_t i = 0; i < n_in; ++i) {
     const Eigen::Vector3d p = R * Eigen::Vector3d(frame.points[3 * i], frame.points[3 * i + 1], frame.points[3 * i + 2]) + t;
-    const Eigen::Vector3d q =
-        R * Eigen::Vector3d(frame.normals[3 * i], frame.normals[3 * i + 1], frame.normals[3 * i + 2]);
+    float q[3];
+    bool inside = true;
     for (int c = 0; c < 3; ++c) {
-      points[3 * i + c] = static_cast<float>(p[c]);
-      normals[3 * i + c] = q[c];
+      q[c] = static_cast<float>(p[c]);
+      const double v = q[c] * inv;  // a finite q may give v = inf: far too
+      if (std::isfinite(q[c]) && !(std::abs(v - anchor_voxels[c]) < range)) inside = false;
     }
+    if (!inside) {
+      ++far;
+      continue;
+    }
+    const Eigen::Vector3d nn = R * Eigen::Vector3d(frame.normals[3 * i], frame.normals[3 * i + 1], frame.normals[3 * i + 2]);
+    points.insert(points.end(), q, q + 3);
+    normals.insert(normals.end(), {nn[0], nn[1], nn[2]});
+    if (!frame.colors.empty()) colors.insert(colors.end(), &frame.colors[3 * i], &frame.colors[3 * i] + 3);
   }
-  if (m == 0) {  // an empty model's index is empty
-    voxels_.clear();
-    index_leaf_ = settings_.model_voxel_size;
-  }
-  // Voxel keys of the frame's points, unless the index cannot take them.
-  const float inv = 1.0f / static_cast<float>(settings_.model_voxel_size);
+  const std::size_t n = points.size() / 3;
+  if (far_points) *far_points = far;
+  if (n == 0) return m;  // every point beyond the range: nothing to merge, nothing changes
+  // Voxel keys of the frame's points, unless the index cannot take them (an empty model's
+  // index is empty, whatever leaf it was built for).
   std::vector<std::uint64_t> keys(n);
-  bool incremental = index_leaf_ == settings_.model_voxel_size;
+  bool incremental = m == 0 || index_leaf_ == leaf;
   for (std::size_t i = 0; i < n && incremental; ++i) {
     const float* p = &points[3 * i];
     if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2])))
@@ -366,78 +415,96 @@ std::size_t FrameToModel::merge(const PreparedFrame& frame, const Eigen::Matrix4
       incremental = modelVoxelKey(p, inv, keys[i]);
   }
   if (!incremental) {
-    regridMerge(points, normals, frame.colors, colored);
-    buildIndex();
+    regridMerge(points, normals, colors, colored);  // builds the new model aside, then moves it in
+    buildIndex();                                    // cannot throw
   } else {
-    if (colored && model_.colors.empty()) model_.colors.assign(3 * m, kGrey);
-    // 1. The voxel of each frame point: its model index (new voxels get the next ones) and
-    //    its accumulator, numbered in order of first touch (stored in the entry's mark,
-    //    offset by one). The index is memory bound: its slots are prefetched ahead.
     struct Touched {
       std::uint32_t index;    // model point
       std::size_t position;   // entry in voxels_
     };
     std::vector<Touched> touched;
-    std::vector<std::uint32_t> accumulator(n, VoxelIndex::kNone);
-    touched.reserve(n);
-    voxels_.reserve(m + n);  // no growth below: positions stay valid
-    auto next_index = static_cast<std::uint32_t>(m);
-    constexpr std::size_t kAhead = 16;  // memory accesses in flight
-    for (std::size_t i = 0; i < n; ++i) {
-      if (i + kAhead < n && keys[i + kAhead] != kSkipPoint) voxels_.prefetch(keys[i + kAhead]);
-      if (keys[i] == kSkipPoint) continue;
-      bool inserted;
-      const std::size_t position = voxels_.findOrInsert(keys[i], next_index, inserted);
-      if (inserted) ++next_index;
-      std::uint32_t& mark = voxels_.mark(position);
-      if (mark == 0) {
-        touched.push_back({voxels_.value(position), position});
-        mark = static_cast<std::uint32_t>(touched.size());
+    std::vector<double> sums;
+    std::size_t stride = colored ? 10 : 7, size = m;
+    try {
+      if (m == 0) {
+        voxels_.clear();
+        index_leaf_ = leaf;
       }
-      accumulator[i] = mark - 1;
-    }
-    // 2. Sums per touched voxel, in the re-grid's order: the model point first (counting as
-    //    one point), then the frame's points in their order. Layout: x y z, normal, [colour],
-    //    count.
-    const std::size_t stride = colored ? 10 : 7;
-    std::vector<double> sums(stride * touched.size(), 0.0);
-    for (std::size_t t = 0; t < touched.size(); ++t) {
-      if (t + kAhead < touched.size() && touched[t + kAhead].index < m) {
+      // 1. The voxel of each frame point: its model index (new voxels get the next ones) and
+      //    its accumulator, numbered in order of first touch (stored in the entry's mark,
+      //    offset by one). The index is memory bound: its slots are prefetched ahead.
+      std::vector<std::uint32_t> accumulator(n, VoxelIndex::kNone);
+      touched.reserve(n);
+      voxels_.reserve(m + n);  // no growth below: positions stay valid
+      auto next_index = static_cast<std::uint32_t>(m);
+      constexpr std::size_t kAhead = 16;  // memory accesses in flight
+      for (std::size_t i = 0; i < n; ++i) {
+        if (i + kAhead < n && keys[i + kAhead] != kSkipPoint) voxels_.prefetch(keys[i + kAhead]);
+        if (keys[i] == kSkipPoint) continue;
+        bool inserted;
+        const std::size_t position = voxels_.findOrInsert(keys[i], next_index, inserted);
+        if (inserted) ++next_index;
+        std::uint32_t& mark = voxels_.mark(position);
+        if (mark == 0) {
+          touched.push_back({voxels_.value(position), position});
+          mark = static_cast<std::uint32_t>(touched.size());
+        }
+        accumulator[i] = mark - 1;
+      }
+      // 2. Sums per touched voxel, in the re-grid's order: the model point first (counting as
+      //    one point), then the frame's points in their order. Layout: x y z, normal, [colour],
+      //    count. A colourless model's points count as grey.
+      sums.assign(stride * touched.size(), 0.0);
+      for (std::size_t k = 0; k < touched.size(); ++k) {
+        if (k + kAhead < touched.size() && touched[k + kAhead].index < m) {
 #if defined(__GNUC__)
-        const std::size_t ahead = 3 * std::size_t{touched[t + kAhead].index};
-        __builtin_prefetch(&model_.points[ahead]);
-        __builtin_prefetch(&model_.normals[ahead]);
-        if (colored) __builtin_prefetch(&model_.colors[ahead]);
+          const std::size_t ahead = 3 * std::size_t{touched[k + kAhead].index};
+          __builtin_prefetch(&model_.points[ahead]);
+          __builtin_prefetch(&model_.normals[ahead]);
+          if (!model_.colors.empty()) __builtin_prefetch(&model_.colors[ahead]);
 #endif
+        }
+        const std::size_t index = touched[k].index;
+        if (index >= m) continue;
+        double* a = &sums[stride * k];
+        for (int c = 0; c < 3; ++c) {
+          a[c] = model_.points[3 * index + c];
+          a[3 + c] = model_.normals[3 * index + c];
+          if (colored) a[6 + c] = model_.colors.empty() ? kGrey : model_.colors[3 * index + c];
+        }
+        a[stride - 1] = 1.0;
       }
-      const std::size_t index = touched[t].index;
-      if (index >= m) continue;
-      double* a = &sums[stride * t];
-      for (int c = 0; c < 3; ++c) {
-        a[c] = model_.points[3 * index + c];
-        a[3 + c] = model_.normals[3 * index + c];
-        if (colored) a[6 + c] = model_.colors[3 * index + c];
+      for (std::size_t i = 0; i < n; ++i) {
+        if (accumulator[i] == VoxelIndex::kNone) continue;
+        double* a = &sums[stride * accumulator[i]];
+        for (int c = 0; c < 3; ++c) {
+          a[c] += points[3 * i + c];
+          a[3 + c] += normals[3 * i + c];
+          if (colored) a[6 + c] += colors.empty() ? kGrey : colors[3 * i + c];
+        }
+        a[stride - 1] += 1.0;
       }
-      a[stride - 1] = 1.0;
+      size = next_index;
+      // The model's memory, so that the commit below cannot fail.
+      model_.points.reserve(3 * size);
+      model_.normals.reserve(3 * size);
+      if (colored) model_.colors.reserve(3 * size);
+    } catch (...) {
+      // The index may hold the frame's new voxels (and marks): drop it; the next merge
+      // re-grids the unchanged model and rebuilds it.
+      voxels_.clear();
+      index_leaf_ = 0.0;
+      throw;
     }
-    for (std::size_t i = 0; i < n; ++i) {
-      if (accumulator[i] == VoxelIndex::kNone) continue;
-      double* a = &sums[stride * accumulator[i]];
-      for (int c = 0; c < 3; ++c) {
-        a[c] += points[3 * i + c];
-        a[3 + c] += normals[3 * i + c];
-        if (colored) a[6 + c] += frame.colors.empty() ? kGrey : frame.colors[3 * i + c];
-      }
-      a[stride - 1] += 1.0;
-    }
-    // 3. The touched voxels' new centroids, normals and colours, as the re-grid rounds them.
-    const std::size_t size = next_index;
+    // 3. Commit (nothing below throws: the capacity is reserved): the touched voxels' new
+    //    centroids, normals and colours, as the re-grid rounds them.
+    if (colored && model_.colors.empty()) model_.colors.assign(3 * m, kGrey);
     model_.points.resize(3 * size);
     model_.normals.resize(3 * size);
     if (colored) model_.colors.resize(3 * size);
-    for (std::size_t t = 0; t < touched.size(); ++t) {
-      const std::size_t index = touched[t].index;
-      const double* a = &sums[stride * t];
+    for (std::size_t k = 0; k < touched.size(); ++k) {
+      const std::size_t index = touched[k].index;
+      const double* a = &sums[stride * k];
       const double count = a[stride - 1];
       double mean[9];
       for (std::size_t c = 0; c + 1 < stride; ++c) mean[c] = a[c] / count;
@@ -450,9 +517,10 @@ std::size_t FrameToModel::merge(const PreparedFrame& frame, const Eigen::Matrix4
       if (colored)
         for (int c = 0; c < 3; ++c)
           model_.colors[3 * index + c] = static_cast<std::uint8_t>(std::clamp(std::lround(mean[6 + c]), 0L, 255L));
-      voxels_.mark(touched[t].position) = 0;
+      voxels_.mark(touched[k].position) = 0;
     }
   }
+  if (m == 0) anchor_ = anchor;
   previous_pose_ = frames_merged_ > 0 ? last_pose_ : T;
   last_pose_ = T;  // the next frame starts from this registration (eye-in-hand paper §3.2) or a prediction from it
   tree_current_ = false;

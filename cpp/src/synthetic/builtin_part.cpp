@@ -125,7 +125,9 @@ std::vector<double> boundary(double a, double c) {
 }  // namespace
 
 BuiltinPartMesh builtinPartMesh(int segments) {
-  if (segments < 8) throw std::invalid_argument("segments must be an integer >= 8, got " + std::to_string(segments));
+  if (segments < 8 || segments > kMaxPartSegments)
+    throw std::invalid_argument("segments must be an integer in [8, " + std::to_string(kMaxPartSegments) + "], got " +
+                                std::to_string(segments));
   MeshBuilder b;
   const auto n = static_cast<std::size_t>(segments);
   std::vector<double> cs(n), sn(n);

@@ -18,17 +18,28 @@ void require(bool ok, const std::string& message) {
   if (!ok) throw std::invalid_argument(message);
 }
 
+/// Bounds of a planned path, checked before anything is allocated: n_frames in [1,
+/// kMaxPathFrames] (a pose is 128 bytes), lengths within kMaxPathLength metres.
+void requireFrames(int n_frames, int at_least) {
+  require(n_frames >= at_least && n_frames <= kMaxPathFrames,
+          "n_frames must be an integer in [" + std::to_string(at_least) + ", " + std::to_string(kMaxPathFrames) +
+              "], got " + std::to_string(n_frames));
+}
+bool length(double v) { return std::isfinite(v) && std::abs(v) <= kMaxPathLength; }
+bool point(const Eigen::Vector3d& p) { return length(p.x()) && length(p.y()) && length(p.z()); }
+
 }  // namespace
 
 Poses loopCameraPoses(int n_frames, const Eigen::Vector3d& center, double height, double radius, double start_angle,
                       double sweep, const Eigen::Vector3d& target) {
-  require(n_frames >= 1, "n_frames must be a positive integer, got " + std::to_string(n_frames));
-  require(center.allFinite(), "center: expected (x, y, z) in metres, finite");
-  require(target.allFinite(), "target: expected (x, y, z) in metres, finite");
-  require(std::isfinite(height) && height > 0, "height must be a positive distance in metres");
-  require(std::isfinite(radius) && radius >= 0, "radius must be a non-negative distance in metres");
+  requireFrames(n_frames, 1);
+  require(point(center), "center: expected (x, y, z) in metres, finite, within 1e6");
+  require(point(target), "target: expected (x, y, z) in metres, finite, within 1e6");
+  require(length(height) && height > 0, "height must be a positive distance in metres, at most 1e6");
+  require(length(radius) && radius >= 0, "radius must be a non-negative distance in metres, at most 1e6");
   require(std::isfinite(start_angle) && std::isfinite(sweep), "start_angle and sweep must be finite (radians)");
   Poses poses;
+  poses.reserve(static_cast<std::size_t>(n_frames));
   for (int k = 0; k < n_frames; ++k) {
     const double a = start_angle + sweep * k / n_frames;
     const Eigen::Vector3d radial(std::cos(a), std::sin(a), 0.0);
@@ -45,10 +56,10 @@ Poses hemisphereCameraPoses(int n_frames, const Eigen::Vector3d& target, double 
   require(rings > 0 && std::all_of(elevations.begin(), elevations.end(),
                                    [](double e) { return e > 0 && e <= kPi / 2 + 1e-12; }),
           "elevations must be non-empty and in (0, pi/2] radians");
-  require(n_frames >= rings, "n_frames must be an integer >= the number of rings (" + std::to_string(rings) +
-                                 "), got " + std::to_string(n_frames));
-  require(std::isfinite(distance) && distance > 0, "distance must be a positive length in metres");
-  require(target.allFinite(), "target: expected (x, y, z) in metres, finite");
+  require(rings <= kMaxPathFrames, "elevations: at most " + std::to_string(kMaxPathFrames) + " rings");
+  requireFrames(n_frames, rings);  // at least one frame per ring
+  require(length(distance) && distance > 0, "distance must be a positive length in metres, at most 1e6");
+  require(point(target), "target: expected (x, y, z) in metres, finite, within 1e6");
   require(std::isfinite(start_angle), "start_angle must be finite (radians)");
   // Largest-remainder apportionment of the frames to the rings.
   std::vector<double> share(elevations.size());

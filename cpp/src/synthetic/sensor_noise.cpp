@@ -31,7 +31,11 @@ std::vector<char> depthEdges(const float* z, int w, int h, double threshold, int
       if (c + 1 < w) pair(i, i + 1);
       if (r + 1 < h) pair(i, i + w);
     }
-  for (int step = 1; step < width; ++step) {  // dilate by one pixel per step (4-neighbourhood)
+  // Dilate by one pixel per step (4-neighbourhood). After w + h steps every pixel connected
+  // to an edge pixel is marked, so more steps change nothing: a huge edge_width (1e9) costs
+  // no more than that instead of hanging.
+  const int steps = static_cast<int>(std::min<long long>(width, static_cast<long long>(w) + h + 1));
+  for (int step = 1; step < steps; ++step) {
     std::vector<char> grown = edge;
     for (int r = 0; r < h; ++r)
       for (int c = 0; c < w; ++c) {
@@ -64,6 +68,10 @@ void SensorNoise::validate() const {
 void applySensorNoise(const SensorNoise& noise, const float* depth, const float* cos_incidence, int width, int height,
                       std::uint64_t seed, float* out) {
   noise.validate();
+  if (width < 0 || height < 0) throw std::invalid_argument("apply sensor noise: width and height must be >= 0");
+  if (width == 0 || height == 0) return;
+  if (depth == nullptr || cos_incidence == nullptr || out == nullptr)
+    throw std::invalid_argument("apply sensor noise: null image");
   const std::size_t n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
   std::vector<char> edge;
   if (noise.edge_threshold > 0 && noise.edge_width > 0)
@@ -84,6 +92,9 @@ void applySensorNoise(const SensorNoise& noise, const float* depth, const float*
     if (noise.axial_sigma_ref > 0) z += noise.sigma(z) * normal(rng);
     if (z < noise.min_range || z > noise.max_range) continue;
     if (noise.depth_unit > 0) z = std::round(z / noise.depth_unit) * noise.depth_unit;
+    // An absurd model (axial_sigma_ref 1e300, a depth unit coarser than the depth) cannot
+    // give an infinite or non-positive depth: such a reading is missing (NaN).
+    if (!(z > 0 && std::isfinite(static_cast<float>(z)))) continue;
     out[i] = static_cast<float>(z);
   }
 }

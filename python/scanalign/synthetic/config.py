@@ -31,7 +31,7 @@ def _is_number(v: object) -> bool:
 
 
 # The numeric fields: (names, what they must be, the test for a finite number).
-_CHECKS = [(("n_frames", "rings"), "an integer >= 1", lambda v: int(v) == v >= 1),
+_CHECKS = [(("n_frames", "rings"), "an integer in [1, 100000]", lambda v: 1 <= int(v) == v <= 100000),
            (("seed",), "an integer >= 0", lambda v: int(v) == v >= 0),
            (("height", "resolution_scale", "frame_rate"), "a positive number", lambda v: v > 0),
            (("radius", "table_size"), "a non-negative number", lambda v: v >= 0),

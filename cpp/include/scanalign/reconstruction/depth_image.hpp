@@ -3,10 +3,22 @@
 // every RGB-D capture becomes a coloured cloud S).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <vector>
 
 namespace scanalign {
+
+/// The largest depth image (width x height pixels) the depth-image functions and the
+/// renderer accept: 2^27 = 134 M pixels (e.g. 16384 x 8192; the largest RGB-D sensors give
+/// about 5 M). The check comes before any allocation, so a size that is only claimed (a
+/// broadcast NumPy view of no memory, a lying header) is refused with std::invalid_argument
+/// rather than allocating gigabytes: the bilateral filter needs about 12 bytes a pixel.
+constexpr std::size_t kMaxImagePixels = std::size_t{1} << 27;
+
+/// Throws std::invalid_argument naming `what` unless 1 <= width, height and
+/// width * height <= kMaxImagePixels.
+void checkImageSize(long long width, long long height, const char* what);
 
 /// Pinhole intrinsics of a rectified depth image, OpenCV convention: the camera frame has
 /// x right, y down, z along the optical axis; the centre of pixel (u, v) = (column, row)
@@ -20,13 +32,17 @@ struct PinholeIntrinsics {
   double cx = 0.0;
   double cy = 0.0;
 
-  /// Throws std::invalid_argument unless the size is positive and fx, fy > 0, all finite.
+  /// Throws std::invalid_argument (naming the field) unless the size is positive and at
+  /// most kMaxImagePixels, fx, fy > 0 and all are finite, and every pixel's ray has finite
+  /// slopes |u - cx| / fx, |v - cy| / fy <= 1e6 (a focal length of 1e-300 pixels or a
+  /// principal point at 1e300 would turn every depth into an infinite point).
   void validate() const;
 };
 
 struct DepthToCloudSettings {
-  /// Metres per unit of an integer (uint16) depth image: 1e-3 for millimetres, 1/5000 for
-  /// the TUM RGB-D benchmark. Float images are in metres and ignore this.
+  /// Metres per unit of an integer (uint16) depth image, in (0, 1]: 1e-3 for millimetres,
+  /// 1/5000 for the TUM RGB-D benchmark (1: whole metres, the coarsest a sensor could
+  /// mean). Float images are in metres and ignore this.
   double depth_scale = 0.001;
   /// Pixels nearer than this (m, along z) are dropped: sensors report garbage below their
   /// minimum range.
@@ -47,8 +63,11 @@ struct DepthCloud {
 
 /// Back-projects a row-major depth image of intrinsics.height x intrinsics.width pixels:
 /// p = (z (u - cx) / fx, z (v - cy) / fy, z). A zero, non-finite or out-of-range depth is
-/// an invalid pixel. `rgb` (may be null) holds 3 uint8 per pixel, row-major, registered to
-/// the depth image. Throws std::invalid_argument on bad intrinsics or settings.
+/// an invalid pixel, and so is a pixel whose point is not finite in float32 (a float depth
+/// of 1e38 with max_depth = inf): every returned point is finite. `rgb` (may be null) holds
+/// 3 uint8 per pixel, row-major, registered to the depth image. Throws
+/// std::invalid_argument on bad intrinsics (see PinholeIntrinsics::validate) or settings
+/// (depth_scale outside (0, 1] m, min_depth < 0, max_depth <= min_depth, stride < 1).
 DepthCloud depthToCloud(const std::uint16_t* depth, const PinholeIntrinsics& intrinsics,
                         const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr);
 DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics,
@@ -63,7 +82,11 @@ DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics,
 /// `radius` pixels, weights exp(-d_pixels^2 / 2 sigma_space^2) exp(-dz^2 / 2 sigma_depth^2),
 /// so depth edges (jumps much larger than sigma_depth) are kept. Invalid pixels (NaN, <= 0)
 /// stay invalid and are never used. `depth` and `out` are row-major width x height, metres,
-/// and must not overlap. Throws std::invalid_argument on bad sizes or parameters.
+/// and must not overlap. An empty image (width or height 0) is returned as it is (nothing
+/// to do). Throws std::invalid_argument on a negative size or one beyond kMaxImagePixels,
+/// null images, a radius outside [0, 32] pixels (the window's 1089 taps per pixel bound the
+/// time), or sigmas not finite or below sigma_space 1e-3 pixels, sigma_depth 1e-9 m
+/// (smaller ones smooth nothing, and their squares underflow so the weights become 0/0).
 /// Computed in float, vectorised across each row with a polynomial exp (about 1e-7
 /// relative to libm's): within 3e-6 of the depth from a float64 evaluation, as the float
 /// sums alone allow (5 ms a 640x480 frame on two cores, 28 ms with libm's expf per weight).

@@ -82,7 +82,8 @@ struct DepthRenderOutput {
 /// @param T_camera_world  rigid transform mapping world coordinates into the camera frame
 ///                  (4x4, bottom row 0 0 0 1, rotation orthonormal to 1e-6 with det +1).
 /// @throws std::invalid_argument on a face index out of range, a non-finite or non-rigid
-///         transform, bad intrinsics (size not in [1, 32768], focal length not finite and
+///         transform, bad intrinsics (size not in [1, 32768] or width x height beyond
+///         kMaxImagePixels = 2^27, checked before allocating; focal length not finite and
 ///         positive, principal point not finite), bad clip planes, or null outputs.
 template <typename Scalar>
 void renderDepth(const CloudView<Scalar>& vertices, const std::int32_t* faces, std::size_t n_faces,

@@ -14,6 +14,18 @@
 //      its size, and the per-frame cost, stay bounded (§3.6). The merge folds each new
 //      point into its model voxel through a hash index (O(frame points)), with the result
 //      of re-gridding the whole model (see merge()).
+//
+// No lost data: a frame that fails a check, and a call that throws anywhere (bad input, a
+// failed allocation, Interrupted from a Ctrl-C during the registration), leaves the model,
+// the poses and the frame counts exactly as they were. Every step that can fail runs
+// before the first change; the merge reserves its memory, then commits without throwing.
+//
+// Range: voxel coordinates must stay within the grids' 2^21 voxels per axis. A frame point
+// farther than kFrameRangeVoxels frame voxels from its camera along an axis (524 m at
+// 1 mm: no depth sensor measures that far; a stray 1e30 reading) is dropped in prepare(),
+// and a point landing farther than kModelRangeVoxels model voxels (1048 m at 1 mm) from
+// the model's anchor (the first merged camera's position) is dropped in merge(); both are
+// counted (far_points), never a refused frame.
 #pragma once
 
 #include <cstdint>
@@ -108,6 +120,7 @@ struct PreparedFrame {
   std::vector<float> normals;        ///< 3 per point, unit
   std::vector<std::uint8_t> colors;  ///< 3 per point or empty
   std::size_t input_points = 0;      ///< points given to prepare()
+  std::size_t far_points = 0;        ///< finite points dropped as beyond the frame grid's range
   double seconds = 0.0;              ///< time to crop, downsample and estimate normals
   std::size_t size() const { return points.size() / 3; }
   CloudView<float> view() const { return CloudView<float>(points.data(), size()); }
@@ -124,6 +137,10 @@ struct FrameReport {
   IcpResult icp;                     ///< registration details (default for the first frame)
   std::size_t frame_points = 0;      ///< points after crop, downsampling and normals
   std::size_t model_points = 0;      ///< model size after this frame
+  /// Finite points dropped as beyond the voxel grids' range: farther than
+  /// kFrameRangeVoxels frame voxels from the camera, or (merged frames) kModelRangeVoxels
+  /// model voxels from the model's anchor.
+  std::size_t far_points = 0;
   double prepare_seconds = 0.0;      ///< crop + downsample + normals
   double register_seconds = 0.0;     ///< tree build + ICP
   double merge_seconds = 0.0;        ///< transform + merge + voxel grid
@@ -141,6 +158,14 @@ struct Model {
   std::size_t size() const { return points.size() / 3; }
 };
 
+/// Frame points farther than this many frame voxels (frame_voxel_size, else
+/// model_voxel_size) from the camera along an axis are dropped: 2^19, 524 m at 1 mm.
+constexpr std::int64_t kFrameRangeVoxels = std::int64_t{1} << 19;
+/// Model points farther than this many model voxels from the anchor (the first merged
+/// camera's position) along an axis are dropped: 2^20, 1048 m at 1 mm, so the model spans
+/// fewer than voxelGrid's 2^21 voxels per axis.
+constexpr std::int64_t kModelRangeVoxels = std::int64_t{1} << 20;
+
 class FrameToModel {
  public:
   explicit FrameToModel(FrameToModelSettings settings = {});
@@ -151,13 +176,16 @@ class FrameToModel {
   void reset(const Eigen::Matrix4d& T_model_camera0 = Eigen::Matrix4d::Identity());
 
   /// Crop, downsample and estimate normals of a camera-frame cloud (non-finite points
-  /// are dropped). `colors` (may be null) holds 3 uint8 per point.
+  /// are dropped, and so are points beyond kFrameRangeVoxels, counted in far_points).
+  /// `colors` (may be null) holds 3 uint8 per point.
   PreparedFrame prepare(const CloudView<float>& points_camera, const std::uint8_t* colors = nullptr) const;
 
   /// The whole step for one frame. The initial guess is `T_model_camera_guess` when given
-  /// (e.g. from the robot's kinematics), else predictedPose() (settings.motion_model). Never throws on bad frames: they come back with a Skipped status and
-  /// the model is unchanged. Throws std::invalid_argument only for invalid settings or a
-  /// non-rigid guess.
+  /// (e.g. from the robot's kinematics), else predictedPose() (settings.motion_model).
+  /// Never throws on bad frames: they come back with a Skipped status and the model is
+  /// unchanged. Throws std::invalid_argument for invalid settings or a non-rigid or
+  /// non-finite guess, and passes on std::bad_alloc and Interrupted; whatever it throws, the
+  /// model, poses and counts are unchanged (the frame did not happen).
   FrameReport integrate(const CloudView<float>& points_camera, const std::uint8_t* colors = nullptr,
                         const Eigen::Matrix4d* T_model_camera_guess = nullptr);
 
@@ -170,8 +198,12 @@ class FrameToModel {
   /// model_voxel_size, each model point counting as one point, normals averaged and
   /// re-normalised (NaN where they cancel), colours averaged (grey for frames without):
   /// the same points, normals and colours as that re-grid up to the order of the points
-  /// (see the .cpp for the exactness statement), computed in O(frame points).
-  std::size_t merge(const PreparedFrame& frame, const Eigen::Matrix4d& T_model_camera);
+  /// (see the .cpp for the exactness statement), computed in O(frame points). Frame points
+  /// beyond kModelRangeVoxels from the anchor are dropped, their count added to
+  /// `*far_points` when given. Strong guarantee: when it throws (a bad frame or pose:
+  /// std::invalid_argument; std::bad_alloc) nothing has changed.
+  std::size_t merge(const PreparedFrame& frame, const Eigen::Matrix4d& T_model_camera,
+                    std::size_t* far_points = nullptr);
 
   /// Applies the acceptance checks of integrate() to an external registration result.
   FrameStatus check(const IcpResult& result, const Eigen::Matrix4d& T_model_camera_guess) const;
@@ -203,10 +235,11 @@ class FrameToModel {
   /// leaf index_leaf_ (0: not built, e.g. after the leaf setting changed).
   VoxelIndex voxels_;
   double index_leaf_ = 0.0;
+  Eigen::Vector3d anchor_ = Eigen::Vector3d::Zero();  ///< first merged camera position, model frame (m)
 
   void regridMerge(const std::vector<float>& points, const std::vector<double>& normals,
                    const std::vector<std::uint8_t>& colors, bool colored);
-  bool buildIndex();
+  bool buildIndex() noexcept;  ///< false (and no index) when it cannot be built
 };
 
 }  // namespace scanalign

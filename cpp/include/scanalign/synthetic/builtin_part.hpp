@@ -28,7 +28,11 @@ struct BuiltinPartMesh {
 /// The part as a watertight mesh (every edge shared by exactly two faces, outward winding);
 /// the boss and the cap are inscribed polygons with `segments` vertices around (>= 8), their
 /// vertices on the exact surfaces; vertices with bit-identical coordinates are shared.
-/// Throws std::invalid_argument for segments < 8.
+/// Throws std::invalid_argument for segments outside [8, kMaxPartSegments].
 BuiltinPartMesh builtinPartMesh(int segments);
+
+/// Most segments builtinPartMesh() takes (its chord error is then 4e-9 m, far below any
+/// sensor); more would only allocate (the mesh grows with the segments).
+constexpr int kMaxPartSegments = 4096;
 
 }  // namespace scanalign

@@ -34,7 +34,9 @@ struct SensorNoise {
 /// (a 4-neighbour more than edge_threshold times the nearer depth away, or missing) dilated
 /// to edge_width pixels, and at random with probability dropout; the rest get Gaussian noise
 /// of standard deviation sigma(z); values outside [min_range, max_range] are dropped; the
-/// rest are rounded to multiples of depth_unit. All randomness comes from `seed`.
+/// rest are rounded to multiples of depth_unit; a result that is not a positive float32
+/// depth (an absurd model) is missing. All randomness comes from `seed`. An empty image is
+/// left as it is; throws std::invalid_argument for an invalid model or negative sizes.
 void applySensorNoise(const SensorNoise& noise, const float* depth, const float* cos_incidence, int width, int height,
                       std::uint64_t seed, float* out);
 
