@@ -158,7 +158,7 @@ def _read_ply(path: PathLike, triangles: bool = True) -> PlyData:
         what = ("not a PLY file" if "expected 'ply'" in message
                 else "unsupported PLY format" if "format" in message else "malformed PLY header")
         raise _error(path, f"{what} ({message})") from None
-    except (PlyElementParseError, ValueError, TypeError, IndexError) as exc:  # numpy's, on corrupt data
+    except (PlyElementParseError, ValueError, TypeError, IndexError, OverflowError) as exc:  # numpy's, on corrupt data
         if triangles and "unexpected list length" in str(exc):
             return _read_ply(path, triangles=False)
         what = "PLY element is truncated" if "end-of-file" in str(exc) else "malformed PLY element"

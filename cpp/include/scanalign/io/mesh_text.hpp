@@ -202,8 +202,15 @@ inline TextMesh parseOff(std::string_view text) {
 /// else is ignored.
 inline TextMesh parseObj(std::string_view text) {
   using namespace mesh_text_detail;
-  std::string joined(text);
-  for (std::size_t p; (p = joined.find("\\\n")) != std::string::npos;) joined.replace(p, 2, " ");
+  // Continuations joined in one pass (replacing them one by one from the start was quadratic:
+  // a 5 MB file of continuation lines took minutes).
+  std::string joined;
+  joined.reserve(text.size());
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const bool continuation = text[i] == '\\' && i + 1 < text.size() && text[i + 1] == '\n';
+    joined += continuation ? ' ' : text[i];
+    i += continuation;
+  }
   TextMesh m;
   std::vector<std::int64_t> sizes, flat;
   std::size_t start = 0;
