@@ -79,4 +79,4 @@ def call(fn, *args, **kwargs):
     return result
 
 
-STATS = {"returned": 0, "refused": 0, "signature_dumps": 0}
+STATS = {"returned": 0, "refused": 0, "signature_dumps": 0, "truth_checks": 0}

@@ -28,7 +28,7 @@ import contract  # noqa: E402
 import targets  # noqa: E402
 
 
-def _runner(name, strategy, fn, args, log, tried):
+def _runner(name, strategy, fn, args, log, tried, slowest):
     @settings(max_examples=max(5, int(args.examples * getattr(fn, 'weight', 1.0))), deadline=None, database=None, derandomize=args.seed is None,
               suppress_health_check=list(HealthCheck), print_blob=True)
     @given(case=strategy)
@@ -36,10 +36,14 @@ def _runner(name, strategy, fn, args, log, tried):
         tried[0] += 1
         log.write(f"{name} {case!r}\n")
         faulthandler.dump_traceback_later(args.call_timeout, exit=True)
+        t0 = time.perf_counter()
         try:
             fn(case)
         finally:
             faulthandler.cancel_dump_traceback_later()
+            dt = time.perf_counter() - t0
+            if dt > slowest[0]:
+                slowest[:] = [dt, repr(case)[:400]]
     return run
 
 
@@ -60,17 +64,21 @@ def main() -> int:
         before = dict(contract.STATS)
         tried = [0]
 
-        run = _runner(name, strategy, fn, args, log, tried)
+        slowest = [0.0, ""]
+        run = _runner(name, strategy, fn, args, log, tried, slowest)
         t0 = time.perf_counter()
         try:
             if args.seed is not None:
                 run = __import__("hypothesis").seed(args.seed)(run)
             run()
         except Exception as exc:  # noqa: BLE001 - every finding is reported, then the next target runs
-            summary["failures"][name] = "".join(traceback.format_exception_only(type(exc), exc)).strip()[-2000:]
+            found = getattr(exc, "exceptions", [exc])  # hypothesis groups distinct failures
+            summary["failures"][name] = [f"{type(e).__name__}: {str(e)[:300]} | {getattr(e, '__notes__', [''])[0][:1200]}"
+                                         for e in found]
             traceback.print_exc()
         stats = {k: contract.STATS[k] - before[k] for k in contract.STATS}
-        summary["targets"][name] = dict(examples=tried[0], seconds=round(time.perf_counter() - t0, 1), **stats)
+        summary["targets"][name] = dict(examples=tried[0], seconds=round(time.perf_counter() - t0, 1), **stats,
+                                        slowest_call=[round(slowest[0], 2), slowest[1]])
     log.write("done\n")
     print(json.dumps(summary))
     return min(len(summary["failures"]), 100)

@@ -14,7 +14,7 @@ from typing import Callable, Dict, List, Tuple
 import numpy as np
 from hypothesis import strategies as st
 
-from contract import ContractError, call, finite
+from contract import STATS, ContractError, call, finite
 from inputs import (INF, NAN, Param, build, cases, choice, clouds, counts, good_clouds, numbers,
                     rigid_from, transforms)
 
@@ -29,6 +29,25 @@ def target(module: str, weight: float = 1.0, **strategies: st.SearchStrategy):
         TARGETS.setdefault(module, []).append((fn.__name__, cases(**strategies), fn))
         return fn
     return register
+
+
+def clean(recipe, kinds=None, min_size=0) -> bool:
+    """Whether a cloud recipe builds a finite (N, 3) float cloud of the given kinds, so the
+    answer is known (a truth check applies)."""
+    _, kind, n, _, scale, corrupt, dtype, shape, _ = recipe
+    known = (corrupt == "none" and dtype in ("f8", "f4", ">f8") and shape == "n3" and n >= min_size
+             and (kinds is None or kind in kinds) and 1e-6 <= scale <= 1e6)
+    STATS["truth_checks"] += known
+    return known
+
+
+def rotation_error(T_est, T_true) -> tuple:
+    """(radians, metres) between two rigid transforms."""
+    E = np.linalg.inv(T_true) @ np.asarray(T_est)
+    return float(np.arccos(np.clip((np.trace(E[:3, :3]) - 1) / 2, -1, 1))), float(np.linalg.norm(E[:3, 3]))
+
+
+UNDETERMINED = ("identical", "line", "two_points")  # a rigid motion is not fixed by these
 
 
 def iterations(typical):
@@ -67,8 +86,18 @@ def icp(case):
     r = call(registration.icp, source, target_pts, normals, init, max_correspondence_distance=case["distance"],
              box=case["box"], estimator=case["estimator"], max_iterations=case["iters"],
              transformation_epsilon=case["eps"])
-    if r is not None and r.converged:
-        finite(r.T_target_source, "T_target_source")
+    if r is None or not r.converged:
+        return
+    finite(r.T_target_source, "T_target_source")
+    src_r = case["pair"][0]
+    if T is not None and clean(src_r, UNDETERMINED, 3) and case["box"] is None and not r.degenerate:
+        raise ContractError(f"icp converged, not degenerate, on a {src_r[1]} source (a rigid motion is not determined)")
+    point_to_point = case["estimator"] == "point_to_point"
+    if T is not None and clean(src_r, ("corner", "box") if point_to_point else ("corner",), 300) and case["init"][1] == "identity" \
+            and case["box"] is None and case["distance"] in (0.05, 0.2) and (point_to_point or case["normals"] == "estimated"):
+        angle, shift = rotation_error(r.T_target_source, T)
+        if angle > 1e-3 or shift > 1e-3 * src_r[4] * 10:
+            raise ContractError(f"icp converged {angle:.2g} rad / {shift * 1e3:.2g} mm from the true motion")
 
 
 def _normals_for(target_pts, how):
@@ -129,6 +158,12 @@ def estimate_normals(case):
     from scanalign import features
     r = call(features.estimate_normals, build(case["points"]), case["radius"], case["vp"],
              min_neighbors=case["min_nb"], return_curvature=case["curvature"], num_threads=case["threads"])
+    if r is not None and clean(case["points"], ("plane",), 50):
+        n = np.asarray(r[0] if case["curvature"] else r, dtype=float)
+        n = n[np.isfinite(n).all(axis=1)]
+        cos = np.abs(n @ (np.array([-0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0)))
+        if n.size and cos.min() < 1 - 1e-6:
+            raise ContractError(f"estimate_normals on an exact plane: a normal {np.degrees(np.arccos(cos.min())):.2g} deg off")
 
 
 @target("features", ev=clouds(300))
@@ -184,6 +219,10 @@ def depth_to_cloud(case):
              min_depth=case["dmin"], max_depth=case["dmax"], stride=case["stride"])
     if r is not None:
         finite(r[0], "back-projected points")
+        z = np.asarray(r[0])[:, 2]
+        if z.size and isinstance(case["dmin"], float) and isinstance(case["dmax"], float) and \
+                (z.min() < case["dmin"] - 1e-6 or z.max() > case["dmax"] + 1e-6):
+            raise ContractError(f"depth_to_cloud: depths {z.min()}..{z.max()} outside [{case['dmin']}, {case['dmax']}]")
 
 
 @target("reconstruction", depth=choice(_DEPTHS), seed=st.integers(0, 99), radius=counts(2, 10**6),
@@ -230,8 +269,17 @@ def fit_sphere(case):
     if isinstance(w, np.ndarray) and w.ndim == 2:
         w = w[:, 0]
     r = call(fitting.fit_sphere, build(case["points"]), w, plane_tolerance=case["tol"])
-    if r is not None and not r.is_plane and not r.imaginary:
-        finite([r.radius, *r.center], "sphere")
+    if r is None or r.is_plane or r.imaginary:
+        return
+    finite([r.radius, *r.center], "sphere")
+    recipe = case["points"]
+    if clean(recipe) and recipe[2] < 4:
+        raise ContractError(f"fit_sphere returned a sphere from {recipe[2]} points (4 are needed)")
+    if clean(recipe, ("sphere",), 4) and case["weights"] in ("none", "weights"):
+        s_ = recipe[4]
+        err = max(abs(r.radius - s_), np.abs(np.asarray(r.center) - (0, 0, 4 * s_)).max()) / s_
+        if err > 1e-6:
+            raise ContractError(f"fit_sphere on exact sphere points: relative error {err:.2g}")
 
 
 @target("fitting", points=clouds(1500), offsets=choice([[0], [0, 5], [5, 0], [0, 10**9], [-1], []]), threads=counts(0, 5000))
@@ -260,6 +308,16 @@ def ransac(case):
     else:
         r = call(segmentation.ransac_plane, pts, case["thr"], max_iterations=case["iters"], confidence=case["conf"],
                  num_threads=case["threads"])
+    if r is None or not r.success:
+        return
+    recipe, scale = case["points"], case["points"][4]
+    if case["sphere"] and clean(recipe, ("sphere",), 12) and case["thr"] == 0.01 and scale == 0.1:
+        if abs(r.radius - scale) > 0.01 or np.linalg.norm(np.asarray(r.center) - (0, 0, 4 * scale)) > 0.01:
+            raise ContractError(f"ransac_sphere succeeded with r={r.radius}, c={r.center} on a sphere r=0.1, c=(0,0,0.4)")
+    if not case["sphere"] and clean(recipe, ("plane",), 12) and case["thr"] == 0.01:
+        cos = abs(np.dot(r.normal, np.array([-0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0)))
+        if cos < 1 - 1e-6 or len(r.inliers) != recipe[2]:
+            raise ContractError(f"ransac_plane on an exact plane: normal {r.normal}, {len(r.inliers)}/{recipe[2]} inliers")
 
 
 @target("segmentation", points=clouds(1500), thr=numbers(0.01), tol=numbers([0.05, 0.5], 1e6), min_size=counts(10))
@@ -294,6 +352,8 @@ def cga_objects(case):
         d = call(cga.down, P)
         if d is not None:
             finite(d, "down(up(x))")
+            if not np.allclose(d, np.asarray(x, dtype=float), rtol=1e-12, atol=1e-300):
+                raise ContractError(f"down(up(x)) = {d} != x = {x}")
     S = call(cga.Sphere, x, r)
     if S is not None:
         finite([S.radius if hasattr(S, "radius") else 0.0], "sphere radius")
@@ -408,11 +468,19 @@ def render_views(case):
 @target("pose", src=clouds(300), tgt=clouds(300), w=choice(["none", "weights", "neg_weights", "short"]), svd=st.booleans())
 def estimate_motor(case):
     from scanalign import pose
-    src = build(case["src"])
-    tgt = build(case["tgt"]) if case["tgt"][1] != "wavy" else src
+    src, T = build(case["src"]), rigid_from(np.random.default_rng(3), 1.0, 0.5)
+    moved = clean(case["src"]) and case["tgt"][1] == "wavy"  # half the cases: the target is the source moved by T
+    tgt = np.asarray(src, dtype=float) @ T[:3, :3].T + T[:3, 3] if moved else build(case["tgt"])
     w = None if case["w"] == "none" else build(("like", case["src"], case["w"], 0))
     w = w[:, 0] if isinstance(w, np.ndarray) and w.ndim == 2 else w
     r = call(pose.estimate_rigid_svd if case["svd"] else pose.estimate_motor, src, tgt, w)
+    if r is None or not r.valid or not moved or case["w"] not in ("none", "weights"):
+        return
+    if case["src"][1] in UNDETERMINED:
+        raise ContractError(f"estimate_motor valid on {case['src'][1]} points (the rotation is not determined)")
+    angle, shift = rotation_error(r.T_target_source, T)
+    if angle > 1e-6 or shift > 1e-6 * max(1.0, case["src"][4] * 10):
+        raise ContractError(f"estimate_motor valid but {angle:.2g} rad / {shift:.2g} m from the true motion")
 
 
 @target("pose", src=clouds(300), nkind=choice(["unit", "zero", "nan", "short", "scaled"]), tgt=clouds(300), moved=st.booleans())
@@ -625,16 +693,26 @@ def trajectory_errors(case):
 @target("evaluation", src=clouds(300), tgt=clouds(300), scale=st.booleans())
 def umeyama(case):
     from scanalign import evaluation
-    call(evaluation.umeyama_alignment, build(case["src"]), build(case["tgt"]), case["scale"])
+    src, T = build(case["src"]), rigid_from(np.random.default_rng(4), 1.0, 0.5)
+    moved = clean(case["src"]) and case["tgt"][1] == "wavy"
+    tgt = np.asarray(src, dtype=float) @ T[:3, :3].T + T[:3, 3] if moved else build(case["tgt"])
+    r = call(evaluation.umeyama_alignment, src, tgt, case["scale"])
+    if r is not None and moved:
+        if case["src"][1] in UNDETERMINED:
+            raise ContractError(f"umeyama_alignment answered for {case['src'][1]} points (the rotation is not determined)")
+        R, t, c = r
+        if np.abs(np.asarray(R) - T[:3, :3]).max() > 1e-6 or abs(c - 1) > 1e-6:
+            raise ContractError("umeyama_alignment: wrong rotation or scale for an exact rigid motion")
 
 
 @target("evaluation", points=clouds(1500), mesh=choice(_MESHES))
 def mesh_distance(case):
     from scanalign import evaluation
     v, f = _mesh(case["mesh"])
-    d = call(evaluation.point_to_mesh_distance, build(case["points"]), v, f)
-    if d is not None:
-        finite(d, "distances")
+    points = build(case["points"])
+    d = call(evaluation.point_to_mesh_distance, points, v, f)
+    if d is not None and clean(case["points"]) and case["mesh"] == "part":
+        finite(d, "distances of finite points")  # a NaN point's distance is NaN, honestly
     call(evaluation.mesh_distance_stats, build(case["points"]), v, f)
 
 
@@ -675,3 +753,56 @@ def builtin_scan(case):
                 resolution_scale=case["scale"], robot=case["robot"])
     for frame in getattr(scan, "frames", [])[:2] if scan is not None else []:
         finite(frame.T_base_camera, "frame pose")
+
+
+# -- the command line (in process: a crash in C++ still kills the fuzz process) -------------
+_NUM = ["0.4", "0", "-1", "nan", "inf", "1e300", "x", ""]
+
+
+@target("cli", weight=0.5, robot=choice(["ur5", "kr6_r900_sixx", "ur10e", "nope"]),
+        pose=Param(st.lists(st.sampled_from(_NUM), min_size=6, max_size=6), st.just(["0.4", "0.1", "0.3", "3.1", "0", "0"])), joints=choice([None, "0 -1 1 0 1 0", "nan 0 0 0 0 0", "1 2"]),
+        plot=choice([None, "ik.png", "/nonexistent/dir/ik.png"]), reg=choice([None, "ply", "pcd", "missing", "mutated"]),
+        opts=st.lists(st.sampled_from(["--max-distance", "--max-iterations", "--normal-radius"]), max_size=2),
+        value=choice(["0.05", "0", "-1", "nan", "1e300", "x"]))
+def cli_commands(case):
+    """Every command ends with an exit status (0, 1 or 2) and a message: never a traceback
+    (an exception out of main) or a crash."""
+    import contextlib
+    import io as _io
+    import os
+    import tempfile
+
+    from scanalign import cli, io
+    with tempfile.TemporaryDirectory() as tmp, contextlib.redirect_stdout(_io.StringIO()), \
+            contextlib.redirect_stderr(_io.StringIO()):
+        cwd = os.getcwd()
+        os.chdir(tmp)
+        try:
+            if case["reg"] is None:
+                argv = ["ik", "--robot", case["robot"], "--pose", *case["pose"]]
+                if case["joints"]:
+                    argv = ["ik", "--robot", case["robot"], "--joints", *case["joints"].split()]
+                if case["plot"]:
+                    argv += ["--plot", case["plot"]]
+            else:
+                p = np.random.default_rng(0).uniform(-0.1, 0.1, (200, 3)) + (0, 0, 0.5)
+                io.write_ply("a.ply", p)
+                io.write_ply("b.ply", p + 0.002)
+                files = _valid_files(tmp)
+                src = {"ply": "a.ply", "pcd": f"{tmp}/b.pcd", "missing": "none.ply"}.get(case["reg"], "a.ply")
+                if case["reg"] == "mutated":
+                    with open("a.ply", "r+b") as fh:
+                        fh.seek(200)
+                        fh.write(b"\xff" * 8)
+                argv = ["register", src, "b.ply"] + [x for o in case["opts"] for x in (o, case["value"])]
+            try:
+                status = cli.main(argv)
+            except SystemExit as exc:  # argparse: usage error, status 2
+                status = exc.code
+            STATS["returned" if status == 0 else "refused"] += 1
+            if status not in (0, 1, 2):
+                raise ContractError(f"scanalign {' '.join(argv)} exited with status {status!r}")
+            if case["plot"] == "/nonexistent/dir/ik.png" and status == 0:
+                raise ContractError("scanalign ik reported success but could not write its plot")
+        finally:
+            os.chdir(cwd)
