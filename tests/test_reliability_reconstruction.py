@@ -229,8 +229,9 @@ def test_voxel_grid_refuses_non_real_attributes_and_absurd_leaves():
     p = _wavy(500)
     for name in ("normals", "colors"):
         for bad in (np.full((500, 3), "1"), np.ones((500, 3), complex), np.ones((500, 3), object)):
-            with pytest.raises(TypeError, match=name):
+            with pytest.raises(TypeError, match=name) as error:
                 voxel_grid(p, 0.01, **{name: bad})
+            assert isinstance(error.value, ValueError)  # as before: callers catching ValueError still do
     for bad in (np.full((500, 3), "1"), np.ones((500, 3), complex)):
         with pytest.raises(TypeError, match="attributes"):
             _core.reconstruction.voxel_grid(p, 0.01, bad, 1)

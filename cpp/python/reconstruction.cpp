@@ -19,6 +19,18 @@
 namespace scanalign::python {
 
 namespace {
+
+/// NotRealError: values that are not real numbers (strings, complex) where real ones belong.
+/// A TypeError, and also a ValueError, which voxel_grid raised for them before: callers
+/// catching that keep working (as NumPy's AxisError is both a ValueError and an IndexError).
+py::handle notRealError() {
+  static py::handle cls = PyErr_NewExceptionWithDoc(
+      "scanalign._core.reconstruction.NotRealError",
+      "Values that are not real numbers (strings, complex) where real ones belong: a TypeError (and a ValueError)",
+      py::make_tuple(py::handle(PyExc_TypeError), py::handle(PyExc_ValueError)).release().ptr(), nullptr);
+  return cls;
+}
+
 template <typename Scalar>
 py::tuple voxel(const CloudView<Scalar>& view, double leaf_size, const py::object& attributes, int min_points) {
   if (min_points < 1) throw py::value_error("min_points_per_voxel must be >= 1");
@@ -28,9 +40,12 @@ py::tuple voxel(const CloudView<Scalar>& view, double leaf_size, const py::objec
     // Real numbers only: a string or complex array must not be parsed or lose its
     // imaginary part on the way to float64.
     const py::array given = py::array::ensure(attributes);
-    if (!given || std::string("biuf").find(given.dtype().kind()) == std::string::npos)
-      throw py::type_error("attributes: expected real numbers (bool, integer or float), got " +
-                           (given ? "dtype " + std::string(py::str(given.dtype())) : std::string("a non-array")));
+    if (!given || std::string("biuf").find(given.dtype().kind()) == std::string::npos) {
+      const std::string message = "attributes: expected real numbers (bool, integer or float), got " +
+                                  (given ? "dtype " + std::string(py::str(given.dtype())) : std::string("a non-array"));
+      PyErr_SetString(notRealError().ptr(), message.c_str());
+      throw py::error_already_set();
+    }
     attrs = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(given);
     if (!attrs || attrs.ndim() != 2 || static_cast<std::size_t>(attrs.shape(0)) != view.size)
       throw py::value_error("attributes: expected an (N, k) array with one row per point");
@@ -229,6 +244,7 @@ std::string describe(const FrameReport& r) {
 }  // namespace
 
 void defineReconstruction(py::module_& m) {
+  m.attr("NotRealError") = notRealError();
   py::class_<PinholeIntrinsics>(m, "PinholeIntrinsics", "Pinhole intrinsics of a depth image (OpenCV convention)")
       .def(py::init([](int w, int h, double fx, double fy, double cx, double cy) {
              PinholeIntrinsics k{w, h, fx, fy, cx, cy};

@@ -72,14 +72,14 @@ def voxel_grid(points: np.ndarray, leaf_size: float = 0.001, *, normals: Optiona
 
     Raises:
         ValueError: bad leaf (not positive, or over 2**21 voxels along an axis of the cloud),
-        min_points_per_voxel < 1, attributes with the wrong number of rows. TypeError:
-        normals or colours that are not real numbers (strings, complex).
+        min_points_per_voxel < 1, attributes with the wrong number of rows. NotRealError (a
+        TypeError and a ValueError): normals or colours that are not real (strings, complex).
     """
     p = as_points(points, "points")
     attributes = []
     for name, a in (("normals", normals), ("colors", colors)):
         if a is not None and (np.shape(a) != (p.shape[0], 3) or np.asarray(a).dtype.kind not in "biuf"):
-            raise (ValueError if np.asarray(a).dtype.kind in "biuf" else TypeError)(  # strings, complex: TypeError
+            raise (ValueError if np.asarray(a).dtype.kind in "biuf" else _core.reconstruction.NotRealError)(
                 f"{name}: expected real ({p.shape[0]}, 3) values, got {np.asarray(a).dtype} {np.shape(a)}")
         attributes += [] if a is None else [np.asarray(a, dtype=np.float64)]
     centroids, means, counts = _core.reconstruction.voxel_grid(
