@@ -215,7 +215,7 @@ void defineSegmentation(py::module_& m) {
 Args:
     points: (N, 3) float32/float64, metres; NaN/Inf rows ignored.
     threshold: E_T, metres: a point is an inlier if its distance to the plane is below it.
-    max_iterations: n, the most hypotheses drawn (>= 1).
+    max_iterations: n, the most hypotheses drawn, in [1, 2^31 - 1].
     confidence: stop once k >= log(1 - confidence) / log(1 - w^3) for the best inlier ratio w
         so far; in [0, 1], 0 or 1 disables the adaptive stop.
     seed: RNG seed, any int (sample k depends on (seed, k) only).
@@ -226,7 +226,8 @@ Returns:
     PlaneResult (status "degenerate" when every sample drawn was collinear).
 
 Raises:
-    TypeError: non-float points. ValueError: shape, settings, fewer than 3 finite points.)");
+    TypeError: non-float points. ValueError: shape, settings (named), fewer than 3 finite
+    points. KeyboardInterrupt: Ctrl-C, checked between batches of hypotheses.)");
   m.def(
       "ransac_sphere",
       [](const py::object& points, double threshold, double min_radius, double max_radius, const py::int_& max_iterations,
@@ -289,8 +290,9 @@ adaptive stop); at least 4 finite points.)");
 
 (1) optional pass-through crop to a box; (2) RANSAC plane (as ransac_plane, refined) = the
 table; (3) remove its inliers and every point below it (signed distance under threshold,
-the normal oriented towards up or else the camera viewpoint); (4) Euclidean clustering
-with a k-d tree (points within cluster_tolerance are linked); (5) clusters outside
+the normal oriented towards up or else the camera viewpoint); (4) Euclidean clustering: the
+connected components of the points within cluster_tolerance of each other, by union-find over
+cells (O(N log N) for any tolerance, Ctrl-C honoured); (5) clusters outside
 [min_cluster_size, max_cluster_size] dropped. Each remaining cluster is one object.
 The keywords fill a TableSegmentationSettings.
 

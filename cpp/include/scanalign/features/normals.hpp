@@ -29,12 +29,20 @@ struct NormalEstimationSettings {
 /// neighbourhood covariance, oriented towards the viewpoint. `normals` receives 3*N values
 /// (row-major); `curvature` (may be null) N values of the surface variation
 /// lambda_0 / (lambda_0 + lambda_1 + lambda_2) in [0, 1/3]. Points that are not finite
-/// or have too few neighbours get NaN. Throws std::invalid_argument on bad settings.
+/// or have too few neighbours get NaN. Throws std::invalid_argument on bad settings, and
+/// Interrupted (common/interrupt.hpp; KeyboardInterrupt in Python) when the interrupt hook
+/// asks to stop (the outputs are then partly written). Cost: a cell grid sums whole cells
+/// inside or outside every query's sphere at once, so a radius beyond the cloud's extent
+/// costs O(N) (far outliers included: empty stretches of the grid are closed); only the
+/// points in cells the sphere boundary crosses are tested one by one, so the worst case is a
+/// radius comparable to the cloud's extent (200k points in a 2 m cube, radius 2 m: ~12 s).
 template <typename Scalar>
 void estimateNormals(const CloudView<Scalar>& points, const NormalEstimationSettings& settings, Scalar* normals,
                      Scalar* curvature = nullptr);
 
-/// The same over an existing tree built on `points` (e.g. the ICP target's).
+/// The same over an existing tree built on `points` (e.g. the ICP target's). Visits every
+/// neighbour of every point: O(N^2) when the radius spans the cloud (checked for an
+/// interrupt between chunks of 16384 points).
 template <typename Scalar>
 void estimateNormals(const CloudView<Scalar>& points, const LeftBalancedKdTree<Scalar>& tree,
                      const NormalEstimationSettings& settings, Scalar* normals, Scalar* curvature = nullptr);

@@ -153,6 +153,8 @@ double ransacRequiredIterations(double w, int s, double confidence);
 ///   error(const Model& m, std::size_t i) -> double          (f; inlier if < threshold)
 /// Writes the winning hypothesis to `best` (unchanged if none). Hypotheses are scored in
 /// parallel; ties go to the earlier hypothesis, so the result is thread-count independent.
+/// Throws Interrupted (common/interrupt.hpp) when the interrupt hook asks to stop, checked
+/// before each batch of hypotheses.
 template <typename Model, typename Build, typename Error>
 RansacLoopStats ransacLoop(std::size_t n, int sample_size, Build&& build, Error&& error,
                            const RansacSettings& settings, Model& best);
@@ -230,9 +232,14 @@ struct TableSegmentation {
   bool success() const { return status == RansacStatus::kSuccess; }
 };
 
-/// Euclidean clustering (region growing on a radius graph) of points[indices] with the
-/// k-d tree of registration/kdtree.hpp. Returns clusters of input indices (ascending),
-/// ordered by decreasing size (ties: smallest first index), sizes within [min, max].
+/// Euclidean clustering of points[indices]: the connected components of the graph linking
+/// points with |p - q| <= tolerance (the clusters of PCL's region growing), by union-find
+/// over cells of edge just under tolerance / sqrt(3) (ransac.cpp): O(N log N) whatever
+/// the tolerance. Non-finite points and repeated indices are ignored. Returns clusters of
+/// input indices (ascending), ordered by decreasing size (ties: smallest first index),
+/// sizes within [min, max]. Throws std::invalid_argument for a tolerance that is not
+/// finite and > 0 or an index out of range, and Interrupted (common/interrupt.hpp) when the
+/// interrupt hook asks to stop.
 template <typename Scalar>
 std::vector<std::vector<std::uint32_t>> euclideanClusters(const CloudView<Scalar>& points,
                                                           const std::vector<std::uint32_t>& indices,
