@@ -66,6 +66,8 @@ CASES = [  # argv, fragment the one-line message must contain
     (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--out", "p"], "truncated.stl: neither a binary STL"),
     (["pose", "--model", "missing.stl", "--scene", "ok.pcd"], "missing.stl: no such model file"),
     (["pose", "--model", "file.txt", "--scene", "ok.pcd"], "unsupported mesh extension"),
+    (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--model-scale", "nan"], "--model-scale"),
+    (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--model-scale", "0"], "--model-scale"),
 ]
 
 

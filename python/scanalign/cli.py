@@ -388,6 +388,8 @@ def pose_command(args: argparse.Namespace) -> int:
     """``scanalign pose``: find a CAD part in a scan; exit status 1 when no object is found."""
     from . import io, pose as _pose
 
+    if not (np.isfinite(args.model_scale) and args.model_scale > 0):
+        raise ValueError(f"--model-scale must be a finite factor > 0, got {args.model_scale}")
     model_path = Path(args.model)
     if not model_path.exists():
         raise FileNotFoundError(f"{model_path}: no such model file")
