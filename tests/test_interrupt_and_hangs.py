@@ -250,3 +250,13 @@ def test_sphere_fits_on_undetermined_points_are_errors_or_planes():
     huge = fitting.fit_sphere(1e30 * d / np.linalg.norm(d, axis=1)[:, None] + 2e30)
     assert not huge.is_plane and abs(huge.radius / 1e30 - 1) < 1e-9
     assert np.abs(np.asarray(huge.center) / 1e30 - 2).max() < 1e-9
+
+
+@pytest.mark.parametrize("tol", [-1.0, np.nan, np.inf])
+def test_batched_sphere_fits_refuse_a_bad_plane_tolerance_instead_of_returning_nans(tol):
+    """fit_spheres turned the bad argument into one NaN 'unfittable' group per group."""
+    p = np.random.default_rng(6).normal(size=(50, 3))
+    with pytest.raises(ValueError, match="plane_tolerance"):
+        fitting.fit_spheres(p, [0, 25, 50], plane_tolerance=tol)
+    with pytest.raises(ValueError, match="plane_tolerance"):
+        fitting.fit_sphere(p, plane_tolerance=tol)

@@ -3,6 +3,7 @@
 #include <pybind11/eigen.h>
 #include <pybind11/stl.h>
 
+#include <cmath>
 #include <string>
 
 #include "arrays.hpp"
@@ -186,6 +187,10 @@ Raises:
       [](const py::object& points, const py::object& offsets, double plane_tolerance, int num_threads) {
         const auto o = numeric<std::int64_t>(offsets, "offsets", "iu");
         if (o.ndim() != 1 || o.shape(0) < 1) throw py::value_error("offsets: expected shape (G + 1,)");
+        // Checked here: fitSpheres turns each group's error into a NaN group, which would
+        // hide a bad argument behind G "unfittable" groups.
+        if (!(plane_tolerance >= 0.0) || !std::isfinite(plane_tolerance))
+          throw py::value_error("plane_tolerance must be finite and >= 0");
         return withCloud(points, "points", [&](auto view) {
           SphereFitOptions opt;
           opt.plane_tolerance = plane_tolerance;
