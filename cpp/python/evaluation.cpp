@@ -288,7 +288,8 @@ distance NaN, point NaN and triangle -1.
         "matrices (..., 3, 3) (Eigen's Shepperd method, accurate over the whole rotation group).");
   m.def("rotations_from_quaternions", &rotationsFromQuaternions, py::arg("quaternions"),
         "Rotation matrices (..., 3, 3) of quaternions (..., 4) given as (qx, qy, qz, qw), normalised "
-        "first. Raises ValueError for a zero or non-finite quaternion.");
+        "first (divided by its largest component, so any finite magnitude works, 1e-300 or 1e300). "
+        "Raises ValueError for a zero or non-finite quaternion.");
   m.def(
       "associate_timestamps",
       [](const Stack& first, const Stack& second, double max_difference) {

@@ -152,8 +152,11 @@ Raises:
       py::arg("data"), py::arg("format"),
       "Parses the bytes of an OFF, OBJ or STL file: (vertices (V, 3) float64 in the file's unit, "
       "faces (F, 3) int64), polygons fan-triangulated, STL corners with equal coordinates merged in "
-      "order of first appearance. Raises ValueError for a malformed or truncated file, a face with "
-      "fewer than 3 corners or an index out of range.");
+      "order of first appearance. Raises ValueError for a malformed or truncated file (counts are "
+      "checked against the bytes present before anything is allocated: an OFF header claiming more "
+      "lines than the file has, a binary STL whose size is not 84 + 50 * its triangle count, an ASCII "
+      "STL without 'endsolid'), a negative or out-of-range count or index, a NaN or infinite vertex "
+      "coordinate, a face with fewer than 3 corners or an index out of range.");
 
   m.def(
       "check_ply_header",
