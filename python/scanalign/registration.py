@@ -109,12 +109,12 @@ def icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndar
         **overrides: any other :class:`IcpSettings` field, e.g. ``num_threads=1``.
 
     Returns:
-        :class:`IcpResult` with ``T_target_source``.
+        :class:`IcpResult` with ``T_target_source`` (check ``converged``/``status``: e.g. "degenerate").
 
     Raises:
         TypeError: non-float arrays, unknown settings.
         ValueError: wrong shapes, empty clouds, mismatched or missing normals, bad
-            settings or a non-rigid ``init``.
+            settings or a non-rigid ``init``. KeyboardInterrupt: Ctrl-C, between iterations.
     """
     s = _settings(settings, overrides, max_correspondence_distance=max_correspondence_distance, box=box,
                   estimator=estimator, max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
