@@ -220,6 +220,13 @@ def test_the_bilateral_filter_checks_the_memory_it_would_need_and_its_parameters
                                (math.nan, 0.003, "sigma_space"), (1.5, math.inf, "sigma_depth")):
         with pytest.raises(ValueError, match=name):  # 1e-200 squared underflows: weights 0/0 = NaN
             _core.reconstruction.bilateral_filter_depth(np.ones((3, 3), np.float32), 2, space, depth, 1.0, 0)
+    with pytest.raises(ValueError, match="depth_scale"):  # 1000 units of 1e300 m: infinite in float32
+        bilateral_filter_depth(np.full((3, 3), 1000, np.uint16), depth_scale=1e300)
+    with pytest.raises(ValueError, match="num_threads"):  # not pybind11's signature dump
+        bilateral_filter_depth(np.ones((3, 3), np.float32), num_threads=2**40)
+    # Depths at float's maximum overflow the weighted sums: invalid (NaN), never infinite.
+    out = bilateral_filter_depth(np.full((4, 4), 3e38, np.float32))
+    assert not np.isinf(out).any()
     # Huge sigmas are a plain average: a constant image stays exactly constant.
     flat = np.full((9, 9), 0.7, np.float32)
     np.testing.assert_allclose(bilateral_filter_depth(flat, DepthFilter(2, 1e300, 1e300)), flat, rtol=1e-6)
@@ -238,6 +245,8 @@ def test_voxel_grid_refuses_non_real_attributes_and_absurd_leaves():
     # Integer attributes are real numbers: accepted (and averaged exactly).
     _, means, _ = _core.reconstruction.voxel_grid(p, 1.0, np.full((500, 3), 3, np.int64), 1)
     assert means.shape[1] == 3 and np.all(means == 3.0)
+    with pytest.raises(ValueError, match="min_points_per_voxel"):  # not pybind11's signature dump
+        voxel_grid(p, 0.01, min_points_per_voxel=2**40)
     for leaf in (0.0, -0.001, math.nan, math.inf, 1e-30, 1e-9):  # 1e-9: over 2**21 voxels along an axis
         with pytest.raises(ValueError, match="leaf_size"):
             voxel_grid(p, leaf)

@@ -31,9 +31,23 @@ py::handle notRealError() {
   return cls;
 }
 
+/// An integer argument in [lo, hi]: a Python or NumPy integer (not a bool); TypeError or
+/// ValueError naming `what` otherwise, instead of pybind11's signature dump for 2**40.
+long long intArg(const py::object& o, const char* what, long long lo, long long hi) {
+  if (py::isinstance<py::bool_>(o) || !py::hasattr(o, "__index__"))
+    throw py::type_error(std::string(what) + ": expected an integer, got " + std::string(py::repr(o)));
+  int overflow = 0;
+  const long long v = PyLong_AsLongLongAndOverflow(py::int_(o).ptr(), &overflow);
+  if (overflow != 0 || v < lo || v > hi)
+    throw py::value_error(std::string(what) + " must be an integer in [" + std::to_string(lo) + ", " +
+                          std::to_string(hi) + "], got " + std::string(py::repr(o)));
+  return v;
+}
+
 template <typename Scalar>
-py::tuple voxel(const CloudView<Scalar>& view, double leaf_size, const py::object& attributes, int min_points) {
-  if (min_points < 1) throw py::value_error("min_points_per_voxel must be >= 1");
+py::tuple voxel(const CloudView<Scalar>& view, double leaf_size, const py::object& attributes,
+                const py::object& min_points_arg) {
+  const auto min_points = intArg(min_points_arg, "min_points_per_voxel", 1, 0xFFFFFFFFLL);
   py::array_t<double, py::array::c_style> attrs;
   std::size_t dim = 0;
   if (!attributes.is_none()) {
@@ -130,8 +144,8 @@ py::array_t<float, py::array::c_style> depthMetres(const py::array& depth, doubl
   if (depth.ndim() != 2) throw py::value_error("depth: expected a 2-D image, got " + std::to_string(depth.ndim()) + "-D");
   const auto [image, is_float] = depthImage(depth);
   if (is_float) return py::array_t<float, py::array::c_style>::ensure(image);
-  if (!(std::isfinite(depth_scale) && depth_scale > 0.0))
-    throw py::value_error("depth_scale must be a positive number of metres per unit");
+  if (!(depth_scale > 0.0 && depth_scale <= 1.0))  // as depthToCloud: 65535 units stay finite metres
+    throw py::value_error("depth_scale must be in (0, 1] metres per unit");
   py::array_t<float, py::array::c_style> out({image.shape(0), image.shape(1)});
   const auto* d = static_cast<const std::uint16_t*>(image.data());
   float* o = out.mutable_data();
@@ -268,8 +282,11 @@ void defineReconstruction(py::module_& m) {
       .def_readwrite("stride", &DepthToCloudSettings::stride, "use every stride-th pixel in both directions (1)");
   m.def(
       "bilateral_filter_depth",
-      [](const py::array& depth, int radius, double sigma_space, double sigma_depth, double depth_scale,
-         int num_threads) {
+      [](const py::array& depth, const py::object& radius_arg, double sigma_space, double sigma_depth,
+         double depth_scale, const py::object& threads_arg) {
+        const int radius = static_cast<int>(intArg(radius_arg, "radius", 0, 32));
+        // Thread counts beyond the machine are clamped by resolveThreads (common/threads.hpp).
+        const int num_threads = static_cast<int>(intArg(threads_arg, "num_threads", 0, 1 << 30));
         if (depth.ndim() != 2) throw py::value_error("depth: expected a 2-D image, got " + std::to_string(depth.ndim()) + "-D");
         // Before any conversion or allocation (a broadcast view claims any size for free).
         if (depth.size() > 0) checkImageSize(depth.shape(1), depth.shape(0), "depth");
@@ -286,8 +303,9 @@ void defineReconstruction(py::module_& m) {
       py::arg("depth"), py::arg("radius"), py::arg("sigma_space"), py::arg("sigma_depth"), py::arg("depth_scale"),
       py::arg("num_threads"),
       "(H, W) float32 metres (NaN = invalid) of a uint16 (units of depth_scale m, 0 = invalid) or float (m) image; "
-      "an empty image gives an empty one. ValueError for an image beyond kMaxImagePixels (2^27) pixels, checked "
-      "before allocating, a radius outside [0, 32] pixels, sigma_space < 1e-3 pixels or sigma_depth < 1e-9 m");
+      "an empty image gives an empty one, a pixel whose mean overflows float32 NaN. ValueError for an image beyond "
+      "kMaxImagePixels (2^27) pixels, checked before allocating, a radius outside [0, 32] pixels, sigma_space < "
+      "1e-3 pixels, sigma_depth < 1e-9 m or depth_scale outside (0, 1] m per unit");
   m.def("depth_to_cloud", &depthToCloudPy, py::arg("depth"), py::arg("intrinsics"), py::arg("settings"),
         py::arg("rgb"), "(points (N, 3) float32 m, colors (N, 3) uint8 or None, pixels (N,) int32 row * W + column)");
 
@@ -474,7 +492,8 @@ void defineReconstruction(py::module_& m) {
 
   m.def(
       "voxel_grid",
-      [](const py::array& points, double leaf_size, const py::object& attributes, int min_points_per_voxel) {
+      [](const py::array& points, double leaf_size, const py::object& attributes,
+         const py::object& min_points_per_voxel) {
         if (holds<float>(points))
           return voxel(cloudView<float>(points, "points"), leaf_size, attributes, min_points_per_voxel);
         return voxel(cloudView<double>(points, "points"), leaf_size, attributes, min_points_per_voxel);

@@ -247,9 +247,13 @@ void bilateralFilterDepth(const float* depth, int width, int height, float* out,
                         den.data());
       const float* in = depth + static_cast<std::size_t>(v) * width;
       float* o = out + static_cast<std::size_t>(v) * width;
-      for (int u = 0; u < width; ++u)
-        o[u] = in[u] > 0.0f && std::isfinite(in[u]) ? num[u] / den[u]  // den >= 1 (the pixel itself)
-                                                    : std::numeric_limits<float>::quiet_NaN();
+      for (int u = 0; u < width; ++u) {
+        const float mean = num[u] / den[u];  // den >= 1 (the pixel itself)
+        // Depths near float's maximum (3e38 m) can overflow the weighted sum: such a pixel
+        // is invalid (NaN), never an infinite depth.
+        o[u] = in[u] > 0.0f && std::isfinite(in[u]) && std::isfinite(mean) ? mean
+                                                                           : std::numeric_limits<float>::quiet_NaN();
+      }
     }
   }
 }

@@ -81,7 +81,8 @@ DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics,
 /// pose in one frame). Each valid pixel becomes the weighted mean of the valid pixels within
 /// `radius` pixels, weights exp(-d_pixels^2 / 2 sigma_space^2) exp(-dz^2 / 2 sigma_depth^2),
 /// so depth edges (jumps much larger than sigma_depth) are kept. Invalid pixels (NaN, <= 0)
-/// stay invalid and are never used. `depth` and `out` are row-major width x height, metres,
+/// stay invalid and are never used; a pixel whose weighted mean overflows float (depths
+/// near 3e38 m) becomes invalid, so no output is infinite. `depth` and `out` are row-major width x height, metres,
 /// and must not overlap. An empty image (width or height 0) is returned as it is (nothing
 /// to do). Throws std::invalid_argument on a negative size or one beyond kMaxImagePixels,
 /// null images, a radius outside [0, 32] pixels (the window's 1089 taps per pixel bound the
