@@ -66,6 +66,30 @@ def test_ctrl_c_stops_a_long_cpp_loop_with_keyboard_interrupt(call):
     assert waited < 10, waited
 
 
+def test_the_exception_a_custom_sigint_handler_raises_is_the_one_propagated():
+    """The hook runs Python's signal handlers: whatever they raise is what the caller sees."""
+    handler = """
+import signal
+class Stop(Exception):
+    pass
+def handler(signum, frame):
+    raise Stop("custom stop requested")
+signal.signal(signal.SIGINT, handler)
+"""
+    child = subprocess.Popen([sys.executable, "-c", _PRELUDE + handler + _ENDLESS["icp"]], stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline().strip() == "READY"
+        time.sleep(1.0)
+        child.send_signal(signal.SIGINT)
+        _, err = child.communicate(timeout=20)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.communicate()
+    assert "Stop: custom stop requested" in err and "KeyboardInterrupt" not in err, err
+
+
 def _run(script: str, prelude: str = "", timeout: float = 60) -> str:
     done = subprocess.run([sys.executable, "-c", prelude + textwrap.dedent(script)], capture_output=True, text=True,
                           timeout=timeout)

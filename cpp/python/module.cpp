@@ -65,22 +65,6 @@ bool pythonInterruptHook() {
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "scanalign compiled core (use the scanalign package API)";
-  // Ctrl-C stops long loops: scanalign::Interrupted (common/interrupt.hpp) becomes the
-  // exception the signal handler raised, KeyboardInterrupt by default.
-  scanalign::interrupt_hook.store(&pythonInterruptHook);
-  py::register_exception_translator([](std::exception_ptr p) {
-    try {
-      if (p) std::rethrow_exception(p);
-    } catch (const scanalign::Interrupted& e) {
-      PendingSignalError& pending = pending_signal_error;
-      if (pending.type != nullptr) {
-        PyErr_Restore(pending.type, pending.value, pending.traceback);  // steals the references
-        pending = PendingSignalError{};
-      } else {
-        PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
-      }
-    }
-  });
   auto registration = m.def_submodule("registration", "ICP engine, k-d tree, PCL plug-ins and baselines");
   auto features = m.def_submodule("features", "normal estimation");
   auto reconstruction = m.def_submodule("reconstruction", "voxel grid");
@@ -103,4 +87,22 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineIo(io);
   auto evaluation = m.def_submodule("evaluation", "exact point-to-mesh distance");
   scanalign::python::defineEvaluation(evaluation);
+  // Ctrl-C stops long loops: scanalign::Interrupted (common/interrupt.hpp) becomes the
+  // exception the signal handler raised, KeyboardInterrupt by default. Registered last so
+  // that it is tried first (pybind11 tries translators newest first), before any
+  // translator a submodule might add for std::runtime_error, Interrupted's base.
+  scanalign::interrupt_hook.store(&pythonInterruptHook);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const scanalign::Interrupted& e) {
+      PendingSignalError& pending = pending_signal_error;
+      if (pending.type != nullptr) {
+        PyErr_Restore(pending.type, pending.value, pending.traceback);  // steals the references
+        pending = PendingSignalError{};
+      } else {
+        PyErr_SetString(PyExc_KeyboardInterrupt, e.what());
+      }
+    }
+  });
 }
