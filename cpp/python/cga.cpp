@@ -1,7 +1,11 @@
 // Bindings of the CGA core G(4,1) (scanalign/cga/*.hpp; Kleppe, PhD thesis, NTNU 2018, ch. 4), exported as they are by
 // python/scanalign/cga.py (whose docstring describes the conventions). std::invalid_argument and std::domain_error
 // reach Python as ValueError (pybind11 defaults).
+#include <cmath>
 #include <sstream>
+#include <type_traits>
+#include <utility>
+#include <vector>
 
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
@@ -13,6 +17,27 @@
 #include "scanalign/cga/objects.hpp"
 
 namespace py = pybind11;
+
+namespace scanalign::python::cga_args {
+/// A Python argument that holds 3 coordinates, converted by coords3() with the argument's name
+/// (pybind11's Eigen caster would drop a complex array's imaginary part with only a warning,
+/// and a failed conversion answers with a signature dump that names no argument).
+struct Coords {
+  py::object o;
+};
+}  // namespace scanalign::python::cga_args
+
+namespace pybind11::detail {
+template <>
+struct type_caster<scanalign::python::cga_args::Coords> {
+  PYBIND11_TYPE_CASTER(scanalign::python::cga_args::Coords,
+                       const_name("typing.Annotated[numpy.typing.ArrayLike, numpy.float64, \"[3, 1]\"]"));
+  bool load(handle src, bool) {
+    value.o = reinterpret_borrow<object>(src);
+    return true;
+  }
+};
+}  // namespace pybind11::detail
 
 namespace scanalign::python {
 
@@ -47,12 +72,6 @@ std::string mvRepr(const Multivector& m) {
   return "Multivector(" + (s.empty() ? std::string("0") : s) + ")";
 }
 
-Coeffs toCoeffs(const RowArray& a, const char* what) {
-  if (a.ndim() != 1 || a.shape(0) != 32) throw py::value_error(std::string(what) + ": expected 32 coefficients");
-  Coeffs c;
-  for (int i = 0; i < 32; ++i) c[i] = a.data()[i];
-  return c;
-}
 py::array_t<double> fromCoeffs(const Coeffs& c) {
   py::array_t<double> out(32);
   for (int i = 0; i < 32; ++i) out.mutable_data()[i] = c[i];
@@ -72,16 +91,128 @@ RowArray finiteRows(const py::object& o, py::ssize_t cols, const char* what) {
     if (!std::isfinite(d[i])) throw py::value_error(std::string(what) + ": contains NaN or Inf");
   return r;
 }
+
+std::string shapeOf(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t k = 0; k < a.ndim(); ++k) s += (k ? ", " : "") + std::to_string(a.shape(k));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+/// An array of `n` real numbers (any real dtype, shape (n,) or (n, 1)) as float64, finite.
+/// TypeError for complex, string or object input; ValueError for another size or NaN/Inf.
+RowArray realValues(const py::object& o, py::ssize_t n, const std::string& what) {
+  const py::array a = py::array::ensure(o);
+  if (!a) throw py::type_error(what + ": expected " + std::to_string(n) + " real numbers");
+  const char k = a.dtype().kind();
+  if (k == 'c')
+    throw py::type_error(what + ": complex values are refused (the imaginary part would be dropped)");
+  if (k != 'f' && k != 'i' && k != 'u')
+    throw py::type_error(what + ": expected " + std::to_string(n) + " real numbers, got dtype " +
+                         std::string(py::str(a.dtype())));
+  if (a.size() != n || a.ndim() < 1 || a.ndim() > 2)
+    throw py::value_error(what + ": expected " + std::to_string(n) + " values, got shape " + shapeOf(a));
+  RowArray r = RowArray::ensure(a);
+  for (py::ssize_t i = 0; i < n; ++i)
+    if (!std::isfinite(r.data()[i])) throw py::value_error(what + ": contains NaN or Inf");
+  return r;
+}
+Eigen::Vector3d coords3(const py::object& o, const std::string& what) {
+  const RowArray r = realValues(o, 3, what);
+  return Eigen::Vector3d(r.data()[0], r.data()[1], r.data()[2]);
+}
+
+/// Whether every coefficient, coordinate or length of a result is finite.
+template <class T>
+bool finite(const T& x) {
+  if constexpr (std::is_same_v<T, Multivector>) return x.allFinite();
+  else if constexpr (std::is_base_of_v<Eigen::DenseBase<T>, T>) return x.allFinite();
+  else if constexpr (std::is_floating_point_v<T>) return std::isfinite(x);
+  else if constexpr (std::is_same_v<T, cga::Sphere>) return x.center.allFinite() && std::isfinite(x.radius2);
+  else if constexpr (std::is_same_v<T, cga::Plane>) return x.normal.allFinite() && std::isfinite(x.distance);
+  else if constexpr (std::is_same_v<T, cga::Line>) return x.point.allFinite() && x.direction.allFinite();
+  else if constexpr (std::is_same_v<T, cga::Circle>)
+    return x.center.allFinite() && x.normal.allFinite() && std::isfinite(x.radius);
+  else if constexpr (std::is_same_v<T, cga::Point>) return x.position.allFinite();
+  else if constexpr (std::is_same_v<T, cga::PointPair> || std::is_same_v<T, cga::FlatPoint>) return x.direct.allFinite();
+  else if constexpr (std::is_same_v<T, cga::Motor>) return x.multivector().allFinite();
+  else if constexpr (std::is_same_v<T, std::pair<Eigen::Vector3d, Eigen::Vector3d>>)
+    return x.first.allFinite() && x.second.allFinite();
+  else return true;  // enums, names
+}
+/// x, or ValueError when it is not finite: finite input beyond ~1e150 m overflows once squared
+/// (up(x) holds 1/2 |x|^2, products multiply coefficients), and an inf/NaN object must never be
+/// handed back as if it were an answer.
+template <class T>
+const T& checked(const T& x) {
+  if (!finite(x))
+    throw py::value_error("overflow: the result is not finite (coordinates beyond ~1e150 m, or products of "
+                          "such values)");
+  return x;
+}
+
+/// How a bound argument of C++ type A arrives from Python and is checked under its name.
+template <class A>
+struct Arg {
+  using type = A;
+  static A get(A a, const char*) { return a; }
+};
+template <>
+struct Arg<const Eigen::Vector3d&> {
+  using type = cga_args::Coords;
+  static Eigen::Vector3d get(const cga_args::Coords& c, const char* what) { return coords3(c.o, what); }
+};
+template <>
+struct Arg<double> {
+  using type = double;
+  static double get(double a, const char* what) {
+    if (!std::isfinite(a)) throw py::value_error(std::string(what) + ": NaN or Inf");
+    return a;
+  }
+};
+inline const char* nameAt(const std::vector<const char*>& names, std::size_t i) {
+  return i < names.size() ? names[i] : "argument";
+}
+template <class R, class... A, std::size_t... I>
+auto checkedFree(R (*f)(A...), std::vector<const char*> names, std::index_sequence<I...>) {
+  return [f, names](typename Arg<A>::type... a) -> R { return checked(f(Arg<A>::get(a, nameAt(names, I))...)); };
+}
+template <class R, class C, class... A, std::size_t... I>
+auto checkedMember(R (C::*f)(A...) const, std::vector<const char*> names, std::index_sequence<I...>) {
+  return [f, names](const C& self, typename Arg<A>::type... a) -> R {
+    return checked((self.*f)(Arg<A>::get(a, nameAt(names, I))...));
+  };
+}
+/// f with its 3-vector arguments read by coords3() under `names` (in order), its double
+/// arguments required finite, and its result required finite (checked()).
+/// A constructor as a function, for chk().
+template <class T, class... A>
+T make(A... a) {
+  return T(a...);
+}
+template <class R, class... A>
+auto chk(R (*f)(A...), std::vector<const char*> names = {}) {
+  return checkedFree(f, std::move(names), std::index_sequence_for<A...>{});
+}
+template <class R, class C, class... A>
+auto chk(R (C::*f)(A...) const, std::vector<const char*> names = {}) {
+  return checkedMember(f, std::move(names), std::index_sequence_for<A...>{});
+}
 }  // namespace
 
 void defineCga(py::module_& m) {
   py::class_<Multivector> mv(m, "Multivector", "General multivector of G(4,1) (32 blades)");
+  // Every coefficient that enters is finite and real (ValueError / TypeError naming the argument)
+  // and every result is checked(): an overflowing product is a ValueError, not an inf/NaN object.
+  const auto coeffs = [](const py::object& a) {
+    return Coeffs(Eigen::Map<const Coeffs>(realValues(a, 32, "coefficients").data()));
+  };
   mv.def(py::init<>())
-      .def(py::init<double>(), py::arg("scalar"))
-      .def_static("from_null", [](const RowArray& a) { return Multivector::fromNull(toCoeffs(a, "coefficients")); })
+      .def(py::init([](double s) { return Multivector(Arg<double>::get(s, "scalar")); }), py::arg("scalar"))
+      .def_static("from_null", [coeffs](const py::object& a) { return checked(Multivector::fromNull(coeffs(a))); },
+                  py::arg("coefficients"))
       .def_static("from_orthonormal",
-                  [](const RowArray& a) { return Multivector::fromOrthonormal(toCoeffs(a, "coefficients")); })
-      .def_static("blade", &Multivector::named, py::arg("name"), py::arg("value") = 1.0)
+                  [coeffs](const py::object& a) { return Multivector::fromOrthonormal(coeffs(a)); },
+                  py::arg("coefficients"))
+      .def_static("blade", chk(&Multivector::named, {"name", "value"}), py::arg("name"), py::arg("value") = 1.0)
       .def_static("blade_name", &Multivector::nullBladeName, py::arg("index"))
       .def_static("e0", &Multivector::e0)
       .def_static("e1", &Multivector::e1)
@@ -92,42 +223,53 @@ void defineCga(py::module_& m) {
       .def_static("e_minus", &Multivector::eMinus)
       .def_static("ic", &Multivector::pseudoscalar)
       .def_static("i3", &Multivector::pseudoscalar3)
-      .def_static("vector", &Multivector::vector, py::arg("v"))
+      .def_static("vector", chk(&Multivector::vector, {"v"}), py::arg("v"))
       .def("null_coefficients", [](const Multivector& a) { return fromCoeffs(a.nullCoefficients()); })
       .def("orthonormal_coefficients", [](const Multivector& a) { return fromCoeffs(a.orthonormal()); })
       .def("__getitem__", &Multivector::get, py::arg("blade"))
       .def("grade", &Multivector::grade, py::arg("k"))
       .def("reverse", &Multivector::reverse)
       .def("involute", &Multivector::involute)
-      .def("dual", &Multivector::dual)
-      .def("undual", &Multivector::undual)
+      .def("dual", chk(&Multivector::dual))
+      .def("undual", chk(&Multivector::undual))
       .def("inverse",
            [](const Multivector& a) {
              try {
-               return a.inverse();
+               return checked(a.inverse());
              } catch (const std::domain_error& e) {
                throw py::value_error(e.what());
              }
            })
-      .def("norm", &Multivector::norm)
+      .def("norm", chk(&Multivector::norm))
       .def("scalar", &Multivector::scalar)
-      .def("scalar_product", &Multivector::scalarProduct)
-      .def("left_contraction", &Multivector::leftContraction)
-      .def("outer", &Multivector::outer)
-      .def("inner", &Multivector::inner)
-      .def("__mul__", [](const Multivector& a, const Multivector& b) { return a * b; }, py::is_operator())
-      .def("__mul__", [](const Multivector& a, double s) { return a * s; }, py::is_operator())
-      .def("__rmul__", [](const Multivector& a, double s) { return a * s; }, py::is_operator())
-      .def("__truediv__", [](const Multivector& a, double s) { return a / s; }, py::is_operator())
-      .def("__add__", [](const Multivector& a, const Multivector& b) { return a + b; }, py::is_operator())
-      .def("__add__", [](const Multivector& a, double s) { return a + Multivector(s); }, py::is_operator())
-      .def("__radd__", [](const Multivector& a, double s) { return a + Multivector(s); }, py::is_operator())
-      .def("__sub__", [](const Multivector& a, const Multivector& b) { return a - b; }, py::is_operator())
-      .def("__sub__", [](const Multivector& a, double s) { return a - Multivector(s); }, py::is_operator())
-      .def("__rsub__", [](const Multivector& a, double s) { return Multivector(s) - a; }, py::is_operator())
+      .def("scalar_product", chk(&Multivector::scalarProduct))
+      .def("left_contraction", chk(&Multivector::leftContraction))
+      .def("outer", chk(&Multivector::outer))
+      .def("inner", chk(&Multivector::inner))
+      .def("__mul__", [](const Multivector& a, const Multivector& b) { return checked(a * b); }, py::is_operator())
+      .def("__mul__", [](const Multivector& a, double s) { return checked(a * Arg<double>::get(s, "scalar")); },
+           py::is_operator())
+      .def("__rmul__", [](const Multivector& a, double s) { return checked(a * Arg<double>::get(s, "scalar")); },
+           py::is_operator())
+      .def("__truediv__",
+           [](const Multivector& a, double s) {
+             if (!(s != 0)) throw py::value_error("divisor: division of a multivector by 0");
+             return checked(a / Arg<double>::get(s, "divisor"));
+           },
+           py::is_operator())
+      .def("__add__", [](const Multivector& a, const Multivector& b) { return checked(a + b); }, py::is_operator())
+      .def("__add__", [](const Multivector& a, double s) { return checked(a + Multivector(Arg<double>::get(s, "scalar"))); },
+           py::is_operator())
+      .def("__radd__", [](const Multivector& a, double s) { return checked(a + Multivector(Arg<double>::get(s, "scalar"))); },
+           py::is_operator())
+      .def("__sub__", [](const Multivector& a, const Multivector& b) { return checked(a - b); }, py::is_operator())
+      .def("__sub__", [](const Multivector& a, double s) { return checked(a - Multivector(Arg<double>::get(s, "scalar"))); },
+           py::is_operator())
+      .def("__rsub__", [](const Multivector& a, double s) { return checked(Multivector(Arg<double>::get(s, "scalar")) - a); },
+           py::is_operator())
       .def("__neg__", [](const Multivector& a) { return -a; })
-      .def("__xor__", [](const Multivector& a, const Multivector& b) { return a.outer(b); }, py::is_operator())
-      .def("__or__", [](const Multivector& a, const Multivector& b) { return a.inner(b); }, py::is_operator())
+      .def("__xor__", [](const Multivector& a, const Multivector& b) { return checked(a.outer(b)); }, py::is_operator())
+      .def("__or__", [](const Multivector& a, const Multivector& b) { return checked(a.inner(b)); }, py::is_operator())
       .def("__invert__", &Multivector::reverse)
       .def("__repr__", &mvRepr);
 
@@ -136,17 +278,15 @@ void defineCga(py::module_& m) {
       "up",
       [](const py::object& x_in) -> py::object {
         const py::array x = py::array::ensure(x_in);
-        if (!x || x.ndim() != 2) {
-          const auto p = RowArray::ensure(x_in);
-          if (!p || p.ndim() != 1 || p.shape(0) != 3)
-            throw py::value_error("x: expected a (3,) point or an (N, 3) array, metres");
-          return py::cast(cga::up(Eigen::Vector3d(p.at(0), p.at(1), p.at(2))));
-        }
+        if (!x || x.ndim() != 2) return py::cast(chk(&cga::up, {"x"})(cga_args::Coords{x_in}));
         const RowArray p = finiteRows(x_in, 3, "points");
         const py::ssize_t n = p.shape(0);
         py::array_t<double> out({n, py::ssize_t{5}});
         double* o = out.mutable_data();
         for (const double* q = p.data(); q != p.data() + 3 * n; q += 3, o += 5) {
+          if (std::max({std::abs(q[0]), std::abs(q[1]), std::abs(q[2])}) > cga::kMaxCoordinate)
+            throw py::value_error("points: row " + std::to_string((q - p.data()) / 3) +
+                                  ": overflow: coordinates beyond ~1e150 m");
           std::copy(q, q + 3, o);
           o[3] = 0.5 * (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
           o[4] = 1.0;
@@ -156,12 +296,13 @@ void defineCga(py::module_& m) {
       py::arg("x"),
       "Conformal point x + 1/2 x^2 einf + e0 (4.54) of a point in metres: a (3,) point gives a Multivector, an "
       "(N, 3) float array an (N, 5) float64 array of coefficients (e1, e2, e3, einf, e0) (4.55). ValueError for "
-      "NaN/Inf or a wrong shape, TypeError for a non-float (N, 3) array.");
+      "NaN/Inf, a wrong shape or coordinates beyond ~1e150 m (1/2 x^2 would overflow), TypeError for complex "
+      "input or a non-float (N, 3) array.");
   m.def(
       "down",
       [](const py::object& P) -> py::object {
         if (py::isinstance<Multivector>(P) || py::isinstance<cga::Point>(P))
-          return py::cast(cga::down(P.cast<Multivector>()));
+          return py::cast(chk(&cga::down)(P.cast<Multivector>()));
         const RowArray p = finiteRows(P, 5, "conformal points");
         const py::ssize_t n = p.shape(0);
         py::array_t<double> out({n, py::ssize_t{3}});
@@ -170,15 +311,18 @@ void defineCga(py::module_& m) {
           const double* q = p.data() + 5 * i;
           if (!(std::abs(q[4]) > 0)) throw py::value_error("down: row " + std::to_string(i) + " has e0 coefficient 0");
           for (int k = 0; k < 3; ++k) o[k] = q[k] / q[4];
+          if (std::max({std::abs(o[0]), std::abs(o[1]), std::abs(o[2])}) > cga::kMaxCoordinate)
+            throw py::value_error("down: row " + std::to_string(i) + ": overflow: e0 coefficient " + fmt(q[4]) +
+                                  " puts the point beyond ~1e150 m");
         }
         return std::move(out);
       },
       py::arg("P"),
       "Euclidean point (metres) of a conformal point of any scale (divides by the e0 coefficient -einf . P): a "
       "Multivector gives a (3,) array, an (N, 5) array of coefficients (e1, e2, e3, einf, e0) an (N, 3) array. "
-      "ValueError for a zero e0 coefficient (a point at infinity).");
-  m.def("to_vector5", &cga::toVector5, py::arg("v"), "(5,) coefficients (e1, e2, e3, einf, e0) of a vector (4.55)");
-  m.def("from_vector5", &cga::fromVector5, py::arg("x"), "the vector of (5,) coefficients (e1, e2, e3, einf, e0)");
+      "ValueError for a zero e0 coefficient (a point at infinity), NaN/Inf, or a point beyond ~1e150 m.");
+  m.def("to_vector5", chk(&cga::toVector5, {"v"}), py::arg("v"), "(5,) coefficients (e1, e2, e3, einf, e0) of a vector (4.55)");
+  m.def("from_vector5", [](const py::object& x) { return cga::fromVector5(Eigen::Map<const cga::Vector5>(realValues(x, 5, "x").data())); }, py::arg("x"), "the vector of (5,) coefficients (e1, e2, e3, einf, e0)");
   m.def("inner_product_matrix", &cga::innerProductMatrix, "M with X . Y = X^T M Y on (e1, e2, e3, einf, e0) (5.32)");
   m.def("blade_names", [] {
     std::vector<std::string> names;
@@ -206,6 +350,9 @@ void defineCga(py::module_& m) {
         Eigen::Map<Coeffs>(out.mutable_data() + 32 * i) = (x * y).orthonormal();
       }
     }
+    for (py::ssize_t i = 0; i < 32 * n; ++i)
+      if (!std::isfinite(out.data()[i]))
+        throw py::value_error("overflow: row " + std::to_string(i / 32) + " of the products is not finite");
     return out;
   }, py::arg("a"), py::arg("b"),
   "Row-wise geometric products of two (N, 32) arrays of orthonormal-basis coefficients "
@@ -218,16 +365,19 @@ center: metres, in the caller's frame; radius: metres (radius2 < 0: imaginary sp
 S*^2 < 0 (4.61)). from_dual / from_direct accept any scale (r^2 = S*^2/(einf.S*)^2);
 through_points(a, b, c, d) uses S = PA^PB^PC^PD (4.58). A dual vector with e0
 coefficient 0 is a plane and raises ValueError.)")
-      .def(py::init<const Eigen::Vector3d&, double>(), py::arg("center"), py::arg("radius"))
-      .def_static("with_radius2", &cga::Sphere::withRadius2, py::arg("center"), py::arg("radius2"))
-      .def_static("from_dual", &cga::Sphere::fromDual)
-      .def_static("from_direct", &cga::Sphere::fromDirect)
-      .def_static("through_points", &cga::Sphere::throughPoints)
+      .def(py::init(chk(&make<cga::Sphere, const Eigen::Vector3d&, double>, {"center", "radius"})), py::arg("center"),
+           py::arg("radius"))
+      .def_static("with_radius2", chk(&cga::Sphere::withRadius2, {"center", "radius2"}), py::arg("center"),
+                  py::arg("radius2"))
+      .def_static("from_dual", chk(&cga::Sphere::fromDual), py::arg("S"))
+      .def_static("from_direct", chk(&cga::Sphere::fromDirect), py::arg("S"))
+      .def_static("through_points", chk(&cga::Sphere::throughPoints, {"a", "b", "c", "d"}), py::arg("a"),
+                  py::arg("b"), py::arg("c"), py::arg("d"))
       .def_readonly("center", &cga::Sphere::center)
       .def_readonly("radius2", &cga::Sphere::radius2)
       .def_property_readonly("radius", &cga::Sphere::radius)
       .def_property_readonly("is_real", &cga::Sphere::isReal)
-      .def("dual", &cga::Sphere::dual)
+      .def("dual", chk(&cga::Sphere::dual))
       .def("__repr__", [](const cga::Sphere& s) {
         return "Sphere(center=" + fmt(s.center) +
                (s.isReal() ? ", radius=" + fmt(s.radius()) : ", radius2=" + fmt(s.radius2) + " (imaginary)") + ")";
@@ -238,28 +388,32 @@ normal: unit vector (normalised on construction; zero raises ValueError); distan
 distance of the plane from the origin along the normal, metres. point_plane_distance(x, p) =
 x.n - delta (4.67), positive on the side the normal points to. through_points(a, b, c) uses
 the direct plane PA^PB^PC^einf (4.64), whose orientation follows the dual convention.)")
-      .def(py::init<const Eigen::Vector3d&, double>(), py::arg("normal"), py::arg("distance"))
-      .def_static("through_point", &cga::Plane::throughPoint, py::arg("normal"), py::arg("point"))
-      .def_static("through_points", &cga::Plane::throughPoints)
-      .def_static("from_dual", &cga::Plane::fromDual)
-      .def_static("from_direct", &cga::Plane::fromDirect)
+      .def(py::init(chk(&make<cga::Plane, const Eigen::Vector3d&, double>, {"normal", "distance"})), py::arg("normal"),
+           py::arg("distance"))
+      .def_static("through_point", chk(&cga::Plane::throughPoint, {"normal", "point"}), py::arg("normal"),
+                  py::arg("point"))
+      .def_static("through_points", chk(&cga::Plane::throughPoints, {"a", "b", "c"}), py::arg("a"), py::arg("b"),
+                  py::arg("c"))
+      .def_static("from_dual", chk(&cga::Plane::fromDual), py::arg("P"))
+      .def_static("from_direct", chk(&cga::Plane::fromDirect), py::arg("P"))
       .def_readonly("normal", &cga::Plane::normal)
       .def_readonly("distance", &cga::Plane::distance)
-      .def("dual", &cga::Plane::dual)
-      .def("direct", &cga::Plane::direct)
+      .def("dual", chk(&cga::Plane::dual))
+      .def("direct", chk(&cga::Plane::direct))
       .def("__repr__", [](const cga::Plane& p) {
         return "Plane(normal=" + fmt(p.normal) + ", distance=" + fmt(p.distance) + ")";
       });
   py::class_<cga::Line>(m, "Line", R"(Line through `point` (the closest point to the origin, metres) along the unit
 `direction`. direct() = (p + e0)^d^einf = PA^PB^einf (4.68); dual() = A + b einf.)")
-      .def(py::init<const Eigen::Vector3d&, const Eigen::Vector3d&>(), py::arg("point"), py::arg("direction"))
-      .def_static("through_points", &cga::Line::throughPoints)
-      .def_static("from_direct", &cga::Line::fromDirect)
-      .def_static("from_dual", &cga::Line::fromDual)
+      .def(py::init(chk(&make<cga::Line, const Eigen::Vector3d&, const Eigen::Vector3d&>, {"point", "direction"})), py::arg("point"),
+           py::arg("direction"))
+      .def_static("through_points", chk(&cga::Line::throughPoints, {"a", "b"}), py::arg("a"), py::arg("b"))
+      .def_static("from_direct", chk(&cga::Line::fromDirect), py::arg("L"))
+      .def_static("from_dual", chk(&cga::Line::fromDual), py::arg("L_dual"))
       .def_readonly("point", &cga::Line::point)
       .def_readonly("direction", &cga::Line::direction)
-      .def("direct", &cga::Line::direct)
-      .def("dual", &cga::Line::dual)
+      .def("direct", chk(&cga::Line::direct))
+      .def("dual", chk(&cga::Line::dual))
       .def("__repr__", [](const cga::Line& l) {
         return "Line(point=" + fmt(l.point) + ", direction=" + fmt(l.direction) + ")";
       });
@@ -269,13 +423,24 @@ for the unit quaternion (w, x, y, z). Acts by X -> M X ~M; on a point it gives R
 first. interpolate(a, b, s) slerps the rotation and lerps the translation (not a screw
 motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
       .def(py::init<>())
-      .def_static("from_matrix", &cga::Motor::fromMatrix)
+      .def_static("from_matrix",
+                  [](const py::object& T) {
+                    const RowArray a = realValues(T, 16, "T");
+                    if (a.ndim() != 2) throw py::value_error("T: expected a (4, 4) array, got shape " + shapeOf(a));
+                    return checked(cga::Motor::fromMatrix(Eigen::Map<const Eigen::Matrix<double, 4, 4, Eigen::RowMajor>>(a.data())));
+                  },
+                  py::arg("T"))
       .def_static("from_quaternion",
-                  [](const Eigen::Vector4d& wxyz, const Eigen::Vector3d& t) {
-                    return cga::Motor::fromQuaternion(Eigen::Quaterniond(wxyz[0], wxyz[1], wxyz[2], wxyz[3]), t);
-                  })
-      .def_static("from_multivector", &cga::Motor::fromMultivector, py::arg("M"), py::arg("tol") = 1e-8)
-      .def_static("interpolate", &cga::Motor::interpolate)
+                  [](const py::object& wxyz, const cga_args::Coords& t) {
+                    const RowArray q = realValues(wxyz, 4, "wxyz");
+                    return checked(cga::Motor::fromQuaternion(
+                        Eigen::Quaterniond(q.data()[0], q.data()[1], q.data()[2], q.data()[3]), coords3(t.o, "t")));
+                  },
+                  py::arg("wxyz"), py::arg("t"))
+      .def_static("from_multivector", chk(&cga::Motor::fromMultivector, {"M", "tol"}), py::arg("M"),
+                  py::arg("tol") = 1e-8)
+      .def_static("interpolate", chk(&cga::Motor::interpolate, {"a", "b", "s"}), py::arg("a"), py::arg("b"),
+                  py::arg("s"))
       .def_property_readonly("multivector", &cga::Motor::multivector)
       .def("rotor", &cga::Motor::rotor)
       .def("quaternion",
@@ -283,26 +448,30 @@ motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
              const auto q = M.quaternion();
              return Eigen::Vector4d(q.w(), q.x(), q.y(), q.z());
            })
-      .def("translation", &cga::Motor::translation)
-      .def("matrix", &cga::Motor::matrix)
+      .def("translation", chk(&cga::Motor::translation))
+      .def("matrix", chk(&cga::Motor::matrix))
       .def("inverse", &cga::Motor::inverse)
-      .def("__mul__", [](const cga::Motor& a, const cga::Motor& b) { return a * b; }, py::is_operator())
-      .def("apply_multivector", [](const cga::Motor& M, const Multivector& X) { return M.apply(X); })
-      .def("apply_point", [](const cga::Motor& M, const Eigen::Vector3d& x) { return M.apply(x); })
-      .def("apply_plane", [](const cga::Motor& M, const cga::Plane& p) { return M.apply(p); })
-      .def("apply_sphere", [](const cga::Motor& M, const cga::Sphere& s) { return M.apply(s); })
-      .def("apply_line", [](const cga::Motor& M, const cga::Line& l) { return M.apply(l); })
-      .def("apply_points", [](const cga::Motor& M, const RowArray& x) {
-        if (x.ndim() != 2 || x.shape(1) != 3) throw py::value_error("points: expected an (N, 3) array");
+      .def("__mul__", [](const cga::Motor& a, const cga::Motor& b) { return checked(a * b); }, py::is_operator())
+      .def("apply_multivector", [](const cga::Motor& M, const Multivector& X) { return checked(M.apply(X)); },
+           py::arg("X"))
+      .def("apply_point",
+           [](const cga::Motor& M, const cga_args::Coords& x) { return checked(M.apply(coords3(x.o, "x"))); },
+           py::arg("x"))
+      .def("apply_plane", [](const cga::Motor& M, const cga::Plane& p) { return checked(M.apply(p)); }, py::arg("p"))
+      .def("apply_sphere", [](const cga::Motor& M, const cga::Sphere& s) { return checked(M.apply(s)); },
+           py::arg("s"))
+      .def("apply_line", [](const cga::Motor& M, const cga::Line& l) { return checked(M.apply(l)); }, py::arg("l"))
+      .def("apply_points", [](const cga::Motor& M, const py::object& points) {
+        const RowArray x = finiteRows(points, 3, "points");
         const py::ssize_t n = x.shape(0);
         py::array_t<double> out({n, py::ssize_t{3}});
         const Multivector Mm = M.multivector(), Mr = Mm.reverse();
         for (py::ssize_t i = 0; i < n; ++i) {
           const Eigen::Vector3d p = Eigen::Map<const Eigen::Vector3d>(x.data() + 3 * i);
-          Eigen::Map<Eigen::Vector3d>(out.mutable_data() + 3 * i) = cga::down(Mm * cga::up(p) * Mr);
+          Eigen::Map<Eigen::Vector3d>(out.mutable_data() + 3 * i) = checked(cga::down(Mm * cga::up(p) * Mr));
         }
         return out;
-      })
+      }, py::arg("points"))
       .def("__repr__", [](const cga::Motor& M) {
         const auto q = M.quaternion();
         return "Motor(quaternion_wxyz=[" + fmt(q.w()) + ", " + fmt(q.x()) + ", " + fmt(q.y()) + ", " + fmt(q.z()) +
@@ -313,21 +482,21 @@ motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
       .value("real", cga::Reality::Real)
       .value("tangent", cga::Reality::Tangent)
       .value("imaginary", cga::Reality::Imaginary);
-  m.def("point_pair_reality", &cga::pointPairReality, py::arg("Q"), py::arg("tol") = 1e-10);
+  m.def("point_pair_reality", chk(&cga::pointPairReality, {"Q", "tol"}), py::arg("Q"), py::arg("tol") = 1e-10);
 
   py::class_<cga::PointPair>(m, "PointPair", R"(Point pair, held as the direct 2-blade Q = PA^PB (4.62).
 
 Build with from_points(a, b) (metres), from_direct(Q) or from_dual(Q*) (a meet result such as
 meet_plane_circle). reality() is the sign of Q^2 (thesis (4.70)-(4.73)); points() gives (P-, P+) of (4.63),
 i.e. (a, b) for from_points(a, b), and raises ValueError for an imaginary pair.)")
-      .def_static("from_points", &cga::PointPair::fromPoints, py::arg("a"), py::arg("b"))
-      .def_static("from_direct", &cga::PointPair::fromDirect, py::arg("Q"))
-      .def_static("from_dual", &cga::PointPair::fromDual, py::arg("Q_dual"))
+      .def_static("from_points", chk(&cga::PointPair::fromPoints, {"a", "b"}), py::arg("a"), py::arg("b"))
+      .def_static("from_direct", chk(&cga::PointPair::fromDirect), py::arg("Q"))
+      .def_static("from_dual", chk(&cga::PointPair::fromDual), py::arg("Q_dual"))
       .def_readonly("direct", &cga::PointPair::direct)
-      .def("dual", &cga::PointPair::dual)
-      .def("square", &cga::PointPair::square)
-      .def("reality", &cga::PointPair::reality, py::arg("tol") = 1e-10)
-      .def("points", &cga::PointPair::points)
+      .def("dual", chk(&cga::PointPair::dual))
+      .def("square", chk(&cga::PointPair::square))
+      .def("reality", chk(&cga::PointPair::reality, {"tol"}), py::arg("tol") = 1e-10)
+      .def("points", chk(&cga::PointPair::points))
       .def("__repr__", [](const cga::PointPair& q) {
         const cga::Reality r = q.reality();
         std::string s = "PointPair(" + std::string(r == cga::Reality::Real ? "real" : r == cga::Reality::Tangent ? "tangent" : "imaginary");
@@ -340,22 +509,25 @@ i.e. (a, b) for from_points(a, b), and raises ValueError for an imaginary pair.)
         return s + ")";
       });
   py::class_<cga::FlatPoint>(m, "FlatPoint", R"(Flat point P^einf (4.69), e.g. the line-plane meet (4.73); location() in metres.)")
-      .def_static("at", &cga::FlatPoint::at, py::arg("p"))
-      .def_static("from_multivector", &cga::FlatPoint::fromMultivector, py::arg("F"))
+      .def_static("at", chk(&cga::FlatPoint::at, {"p"}), py::arg("p"))
+      .def_static("from_multivector", chk(&cga::FlatPoint::fromMultivector), py::arg("F"))
       .def_readonly("direct", &cga::FlatPoint::direct)
-      .def("location", &cga::FlatPoint::location)
+      .def("location", chk(&cga::FlatPoint::location))
       .def("__repr__", [](const cga::FlatPoint& f) { return "FlatPoint(" + fmt(f.location()) + ")"; });
   py::class_<cga::Point>(m, "Point", R"(A Euclidean point (metres) as a conformal point up(x) (4.54).
 
 Point(x).mv is the normalised conformal point; the operators *, ^, | and ~ act on it and
 return Multivector. A Point is accepted wherever a Multivector is.)")
-      .def(py::init<const Eigen::Vector3d&>(), py::arg("x"))
-      .def_static("from_multivector", &cga::Point::fromMultivector, py::arg("P"))
+      .def(py::init(chk(&make<cga::Point, const Eigen::Vector3d&>, {"x"})), py::arg("x"))
+      .def_static("from_multivector", chk(&cga::Point::fromMultivector), py::arg("P"))
       .def_readonly("position", &cga::Point::position, "(3,) m")
       .def_property_readonly("mv", &cga::Point::multivector, "up(position)")
-      .def("__mul__", [](const cga::Point& a, const Multivector& b) { return a.multivector() * b; }, py::is_operator())
-      .def("__xor__", [](const cga::Point& a, const Multivector& b) { return a.multivector().outer(b); }, py::is_operator())
-      .def("__or__", [](const cga::Point& a, const Multivector& b) { return a.multivector().inner(b); }, py::is_operator())
+      .def("__mul__", [](const cga::Point& a, const Multivector& b) { return checked(a.multivector() * b); },
+           py::is_operator())
+      .def("__xor__", [](const cga::Point& a, const Multivector& b) { return checked(a.multivector().outer(b)); },
+           py::is_operator())
+      .def("__or__", [](const cga::Point& a, const Multivector& b) { return checked(a.multivector().inner(b)); },
+           py::is_operator())
       .def("__invert__", [](const cga::Point& a) { return a.multivector().reverse(); })
       .def("__repr__", [](const cga::Point& p) { return "Point(" + fmt(p.position) + ")"; });
   mv.def(py::init([](const cga::Point& p) { return p.multivector(); }), py::arg("point"));
@@ -367,69 +539,67 @@ circle (centre C einf C, radius from <C C^> / <(einf _| C)^2>, normal from the p
 (4.64)); from_dual reads a meet result such as meet_sphere_plane (the dual C*; its undual
 C* Ic is the direct circle). ValueError for an imaginary circle (radius^2 < 0), a line (a
 circle through infinity), a zero normal or a negative radius.)")
-      .def(py::init<const Eigen::Vector3d&, const Eigen::Vector3d&, double>(), py::arg("center"), py::arg("normal"),
-           py::arg("radius"))
-      .def_static("through_points", &cga::Circle::throughPoints, py::arg("a"), py::arg("b"), py::arg("c"))
-      .def_static("from_direct", &cga::Circle::fromDirect, py::arg("C"))
-      .def_static("from_dual", &cga::Circle::fromDual, py::arg("C_dual"))
+      .def(py::init(chk(&make<cga::Circle, const Eigen::Vector3d&, const Eigen::Vector3d&, double>, {"center", "normal", "radius"})),
+           py::arg("center"), py::arg("normal"), py::arg("radius"))
+      .def_static("through_points", chk(&cga::Circle::throughPoints, {"a", "b", "c"}), py::arg("a"), py::arg("b"),
+                  py::arg("c"))
+      .def_static("from_direct", chk(&cga::Circle::fromDirect), py::arg("C"))
+      .def_static("from_dual", chk(&cga::Circle::fromDual), py::arg("C_dual"))
       .def_readonly("center", &cga::Circle::center, "(3,) m")
       .def_readonly("normal", &cga::Circle::normal, "(3,) unit normal of the carrier plane")
       .def_readonly("radius", &cga::Circle::radius, "m")
-      .def("direct", &cga::Circle::direct)
-      .def("dual", &cga::Circle::dual)
+      .def("direct", chk(&cga::Circle::direct))
+      .def("dual", chk(&cga::Circle::dual))
       .def("__repr__", [](const cga::Circle& c) {
         return "Circle(center=" + fmt(c.center) + ", normal=" + fmt(c.normal) + ", radius=" + fmt(c.radius) + ")";
       });
 
-  m.def("point_pair", &cga::pointPair, py::arg("a"), py::arg("b"), "direct point pair up(a) ^ up(b) (4.62), metres");
-  m.def("point_pair_points", &cga::pointPairPoints, py::arg("Q"),
+  m.def("point_pair", chk(&cga::pointPair, {"a", "b"}), py::arg("a"), py::arg("b"), "direct point pair up(a) ^ up(b) (4.62), metres");
+  m.def("point_pair_points", chk(&cga::pointPairPoints, {"Q"}), py::arg("Q"),
         "The two points (Q -+ sqrt(Q^2)) / (-einf . Q) (4.63) of a direct point pair, (a, b) for Q = up(a) ^ up(b) "
         "(negating Q swaps them). A dual pair from a meet is made direct with .undual(). ValueError when Q^2 < 0 "
         "(no real points, thesis (4.70)-(4.73)).");
-  m.def("flat_point", &cga::flatPoint, py::arg("p"), "flat point up(p) ^ einf (4.69)");
-  m.def("flat_point_location", &cga::flatPointLocation, py::arg("F"), "location (metres) of a flat point of any scale");
-  m.def("circle", &cga::circle, py::arg("a"), py::arg("b"), py::arg("c"),
+  m.def("flat_point", chk(&cga::flatPoint, {"p"}), py::arg("p"), "flat point up(p) ^ einf (4.69)");
+  m.def("flat_point_location", chk(&cga::flatPointLocation, {"F"}), py::arg("F"), "location (metres) of a flat point of any scale");
+  m.def("circle", chk(&cga::circle, {"a", "b", "c"}), py::arg("a"), py::arg("b"), py::arg("c"),
         "direct circle up(a) ^ up(b) ^ up(c) through three points (4.57)");
-  m.def("round_center", &cga::roundCenter, py::arg("X"), "centre X einf X of a direct round (point pair, circle, sphere)");
-  m.def("round_radius2", &cga::roundRadius2, py::arg("X"),
+  m.def("round_center", chk(&cga::roundCenter, {"X"}), py::arg("X"), "centre X einf X of a direct round (point pair, circle, sphere)");
+  m.def("round_radius2", chk(&cga::roundRadius2, {"X"}), py::arg("X"),
         "squared radius <X X^>_0 / <D D>_0, D = einf _| X, of a direct round (Dorst et al. 2007, §14.2); < 0: imaginary");
-  m.def("meet_sphere_plane", &cga::meetSpherePlane, py::arg("sphere"), py::arg("plane"), "dual circle Pi* ^ S* (4.70)");
-  m.def("meet_planes", &cga::meetPlanes, py::arg("a"), py::arg("b"), "dual line Pi1* ^ Pi2*");
-  m.def("meet_spheres", &cga::meetSpheres, py::arg("a"), py::arg("b"), "dual circle S1* ^ S2*");
-  m.def("meet_plane_circle", &cga::meetPlaneCircle, py::arg("plane"), py::arg("dual_circle"),
+  m.def("meet_sphere_plane", chk(&cga::meetSpherePlane, {"sphere", "plane"}), py::arg("sphere"), py::arg("plane"), "dual circle Pi* ^ S* (4.70)");
+  m.def("meet_planes", chk(&cga::meetPlanes, {"a", "b"}), py::arg("a"), py::arg("b"), "dual line Pi1* ^ Pi2*");
+  m.def("meet_spheres", chk(&cga::meetSpheres, {"a", "b"}), py::arg("a"), py::arg("b"), "dual circle S1* ^ S2*");
+  m.def("meet_plane_circle", chk(&cga::meetPlaneCircle, {"plane", "dual_circle"}), py::arg("plane"), py::arg("dual_circle"),
         "dual point pair Pi* ^ C* (its .undual() is the direct pair)");
-  m.def("meet_line_plane", &cga::meetLinePlane, py::arg("line"), py::arg("plane"), "flat point Pi* . L (4.73)");
-  m.def("meet_line_plane_flat", &cga::meetLinePlaneFlat, py::arg("line"), py::arg("plane"), "the line-plane meet as a FlatPoint");
-  m.def("meet_plane_circle_pair", &cga::meetPlaneCirclePair, py::arg("plane"), py::arg("dual_circle"),
+  m.def("meet_line_plane", chk(&cga::meetLinePlane, {"line", "plane"}), py::arg("line"), py::arg("plane"), "flat point Pi* . L (4.73)");
+  m.def("meet_line_plane_flat", chk(&cga::meetLinePlaneFlat, {"line", "plane"}), py::arg("line"), py::arg("plane"), "the line-plane meet as a FlatPoint");
+  m.def("meet_plane_circle_pair", chk(&cga::meetPlaneCirclePair, {"plane", "dual_circle"}), py::arg("plane"), py::arg("dual_circle"),
         "the plane-circle meet as a PointPair (4.70)");
-  m.def("point_distance", &cga::pointDistance, py::arg("a"), py::arg("b"), "|a - b| from d^2 = -2 up(a) . up(b) (4.56)");
-  m.def("point_plane_distance", &cga::pointPlaneDistance, py::arg("x"), py::arg("plane"),
+  m.def("point_distance", chk(&cga::pointDistance, {"a", "b"}), py::arg("a"), py::arg("b"), "|a - b| from d^2 = -2 up(a) . up(b) (4.56)");
+  m.def("point_plane_distance", chk(&cga::pointPlaneDistance, {"x", "plane"}), py::arg("x"), py::arg("plane"),
         "signed distance up(x) . Pi* = x . n - delta (4.67), metres, > 0 on the normal's side");
-  m.def("sphere_point_inner", &cga::spherePointInner, py::arg("sphere"), py::arg("x"),
+  m.def("sphere_point_inner", chk(&cga::spherePointInner, {"sphere", "x"}), py::arg("sphere"), py::arg("x"),
         "S* . up(x) = 1/2 (r^2 - |x - c|^2) (Paper 5 eq. (10)): > 0 inside, 0 on, < 0 outside");
-  m.def("point_sphere_distance", &cga::pointSphereDistance, py::arg("x"), py::arg("sphere"),
+  m.def("point_sphere_distance", chk(&cga::pointSphereDistance, {"x", "sphere"}), py::arg("x"), py::arg("sphere"),
         "|x - c| - r, metres (> 0 outside)");
-  m.def("rotor", &cga::rotor, py::arg("axis"), py::arg("angle"),
+  m.def("rotor", chk(&cga::rotor, {"axis", "angle"}), py::arg("axis"), py::arg("angle"),
         "rotor cos(angle/2) - sin(angle/2) B for a right-handed rotation by angle (radians) about axis (Paper 4 §3.5)");
-  m.def("translator", &cga::translator, py::arg("t"), "translator 1 - 1/2 t einf (Paper 4 §3.5), t in metres");
+  m.def("translator", chk(&cga::translator, {"t"}), py::arg("t"), "translator 1 - 1/2 t einf (Paper 4 §3.5), t in metres");
 
   // ----- angles and rotation planes (Paper 1 §3.7) -----
-  m.def("normalise_blade", &cga::normaliseBlade, py::arg("A"), "A / sqrt(|<A ~A>_0|); ValueError for a null blade");
-  m.def("euclidean_dual", &cga::euclideanDual, py::arg("A"), "Euclidean dual A I3^{-1}");
-  m.def("rotation_plane_from_axis", &cga::rotationPlaneFromAxis, py::arg("axis"),
+  m.def("normalise_blade", chk(&cga::normaliseBlade, {"A"}), py::arg("A"), "A / sqrt(|<A ~A>_0|); ValueError for a null blade");
+  m.def("euclidean_dual", chk(&cga::euclideanDual, {"A"}), py::arg("A"), "Euclidean dual A I3^{-1}");
+  m.def("rotation_plane_from_axis", chk(&cga::rotationPlaneFromAxis, {"axis"}), py::arg("axis"),
         "unit rotation plane N = n I3 whose Euclidean dual N* = N I3^{-1} is the unit axis (e.g. e3 -> e12)");
-  m.def("rotation_axis", &cga::rotationAxis, py::arg("N"), "unit axis N* = N I3^{-1} of a Euclidean bivector");
+  m.def("rotation_axis", chk(&cga::rotationAxis, {"N"}), py::arg("N"), "unit axis N* = N I3^{-1} of a Euclidean bivector");
   m.def(
       "signed_angle",
       [](const py::object& a, const py::object& b, const Multivector& N) {
         auto vec = [](const py::object& v, const char* what) {
           if (py::isinstance<Multivector>(v)) return v.cast<Multivector>();
-          const auto x = RowArray::ensure(v);
-          if (!x || x.ndim() != 1 || x.shape(0) != 3)
-            throw py::value_error(std::string(what) + ": expected 3 coordinates or a grade-1 Multivector");
-          return Multivector::vector(Eigen::Vector3d(x.at(0), x.at(1), x.at(2)));
+          return Multivector::vector(coords3(v, std::string(what) + " (3 coordinates or a grade-1 Multivector)"));
         };
-        return cga::signedAngle(vec(a, "a"), vec(b, "b"), N);
+        return checked(cga::signedAngle(vec(a, "a"), vec(b, "b"), N));
       },
       py::arg("a"), py::arg("b"), py::arg("N"),
       "Signed angle (radians, in (-pi, pi]) from direction a to b in the rotation plane N: theta = "

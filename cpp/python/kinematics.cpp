@@ -24,7 +24,7 @@ using namespace scanalign;
 using F64 = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using RowMatrix4d = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
 
-constexpr const char* kStepNames[] = {"", "shoulder", "elbow"};
+constexpr const char* kStepNames[] = {"", "shoulder", "elbow", "fk_check"};
 constexpr const char* kSingularNames[] = {"shoulder", "elbow", "wrist"};
 
 // ----------------------------------------------------------------------------- arguments
@@ -72,8 +72,11 @@ F64 joints(py::handle x, const char* name = "q") {
   F64 a = realArray(x, name);
   if ((a.ndim() != 1 && a.ndim() != 2) || a.shape(a.ndim() - 1) != 6)
     throw py::value_error(std::string(name) + ": expected shape (6,) or (N, 6), got " + shapeText(a));
-  for (py::ssize_t i = 0; i < a.size(); ++i)
+  for (py::ssize_t i = 0; i < a.size(); ++i) {
     if (!std::isfinite(a.data()[i])) throw py::value_error(std::string(name) + ": non-finite joint values");
+    // beyond any joint's travel; cos/sin of such a value have lost every digit of the angle
+    if (std::abs(a.data()[i]) > 1e6) throw py::value_error(std::string(name) + ": joint values must lie within +-1e6 rad");
+  }
   return a;
 }
 
@@ -252,7 +255,8 @@ void bindSolution(py::module_& m) {
       .def_property_readonly(
           "unreachable_step", [](const IKSolution& s) { return kStepNames[static_cast<int>(s.unreachable_step)]; },
           "'', or the construction step whose point pair is imaginary: 'shoulder' (UR horizon: the wrist point "
-          "within d4 of the first axis) or 'elbow' (the wrist too far from or too close to the shoulder)")
+          "within d4 of the first axis), 'elbow' (the wrist too far from or too close to the shoulder) or 'fk_check' "
+          "(the angles' forward kinematics missed the target by more than 1e-6 m / 1e-6: never reported 'ok')")
       .def("__repr__", &solutionRepr);
 }
 
@@ -301,7 +305,8 @@ void bindSolutions(py::module_& m) {
             return perSolution(r, [](const IKSolution& s) { return kStepNames[static_cast<int>(s.unreachable_step)]; });
           },
           "tuple of 8: '', or the construction step whose point pair is imaginary ('shoulder': UR horizon, the "
-          "wrist point within d4 of the first axis; 'elbow': the wrist too far from or too close to the shoulder)")
+          "wrist point within d4 of the first axis; 'elbow': the wrist too far from or too close to the shoulder; "
+          "'fk_check': the angles' forward kinematics missed the target by more than 1e-6 m / 1e-6)")
       .def("__len__", [](const IKResult& r) { return r.count(); })
       .def(
           "valid_q",
@@ -340,7 +345,8 @@ void bindBatch(py::module_& m) {
                     "3 invalid_input: a non-finite or non-rigid pose)")
       .def_readonly("singular", &IKBatch::singular, "(N, 8) uint8 singularity bits (1 shoulder, 2 elbow, 4 wrist)")
       .def_readonly("unreachable_step", &IKBatch::step,
-                    "(N, 8) uint8 failed construction step (0 none, 1 shoulder, 2 elbow)")
+                    "(N, 8) uint8 failed construction step (0 none, 1 shoulder, 2 elbow, 3 fk_check: the forward "
+                    "kinematics of the angles missed the target)")
       .def_property_readonly(
           "ok", [](const IKBatch& b) { return py::array(b.status.attr("__eq__")(0)); }, "(N, 8) bool: status 'ok'")
       .def_property_readonly(
@@ -590,7 +596,8 @@ py::array_t<double> jointFrames(const Robot& r, const py::object& q) {
 void defForward(RobotClass& c) {
   c.def("fk", &fk, py::arg("q"), py::kw_only(), py::arg("num_threads") = 0,
         "Forward kinematics T_base_tool(q) (Kleppe, PhD thesis, NTNU 2018, Paper 1 eq. (3)): q (6,) rad -> (4, 4), "
-        "or q (N, 6) -> (N, 4, 4) batched in C++ (num_threads, 0 = all cores); tool -> robot base, m")
+        "or q (N, 6) -> (N, 4, 4) batched in C++ (num_threads, 0 = all cores); tool -> robot base, m. ValueError for "
+        "another shape, NaN/Inf or |q| > 1e6 rad, TypeError for non-real input")
       .def(
           "fk_flange",
           [](const Robot& r, const py::object& q) {
@@ -669,8 +676,16 @@ void bindRobot(py::module_& m) {
                   "[q_min, q_max] per joint, rad, +-inf allowed (default [-pi, pi]); T_base_dh0 4x4 rigid, DH frame "
                   "0 -> robot base (default identity); T_flange_tool 4x4 rigid, tool -> flange (default identity)")
       .def_static(
-          "by_name", [](const std::string& name) { return Robot::byName(name); }, py::arg("name"),
-          "A built-in robot: one of BUILTIN_ROBOTS (ValueError naming the known ones otherwise)")
+          "by_name",
+          [](const py::object& name) {
+            if (!py::isinstance<py::str>(name))
+              throw py::type_error("name: expected a robot name (str), got " +
+                                   std::string(py::str(py::type::of(name).attr("__name__"))));
+            return Robot::byName(name.cast<std::string>());
+          },
+          py::arg("name"),
+          "A built-in robot: one of BUILTIN_ROBOTS (ValueError naming the known ones otherwise, TypeError for a "
+          "name that is not a str)")
       .def(
           "with_tool",
           [](const Robot& r, const py::object& T) {
@@ -718,7 +733,7 @@ void defineKinematics(py::module_& m) {
   m.attr("STATUS_NAMES") = py::make_tuple(toString(IKStatus::Ok), toString(IKStatus::OutsideLimits),
                                           toString(IKStatus::Unreachable), toString(IKStatus::InvalidInput));
   m.attr("SINGULAR_NAMES") = py::make_tuple(kSingularNames[0], kSingularNames[1], kSingularNames[2]);
-  m.attr("STEP_NAMES") = py::make_tuple(kStepNames[0], kStepNames[1], kStepNames[2]);
+  m.attr("STEP_NAMES") = py::make_tuple(kStepNames[0], kStepNames[1], kStepNames[2], kStepNames[3]);
   m.attr("CONFIGS") = configRows(8, [](py::ssize_t k) { return configFromIndex(static_cast<int>(k)); });
   m.def("config_index", &configIndexChecked, py::arg("shoulder"), py::arg("elbow"), py::arg("wrist"),
         "The fixed solution index 4*(shoulder<0) + 2*(elbow<0) + (wrist<0) of a configuration (each label +1 or -1)");

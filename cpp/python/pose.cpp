@@ -354,11 +354,15 @@ void bindAlignment(py::module_& m) {
                      "refuse when |mean unit normal| of either cloud is below this (closed surfaces)")
       .def_readwrite("min_centroid_offset", &FlagAlignmentSettings::min_centroid_offset,
                      "m; refuse when the centroid lies this close to the average line")
+      .def_readwrite("min_points", &FlagAlignmentSettings::min_points,
+                     "refuse (valid False) when either cloud has fewer usable points (finite, non-zero normal)")
       .def_readwrite("max_iterations", &FlagAlignmentSettings::max_iterations, "Levenberg-Marquardt iterations")
       .def_readwrite("tolerance", &FlagAlignmentSettings::tolerance, "convergence tolerance");
   py::class_<FlagAlignmentResult>(m, "FlagAlignmentResult", "Outcome of align_flags")
       .def_readonly("T_target_source", &FlagAlignmentResult::T_target_source, "(4, 4) the motor, f_target = M f_source ~M")
-      .def_readonly("valid", &FlagAlignmentResult::valid, "False when refused")
+      .def_readonly("valid", &FlagAlignmentResult::valid,
+                    "False when refused (message says why): fewer than min_points usable points, collinear or "
+                    "coincident points, a closed surface, a centroid on the average line, a non-finite result")
       .def_readonly("iterations", &FlagAlignmentResult::iterations)
       .def_readonly("cost", &FlagAlignmentResult::cost, "(delta^2 + sin^2(theta/2) + d^2)/2 at the solution")
       .def_readonly("source_flag", &FlagAlignmentResult::source_flag)
@@ -378,7 +382,9 @@ void bindAlignment(py::module_& m) {
         py::gil_scoped_release release;
         return alignFlags(sa, sn, ta, tn, s);
       },
-      py::arg("source"), py::arg("source_normals"), py::arg("target"), py::arg("target_normals"), py::arg("settings"));
+      py::arg("source"), py::arg("source_normals"), py::arg("target"), py::arg("target_normals"), py::arg("settings"),
+      "Paper 4 flag alignment of two partial views (m, rad). ValueError for mismatched shapes, no usable point or "
+      "coordinates beyond 1e6 m (the cost mixes metres and radians); refusals are valid=False with a message.");
 }
 
 void bindViews(py::module_& m) {
@@ -407,7 +413,10 @@ void bindViews(py::module_& m) {
       .def_readwrite("distance", &ModelViewSettings::distance,
                      "camera distance from center, m; 0 = the bounding sphere fills 90 % of the field of view")
       .def_readwrite("center", &ModelViewSettings::center, "(3,) what the cameras look at, m; None = bounding-box centre")
-      .def_readwrite("num_threads", &ModelViewSettings::num_threads, "rasteriser threads, 0 = all cores");
+      .def_readwrite("num_threads", &ModelViewSettings::num_threads, "rasteriser threads, 0 = all cores")
+      .def_readwrite("max_memory_bytes", &ModelViewSettings::max_memory_bytes,
+                     "refuse (ValueError, before rendering) when views x resolution^2 x 64 bytes exceeds this "
+                     "(default 4 GiB)");
   py::class_<ModelView>(m, "ModelView", "One virtual depth camera's view of a model (model frame, m)")
       .def(py::init([](const F64& points, const F64& normals) {
              if (points.ndim() != 2 || points.shape(1) != 3 || normals.ndim() != 2 || normals.shape(1) != 3 ||
@@ -465,7 +474,9 @@ void bindViews(py::module_& m) {
         return renderModelViews(V, f.data(), f.size() / 3, s);
       },
       py::arg("vertices"), py::arg("faces"), py::arg("settings"),
-      "the views of a mesh (vertices (V, 3) m, faces (F, 3)) from the vertices of the tessellated sphere, in order");
+      "the views of a mesh (vertices (V, 3) m, faces (F, 3)) from the vertices of the tessellated sphere, in order. "
+      "ValueError for a malformed mesh, bad settings, or views whose worst-case memory (views x resolution^2 x 64 "
+      "bytes) exceeds settings.max_memory_bytes, checked before anything is allocated");
 }
 
 PoseProgress progressOf(const py::object& callback) {

@@ -61,26 +61,9 @@ import numpy as np
 from . import _core
 
 __all__ = [
-    "Robot",
-    "IKSolutions",
-    "IKSolution",
-    "IKBatch",
-    "JointTrajectory",
-    "IKConstruction",
-    "STATUS_NAMES",
-    "SINGULAR_NAMES",
-    "STEP_NAMES",
-    "CONFIGS",
-    "BUILTIN_ROBOTS",
-    "config_index",
-    "kuka_kr6_r900_sixx",
-    "ur3",
-    "ur5",
-    "ur10",
-    "ur3e",
-    "ur5e",
-    "ur10e",
-    "ur5_thesis",
+    "Robot", "IKSolutions", "IKSolution", "IKBatch", "JointTrajectory", "IKConstruction", "STATUS_NAMES",
+    "SINGULAR_NAMES", "STEP_NAMES", "CONFIGS", "BUILTIN_ROBOTS", "config_index",
+    "kuka_kr6_r900_sixx", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis",
 ]
 
 _K = _core.kinematics
@@ -97,7 +80,7 @@ config_index = _K.config_index
 STATUS_NAMES: Tuple[str, ...] = _K.STATUS_NAMES
 #: Singularity names by bit (C++ ``SingularBits``): 1 shoulder, 2 elbow, 4 wrist.
 SINGULAR_NAMES: Tuple[str, ...] = _K.SINGULAR_NAMES
-#: Names of the failed construction step by code (C++ ``IKStep``): 0 none, 1 shoulder, 2 elbow.
+#: Names of the failed step by code (C++ ``IKStep``): 0 none, 1 shoulder, 2 elbow, 3 fk_check.
 STEP_NAMES: Tuple[str, ...] = _K.STEP_NAMES
 #: (8, 3) int8, read-only: the configuration (shoulder, elbow, wrist) stored at each solution index.
 CONFIGS: np.ndarray = _K.CONFIGS

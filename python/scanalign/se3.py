@@ -10,6 +10,7 @@ arrays ``T_to_from`` mapping ``from``-frame coordinates (metres) into the ``to``
 from __future__ import annotations
 
 import math
+import numbers
 from typing import Optional, Sequence, Tuple
 
 import numpy as np
@@ -26,9 +27,22 @@ ROTATION_TOLERANCE: float = _core.registration.RIGID_TOLERANCE
 ROW_TOLERANCE: float = _core.registration.RIGID_ROW_TOLERANCE
 
 
+def _real(x: object, name: str, *tail: int) -> np.ndarray:
+    """``x`` as a float64 array of shape ``(..., *tail)``; TypeError (not real: strings, None,
+    complex) or ValueError (another shape) naming ``name``."""
+    if (a := np.asarray(x)).dtype.kind not in "biuf":
+        raise TypeError(f"{name}: expected real numbers, got dtype {a.dtype}")
+    if a.ndim < len(tail) or a.shape[a.ndim - len(tail):] != tail:
+        raise ValueError(f"{name}: expected shape (..., {', '.join(map(str, tail))}), got {a.shape}")
+    return a.astype(np.float64)
+
+
 def rotation_about(axis: Sequence[float], angle: float) -> np.ndarray:
-    """3x3 rotation of ``angle`` radians about ``axis`` (any length > 0), Rodrigues' formula."""
-    a = np.asarray(axis, dtype=np.float64)
+    """3x3 rotation of ``angle`` radians about ``axis`` (any finite length > 0), Rodrigues' formula."""
+    if (a := _real(axis, "axis", 3)).ndim != 1 or not np.linalg.norm(a) > 0 or not np.all(np.isfinite(a)):
+        raise ValueError(f"axis: expected 3 finite coordinates, not all zero, got {a}")
+    if not isinstance(angle, numbers.Real) or not math.isfinite(angle):
+        raise (ValueError if isinstance(angle, numbers.Real) else TypeError)(f"angle: expected radians, got {angle!r}")
     a = a / np.linalg.norm(a)
     K = np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
     return np.eye(3) + math.sin(angle) * K + (1.0 - math.cos(angle)) * K @ K
@@ -39,13 +53,13 @@ def rigid(axis: Sequence[float], angle: float, t: Sequence[float]) -> np.ndarray
     ``t`` (metres)."""
     T = np.eye(4)
     T[:3, :3] = rotation_about(axis, angle)
-    T[:3, 3] = t
+    T[:3, 3] = _real(t, "t", 3)
     return T
 
 
 def inverse(T: np.ndarray) -> np.ndarray:
     """Inverse of rigid transforms (..., 4, 4): ``[R^T, -R^T t]``, exact (no matrix inversion)."""
-    R = T[..., :3, :3]
+    R = (T := _real(T, "T", 4, 4))[..., :3, :3]
     Rt = np.swapaxes(R, -1, -2)
     out = np.zeros_like(T)
     out[..., :3, :3] = Rt
@@ -60,6 +74,7 @@ def rotation_angle(R: np.ndarray) -> np.ndarray:
     ``atan2(|axis| 2 sin(theta), 2 cos(theta))`` from the skew and trace parts: accurate to
     rounding over the whole range, unlike ``arccos((trace - 1) / 2)`` near 0 and pi.
     """
+    R = _real(R, "R", 3, 3)
     v = np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], axis=-1)
     tr = R[..., 0, 0] + R[..., 1, 1] + R[..., 2, 2]
     return np.arctan2(np.linalg.norm(v, axis=-1), tr - 1.0)
@@ -68,7 +83,7 @@ def rotation_angle(R: np.ndarray) -> np.ndarray:
 def pose_error(T_est: np.ndarray, T_ref: np.ndarray) -> Tuple[float, float]:
     """(rotation error in radians, translation error in metres) of ``T_est`` relative to
     ``T_ref``: the angle and length of ``T_ref^-1 T_est``."""
-    E = inverse(np.asarray(T_ref, dtype=np.float64)) @ np.asarray(T_est, dtype=np.float64)
+    E = inverse(as_transform(T_ref, "T_ref")) @ as_transform(T_est, "T_est")
     return float(rotation_angle(E[:3, :3])), float(np.linalg.norm(E[:3, 3]))
 
 
@@ -76,7 +91,9 @@ def rigid_problem(m: np.ndarray) -> Optional[str]:
     """Why the 4x4 matrix ``m`` is not a rigid transform, or None when it is: finite, last
     row (0, 0, 0, 1) to ROW_TOLERANCE, rotation part orthonormal to ROTATION_TOLERANCE with
     determinant +1. The check is the C++ core's (``rigidProblem``), called directly."""
-    return _core.registration.rigid_problem(np.asarray(m, dtype=np.float64))
+    if (a := _real(m, "m", 4, 4)).ndim != 2:
+        raise ValueError(f"m: expected a 4x4 matrix, got shape {a.shape}")
+    return _core.registration.rigid_problem(a)
 
 
 def require_rigid(T: object, name: str) -> np.ndarray:

@@ -26,6 +26,7 @@
 #include <type_traits>
 #include <vector>
 
+#include <Eigen/Eigenvalues>
 #include <pcl/common/common.h>
 #include <pcl/features/3dsc.h>
 #include <pcl/features/fpfh_omp.h>
@@ -518,6 +519,22 @@ bool alignWithPpf(const Cloud::Ptr& source, const Cloud::Ptr& target, const PclF
   return true;
 }
 
+/// Whether the cloud's points span a plane: collinear or coincident points (the second
+/// eigenvalue of their scatter ~ 0) leave the rotation about their line undetermined, and
+/// PCL's matchers would still "converge" on them.
+bool spansPlane(const Cloud& c) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& p : c.points) mean += Eigen::Vector3d(p.x, p.y, p.z);
+  mean /= static_cast<double>(c.size());
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  for (const auto& p : c.points) {
+    const Eigen::Vector3d d = Eigen::Vector3d(p.x, p.y, p.z) - mean;
+    C += d * d.transpose();
+  }
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C, Eigen::EigenvaluesOnly).eigenvalues();
+  return ev(2) > 0 && ev(1) > 1e-10 * ev(2);  // float input: relative 1e-10 is rounding
+}
+
 }  // namespace
 
 PclFeatureAlignmentResult pclFeatureAlignment(const CloudView<float>& source, const CloudView<float>& target,
@@ -555,6 +572,12 @@ PclFeatureAlignmentResult pclFeatureAlignment(const CloudView<float>& source, co
     result.message = os.str();
     return finish();
   }
+  for (const auto& [cloud, name] : {std::pair{src, "source"}, std::pair{tgt, "target"}})
+    if (!spansPlane(*cloud)) {
+      result.message = std::string("degenerate: the ") + name +
+                       " points are collinear or coincident, so the rotation about their line is undetermined";
+      return finish();
+    }
 
   // Stage 2: descriptors (added to feature_seconds) and matching.
   bool ran = false;
@@ -571,6 +594,10 @@ PclFeatureAlignmentResult pclFeatureAlignment(const CloudView<float>& source, co
   // Stage 3: score on the downsampled clouds with points that have normals (the ones
   // counted in source_points / target_points), independent of the matcher's own error.
   score(*src, *tgt, result.T_target_source, settings.inlier_threshold, result);
+  if (result.converged && !result.T_target_source.allFinite()) {
+    result.converged = false;
+    result.message = "the matcher returned a non-finite transform";
+  }
   return finish();
 }
 

@@ -66,6 +66,10 @@ SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, cons
     if (w == 0) continue;  // zero weight: the point is removed
     if (!points.isFinite(i)) throw std::invalid_argument("fitSphere: points[" + std::to_string(i) +
                                   "] is not finite (give it weight 0 to remove it)");
+    // The dual sphere holds 1/2 (|c|^2 - r^2) (4.60): beyond ~1e150 m it overflows to inf.
+    if (points[i].template cast<double>().cwiseAbs().maxCoeff() > kMaxSphereCoordinate)
+      throw std::invalid_argument("fitSphere: points[" + std::to_string(i) +
+                                  "]: overflow: coordinates beyond ~1e150 m (the dual sphere squares them)");
     ++count;
     wsum += w;
     sum += w * points[i].template cast<double>();

@@ -19,6 +19,10 @@ namespace {
 constexpr double kPi = M_PI;
 constexpr double kTwoPi = 2 * M_PI;
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+/// Largest |h^2/r^2| of an imaginary elbow pair that is still tried as tangent (then polished
+/// and verified by forward kinematics): 1e-6 is ~2e-7 m of reach on a 0.4 m link; near the
+/// wrist singularity it grows as 1e-14 / sin(theta5), the error of the wrist point P4.
+constexpr double kNearTangent = 1e-6;
 
 using Vector3d = Eigen::Vector3d;
 using Matrix3d = Eigen::Matrix3d;
@@ -503,7 +507,14 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKSettings&
       const Vector3d P3 = std::abs(Q3.a.dot(z1)) <= std::abs(Q3.b.dot(z1)) ? Q3.a : Q3.b;
       // (52)-(53): P2 from (P1 − ½a2² e∞) ∧ (P3 − ½a3² e∞) ∧ Π_c.
       const PointPair Q2 = meet3(dualSphere(P1, a2 * a2), dualSphere(P3, a3 * a3), Pi_c);
-      const int real2 = reality(Q2, tol);
+      int real2 = reality(Q2, tol);
+      // A stretched (or folded) arm with a nearly singular wrist: P4 comes from two nearly
+      // parallel planes (z1 x a_e ~ sin theta5) and carries an error ~1e-16 / sin(theta5) m, enough
+      // to push a tangent elbow pair to a slightly negative discriminant (about 12 % of such
+      // reachable UR5 poses were reported unreachable). Solve it as tangent; the forward
+      // kinematics check in solve() keeps the solution only if it really reaches the pose.
+      const double near_tangent = wrist_singular ? kNearTangent : std::min(1e-3, kNearTangent + 1e-14 / c15.norm());
+      if (real2 < 0 && !Q2.degenerate && Q2.discriminant >= -near_tangent) real2 = 0;
       if (real2 < 0) {
         // both elbows of this shoulder / wrist branch
         for (int e = 1; e >= -1; e -= 2) {
@@ -580,6 +591,64 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKSettings&
 
 bool validPose(const Eigen::Isometry3d& T) { return isRigid(T.matrix()); }
 
+/// Pose error of FK(q) against T: (position difference, m; rotation vector of R_T R_F^T, rad,
+/// first order).
+Eigen::Matrix<double, 6, 1> poseError(const Robot& robot, const Vector6d& q, const Eigen::Isometry3d& T) {
+  const Eigen::Isometry3d F = robot.forward(q);
+  const Matrix3d E = T.linear() * F.linear().transpose();
+  Eigen::Matrix<double, 6, 1> r;
+  r << T.translation() - F.translation(), 0.5 * Vector3d(E(2, 1) - E(1, 2), E(0, 2) - E(2, 0), E(1, 0) - E(0, 1));
+  return r;
+}
+
+/// A few damped Gauss-Newton steps on the joints (Levenberg 1944; Marquardt 1963) from an
+/// analytic solution that misses the pose by rounding: near the wrist singularity the wrist point
+/// P4 comes from two nearly parallel planes and carries an error ~1e-16 / sin(theta5) m, and with a
+/// stretched elbow that error reaches the angles undamped. The damping keeps the step bounded in
+/// the singular directions, where the pose does not depend on the joints.
+void polish(const Robot& robot, const Eigen::Isometry3d& T, Vector6d& q) {
+  Eigen::Matrix<double, 6, 1> r = poseError(robot, q, T);
+  for (int it = 0; it < 8 && r.cwiseAbs().maxCoeff() > 1e-14; ++it) {
+    Eigen::Matrix<double, 6, 6> J;
+    for (int k = 0; k < 6; ++k) {
+      Vector6d h = Vector6d::Zero();
+      h[k] = 1e-6;
+      J.col(k) = (poseError(robot, q - h, T) - poseError(robot, q + h, T)) / 2e-6;  // d(FK)/dq
+    }
+    Eigen::Matrix<double, 6, 6> A = J.transpose() * J;
+    A.diagonal().array() += 1e-12 * (1.0 + A.diagonal().maxCoeff());
+    const Vector6d dq = A.ldlt().solve(J.transpose() * r);
+    const Vector6d qn = q + dq;
+    const Eigen::Matrix<double, 6, 1> rn = poseError(robot, qn, T);
+    if (!(rn.squaredNorm() < r.squaredNorm())) break;
+    q = qn;
+    r = rn;
+  }
+}
+
+/// Demotes every solution whose forward kinematics misses the target (ik.hpp, IKStep::FkCheck),
+/// after polishing the ones that miss by rounding: no solution is reported Ok unless FK(q) is
+/// the pose it was asked for.
+void verifyByForwardKinematics(const Robot& robot, const Eigen::Isometry3d& T, IKResult& res) {
+  const Matrix3d R = T.linear();
+  const double e = (R.transpose() * R - Matrix3d::Identity()).cwiseAbs().maxCoeff();
+  const double pos_tol = kIKPositionTolerance + e * armScale(robot);
+  const double rot_tol = kIKRotationTolerance + 2 * e;
+  for (IKSolution& s : res.solutions) {
+    if (s.status != IKStatus::Ok && s.status != IKStatus::OutsideLimits) continue;
+    if (e < 1e-12 && poseError(robot, s.q, T).cwiseAbs().maxCoeff() > 1e-12) polish(robot, T, s.q);
+    const Eigen::Isometry3d F = robot.forward(s.q);
+    const double dp = (F.translation() - T.translation()).cwiseAbs().maxCoeff();
+    const double dr = (F.linear() - R).cwiseAbs().maxCoeff();
+    if (dp <= pos_tol && dr <= rot_tol) continue;
+    const IKConfig c = s.config;
+    s = IKSolution{};
+    s.config = c;
+    s.status = IKStatus::Unreachable;
+    s.unreachable_step = IKStep::FkCheck;
+  }
+}
+
 IKResult solve(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKSettings& o, Recorder* rec) {
   IKResult res;
   for (int k = 0; k < 8; ++k) res.solutions[static_cast<std::size_t>(k)].config = configFromIndex(k);
@@ -597,6 +666,7 @@ IKResult solve(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const I
     solveSphericalWrist(robot, t, o, res, rec);
   else
     solveUniversalRobots(robot, t, o, res, rec);
+  verifyByForwardKinematics(robot, T_base_tool, res);
   res.status = IKStatus::Unreachable;
   for (const auto& s : res.solutions) {
     if (s.status == IKStatus::Ok) {

@@ -11,6 +11,7 @@
 #include <numeric>
 #include <queue>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 #include <Eigen/Eigenvalues>
@@ -28,6 +29,7 @@ int threadsOf(int n) { return resolveThreads(n); }
 void validate(const CbdSettings& s) {
   if (!(s.radius > 0) || !std::isfinite(s.radius))
     throw std::invalid_argument("CBD: radius must be a finite positive distance in metres");
+  if (s.radius > kMaxCbdCoordinate) throw std::invalid_argument("CBD: radius beyond 1e100 m (overflow)");
   if (!(s.gamma >= 0) || !std::isfinite(s.gamma)) throw std::invalid_argument("CBD: gamma must be finite and >= 0 (1/m)");
   if (s.min_neighbors != 0 && s.min_neighbors < 5)
     throw std::invalid_argument("CBD: min_neighbors must be 0 (automatic) or >= 5 (a sphere fit needs 5 points)");
@@ -193,6 +195,19 @@ class DescriptorTree4 {
   std::vector<std::uint8_t> axis_;
 };
 
+/// Refuses a finite coordinate beyond kMaxCbdCoordinate: the neighbourhood scatter and the
+/// conformal points square differences of coordinates, and beyond it they overflow to inf/NaN.
+template <typename Scalar>
+void requireCbdCoordinates(const CloudView<Scalar>& points, const char* what) {
+  for (std::size_t i = 0; i < points.size; ++i)
+    if (points.isFinite(i)) {
+      const Scalar* p = points.ptr(i);
+      if (std::max({std::abs(double(p[0])), std::abs(double(p[1])), std::abs(double(p[2]))}) > kMaxCbdCoordinate)
+        throw std::invalid_argument(std::string(what) + ": points[" + std::to_string(i) +
+                                    "]: overflow: coordinates beyond 1e100 m");
+    }
+}
+
 /// PCA of every point over an existing tree of the same cloud (computeCbd reuses the tree
 /// for the sphere fits instead of building a second one).
 template <typename Scalar>
@@ -218,6 +233,8 @@ std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, 
   if (!(radius > 0) || !std::isfinite(radius))
     throw std::invalid_argument("neighbourhoodPca: radius must be a finite positive distance in metres");
   if (num_threads < 0) throw std::invalid_argument("neighbourhoodPca: num_threads must be >= 0");
+  if (radius > kMaxCbdCoordinate) throw std::invalid_argument("neighbourhoodPca: radius beyond 1e100 m (overflow)");
+  requireCbdCoordinates(points, "neighbourhoodPca");
   if (points.size == 0) return {};
   return pcaOverTree(points, LeftBalancedKdTree<Scalar>(points), radius, num_threads);
 }
@@ -286,6 +303,7 @@ template <typename Scalar>
 CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& settings,
                        const ShapeThresholds* thresholds_override) {
   validate(settings);
+  requireCbdCoordinates(points, "computeCbd");
   const auto t0 = std::chrono::steady_clock::now();
   CbdFeatures out;
   const int threads = threadsOf(settings.num_threads);
@@ -381,6 +399,11 @@ CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& setti
       out.scalar[j] = F;
     }
   }
+  // A descriptor is only handed out finite (coordinates and radius are bounded above, so this
+  // is a guard, not an expected path).
+  for (std::size_t j = 0; j < nk; ++j)
+    if (!out.descriptors[j].allFinite() || !std::isfinite(out.scalar[j]))
+      throw std::runtime_error("computeCbd: non-finite descriptor at keypoint " + std::to_string(out.keypoints[j]));
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return out;
 }

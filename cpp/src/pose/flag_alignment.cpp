@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 #include <Eigen/Dense>
 #include <Eigen/Geometry>
@@ -35,6 +36,42 @@ Eigen::Matrix4d twist(const Eigen::Matrix<double, 6, 1>& xi) {
   if (a > 0) D.topLeftCorner<3, 3>() = Eigen::AngleAxisd(a, w / a).toRotationMatrix();
   D.topRightCorner<3, 1>() = xi.tail<3>();
   return D;
+}
+
+/// Why a cloud's usable points (finite point, non-zero normal) cannot give a flag: fewer than
+/// min_points, or collinear / coincident (the second singular value of their spread ~ 0), or
+/// nullptr. Throws for a coordinate beyond kMaxFlagCoordinate.
+template <typename Scalar>
+std::string pointsProblem(const CloudView<Scalar>& points, const CloudView<Scalar>& normals, std::size_t min_points,
+                          const char* what) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::size_t n = 0;
+  const auto usable = [&](std::size_t i) {
+    return points.isFinite(i) && normals.isFinite(i) && normals[i].template cast<double>().norm() > 0;
+  };
+  for (std::size_t i = 0; i < points.size; ++i) {
+    if (!usable(i)) continue;
+    const Eigen::Vector3d x = points[i].template cast<double>();
+    if (x.cwiseAbs().maxCoeff() > kMaxFlagCoordinate)
+      throw std::invalid_argument(std::string("alignFlags: ") + what + " has coordinates beyond 1e6 m (point " +
+                                  std::to_string(i) + "); the flag cost mixes metres and radians");
+    mean += x;
+    ++n;
+  }
+  if (n < min_points)
+    return std::string(what) + " has " + std::to_string(n) + " usable points (finite, non-zero normal), fewer than " +
+           "min_points = " + std::to_string(min_points);
+  mean /= double(n);
+  Eigen::Matrix3d C = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < points.size; ++i)
+    if (usable(i)) {
+      const Eigen::Vector3d d = points[i].template cast<double>() - mean;
+      C += d * d.transpose();
+    }
+  const Eigen::Vector3d ev = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(C, Eigen::EigenvaluesOnly).eigenvalues();
+  if (!(ev(2) > 0) || ev(1) <= 1e-12 * ev(2))
+    return std::string(what) + ": the points are collinear or coincident (no surface patch to align)";
+  return {};
 }
 
 /// A right-handed frame (d, u, d × u).
@@ -95,6 +132,12 @@ FlagAlignmentResult alignFlags(const CloudView<Scalar>& source, const CloudView<
   FlagAlignmentResult out;
   out.source_flag = normalLineFlag(source, source_normals);
   out.target_flag = normalLineFlag(target, target_normals);
+  for (const std::string& problem : {pointsProblem(source, source_normals, s.min_points, "source"),
+                                     pointsProblem(target, target_normals, s.min_points, "target")})
+    if (!problem.empty()) {
+      out.message = problem;
+      return out;
+    }
   const NormalLineFlag &Y = out.source_flag, &X = out.target_flag;
   for (const NormalLineFlag* f : {&X, &Y})
     if (f->mean_normal_length < s.min_mean_normal_length) {
@@ -154,6 +197,11 @@ FlagAlignmentResult alignFlags(const CloudView<Scalar>& source, const CloudView<
   out.T_target_source = T;
   out.iterations = std::min(it, s.max_iterations);
   out.cost = cost(T);
+  if (!T.allFinite() || !std::isfinite(out.cost)) {
+    out.T_target_source.setIdentity();
+    out.message = "the alignment did not give a finite motor";
+    return out;
+  }
   out.valid = true;
   return out;
 }

@@ -85,6 +85,18 @@ void checkMesh(const CloudView<double>& V, const std::int32_t* faces, std::size_
   for (std::size_t k = 0; k < 3 * n_faces; ++k)
     if (faces[k] < 0 || static_cast<std::size_t>(faces[k]) >= V.size)
       throw std::invalid_argument("mesh faces: vertex index out of range");
+  // A mesh whose every triangle is degenerate renders nothing: say so, rather than reporting
+  // later that no view found a consensus.
+  Eigen::Vector3d lo = V[0], hi = V[0];
+  for (std::size_t i = 1; i < V.size; ++i) lo = lo.cwiseMin(V[i]), hi = hi.cwiseMax(V[i]);
+  const double extent2 = (hi - lo).squaredNorm();
+  bool any_area = false;
+  for (std::size_t f = 0; f < n_faces && !any_area; ++f) {
+    const Eigen::Vector3d a = V[faces[3 * f]], b = V[faces[3 * f + 1]], c = V[faces[3 * f + 2]];
+    any_area = (b - a).cross(c - a).norm() > 1e-12 * extent2;
+  }
+  if (!any_area)
+    throw std::invalid_argument("mesh faces: every triangle has zero area (repeated or collinear vertices)");
 }
 
 // Face normals by the right-hand rule; a degenerate triangle gets a zero normal (it is never
@@ -130,6 +142,19 @@ std::vector<ModelView> renderModelViews(const CloudView<double>& V, const std::i
                                         const ModelViewSettings& s) {
   checkMesh(V, faces, n_faces);
   const PinholeIntrinsics K = viewIntrinsics(s.resolution, s.view_angle);
+  if (s.level < 0 || s.level > 6)
+    throw std::invalid_argument("level must be in [0, 6], got " + std::to_string(s.level));
+  if (!(s.max_memory_bytes > 0)) throw std::invalid_argument("max_memory_bytes must be > 0");
+  // Refuse before allocating: every view may hold a point per pixel.
+  const double n_views = 10.0 * std::pow(4.0, s.level) + 2.0;
+  const double need = n_views * double(s.resolution) * double(s.resolution) * kModelViewBytesPerPixel;
+  if (need > s.max_memory_bytes)
+    throw std::invalid_argument("model views: " + std::to_string(static_cast<long long>(n_views)) + " views of " +
+                                std::to_string(s.resolution) + "^2 pixels may need " +
+                                std::to_string(static_cast<long long>(need / (1 << 20))) +
+                                " MiB, more than max_memory_bytes (" +
+                                std::to_string(static_cast<long long>(s.max_memory_bytes / (1 << 20))) +
+                                " MiB); lower resolution or level, or raise max_memory_bytes");
   Eigen::Vector3d lo = V[0], hi = V[0];
   for (std::size_t i = 1; i < V.size; ++i) {
     lo = lo.cwiseMin(V[i]);

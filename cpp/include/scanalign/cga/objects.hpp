@@ -20,6 +20,12 @@ using Vector3 = Eigen::Vector3d;
 using Vector5 = Eigen::Matrix<double, 5, 1>;
 using Matrix5 = Eigen::Matrix<double, 5, 5>;
 
+/// Largest coordinate (metres) or length the objects accept: up(x) squares |x| (4.54) and the
+/// products square again, so 1e150 keeps every coefficient of a point, sphere, plane, line or
+/// motor built from it finite in double precision (max ~1.8e308). Beyond it a ValueError
+/// ("overflow") is raised instead of returning an object with inf or NaN coefficients.
+inline constexpr double kMaxCoordinate = 1e150;
+
 namespace detail {
 inline void requireFinite(const Vector3& v, const char* what) {
   if (!v.allFinite()) throw std::invalid_argument(std::string("cga: ") + what + " is not finite");
@@ -27,6 +33,19 @@ inline void requireFinite(const Vector3& v, const char* what) {
 inline void requireFinite(double v, const char* what) {
   if (!std::isfinite(v)) throw std::invalid_argument(std::string("cga: ") + what + " is not finite");
 }
+/// Finite and within kMaxCoordinate: a position (metres) or a length that gets squared.
+inline void requireCoordinate(const Vector3& v, const char* what) {
+  requireFinite(v, what);
+  if (v.cwiseAbs().maxCoeff() > kMaxCoordinate)
+    throw std::invalid_argument(std::string("cga: ") + what + ": overflow: coordinates beyond ~1e150 m");
+}
+inline void requireCoordinate(double v, const char* what) {
+  requireFinite(v, what);
+  if (std::abs(v) > kMaxCoordinate)
+    throw std::invalid_argument(std::string("cga: ") + what + ": overflow: values beyond ~1e150 m");
+}
+/// |v| without overflow for components up to DBL_MAX (|n| of a 1e300 normal is not inf).
+inline double safeNorm(const Vector3& v) { return v.stableNorm(); }
 inline void requireFinite(const Multivector& m, const char* what) {
   if (!m.allFinite()) throw std::invalid_argument(std::string("cga: ") + what + " is not finite");
 }
@@ -68,7 +87,7 @@ inline Matrix5 innerProductMatrix() {
 
 /// up(x) = x + 1/2 x^2 einf + e0 (4.54).
 inline Multivector up(const Vector3& x) {
-  detail::requireFinite(x, "point");
+  detail::requireCoordinate(x, "point");
   return fromVector5((Vector5() << x, 0.5 * x.squaredNorm(), 1.0).finished());
 }
 /// Euclidean point of a (possibly scaled) conformal point: x = P / (-einf . P), Euclidean part.
@@ -79,7 +98,9 @@ inline Vector3 down(const Multivector& P) {
   const double w = v[4];
   if (!(std::abs(w) > 1e-12 * std::max(1.0, v.head<3>().norm())))
     throw std::domain_error("cga: down() of a multivector with zero e0 coefficient (not a finite point)");
-  return v.head<3>() / w;
+  const Vector3 x = v.head<3>() / w;
+  detail::requireCoordinate(x, "down() result");
+  return x;
 }
 /// P scaled so that -einf . P = 1 (e0 coefficient 1).
 inline Multivector normalisePoint(const Multivector& P) { return up(down(P)); }
@@ -95,14 +116,16 @@ struct Sphere {
 
   Sphere() = default;
   Sphere(const Vector3& c, double radius) : center(c), radius2(radius * radius) {
-    detail::requireFinite(c, "sphere centre");
-    detail::requireFinite(radius, "sphere radius");
+    detail::requireCoordinate(c, "sphere centre");
+    detail::requireCoordinate(radius, "sphere radius");
     if (radius < 0) throw std::invalid_argument("cga: sphere radius must be >= 0");
   }
   static Sphere withRadius2(const Vector3& c, double r2) {
     Sphere s;
-    detail::requireFinite(c, "sphere centre");
+    detail::requireCoordinate(c, "sphere centre");
     detail::requireFinite(r2, "sphere radius^2");
+    if (std::abs(r2) > kMaxCoordinate * kMaxCoordinate)
+      throw std::invalid_argument("cga: sphere radius^2: overflow: radius beyond ~1e150 m");
     s.center = c;
     s.radius2 = r2;
     return s;
@@ -142,14 +165,14 @@ struct Plane {
   /// n need not be unit (it is normalised); throws for a zero normal.
   Plane(const Vector3& n, double delta) {
     detail::requireFinite(n, "plane normal");
-    detail::requireFinite(delta, "plane distance");
-    const double l = n.norm();
+    detail::requireCoordinate(delta, "plane distance");
+    const double l = detail::safeNorm(n);
     if (!(l > 1e-12)) throw std::invalid_argument("cga: plane normal is zero");
     normal = n / l;
     distance = delta / l;
   }
   static Plane throughPoint(const Vector3& n, const Vector3& p) {
-    detail::requireFinite(p, "plane point");
+    detail::requireCoordinate(p, "plane point");
     const Plane q(n, 0.0);
     return Plane(q.normal, q.normal.dot(p));
   }
@@ -186,9 +209,9 @@ struct Line {
 
   Line() = default;
   Line(const Vector3& p, const Vector3& d) {
-    detail::requireFinite(p, "line point");
+    detail::requireCoordinate(p, "line point");
     detail::requireFinite(d, "line direction");
-    const double l = d.norm();
+    const double l = detail::safeNorm(d);
     if (!(l > 1e-12)) throw std::invalid_argument("cga: line direction is zero");
     direction = d / l;
     point = p - direction * direction.dot(p);
@@ -234,8 +257,9 @@ inline Multivector euclideanDual(const Multivector& A) { return -(A * Multivecto
 /// (right-handed) turns a vector in N by +theta in the sense of (17).
 inline Multivector rotationPlaneFromAxis(const Vector3& axis) {
   detail::requireFinite(axis, "rotation axis");
-  if (!(axis.norm() > 1e-12)) throw std::invalid_argument("cga: rotation axis is zero");
-  return Multivector::vector(axis.normalized()) * Multivector::pseudoscalar3();
+  const double l = detail::safeNorm(axis);
+  if (!(l > 1e-12)) throw std::invalid_argument("cga: rotation axis is zero");
+  return Multivector::vector(axis / l) * Multivector::pseudoscalar3();
 }
 /// The unit rotation axis N* = N I3^{-1} of a Euclidean bivector N (normalised). Throws when N
 /// has components outside e12, e13, e23 or is zero.
@@ -408,7 +432,7 @@ struct Point {
   Vector3 position = Vector3::Zero();  ///< m
 
   Point() = default;
-  explicit Point(const Vector3& x) : position(x) { detail::requireFinite(x, "point"); }
+  explicit Point(const Vector3& x) : position(x) { detail::requireCoordinate(x, "point"); }
   /// From a conformal point of any scale (down(), throws for a point at infinity).
   static Point fromMultivector(const Multivector& P) { return Point(down(P)); }
   Multivector multivector() const { return up(position); }
@@ -423,12 +447,13 @@ struct Circle {
 
   Circle() = default;
   Circle(const Vector3& c, const Vector3& n, double r) : center(c), radius(r) {
-    detail::requireFinite(c, "circle centre");
+    detail::requireCoordinate(c, "circle centre");
     detail::requireFinite(n, "circle normal");
-    detail::requireFinite(r, "circle radius");
-    if (!(n.norm() > 1e-12)) throw std::invalid_argument("cga: circle normal is zero");
+    detail::requireCoordinate(r, "circle radius");
+    const double l = detail::safeNorm(n);
+    if (!(l > 1e-12)) throw std::invalid_argument("cga: circle normal is zero");
     if (r < 0) throw std::invalid_argument("cga: circle radius must be >= 0");
-    normal = n.normalized();
+    normal = n / l;
   }
   static Circle throughPoints(const Vector3& a, const Vector3& b, const Vector3& c) {
     return fromDirect(circle(a, b, c));
@@ -479,18 +504,31 @@ inline PointPair meetPlaneCirclePair(const Plane& p, const Multivector& dualCirc
 // Distances (4.56), (4.67), P5(10)
 // ---------------------------------------------------------------------------
 
-/// |a - b| from d^2 = -2 PA.PB (4.56).
+// The inner products below are invariant under translations (a rigid motion preserves X . Y),
+// and each is evaluated with its first argument moved to the origin. Evaluated in place, the
+// null vectors of points far from the origin carry 1/2 |x|^2 in both e+ and e-, and the products
+// cancel them: at |x| = 1e6 m the distance of two points 1 m apart came out as 8192 m.
+
+/// |a - b| from d^2 = -2 PA.PB (4.56), with a moved to the origin (PA = e0).
 inline double pointDistance(const Vector3& a, const Vector3& b) {
-  return std::sqrt(std::max(0.0, -2.0 * up(a).inner(up(b)).scalar()));
+  detail::requireCoordinate(a, "point");
+  return std::sqrt(std::max(0.0, -2.0 * Multivector::e0().inner(up(b - a)).scalar()));
 }
 /// Signed distance P.Pi* = p.n - delta (4.67): positive on the side the normal points to.
-inline double pointPlaneDistance(const Vector3& x, const Plane& p) { return up(x).inner(p.dual()).scalar(); }
+inline double pointPlaneDistance(const Vector3& x, const Plane& p) {
+  detail::requireCoordinate(x, "point");
+  return Multivector::e0().inner(Plane(p.normal, p.distance - p.normal.dot(x)).dual()).scalar();
+}
 /// S*.P = 1/2 (r^2 - |p-c|^2) (Paper 5 eq. (10)): > 0 inside, 0 on, < 0 outside.
-inline double spherePointInner(const Sphere& s, const Vector3& x) { return s.dual().inner(up(x)).scalar(); }
+inline double spherePointInner(const Sphere& s, const Vector3& x) {
+  detail::requireCoordinate(x, "point");
+  return Sphere::withRadius2(Vector3::Zero(), s.radius2).dual().inner(up(x - s.center)).scalar();
+}
 /// Distance from the sphere's centre, d_c^2 = S.S - 2 S.P (P5(10)).
 inline double pointSphereCenterDistance(const Vector3& x, const Sphere& s) {
-  const Multivector S = s.dual();
-  return std::sqrt(std::max(0.0, S.inner(S).scalar() - 2 * S.inner(up(x)).scalar()));
+  detail::requireCoordinate(x, "point");
+  const Multivector S = Sphere::withRadius2(Vector3::Zero(), s.radius2).dual();
+  return std::sqrt(std::max(0.0, S.inner(S).scalar() - 2 * S.inner(up(x - s.center)).scalar()));
 }
 /// Signed distance to the surface of a real sphere: |x - c| - r (> 0 outside).
 inline double pointSphereDistance(const Vector3& x, const Sphere& s) {
@@ -514,12 +552,13 @@ inline Multivector rotorFromQuaternion(const Eigen::Quaterniond& q) {
 inline Multivector rotor(const Vector3& axis, double angle) {
   detail::requireFinite(axis, "rotation axis");
   detail::requireFinite(angle, "rotation angle");
-  if (!(axis.norm() > 1e-12)) throw std::invalid_argument("cga: rotation axis is zero");
-  return rotorFromQuaternion(Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis.normalized())));
+  const double l = detail::safeNorm(axis);
+  if (!(l > 1e-12)) throw std::invalid_argument("cga: rotation axis is zero");
+  return rotorFromQuaternion(Eigen::Quaterniond(Eigen::AngleAxisd(angle, axis / l)));
 }
 /// T = 1 - 1/2 t einf (Paper 4 §3.5).
 inline Multivector translator(const Vector3& t) {
-  detail::requireFinite(t, "translation");
+  detail::requireCoordinate(t, "translation");
   return Multivector(1.0) - Multivector::vector(t).outer(Multivector::eInf()) * 0.5;
 }
 

@@ -19,16 +19,21 @@ struct ShapeFactors {
 };
 
 /// Shape factors of eigenvalues l1 >= l2 >= l3 >= 0 (6.1)-(6.3). The eigenvalues are sorted
-/// here (descending), so any order is accepted. Throws std::invalid_argument for NaN/Inf,
-/// a negative eigenvalue or a zero sum (no spread: the factors are undefined).
+/// here (descending), so any order is accepted, and scaled by the largest (any finite size
+/// works, the factors are always finite). Throws std::invalid_argument for NaN/Inf, a negative
+/// eigenvalue or a zero sum (no spread: the factors are undefined).
 inline ShapeFactors shapeFactors(double l1, double l2, double l3) {
   if (!std::isfinite(l1) || !std::isfinite(l2) || !std::isfinite(l3))
     throw std::invalid_argument("shapeFactors: eigenvalues must be finite");
   if (l1 < 0 || l2 < 0 || l3 < 0) throw std::invalid_argument("shapeFactors: eigenvalues must be >= 0");
   double a[3] = {l1, l2, l3};
   std::sort(a, a + 3, [](double x, double y) { return x > y; });
+  if (!(a[0] > 0)) throw std::invalid_argument("shapeFactors: eigenvalue sum is zero");
+  // The factors are scale-free: divide by the largest first, so that eigenvalues near the top of
+  // the double range (1e200 m coordinates give 1e400 m^2) cannot overflow the sum into inf/NaN.
+  const double top = a[0];
+  for (double& x : a) x /= top;
   const double s = a[0] + a[1] + a[2];
-  if (!(s > 0)) throw std::invalid_argument("shapeFactors: eigenvalue sum is zero");
   return {(a[0] - a[1]) / s, 2.0 * (a[1] - a[2]) / s, 3.0 * a[2] / s};
 }
 inline ShapeFactors shapeFactors(const Eigen::Vector3d& lambda) { return shapeFactors(lambda[0], lambda[1], lambda[2]); }

@@ -31,6 +31,10 @@ using Matrix5d = cga5::Mat5;
 /// Points (with positive weight) a sphere fit needs: four in general position determine a
 /// sphere exactly, a least-squares fit needs at least five.
 inline constexpr std::size_t kMinSpherePoints = 5;
+/// Largest coordinate (m) a sphere fit accepts: the dual sphere holds ½(c² − r²) (4.60), which
+/// overflows double precision beyond ~1e154; a larger coordinate is a std::invalid_argument
+/// ("overflow"), never a result with inf coefficients.
+inline constexpr double kMaxSphereCoordinate = 1e150;
 
 struct SphereFitOptions {
   /// The result is a plane when |e0 coefficient| <= plane_tolerance * |Euclidean part| of the
@@ -63,8 +67,8 @@ struct SphereFit {
 ///
 /// Requires at least kMinSpherePoints (5) points with positive weight.
 ///
-/// Throws std::invalid_argument for: fewer than 5 used points, a non-finite used point, a
-/// negative or non-finite weight, all weights zero, and degenerate data that does not
+/// Throws std::invalid_argument for: fewer than 5 used points, a non-finite used point, a used
+/// point beyond kMaxSphereCoordinate (1e150 m), a negative or non-finite weight, all weights zero, and degenerate data that does not
 /// determine a sphere or plane (coincident or collinear points, points on one circle).
 template <typename Scalar>
 SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights = nullptr,

@@ -86,7 +86,19 @@ enum class IKStep : std::uint8_t {
   None = 0,
   Shoulder = 1,  ///< UR: the horizon point pair Q_c (P5 within d4 of the first axis)
   Elbow = 2,     ///< the elbow point pair Q2 (wrist too far from / too close to the shoulder)
+  /// The construction gave angles whose forward kinematics misses the target by more than
+  /// kIKPositionTolerance / kIKRotationTolerance (rounding that the construction could not
+  /// absorb): reported as Unreachable rather than as a wrong answer.
+  FkCheck = 3,
 };
+
+/// Every solution reported Ok or OutsideLimits satisfies |FK(q) - T| <= these, on top of the
+/// target's own departure from a rotation (e = max |R^T R - I|, at most kRigidTolerance): position
+/// within kIKPositionTolerance + e * (sum of |a_i| + |d_i|) metres, every rotation-matrix entry
+/// within kIKRotationTolerance + 2 e. A solution that misses is demoted to Unreachable with
+/// unreachable_step FkCheck.
+inline constexpr double kIKPositionTolerance = 1e-6;  ///< m
+inline constexpr double kIKRotationTolerance = 1e-6;  ///< rotation-matrix entries (~rad)
 
 struct IKConfig {
   std::int8_t shoulder = 1;  ///< +1 front / -1 back (see the file comment)
@@ -160,7 +172,13 @@ struct IKSettings {
 };
 
 /// All (up to 8) solutions for a target tool pose T_base_tool (tool -> robot base, metres).
-/// Never throws for bad poses: they give IKStatus::InvalidInput.
+/// Never throws for bad poses: a non-finite or non-rigid pose (rigidProblem(), common/rigid.hpp)
+/// gives IKStatus::InvalidInput (the Python bindings raise ValueError naming the argument
+/// instead). Every Ok / OutsideLimits solution has been checked by forward kinematics
+/// (kIKPositionTolerance, kIKRotationTolerance). An elbow point pair that is imaginary only by
+/// rounding (normalised discriminant in [-1e-6, 0), as a stretched arm with a nearly singular
+/// wrist gives: the wrist point P4 then carries an error ~1e-16 / sin(theta5) m) is solved as
+/// tangent and kept only when that FK check passes.
 IKResult ik(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKSettings& options = {});
 
 struct ClosestSettings {

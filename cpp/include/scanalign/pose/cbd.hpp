@@ -106,8 +106,14 @@ struct CbdFeatures {
   double seconds = 0;                            ///< wall time
 };
 
+/// Largest coordinate and radius (m) the CBD functions accept: the neighbourhood scatter and
+/// the conformal points square coordinate differences, which overflow double precision beyond
+/// ~1e154; a larger value is a std::invalid_argument ("overflow"), never a NaN descriptor.
+inline constexpr double kMaxCbdCoordinate = 1e100;
+
 /// PCA of every point's neighbourhood of radius `radius` (m), by k-d tree radius search
-/// (paper 5 (11)). Non-finite points get count 0. Parallel over points.
+/// (paper 5 (11)). Non-finite points get count 0. Parallel over points. Throws
+/// std::invalid_argument for a bad radius or a coordinate beyond kMaxCbdCoordinate.
 template <typename Scalar>
 std::vector<NeighbourhoodPca> neighbourhoodPca(const CloudView<Scalar>& points, double radius, int num_threads = 0);
 
@@ -133,7 +139,8 @@ std::vector<std::uint32_t> automaticKeypoints(const std::vector<NeighbourhoodPca
 
 /// Full CBD of a cloud. `thresholds_override` (may be null) forces the Thresholds mode with
 /// these δ's (inclusive), e.g. δ's derived from the model cloud applied to the scene
-/// (paper 5 §III-B4). Throws std::invalid_argument for bad settings.
+/// (paper 5 §III-B4). Throws std::invalid_argument for bad settings or a coordinate / radius
+/// beyond kMaxCbdCoordinate; every descriptor returned is finite.
 template <typename Scalar>
 CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& settings,
                        const ShapeThresholds* thresholds_override = nullptr);

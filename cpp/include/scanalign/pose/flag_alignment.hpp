@@ -45,6 +45,9 @@ struct FlagAlignmentSettings {
   /// Refuse when the centroid is closer than this (m) to the average line: the rotation
   /// about the line is then undetermined.
   double min_centroid_offset = 1e-6;
+  /// Refuse when either cloud has fewer usable points (finite point, non-zero normal): the
+  /// average line of a handful of normals says nothing about the surface.
+  std::size_t min_points = 10;
   int max_iterations = 100;        ///< LM iterations
   double tolerance = 1e-12;        ///< stop when the cost decreases by less than this (relative)
 };
@@ -58,8 +61,15 @@ struct FlagAlignmentResult {
   std::string message;        ///< why it refused
 };
 
-/// Throws std::invalid_argument for bad settings or inputs; refusals (closed surface,
-/// undetermined rotation) are reported through valid = false.
+/// Largest coordinate (m) align_flags accepts: the cost mixes metres and radians without weights
+/// (paper 4), so far from the thesis's scale (parts of centimetres to metres) the radian terms
+/// vanish below the rounding of the metre terms and the rotation is not determined.
+inline constexpr double kMaxFlagCoordinate = 1e6;
+
+/// Throws std::invalid_argument for bad settings or inputs (mismatched sizes, no usable point, a
+/// coordinate beyond kMaxFlagCoordinate); refusals (fewer than min_points usable points,
+/// collinear or coincident points, a closed surface, an undetermined rotation, a non-finite
+/// result) are reported through valid = false with the reason in message.
 template <typename Scalar>
 FlagAlignmentResult alignFlags(const CloudView<Scalar>& source, const CloudView<Scalar>& source_normals,
                                const CloudView<Scalar>& target, const CloudView<Scalar>& target_normals,

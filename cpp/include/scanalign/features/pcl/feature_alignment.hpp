@@ -75,8 +75,9 @@ struct PclFeatureAlignmentResult {
 /// Coarse registration of `source` (e.g. a CAD model view) to `target` (e.g. a segmented
 /// object) with a stock PCL pipeline. Normals are estimated by PCL from the points (viewpoint
 /// at the origin). Throws std::invalid_argument for bad settings, an empty cloud, or
-/// SacIA with a descriptor other than FPFH. Too few points or descriptors after filtering
-/// is not an exception: converged = false and `message` says why.
+/// SacIA with a descriptor other than FPFH. Too few points or descriptors after filtering, and
+/// collinear or coincident points (message "degenerate: ...": the rotation about their line is
+/// undetermined), are not exceptions: converged = false and `message` says why.
 PclFeatureAlignmentResult pclFeatureAlignment(const CloudView<float>& source, const CloudView<float>& target,
                                               const PclFeatureAlignmentSettings& settings = {});
 
