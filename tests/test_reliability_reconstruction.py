@@ -194,6 +194,9 @@ def test_depth_to_cloud_refuses_absurd_scales_and_intrinsics_and_never_returns_n
     for scale in (1e300, 2.0, 0.0, -1e-3, math.nan, math.inf):
         with pytest.raises(ValueError, match="depth_scale"):
             depth_to_cloud(d, K, depth_scale=scale, max_depth=math.inf)
+    with pytest.raises(ValueError, match="depth_scale"):  # used to return infinite depths
+        Frame(d, K, depth_scale=1e300).depth_metres()
+    np.testing.assert_allclose(Frame(d, K, depth_scale=1 / 5000).depth_metres(), 0.2, rtol=1e-6)
     for bad in (dict(fx=0.0), dict(fx=-1.0), dict(fy=math.nan), dict(fx=1e-300), dict(cx=1e300), dict(width=0)):
         with pytest.raises(ValueError, match="intrinsics"):
             Intrinsics(**{**K.to_dict(), **bad})

@@ -167,12 +167,10 @@ class Frame:
     def depth_metres(self) -> np.ndarray:
         """The depth image as float32 metres, with NaN where there is no measurement."""
         d = np.asarray(self.depth)
-        if np.issubdtype(d.dtype, np.integer):
-            out = d.astype(np.float32) * np.float32(self.depth_scale)
-            out[d == 0] = np.nan
-            return out
-        out = d.astype(np.float32, copy=True)
-        out[~(out > 0)] = np.nan
+        if np.issubdtype(d.dtype, np.integer) and not 0 < self.depth_scale <= 1:  # as depth_to_cloud
+            raise ValueError(f"depth_scale must be in (0, 1] metres per unit, got {self.depth_scale!r}")
+        out = d.astype(np.float32) * np.float32(self.depth_scale if np.issubdtype(d.dtype, np.integer) else 1.0)
+        out[~(out > 0)] = np.nan  # 0 (also NaN, negative) = no measurement
         return out
 
     def with_depth(self, depth: np.ndarray) -> "Frame":
