@@ -303,12 +303,11 @@ def test_the_synthetic_scanner_refuses_absurd_parameters_naming_them():
                       (dict(radius=-0.1), "radius"), (dict(height=math.inf), "height")):
         with pytest.raises(ValueError, match=name):
             synthetic.SyntheticConfig(**bad)
-    for wh in ((0, 10), (10**6, 10**6)):
+    for wh in ((0, 10), (10**6, 10**6)):  # refused by the constructor, before anything is built
         with pytest.raises(ValueError, match="intrinsics"):
-            synthetic.SyntheticConfig(intrinsics=dict(width=wh[0], height=wh[1], fx=100, fy=100, cx=5, cy=5)
-                                      ).intrinsics_object()
+            synthetic.SyntheticConfig(intrinsics=dict(width=wh[0], height=wh[1], fx=100, fy=100, cx=5, cy=5))
     with pytest.raises(ValueError, match="134217728 pixels"):
-        synthetic.SyntheticConfig(resolution_scale=1e4).intrinsics_object()
+        synthetic.SyntheticConfig(resolution_scale=1e4)
     huge = np.broadcast_to(np.float32(1.0), (100_000, 100_000))
     with pytest.raises(ValueError, match="134217728 pixels"):
         _core.synthetic.apply_sensor_noise(synthetic.NOISE_PRESETS["sr300"], huge, huge, 0)

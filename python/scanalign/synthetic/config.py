@@ -121,6 +121,7 @@ class SyntheticConfig:
         self.n_frames, self.rings, self.seed = int(self.n_frames), int(self.rings), int(self.seed)
         if not 0 < self.min_elevation <= self.max_elevation <= math.pi / 2:
             raise ValueError("need 0 < min_elevation <= max_elevation <= pi/2 (radians)")
+        self.intrinsics_object()  # now, not at build: a bad or huge image (2**27 pixels at most) is a ValueError
         if not isinstance(self.robot, str):
             raise ValueError(f"robot must be a robot name or 'none', got {self.robot!r}")
         if self.robot != "none":
