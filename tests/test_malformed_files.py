@@ -289,7 +289,8 @@ def test_nearest_association_refuses_nan_timestamps_and_bounds():
 def test_fuzz_targets_run_clean(tmp_path):
     """Each atheris target in fuzz/ for a bounded number of runs (SCANALIGN_FUZZ_RUNS, default
     300 per target: all five take well under a minute) in its own subprocess; a finding
-    (an exception outside the reader's contract, a crash) exits non-zero."""
+    (an exception outside the reader's contract, a crash, 60 s on one input, 2 GB of memory)
+    exits non-zero."""
     pytest.importorskip("atheris", reason="atheris is not installed (pip install atheris); the fuzz targets in "
                                           "fuzz/ need it")
     runs = int(os.environ.get("SCANALIGN_FUZZ_RUNS", "300"))
@@ -297,7 +298,7 @@ def test_fuzz_targets_run_clean(tmp_path):
     assert len(targets) >= 5, targets
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "python"), os.environ.get("PYTHONPATH", "")])}
     for target in targets:
-        r = subprocess.run([sys.executable, str(target), f"-atheris_runs={runs}", "-rss_limit_mb=2048"],
+        r = subprocess.run([sys.executable, str(target), f"-atheris_runs={runs}", "-rss_limit_mb=2048", "-timeout=60"],
                            capture_output=True, text=True, env=env, timeout=600, cwd=tmp_path)
         assert r.returncode == 0, f"{target.name}: exit {r.returncode}\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}"
 
