@@ -378,3 +378,29 @@ TEST(CgaFlatPoint, LocationAndLinePlaneMeet) {
   EXPECT_THROW(FlatPoint::fromMultivector(Multivector::e1()), std::invalid_argument);
   EXPECT_THROW(FlatPoint::fromMultivector(Multivector::e1().outer(Multivector::e2())), std::domain_error);
 }
+
+// Coordinates whose squares overflow are refused ("overflow"), never turned into objects with
+// inf / NaN coefficients; a 1e300 normal keeps its direction.
+TEST(CgaObjects, OverflowIsRefusedAndHugeNormalsKeepTheirDirection) {
+  EXPECT_THROW(up(Vector3(1e300, 0, 0)), std::invalid_argument);
+  EXPECT_THROW(Sphere(Vector3::Zero(), 1e300), std::invalid_argument);
+  EXPECT_THROW(translator(Vector3(0, 1e200, 0)), std::invalid_argument);
+  EXPECT_TRUE(up(Vector3(1e150, -1e150, 1e150)).allFinite());
+  const Plane p(Vector3(1e300, 1e300, 0), 2.0);
+  EXPECT_NEAR(p.normal.x(), std::sqrt(0.5), 1e-15);
+  EXPECT_NEAR(p.normal.y(), std::sqrt(0.5), 1e-15);
+}
+
+// Far from the origin the null vectors hold 1/2 |x|^2 in e+ and e-, and the inner products
+// cancelled them (1 m came out as 8192 m at 1e6 m); the distances move their first argument to
+// the origin first (the inner product is translation-invariant).
+TEST(CgaObjects, DistancesFarFromTheOriginAreExact) {
+  for (double s : {1e3, 1e6, 1e9}) {
+    const Vector3 a(s, -s, 0.5 * s), b = a + Vector3(0.6, 0.8, 0.0);
+    const double d = (b - a).norm();
+    EXPECT_NEAR(pointDistance(a, b), d, 1e-12);
+    EXPECT_NEAR(spherePointInner(Sphere(a, 2.0), b), 0.5 * (4.0 - d * d), 1e-12);
+    EXPECT_NEAR(pointSphereDistance(b, Sphere(a, 2.0)), d - 2.0, 1e-12);
+    EXPECT_NEAR(pointPlaneDistance(b, Plane::throughPoint(Vector3::UnitZ(), a)), 0.0, 1e-9);
+  }
+}

@@ -262,3 +262,22 @@ TEST(FlagAlignment, RecoversTheMotionOfAPartialViewAndRefusesClosedSurfaces) {  
   EXPECT_FALSE(closed.valid);
   EXPECT_NE(closed.message.find("closed"), std::string::npos);
 }
+
+// Five points, collinear points and 1e30 m coordinates used to be aligned "valid".
+TEST(FlagAlignment, RefusesTooFewCollinearAndHugeClouds) {
+  std::vector<double> nx;
+  const std::vector<double> x = bumpyEllipsoid(80, true, &nx);
+  const CloudView<double> xv(x.data(), x.size() / 3), nv(nx.data(), nx.size() / 3);
+  const CloudView<double> x5(x.data(), 5), n5(nx.data(), 5);
+  const auto five = alignFlags(x5, n5, xv, nv);
+  EXPECT_FALSE(five.valid);
+  EXPECT_NE(five.message.find("min_points"), std::string::npos);
+  std::vector<double> line;
+  for (int i = 0; i < 100; ++i) line.insert(line.end(), {0.001 * i, 0.0, 0.0});
+  const auto collinear = alignFlags(CloudView<double>(line.data(), 100), CloudView<double>(nx.data(), 100), xv, nv);
+  EXPECT_FALSE(collinear.valid);
+  EXPECT_NE(collinear.message.find("collinear"), std::string::npos);
+  std::vector<double> huge = x;
+  for (double& v : huge) v *= 1e30;
+  EXPECT_THROW(alignFlags(CloudView<double>(huge.data(), huge.size() / 3), nv, xv, nv), std::invalid_argument);
+}

@@ -68,3 +68,14 @@ TEST(ShapeFactors, PcaOfSampledShapesGivesDominantFactor) {
   EXPECT_GT(fb.spherical, 0.85);
   EXPECT_GT(fb.spherical, fb.linear + fb.planar);
 }
+
+// Eigenvalues near the top of the double range (coordinates of ~1e154 m) used to overflow
+// their sum into inf and give NaN / zero factors; the factors are scale-free.
+TEST(ShapeFactors, HugeEigenvaluesStayFinite) {
+  const auto ball = shapeFactors(1e308, 1e308, 1e308);
+  EXPECT_DOUBLE_EQ(ball.spherical, 1.0);
+  const auto f = shapeFactors(1e300, 3e300, 2e300);
+  EXPECT_NEAR(f.linear, 1.0 / 6, 1e-15);
+  EXPECT_NEAR(f.planar, 2.0 / 6, 1e-15);
+  EXPECT_NEAR(f.spherical, 3.0 / 6, 1e-15);
+}
