@@ -199,3 +199,22 @@ def test_values_that_used_to_be_silently_mangled_are_refused(cloud):
     robot = kinematics.ur5()
     with pytest.raises(ValueError, match="q_current"):  # used to return 'ok' with NaN joints
         robot.ik_closest(robot.fk(np.zeros(6)), np.full(6, 1e154))
+
+
+def test_a_wrongly_typed_argument_is_named_not_a_signature_dump(cloud):
+    """pybind11 answers a wrongly typed argument with every overload's signature; the module
+    names the argument instead (for functions, methods and constructors)."""
+    from scanalign import cga, kinematics
+
+    cases = [(lambda: segmentation.ransac_plane(cloud, "0.01"), "ransac_plane(): threshold: expected a real number"),
+             (lambda: segmentation.ransac_plane(cloud, 0.01, max_iterations=1.5), "max_iterations: expected an integer"),
+             (lambda: fitting.fit_spheres(cloud, [0, 3000], num_threads=2**70), "num_threads: expected a smaller integer"),
+             (lambda: kinematics.ur5().ik(np.eye(4), respect_limits="yes"), "ik(): respect_limits: expected True or False"),
+             (lambda: cga.Sphere((0.0, 0.0, 1.0), "r"), "radius: expected a real number"),
+             (lambda: segmentation.plane_from_points((0, 0, 0), (1, 0, 0), None), "c: expected 3 real numbers"),
+             (lambda: registration.KdTree(cloud).nearest(cloud, k=3), "unexpected argument 'k'; parameters: self, queries")]
+    for call, message in cases:
+        with pytest.raises(TypeError) as info:
+            call()
+        assert message in str(info.value) and "incompatible function arguments" not in str(info.value)
+    assert segmentation.ransac_plane(cloud, 0.02).success  # the wrapped functions still work

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import functools
+import re
 from typing import Optional
 
 import numpy as np
@@ -63,3 +65,61 @@ def set_fields(obj: object, values: dict, what: str) -> object:
         except TypeError as e:
             raise TypeError(f"{what} setting {name}: {e}") from None
     return obj
+
+
+
+_KINDS = (("SupportsFloat", "a real number", (int, float, np.integer, np.floating)), ("SupportsInt", "an integer", (int, np.integer)),
+          ("bool", "True or False", (bool, np.bool_)), ("str", "a string", (str,)), ('"[3, 1]"', "3 real numbers", None))
+
+
+def _misfit(value: object, annotation: str) -> Optional[str]:
+    """What a parameter pybind11 annotated this way expects, when ``value`` cannot fill it."""
+    for key, words, types in _KINDS:
+        if annotation in (key, {"SupportsFloat": "float", "SupportsInt": "int"}.get(key)) or key[0] in 'S"' and key in annotation:
+            if types is None:  # an Eigen 3-vector
+                ok = (a := np.asarray(value, dtype=object)).shape == (3,) and not any(_misfit(x, "float") for x in a)
+            else:
+                ok = isinstance(value, types) and (key in ("bool", "str") or not isinstance(value, bool))
+                if ok and key == "SupportsInt" and abs(value) >= 2**31:  # the C++ int cannot hold it
+                    return "a smaller integer (out of range for the C++ parameter)"
+            return None if ok else words
+    return None
+
+
+def _named_type_error(fn, args: tuple, kwargs: dict, error: TypeError) -> TypeError:
+    """pybind11's "incompatible function arguments" dump, replaced by the first argument whose
+    value does not fit its parameter (kept when none is found)."""
+    first = str(error).split("1. ", 1)[-1].split("\n", 1)[0]  # the first overload's signature
+    first = first[first.index("(") + 1:first.rindex(")", 0, first.find(" -> ") % (len(first) + 1))]
+    params = [p.split(" = ")[0] for p in re.split(r", (?=\*(?:,|$)|\w+: |\w+$)", first) if p != "*"]
+    annotations = dict((p.split(": ", 1) + [""])[:2] for p in params)
+    names = list(annotations)
+    for name, value in [*zip(names, args[1:] if "constructor" in str(error) else args), *kwargs.items()]:
+        if name not in annotations:
+            return TypeError(f"{fn.__name__}(): unexpected argument {name!r}; parameters: {', '.join(names)}")
+        if expected := _misfit(value, annotations[name]):
+            shown = repr(value) if len(repr(value)) < 60 else type(value).__name__
+            return TypeError(f"{fn.__name__}(): {name}: expected {expected}, got {shown}")
+    return error
+
+
+def explain_bad_arguments(module: object) -> None:
+    """Wraps the functions and methods of a pybind11 module so that a wrongly typed argument
+    raises a TypeError naming it instead of pybind11's dump of every signature."""
+    def wrap(fn):
+        @functools.wraps(fn)
+        def call(*args, **kwargs):
+            try:
+                return fn(*args, **kwargs)
+            except TypeError as e:
+                if "incompatible function arguments" in str(e) or "incompatible constructor" in str(e):
+                    raise _named_type_error(fn, args, kwargs, e) from None
+                raise
+        return call
+    for owner in [module, *(v for v in vars(module).values() if isinstance(v, type))]:
+        for name, value in list(vars(owner).items()):
+            kind, inner = type(value).__name__, getattr(value, "__func__", value)
+            if kind in ("builtin_function_or_method", "instancemethod"):
+                setattr(owner, name, wrap(inner))
+            elif kind == "staticmethod" and type(inner).__name__ == "builtin_function_or_method":
+                setattr(owner, name, staticmethod(wrap(inner)))

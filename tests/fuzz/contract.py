@@ -10,6 +10,8 @@ or a result flagged as a success that holds non-finite numbers breaks the contra
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 
 ALLOWED = (ValueError, TypeError, OSError, RuntimeError)
@@ -65,13 +67,14 @@ def finite(a, what: str = "output") -> None:
 
 def call(fn, *args, **kwargs):
     """Calls fn; documented exceptions pass (returning None), the rest propagate as
-    findings. A TypeError that only dumps pybind11's signatures is tolerated here but
-    counted by the caller (it names the argument types, not the argument)."""
+    findings, and so does a TypeError that only dumps pybind11's signatures (the library
+    names the wrongly typed argument, scanalign._arrays.explain_bad_arguments)."""
     try:
         result = fn(*args, **kwargs)
     except ALLOWED as exc:
-        if isinstance(exc, TypeError) and "incompatible function arguments" in str(exc):
-            STATS["signature_dumps"] += 1
+        if isinstance(exc, TypeError) and re.match(r"[\w.]*\(\): incompatible function arguments", str(exc)):
+            STATS["signature_dumps"] += 1  # pybind11 could not say which argument: a finding
+            raise ContractError(f"a signature dump instead of a message naming the argument: {exc}") from exc
         STATS["refused"] += 1
         return None
     STATS["returned"] += 1

@@ -16,6 +16,7 @@
 #include <pcl/registration/transformation_estimation_point_to_plane_lls.h>
 #include <pcl/registration/transformation_estimation_svd.h>
 
+#include "scanalign/common/interrupt.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/registration/pcl/box_rejector.hpp"
 #include "scanalign/registration/pcl/point_to_plane_lls.hpp"
@@ -72,6 +73,7 @@ class FiniteStep : public pcl::registration::TransformationEstimation<PointT, Po
 
  private:
   void guard(Matrix4& T) const {
+    checkInterrupt();  // once per PCL iteration: Ctrl-C stops a long baseline run
     if (T.allFinite()) return;
     T.setIdentity();
     failed_ = true;
