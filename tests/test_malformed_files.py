@@ -254,6 +254,19 @@ def test_quaternions_of_any_magnitude_give_their_rotation(tmp_path, scale):
     np.testing.assert_array_equal(T[:3, 3], [0.1, 0.2, 0.3])
 
 
+def test_quaternion_of_a_matrix_that_is_no_rotation_is_refused():
+    """The zero matrix came back as (1, 0, 0, 0) and NaN as NaN; a positive multiple of a
+    rotation (a scale-aligned trajectory's block) keeps giving that rotation's quaternion:
+    half a turn about z is (0, 0, 1, 0)."""
+    Rz = np.diag([-1.0, -1.0, 1.0])
+    np.testing.assert_allclose(np.abs(trajectory.quaternion_from_matrix(2.5 * Rz)), [0, 0, 1, 0], atol=1e-15)
+    shear = np.eye(3)
+    shear[0, 1] = 0.1
+    for bad in (np.zeros((3, 3)), np.full((3, 3), np.nan), shear, np.diag([1.0, 1.0, -1.0]), -np.eye(3)):
+        with pytest.raises(ValueError, match=r"rotations\[1\] .* is not a rotation matrix"):
+            trajectory.quaternion_from_matrix(np.stack([Rz, bad]))
+
+
 def test_interpolation_refuses_unsorted_poses_and_a_nan_gap(tmp_path):
     """A file out of time order is read in file order; interpolating it used to answer
     'outside the span [2.0, 3.0]' for t = 1.5, or a pose from the wrong neighbours."""

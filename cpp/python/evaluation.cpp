@@ -11,7 +11,10 @@
 #include <utility>
 #include <vector>
 
+#include <Eigen/LU>  // Matrix3d::determinant
+
 #include "arrays.hpp"
+#include "scanalign/common/rigid.hpp"  // kRigidTolerance
 #include "scanalign/evaluation/associate.hpp"
 #include "scanalign/evaluation/associate_nearest.hpp"
 #include "scanalign/evaluation/error_stats.hpp"
@@ -119,9 +122,20 @@ py::array_t<double> quaternionsFromRotations(const py::object& rotations) {
   shape.push_back(4);
   py::array_t<double> out(shape);
   const py::ssize_t n = R.size() / 9;
-  for (py::ssize_t i = 0; i < n; ++i)
-    Eigen::Map<Eigen::Vector4d>(out.mutable_data() + 4 * i) =
-        quaternionFromRotation(Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R.data() + 9 * i));
+  for (py::ssize_t i = 0; i < n; ++i) {
+    const Eigen::Matrix3d Ri = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(R.data() + 9 * i);
+    // A rotation, or a positive multiple of one (the rotation block of a similarity, as a
+    // scale-aligned trajectory has); a zero, NaN or sheared matrix used to come back as some
+    // unit quaternion (the zero matrix as (1, 0, 0, 0)).
+    const Eigen::Matrix3d RtR = Ri.transpose() * Ri;
+    const double c = RtR.trace() / 3.0;
+    if (!Ri.allFinite() || !(c > 0) || !std::isfinite(c) ||
+        (RtR / c - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > kRigidTolerance || !(Ri.determinant() > 0))
+      throw std::invalid_argument("rotations[" + std::to_string(i) +
+                                  "] (flattened batch index) is not a rotation matrix or a positive multiple "
+                                  "of one (non-finite, not orthogonal to 1e-5, or a reflection)");
+    Eigen::Map<Eigen::Vector4d>(out.mutable_data() + 4 * i) = quaternionFromRotation(Ri / std::sqrt(c));
+  }
   return out;
 }
 
@@ -285,7 +299,9 @@ distance NaN, point NaN and triangle -1.
 
   m.def("quaternions_from_rotations", &quaternionsFromRotations, py::arg("rotations"),
         "Unit quaternions (..., 4) as (qx, qy, qz, qw), Hamilton convention, qw >= 0, of rotation "
-        "matrices (..., 3, 3) (Eigen's Shepperd method, accurate over the whole rotation group).");
+        "matrices (..., 3, 3) (Eigen's Shepperd method, accurate over the whole rotation group); a positive "
+        "multiple of a rotation (a similarity's rotation block) gives that rotation's quaternion. Raises "
+        "ValueError for any other matrix (non-finite, zero, not orthogonal to 1e-5, a reflection).");
   m.def("rotations_from_quaternions", &rotationsFromQuaternions, py::arg("quaternions"),
         "Rotation matrices (..., 3, 3) of quaternions (..., 4) given as (qx, qy, qz, qw), normalised "
         "first (divided by its largest component, so any finite magnitude works, 1e-300 or 1e300). "
