@@ -221,6 +221,8 @@ def test_pcl_feature_alignment_does_not_converge_on_a_collinear_source(patch):
     line = np.c_[np.linspace(0, 0.1, 500), np.zeros(500), np.zeros(500)]
     r = pose.pcl_feature_alignment(line, p)
     assert not r.converged and r.message
+    with pytest.raises(ValueError, match="max_iterations"):  # 1e9 used to run for more than ten minutes
+        pose.pcl_feature_alignment(p, p, max_iterations=10 ** 9)
 
 
 def test_model_views_refuse_what_would_exhaust_memory():

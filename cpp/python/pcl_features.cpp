@@ -31,7 +31,8 @@ void definePclFeatures(py::module_& m) {
       .def_readwrite("shot_lrf_radius", &S::shot_lrf_radius, "m; SHOT local reference frame radius (0: feature_radius)")
       .def_readwrite("shape_context_min_radius", &S::shape_context_min_radius, "m; 3DSC smallest shell")
       .def_readwrite("shape_context_density_radius", &S::shape_context_density_radius, "m; 3DSC point-density radius")
-      .def_readwrite("max_iterations", &S::max_iterations, "RANSAC iterations (thesis: 1000)")
+      .def_readwrite("max_iterations", &S::max_iterations,
+                     "RANSAC iterations (thesis: 1000); ValueError beyond 1000000 (PCL's loop cannot be interrupted)")
       .def_readwrite("inlier_threshold", &S::inlier_threshold, "m; RANSAC inlier distance (thesis: 0.005)")
       .def_readwrite("num_samples", &S::num_samples, "points per RANSAC hypothesis")
       .def_readwrite("correspondence_randomness", &S::correspondence_randomness, "k nearest features a sample picks from")

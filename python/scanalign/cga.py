@@ -36,8 +36,8 @@ Objects (all coordinates in metres, in the frame the caller works in):
 
 Everything here is the C++ core (``scanalign/cga/*.hpp``) bound directly; each function and
 class carries its docstring. Invalid input (NaN/Inf, zero normals or directions, a point at
-infinity passed to :func:`down`, an imaginary point pair asked for its points) raises
-``ValueError``; a non-float ``(N, 3)`` array ``TypeError``.
+infinity passed to :func:`down`, an imaginary point pair, coordinates beyond ~1e150 m or a product
+that would overflow) raises ``ValueError`` naming the argument; complex, string or None ``TypeError``.
 """
 
 from __future__ import annotations

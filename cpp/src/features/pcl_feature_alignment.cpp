@@ -118,6 +118,9 @@ void validate(const PclFeatureAlignmentSettings& s) {
   if (s.descriptor == PclDescriptor::ShapeContext3D && !(s.shape_context_min_radius < s.feature_radius))
     fail("shape_context_min_radius must be smaller than feature_radius");
   if (s.max_iterations < 1) fail("max_iterations must be >= 1");
+  // PCL's RANSAC loops cannot be interrupted (Ctrl-C is not seen until they return): 1e9
+  // iterations ran for more than ten minutes. 1e6 is a thousand times the thesis preset.
+  if (s.max_iterations > kPclMaxIterations) fail("max_iterations must be <= 1000000");
   if (!finitePositive(s.inlier_threshold)) fail("inlier_threshold must be finite and > 0");
   if (s.num_samples < 3) fail("num_samples must be >= 3");
   if (s.correspondence_randomness < 1) fail("correspondence_randomness must be >= 1");

@@ -32,6 +32,10 @@ enum class PclMatcher {
 const char* toString(PclDescriptor descriptor);
 const char* toString(PclMatcher matcher);
 
+/// Largest max_iterations accepted: PCL's RANSAC loops cannot be interrupted, so a bound keeps a
+/// call finite (1e9 iterations ran for more than ten minutes); 1e6 is 1000x the thesis preset.
+inline constexpr int kPclMaxIterations = 1000000;
+
 /// Settings of the PCL baselines. Defaults are the thesis preset (Paper 5 §IV-A: 1 mm voxel
 /// grid, normals and features with a 30 mm radius, RANSAC with 1000 iterations and a 5 mm
 /// inlier threshold), converted to metres.
@@ -44,7 +48,7 @@ struct PclFeatureAlignmentSettings {
   double shot_lrf_radius = 0.0;     ///< m; SHOT local reference frame radius (0: feature_radius)
   double shape_context_min_radius = 0.004;      ///< m; 3DSC smallest shell (thesis: 4 mm)
   double shape_context_density_radius = 0.008;  ///< m; 3DSC point-density radius (thesis: 8 mm)
-  int max_iterations = 1000;        ///< RANSAC iterations (thesis: 1000)
+  int max_iterations = 1000;        ///< RANSAC iterations (thesis: 1000), at most kPclMaxIterations
   double inlier_threshold = 0.005;  ///< m; RANSAC inlier distance (thesis: 5 mm)
   int num_samples = 3;              ///< points per RANSAC hypothesis
   int correspondence_randomness = 5;    ///< k nearest features a sample picks from (PCL tutorial: 5)
