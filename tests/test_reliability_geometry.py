@@ -186,6 +186,10 @@ def test_bad_poses_and_joints_are_refused():
             robot.fk("abc")
     with pytest.raises(TypeError, match="name"):
         kinematics.Robot.by_name(None)
+    with pytest.raises(ValueError, match="^a"):  # FK of 1e308 m links used to be inf
+        kinematics.Robot.from_dh([1e308] * 6, [0] * 6, [0] * 6)
+    with pytest.raises(ValueError, match="^index"):  # 99 used to name blade 99 & 31
+        cga.Multivector.blade_name(99)
 
 
 # ----------------------------------------------------------------------------- pose

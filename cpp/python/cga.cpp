@@ -213,7 +213,14 @@ void defineCga(py::module_& m) {
                   [coeffs](const py::object& a) { return Multivector::fromOrthonormal(coeffs(a)); },
                   py::arg("coefficients"))
       .def_static("blade", chk(&Multivector::named, {"name", "value"}), py::arg("name"), py::arg("value") = 1.0)
-      .def_static("blade_name", &Multivector::nullBladeName, py::arg("index"))
+      .def_static(
+          "blade_name",
+          [](long long index) {
+            if (index < 0 || index > 31)
+              throw py::value_error("index: expected a blade index in 0..31, got " + std::to_string(index));
+            return Multivector::nullBladeName(static_cast<unsigned>(index));
+          },
+          py::arg("index"), "name of null-basis blade `index` (0..31, the order of null_coefficients())")
       .def_static("e0", &Multivector::e0)
       .def_static("e1", &Multivector::e1)
       .def_static("e2", &Multivector::e2)

@@ -458,6 +458,9 @@ Robot fromDh(const py::object& a, const py::object& alpha, const py::object& d, 
   r.name = name;
   const Vector6d va = vector6(a, "a"), val = vector6(alpha, "alpha"), vd = vector6(d, "d"),
                  vo = vector6Or(theta_offset, "theta_offset", Vector6d::Zero());
+  // No arm is a thousand kilometres long; beyond that FK products overflow towards inf.
+  for (const auto& [v, what] : {std::pair{&va, "a"}, std::pair{&vd, "d"}})
+    if (v->cwiseAbs().maxCoeff() > 1e6) throw py::value_error(std::string(what) + ": link lengths must lie within +-1e6 m");
   for (std::size_t i = 0; i < 6; ++i) {
     const int k = static_cast<int>(i);
     r.joints[i].a = va[k], r.joints[i].alpha = val[k], r.joints[i].d = vd[k], r.joints[i].theta_offset = vo[k];
@@ -674,7 +677,8 @@ void bindRobot(py::module_& m) {
                   "tables); alpha (6,) link twists about x_i, rad; d (6,) link offsets along z_{i-1}, m; "
                   "theta_offset (6,) theta_i = q_i + theta_offset_i, rad (default zeros); limits (6, 2) "
                   "[q_min, q_max] per joint, rad, +-inf allowed (default [-pi, pi]); T_base_dh0 4x4 rigid, DH frame "
-                  "0 -> robot base (default identity); T_flange_tool 4x4 rigid, tool -> flange (default identity)")
+                  "0 -> robot base (default identity); T_flange_tool 4x4 rigid, tool -> flange (default identity). "
+                  "ValueError for non-finite values or |a|, |d| beyond 1e6 m")
       .def_static(
           "by_name",
           [](const py::object& name) {
