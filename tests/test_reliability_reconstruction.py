@@ -327,3 +327,13 @@ def test_the_sensor_model_never_reports_an_infinite_depth_and_a_huge_edge_width_
     narrow = synthetic.SensorNoise(edge_threshold=0.1, edge_width=2)
     out = _core.synthetic.apply_sensor_noise(narrow, z, c, 0)
     assert np.isnan(out[:, 23:27]).all() and np.array_equal(out[:, :23], z[:, :23])
+
+
+def test_a_scan_that_cannot_fit_in_memory_is_refused_before_rendering():
+    """100,000 SR300 frames are 143 GiB: the scanner used to start rendering them (and be
+    killed by the OOM killer); it now refuses before the first frame, naming the size."""
+    from scanalign import synthetic
+
+    with pytest.raises(ValueError, match=r"100000 frames of 640x480 need 14\d\.\d GiB"):
+        synthetic.builtin_scan(100000)
+    assert len(synthetic.builtin_scan(2).frames) == 2

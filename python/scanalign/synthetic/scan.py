@@ -134,7 +134,7 @@ def render_scan(
 
     Raises:
         TypeError, ValueError: bad arguments (unknown preset, malformed poses, non-positive
-            depth unit ...).
+            depth unit, frames that would not fit in half the machine's memory ...).
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene: expected Scene, got {type(scene)!r}")
@@ -151,6 +151,10 @@ def render_scan(
     if int(num_threads) != num_threads or num_threads < 0:
         raise ValueError(f"num_threads must be a non-negative integer, got {num_threads!r}")
     T_cams, stamps = _camera_poses(poses, frame_rate)
+    need = len(T_cams) * K.width * K.height * (3 + (4 if depth_unit is None else 2) + 8 * keep_ground_truth)
+    if need > 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"):  # frames are kept in memory
+        raise ValueError(f"{len(T_cams)} frames of {K.width}x{K.height} need {need / 2**30:.1f} GiB, over half this "
+                         "machine's memory: render fewer frames per call")
     # What a ScanTrajectory adds: the hand-eye transform, flange poses and the robot's joints.
     src = {k: getattr(poses, k, None) for k in ("T_flange_camera", "T_base_flange", "joints", "robot", "T_base_robot")}
     src = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in src.items()}
