@@ -251,6 +251,8 @@ def test_malformed_cad_meshes_and_tiny_scenes():
     bad[0] = np.nan
     with pytest.raises(ValueError, match="non-finite"):
         cad.render_views((bad, F))
+    with pytest.raises(TypeError, match="mesh vertices"):
+        cad.render_views((V.astype(complex), F))
     with pytest.raises(ValueError, match="out of range"):
         cad.render_views((V, np.where(F == F.max(), 10 ** 9, F)))
     with pytest.raises(ValueError, match="zero area"):  # used to say 'no consensus' after all views

@@ -56,7 +56,9 @@ def _mesh_arrays(mesh: object) -> Tuple[np.ndarray, np.ndarray]:
     F = np.asarray(faces)
     if F.size and F.dtype.kind not in "iu":
         raise TypeError(f"mesh faces: expected integers, got {F.dtype}")
-    return np.ascontiguousarray(vertices, dtype=np.float64), F.astype(np.int64)
+    if (V := np.asarray(vertices)).dtype.kind not in "biuf":  # complex would lose its imaginary part
+        raise TypeError(f"mesh vertices: expected real numbers, got {V.dtype}")
+    return np.ascontiguousarray(V, dtype=np.float64), F.astype(np.int64)
 
 
 def render_views(mesh: object, *, resolution: int = 150, view_angle: float = DEFAULT_VIEW_ANGLE, level: int = 1,

@@ -63,8 +63,7 @@ from . import _core
 __all__ = [
     "Robot", "IKSolutions", "IKSolution", "IKBatch", "JointTrajectory", "IKConstruction", "STATUS_NAMES",
     "SINGULAR_NAMES", "STEP_NAMES", "CONFIGS", "BUILTIN_ROBOTS", "config_index",
-    "kuka_kr6_r900_sixx", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis",
-]
+    "kuka_kr6_r900_sixx", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis"]
 
 _K = _core.kinematics
 
@@ -85,8 +84,7 @@ STEP_NAMES: Tuple[str, ...] = _K.STEP_NAMES
 #: (8, 3) int8, read-only: the configuration (shoulder, elbow, wrist) stored at each solution index.
 CONFIGS: np.ndarray = _K.CONFIGS
 #: Names accepted by :meth:`Robot.by_name` ("agilus" is an alias of "kr6_r900_sixx").
-BUILTIN_ROBOTS: Tuple[str, ...] = ("kr6_r900_sixx", "agilus", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e",
-                                   "ur5_thesis")
+BUILTIN_ROBOTS: Tuple[str, ...] = ("kr6_r900_sixx", "agilus", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis")
 
 
 def kuka_kr6_r900_sixx() -> Robot:
