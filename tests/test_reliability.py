@@ -218,3 +218,14 @@ def test_a_wrongly_typed_argument_is_named_not_a_signature_dump(cloud):
             call()
         assert message in str(info.value) and "incompatible function arguments" not in str(info.value)
     assert segmentation.ransac_plane(cloud, 0.02).success  # the wrapped functions still work
+
+
+def test_sampling_more_points_than_memory_holds_is_refused_before_allocating():
+    """sample_mesh(mesh, 2**31) used to be killed by the OOM killer (320 GiB of draws)."""
+    from scanalign import parts
+
+    mesh = parts.builtin_mesh(24)
+    with pytest.raises(ValueError, match=r"n_points = 2147483648 need 320\.0 GiB"):
+        parts.sample_mesh(mesh, 2**31)
+    points, normals = parts.sample_mesh(mesh, 100)
+    assert points.shape == normals.shape == (100, 3)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import os
 import re
 from typing import Optional
 
@@ -38,6 +39,12 @@ def as_transform(T: object, name: str = "init") -> np.ndarray:
     if not np.all(np.isfinite(m)):
         raise ValueError(f"{name}: transform has non-finite entries")
     return m
+
+
+def require_memory(need: float, what: str) -> None:
+    """ValueError when ``need`` bytes exceed half of this machine's memory (checked before allocating)."""
+    if need > 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"):
+        raise ValueError(f"{what} need {need / 2**30:.1f} GiB, over half this machine's memory")
 
 
 def fields_of(obj: object) -> dict:

@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _core, io
+from ._arrays import require_memory
 
 __all__ = ["builtin_mesh", "builtin_object", "sample_mesh", "normalize_mesh"]
 
@@ -73,12 +74,13 @@ def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) 
         counter-clockwise, outward-facing mesh).
 
     Raises:
-        ValueError: bad shapes, negative ``n_points``, or a mesh of zero total area.
+        ValueError: bad shapes, negative or memory-exceeding ``n_points``, a mesh of zero area.
     """
     m = mesh_or_vertices_faces
     mesh = m if isinstance(m, io.Mesh) else io.Mesh(*m)
     if n_points < 0:
         raise ValueError(f"n_points must be non-negative, got {n_points}")
+    require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
     points, normals, _ = _sample_faces(mesh, int(n_points), np.random.default_rng(seed))
     return points, normals
 
@@ -149,6 +151,7 @@ def builtin_object(n_points: int = 20000, seed: int = 0) -> Tuple[np.ndarray, np
     """
     if n_points < 0:
         raise ValueError(f"n_points must be non-negative, got {n_points}")
+    require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
     mesh, surface = _builtin(96)
     rng = np.random.default_rng(seed)
     points, normals = np.zeros((0, 3)), np.zeros((0, 3))

@@ -13,6 +13,7 @@ import numpy as np
 from .. import _core, io, se3
 from ..camera import Frame, Intrinsics
 from ..reconstruction import depth_to_cloud
+from .._arrays import require_memory
 from ..rendering import as_intrinsics
 from ..trajectory import Trajectory
 from .noise import SensorNoise, as_noise
@@ -152,9 +153,7 @@ def render_scan(
         raise ValueError(f"num_threads must be a non-negative integer, got {num_threads!r}")
     T_cams, stamps = _camera_poses(poses, frame_rate)
     need = len(T_cams) * K.width * K.height * (3 + (4 if depth_unit is None else 2) + 8 * keep_ground_truth)
-    if need > 0.5 * os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"):  # frames are kept in memory
-        raise ValueError(f"{len(T_cams)} frames of {K.width}x{K.height} need {need / 2**30:.1f} GiB, over half this "
-                         "machine's memory: render fewer frames per call")
+    require_memory(need, f"{len(T_cams)} frames of {K.width}x{K.height}")  # frames are kept in memory
     # What a ScanTrajectory adds: the hand-eye transform, flange poses and the robot's joints.
     src = {k: getattr(poses, k, None) for k in ("T_flange_camera", "T_base_flange", "joints", "robot", "T_base_robot")}
     src = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in src.items()}
