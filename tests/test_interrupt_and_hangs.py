@@ -38,6 +38,16 @@ registration.icp(src, cloud, normals, max_iterations=10**9, transformation_epsil
     # confidence=0 disables the adaptive stop: all max_iterations hypotheses are drawn.
     "ransac_plane": """print("READY", flush=True)
 segmentation.ransac_plane(cloud, 0.001, max_iterations=2**31 - 1, confidence=0, num_threads=1)""",
+    # a radius beyond the cloud: every neighbourhood is the whole cloud (minutes at 200k)
+    "cbd_neighbourhood_pca": """from scanalign import cbd
+big = rng.uniform(-0.1, 0.1, (200000, 3))
+print("READY", flush=True)
+cbd.neighbourhood_pca(big, radius=1.0, num_threads=1)""",
+    "pcl_icp": """normals = features.estimate_normals(cloud, radius=0.01)
+src = cloud + rng.normal(0, 0.002, cloud.shape)
+print("READY", flush=True)
+registration.pcl_icp(src, cloud, normals, variant="svd", max_iterations=10**9, transformation_epsilon=0,
+                     fitness_epsilon=0, absolute_mse_epsilon=0, max_correspondence_distance=0.05)""",
     "ransac_sphere": """print("READY", flush=True)
 segmentation.ransac_sphere(cloud, 0.001, max_iterations=2**31 - 1, confidence=0, num_threads=1)""",
 }

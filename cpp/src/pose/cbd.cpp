@@ -4,6 +4,8 @@
 
 #include <omp.h>
 
+#include "scanalign/common/interrupt.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -215,13 +217,20 @@ std::vector<NeighbourhoodPca> pcaOverTree(const CloudView<Scalar>& points, const
                                           double radius, int num_threads) {
   std::vector<NeighbourhoodPca> out(points.size);
   const Scalar r2 = static_cast<Scalar>(radius * radius);
-#pragma omp parallel for schedule(dynamic, 256) num_threads(threadsOf(num_threads))
-  for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(points.size); ++ii) {
-    const std::size_t i = static_cast<std::size_t>(ii);
-    if (!points.isFinite(i)) continue;
-    const Moments m = momentsAt(tree, points.ptr(i), r2);
-    out[i].count = static_cast<std::uint32_t>(m.count);
-    eigenDescending(m.scatter(), out[i].eigenvalues, nullptr);
+  // In chunks, with a Ctrl-C check between them: a radius as large as the cloud makes every
+  // neighbourhood the whole cloud (quadratic; minutes at 200k points).
+  constexpr std::ptrdiff_t kChunk = 512;  // about 0.25 s between checks in the worst case
+  const auto n = static_cast<std::ptrdiff_t>(points.size);
+  for (std::ptrdiff_t begin = 0; begin < n; begin += kChunk) {
+    checkInterrupt();
+#pragma omp parallel for schedule(dynamic, 64) num_threads(threadsOf(num_threads))
+    for (std::ptrdiff_t ii = begin; ii < std::min(n, begin + kChunk); ++ii) {
+      const std::size_t i = static_cast<std::size_t>(ii);
+      if (!points.isFinite(i)) continue;
+      const Moments m = momentsAt(tree, points.ptr(i), r2);
+      out[i].count = static_cast<std::uint32_t>(m.count);
+      eigenDescending(m.scatter(), out[i].eigenvalues, nullptr);
+    }
   }
   return out;
 }

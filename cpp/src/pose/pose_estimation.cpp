@@ -6,6 +6,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "scanalign/common/interrupt.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/features/normals.hpp"
 #include "scanalign/registration/icp.hpp"
@@ -151,6 +152,7 @@ PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<dou
     double best_score = -1;
     Icp<double> icp = sceneIcp(prepared, s);
     for (std::size_t k = 0; k < ids.size(); ++k) {
+      checkInterrupt();  // Ctrl-C between views (each view's ICP also checks per iteration)
       const ModelView& view = views[ids[k]];
       PoseCandidate c;
       c.view = ids[k];
