@@ -87,13 +87,13 @@ def _misfit(value: object, annotation: str) -> Optional[str]:
                 ok = (a := np.asarray(value, dtype=object)).shape == (3,) and not any(_misfit(x, "float") for x in a)
             else:
                 ok = isinstance(value, types) and (key in ("bool", "str") or not isinstance(value, bool))
-                if ok and key == "SupportsInt" and abs(value) >= 2**31:  # the C++ int cannot hold it
-                    return "a smaller integer (out of range for the C++ parameter)"
+                if ok and key == "SupportsInt" and not 0 <= value < 2**31:  # the C++ integer cannot hold it
+                    return "a non-negative integer" if value < 0 else "a smaller integer (out of range in C++)"
             return None if ok else words
     return None
 
 
-def _named_type_error(fn, args: tuple, kwargs: dict, error: TypeError) -> TypeError:
+def _named_type_error(label: str, args: tuple, kwargs: dict, error: TypeError) -> TypeError:
     """pybind11's "incompatible function arguments" dump, replaced by the first argument whose
     value does not fit its parameter (kept when none is found)."""
     first = str(error).split("1. ", 1)[-1].split("\n", 1)[0]  # the first overload's signature
@@ -103,24 +103,25 @@ def _named_type_error(fn, args: tuple, kwargs: dict, error: TypeError) -> TypeEr
     names = list(annotations)
     for name, value in [*zip(names, args[1:] if "constructor" in str(error) else args), *kwargs.items()]:
         if name not in annotations:
-            return TypeError(f"{fn.__name__}(): unexpected argument {name!r}; parameters: {', '.join(names)}")
+            return TypeError(f"{label}(): unexpected argument {name!r}; parameters: {', '.join(names)}")
         if expected := _misfit(value, annotations[name]):
             shown = repr(value) if len(repr(value)) < 60 else type(value).__name__
-            return TypeError(f"{fn.__name__}(): {name}: expected {expected}, got {shown}")
+            where = label if re.fullmatch(r"arg\d", name) else f"{label}(): {name}"  # argN: a field's setter
+            return TypeError(f"{where}: expected {expected}, got {shown}")
     return error
 
 
 def explain_bad_arguments(module: object) -> None:
     """Wraps the functions and methods of a pybind11 module so that a wrongly typed argument
     raises a TypeError naming it instead of pybind11's dump of every signature."""
-    def wrap(fn):
+    def wrap(fn, label=None):
         @functools.wraps(fn)
         def call(*args, **kwargs):
             try:
                 return fn(*args, **kwargs)
             except TypeError as e:
                 if "incompatible function arguments" in str(e) or "incompatible constructor" in str(e):
-                    raise _named_type_error(fn, args, kwargs, e) from None
+                    raise _named_type_error(label or fn.__name__, args, kwargs, e) from None
                 raise
         return call
     for owner in [module, *(v for v in vars(module).values() if isinstance(v, type))]:
@@ -128,5 +129,8 @@ def explain_bad_arguments(module: object) -> None:
             kind, inner = type(value).__name__, getattr(value, "__func__", value)
             if kind in ("builtin_function_or_method", "instancemethod"):
                 setattr(owner, name, wrap(inner))
+            elif isinstance(value, property) and value.fset is not None:  # a settings field: name it
+                setter = wrap(value.fset, f"{owner.__name__}.{name}")
+                setattr(owner, name, property(value.fget, setter, value.fdel, value.__doc__))
             elif kind == "staticmethod" and type(inner).__name__ == "builtin_function_or_method":
                 setattr(owner, name, staticmethod(wrap(inner)))
