@@ -3,6 +3,7 @@
 // these checks are the last line of defence and raise TypeError / ValueError.
 #pragma once
 
+#include <limits>
 #include <string>
 
 #include <pybind11/numpy.h>
@@ -71,6 +72,24 @@ template <typename Scalar>
 CloudView<Scalar> optionalCloudView(const py::object& o, const char* what) {
   if (o.is_none()) return {};
   return cloudView<Scalar>(py::cast<py::array>(o), what);
+}
+
+/// An integer argument in [lo, hi]: a Python or NumPy integer (not a bool); TypeError or
+/// ValueError naming `what` otherwise, instead of pybind11's signature dump for 2**40.
+inline long long intArg(const py::object& o, const char* what, long long lo, long long hi) {
+  if (py::isinstance<py::bool_>(o) || !py::hasattr(o, "__index__"))
+    throw py::type_error(std::string(what) + ": expected an integer, got " + std::string(py::repr(o)));
+  int overflow = 0;
+  const long long v = PyLong_AsLongLongAndOverflow(py::int_(o).ptr(), &overflow);
+  if (overflow != 0 || v < lo || v > hi)
+    throw py::value_error(std::string(what) + " must be an integer in [" + std::to_string(lo) + ", " +
+                          std::to_string(hi) + "], got " + std::string(py::repr(o)));
+  return v;
+}
+
+/// intArg for a C++ int in [lo, 2^31 - 1].
+inline int boundedInt(const py::object& v, const char* what, int lo) {
+  return static_cast<int>(intArg(v, what, lo, std::numeric_limits<int>::max()));
 }
 
 }  // namespace scanalign::python

@@ -31,19 +31,6 @@ py::handle notRealError() {
   return cls;
 }
 
-/// An integer argument in [lo, hi]: a Python or NumPy integer (not a bool); TypeError or
-/// ValueError naming `what` otherwise, instead of pybind11's signature dump for 2**40.
-long long intArg(const py::object& o, const char* what, long long lo, long long hi) {
-  if (py::isinstance<py::bool_>(o) || !py::hasattr(o, "__index__"))
-    throw py::type_error(std::string(what) + ": expected an integer, got " + std::string(py::repr(o)));
-  int overflow = 0;
-  const long long v = PyLong_AsLongLongAndOverflow(py::int_(o).ptr(), &overflow);
-  if (overflow != 0 || v < lo || v > hi)
-    throw py::value_error(std::string(what) + " must be an integer in [" + std::to_string(lo) + ", " +
-                          std::to_string(hi) + "], got " + std::string(py::repr(o)));
-  return v;
-}
-
 template <typename Scalar>
 py::tuple voxel(const CloudView<Scalar>& view, double leaf_size, const py::object& attributes,
                 const py::object& min_points_arg) {

@@ -19,19 +19,6 @@ namespace scanalign::python {
 
 namespace {
 
-/// An int argument or field that must lie in [lo, 2^31 - 1]: ValueError naming it for any
-/// other integer (pybind11's own int conversion answers 10**12 with a TypeError that dumps
-/// the whole signature).
-int boundedInt(const py::int_& v, const char* what, int lo) {
-  int overflow = 0;
-  const long long x = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
-  if (x == -1 && PyErr_Occurred()) throw py::error_already_set();
-  if (overflow != 0 || x < lo || x > std::numeric_limits<int>::max())
-    throw py::value_error(std::string(what) + " must be an integer in [" + std::to_string(lo) + ", " +
-                          std::to_string(std::numeric_limits<int>::max()) + "], got " + std::string(py::str(v)));
-  return static_cast<int>(x);
-}
-
 IcpEstimator estimatorFromString(const std::string& s) {
   if (s == "point_to_plane") return IcpEstimator::PointToPlane;
   if (s == "point_to_point") return IcpEstimator::PointToPoint;
@@ -335,7 +322,7 @@ void defineRegistration(py::module_& m) {
                      "pairs farther apart are rejected, m (default 0.05)")
       .def_property(
           "max_iterations", [](const IcpSettings& s) { return s.max_iterations; },
-          [](IcpSettings& s, const py::int_& v) { s.max_iterations = boundedInt(v, "max_iterations", 0); },
+          [](IcpSettings& s, const py::object& v) { s.max_iterations = boundedInt(v, "max_iterations", 0); },
           "iteration cap (default 50), in [0, 2^31 - 1]; reaching it gives status 'max_iterations', converged "
           "False. Ctrl-C stops a long run between iterations (KeyboardInterrupt)")
       .def_readwrite("transformation_epsilon", &IcpSettings::transformation_epsilon,

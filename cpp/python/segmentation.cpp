@@ -37,19 +37,6 @@ py::array_t<std::int64_t> indexArray(const std::vector<std::uint32_t>& v) {
 /// Any Python int as a 64-bit seed (taken modulo 2^64, so negative seeds are accepted).
 std::uint64_t seedOf(const py::int_& seed) { return PyLong_AsUnsignedLongLongMask(seed.ptr()); }
 
-/// An int argument or field that must lie in [lo, 2^31 - 1]: ValueError naming it for any
-/// other integer (pybind11's own int conversion answers 10**12 with a TypeError that dumps
-/// the whole signature).
-int boundedInt(const py::int_& v, const char* what, int lo) {
-  int overflow = 0;
-  const long long x = PyLong_AsLongLongAndOverflow(v.ptr(), &overflow);
-  if (x == -1 && PyErr_Occurred()) throw py::error_already_set();
-  if (overflow != 0 || x < lo || x > std::numeric_limits<int>::max())
-    throw py::value_error(std::string(what) + " must be an integer in [" + std::to_string(lo) + ", " +
-                          std::to_string(std::numeric_limits<int>::max()) + "], got " + std::string(py::str(v)));
-  return static_cast<int>(x);
-}
-
 RansacSettings ransacSettings(double threshold, const py::int_& max_iterations, double confidence,
                               const py::int_& seed, int num_threads, bool refine) {
   RansacSettings s;
@@ -172,7 +159,7 @@ void defineSegmentation(py::module_& m) {
       .def_readwrite("threshold", &RansacSettings::threshold, "inlier distance, m")
       .def_property(
           "max_iterations", [](const RansacSettings& s) { return s.max_iterations; },
-          [](RansacSettings& s, const py::int_& v) { s.max_iterations = boundedInt(v, "max_iterations", 1); },
+          [](RansacSettings& s, const py::object& v) { s.max_iterations = boundedInt(v, "max_iterations", 1); },
           "most hypotheses drawn, in [1, 2^31 - 1]")
       .def_readwrite("confidence", &RansacSettings::confidence, "adaptive stop, in [0, 1]; 0 or 1 disables it")
       .def_readwrite("seed", &RansacSettings::seed, "sample k is drawn from a generator seeded by (seed, k)")
