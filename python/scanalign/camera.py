@@ -13,7 +13,7 @@ import json
 import math
 import os
 import re
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Mapping, Optional, Union
 
@@ -173,6 +173,3 @@ class Frame:
         out[~(out > 0)] = np.nan  # 0 (also NaN, negative) = no measurement
         return out
 
-    def with_depth(self, depth: np.ndarray) -> "Frame":
-        """A copy of the frame with another depth image (same intrinsics and pose)."""
-        return replace(self, depth=depth)

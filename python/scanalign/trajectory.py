@@ -19,7 +19,7 @@ from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from . import _core, se3
+from . import _core
 from ._arrays import as_transform
 from .io import atomic_open
 
@@ -94,10 +94,6 @@ class Trajectory:
         """The same trajectory expressed in another world frame: poses ``T_new_world @ T``
         (ValueError for a matrix that is not a finite 4x4)."""
         return Trajectory(self.timestamps.copy(), as_transform(T_new_world, "T_new_world") @ self.poses)
-
-    def relative_to_first(self) -> "Trajectory":
-        """Expressed in the first camera's frame: the first pose becomes the identity."""
-        return self.transformed(se3.inverse(self.poses[0]) if len(self) else np.eye(4))
 
     def to_tum_rows(self) -> np.ndarray:
         """(N, 8) rows ``timestamp tx ty tz qx qy qz qw``."""
