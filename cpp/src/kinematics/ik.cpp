@@ -591,14 +591,17 @@ void solveUniversalRobots(const Robot& robot, const Target& T, const IKSettings&
 
 bool validPose(const Eigen::Isometry3d& T) { return isRigid(T.matrix()); }
 
-/// Pose error of FK(q) against T: (position difference, m; rotation vector of R_T R_F^T, rad,
+/// Pose error of F against T: (position difference, m; rotation vector of R_T R_F^T, rad,
 /// first order).
-Eigen::Matrix<double, 6, 1> poseError(const Robot& robot, const Vector6d& q, const Eigen::Isometry3d& T) {
-  const Eigen::Isometry3d F = robot.forward(q);
+Eigen::Matrix<double, 6, 1> poseError(const Eigen::Isometry3d& F, const Eigen::Isometry3d& T) {
   const Matrix3d E = T.linear() * F.linear().transpose();
   Eigen::Matrix<double, 6, 1> r;
   r << T.translation() - F.translation(), 0.5 * Vector3d(E(2, 1) - E(1, 2), E(0, 2) - E(2, 0), E(1, 0) - E(0, 1));
   return r;
+}
+
+Eigen::Matrix<double, 6, 1> poseError(const Robot& robot, const Vector6d& q, const Eigen::Isometry3d& T) {
+  return poseError(robot.forward(q), T);
 }
 
 /// A few damped Gauss-Newton steps on the joints (Levenberg 1944; Marquardt 1963) from an
@@ -636,8 +639,11 @@ void verifyByForwardKinematics(const Robot& robot, const Eigen::Isometry3d& T, I
   const double rot_tol = kIKRotationTolerance + 2 * e;
   for (IKSolution& s : res.solutions) {
     if (s.status != IKStatus::Ok && s.status != IKStatus::OutsideLimits) continue;
-    if (e < 1e-12 && poseError(robot, s.q, T).cwiseAbs().maxCoeff() > 1e-12) polish(robot, T, s.q);
-    const Eigen::Isometry3d F = robot.forward(s.q);
+    Eigen::Isometry3d F = robot.forward(s.q);  // one FK per solution unless it needs polishing
+    if (e < 1e-12 && poseError(F, T).cwiseAbs().maxCoeff() > 1e-12) {
+      polish(robot, T, s.q);
+      F = robot.forward(s.q);
+    }
     const double dp = (F.translation() - T.translation()).cwiseAbs().maxCoeff();
     const double dr = (F.linear() - R).cwiseAbs().maxCoeff();
     if (dp <= pos_tol && dr <= rot_tol) continue;
