@@ -16,7 +16,6 @@ import pytest
 from helpers import apply, rigid
 from scanalign import cli
 
-ROOT = Path(__file__).resolve().parents[1]
 JOINTS = ["0.3", "-1.2", "1.1", "-1.4", "-1.2", "0.5"]
 
 
@@ -92,7 +91,7 @@ def test_unwritable_outputs_fail_in_a_fresh_process(files):
     """The installed entry point: non-zero status and a one-line message, no traceback (an
     unwritable plot path used to end in a NotADirectoryError traceback, a PCD without x, y,
     z in a KeyError)."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}  # the scanalign under test
     for argv, fragment in [(["ik", "--robot", "ur5", "--joints", *JOINTS, "--plot", "file.txt/ik.png"],
                             "Not a directory"),
                            (["register", "noxyz.pcd", "ok.pcd"], "no x, y, z fields")]:

@@ -134,7 +134,7 @@ def test_lying_headers_are_refused_before_allocating(tmp_path):
                 sys.exit(f"{{path.name}} was read")
         print("all refused")
     """)
-    env = {**os.environ, "PYTHONPATH": str(ROOT / "python")}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}  # the scanalign under test
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
     assert r.returncode == 0 and "all refused" in r.stdout, r.stderr[-2000:]
 
@@ -309,7 +309,7 @@ def test_fuzz_targets_run_clean(tmp_path):
     runs = int(os.environ.get("SCANALIGN_FUZZ_RUNS", "300"))
     targets = sorted((ROOT / "fuzz").glob("fuzz_*.py"))
     assert len(targets) >= 5, targets
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT / "python"), os.environ.get("PYTHONPATH", "")])}
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}  # the scanalign under test
     for target in targets:
         r = subprocess.run([sys.executable, str(target), f"-atheris_runs={runs}", "-rss_limit_mb=2048", "-timeout=60"],
                            capture_output=True, text=True, env=env, timeout=600, cwd=tmp_path)
