@@ -76,7 +76,8 @@ def set_fields(obj: object, values: dict, what: str) -> object:
 
 
 _KINDS = (("SupportsFloat", "a real number", (int, float, np.integer, np.floating)), ("SupportsInt", "an integer", (int, np.integer)),
-          ("bool", "True or False", (bool, np.bool_)), ("str", "a string", (str,)), ('"[3, 1]"', "3 real numbers", None))
+          ("bool", "True or False", (bool, np.bool_)), ("str", "a string", (str,)), ('"[3, 1]"', "3 real numbers", None),
+          ("numpy.ndarray", "a NumPy array", (np.ndarray,)))
 
 
 def _misfit(value: object, annotation: str) -> Optional[str]:
