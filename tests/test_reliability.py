@@ -229,3 +229,19 @@ def test_sampling_more_points_than_memory_holds_is_refused_before_allocating():
         parts.sample_mesh(mesh, 2**31)
     points, normals = parts.sample_mesh(mesh, 100)
     assert points.shape == normals.shape == (100, 3)
+
+
+def test_an_inlier_threshold_as_large_as_the_part_is_not_a_detection():
+    """With inlier_threshold = 1e300 m every placement has fitness and coverage 1: the fuzz
+    suite saw found=True with the scene 36 cm off the part. Such a threshold now gives
+    found=False with the reason; a sensible one still finds the part."""
+    from scanalign import cad, parts, pose
+
+    views = cad.render_views(parts.builtin_mesh(24), resolution=40)
+    scene = views[7].points_in_camera()
+    for threshold in (1e300, 1.0):
+        r = pose.estimate_pose(views, scene, method="flags", inlier_threshold=threshold, views=[0, 7])
+        assert not r.found and "quarter of the model's size" in r.message
+    r = pose.estimate_pose(views, scene, method="flags", inlier_threshold=0.005, views=[0, 7])
+    assert r.found
+    np.testing.assert_allclose(r.T_scene_model, np.linalg.inv(views[7].T_model_camera), atol=2e-3)

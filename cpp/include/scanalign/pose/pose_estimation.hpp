@@ -35,7 +35,7 @@ const char* toString(CoarseMethod method);
 
 struct PoseSettings {
   CoarseMethod method = CoarseMethod::Cbd;
-  double inlier_threshold = 0.005;  ///< m; fitness/coverage distance and the CBD RANSAC inlier threshold (thesis: 5 mm)
+  double inlier_threshold = 0.005;  ///< m; fitness/coverage distance and the CBD RANSAC inlier threshold (thesis: 5 mm); at a quarter of the model size or more the result is not found (fitness would not discriminate)
   double icp_distance = 0.01;       ///< m; ICP maximum correspondence distance
   double normal_radius = 0.005;     ///< m; scene normals for point-to-plane ICP and flags
   /// A pose counts as found only when the best view's points lie on the object (fitness) and
