@@ -6,8 +6,8 @@ the stacks and exits), so a crash or a hang fails that module's test and names t
 that caused it (the child logs every input before the call). The contract is in
 tests/fuzz/contract.py.
 
-Budget: ``SCANALIGN_FUZZ_EXAMPLES`` examples per target (default 60, about three minutes
-in all on two cores, derandomised so CI is reproducible). For a longer hunt with fresh
+Budget: ``SCANALIGN_FUZZ_EXAMPLES`` examples per target (default 400, about one minute in
+all on two cores, derandomised so CI is reproducible). For a longer hunt with fresh
 random inputs: ``SCANALIGN_FUZZ_EXAMPLES=2000 SCANALIGN_FUZZ_SEED=$RANDOM pytest tests/test_fuzz.py``.
 """
 
@@ -27,7 +27,7 @@ HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE / "fuzz"))
 from targets import TARGETS  # noqa: E402
 
-EXAMPLES = int(os.environ.get("SCANALIGN_FUZZ_EXAMPLES", "60"))
+EXAMPLES = int(os.environ.get("SCANALIGN_FUZZ_EXAMPLES", "400"))
 SEED = os.environ.get("SCANALIGN_FUZZ_SEED")
 
 

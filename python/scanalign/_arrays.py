@@ -77,15 +77,17 @@ def set_fields(obj: object, values: dict, what: str) -> object:
 
 _KINDS = (("SupportsFloat", "a real number", (int, float, np.integer, np.floating)), ("SupportsInt", "an integer", (int, np.integer)),
           ("bool", "True or False", (bool, np.bool_)), ("str", "a string", (str,)), ('"[3, 1]"', "3 real numbers", None),
-          ("numpy.ndarray", "a NumPy array", (np.ndarray,)))
+          ("numpy.ndarray", "a NumPy array", (np.ndarray,)), ("ArrayLike", "an array of real numbers", ()))
 
 
 def _misfit(value: object, annotation: str) -> Optional[str]:
     """What a parameter pybind11 annotated this way expects, when ``value`` cannot fill it."""
     for key, words, types in _KINDS:
-        if annotation in (key, {"SupportsFloat": "float", "SupportsInt": "int"}.get(key)) or key[0] in 'S"' and key in annotation:
+        if annotation in (key, {"SupportsFloat": "float", "SupportsInt": "int"}.get(key)) or key[0] in 'SA"' and key in annotation:
             if types is None:  # an Eigen 3-vector
                 ok = (a := np.asarray(value, dtype=object)).shape == (3,) and not any(_misfit(x, "float") for x in a)
+            elif not types:  # an Eigen array of any size
+                ok = np.asarray(value).dtype.kind in "biuf"
             else:
                 ok = isinstance(value, types) and (key in ("bool", "str") or not isinstance(value, bool))
                 if ok and key == "SupportsInt" and not 0 <= value < 2**31:  # the C++ integer cannot hold it
