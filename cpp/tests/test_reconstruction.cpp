@@ -399,6 +399,23 @@ void operator delete(void* p) noexcept { std::free(p); }
 void operator delete(void* p, std::size_t) noexcept { std::free(p); }
 #endif
 
+/// Fails the k-th allocation of `call` for k = 0, 1, ... until a call goes through, and
+/// expects the model unchanged after each failure; returns how many allocations failed.
+template <typename Call>
+long sweepAllocationFailures(FrameToModel& f2m, const std::string& what, Call call) {
+  for (long k = 0;; ++k) {
+    const Snapshot before(f2m);
+    try {
+      ArmFault arm(k);
+      call();
+      return k;
+    } catch (const std::bad_alloc&) {
+    }
+    before.expectUnchanged(f2m, what + " " + std::to_string(k) + " failed");
+    if (::testing::Test::HasFailure()) return k + 1;
+  }
+}
+
 TEST(FrameToModelFaults, AFailedAllocationAnywhereInAFrameLeavesTheModelUnchanged) {
   if (!SCANALIGN_TEST_FAULTS) GTEST_SKIP() << "operator new belongs to the sanitizer";
   TwoFrames t;
@@ -407,21 +424,8 @@ TEST(FrameToModelFaults, AFailedAllocationAnywhereInAFrameLeavesTheModelUnchange
   FrameToModel clean = t.f2m;
   const FrameReport expected = clean.integrate(t.view(), t.colors.data());
   ASSERT_EQ(expected.status, FrameStatus::Registered);
-  long failures = 0;
-  for (long k = 0;; ++k) {
-    const Snapshot before(t.f2m);
-    bool threw = false;
-    try {
-      ArmFault arm(k);
-      t.f2m.integrate(t.view(), t.colors.data());
-    } catch (const std::bad_alloc&) {
-      threw = true;
-    }
-    if (!threw) break;
-    ++failures;
-    before.expectUnchanged(t.f2m, "allocation " + std::to_string(k) + " failed");
-    if (HasFailure()) return;
-  }
+  const long failures = sweepAllocationFailures(t.f2m, "allocation", [&] { t.f2m.integrate(t.view(), t.colors.data()); });
+  if (HasFailure()) return;
   // Allocations fail in preparation, registration and merge alike (dozens of them); the
   // frame then goes through as if nothing had happened: the same pose and points (after a
   // failed merge the next one re-grids, re-normalising normals to within float rounding).
@@ -439,21 +443,8 @@ TEST(FrameToModelFaults, AFailedAllocationInTheMergeChangesNothing) {
   const Eigen::Matrix4d T = loopPose(1, 24) * rigid(0, 0, 0, 0, 0, 0);
   FrameToModel clean = t.f2m;
   clean.merge(frame, T);
-  long failures = 0;
-  for (long k = 0;; ++k) {
-    const Snapshot before(t.f2m);
-    bool threw = false;
-    try {
-      ArmFault arm(k);
-      t.f2m.merge(frame, T);
-    } catch (const std::bad_alloc&) {
-      threw = true;
-    }
-    if (!threw) break;
-    ++failures;
-    before.expectUnchanged(t.f2m, "merge allocation " + std::to_string(k) + " failed");
-    if (HasFailure()) return;
-  }
+  const long failures = sweepAllocationFailures(t.f2m, "merge allocation", [&] { t.f2m.merge(frame, T); });
+  if (HasFailure()) return;
   EXPECT_GE(failures, 5);  // the transformed frame, keys, index, sums, the model's growth
   // The merge that finally went through re-gridded (the index was dropped by the first
   // failure): the same points and colours as the clean merge, bit for bit, up to order.
