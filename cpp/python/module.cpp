@@ -21,6 +21,8 @@ void definePose(py::module_& m);
 void definePclFeatures(py::module_& m);
 void defineEvaluation(py::module_& m);
 void defineIo(py::module_& m);
+void defineCalibration(py::module_& m);
+void defineGrasp(py::module_& m);
 }  // namespace scanalign::python
 
 namespace {
@@ -87,6 +89,10 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineIo(io);
   auto evaluation = m.def_submodule("evaluation", "exact point-to-mesh distance");
   scanalign::python::defineEvaluation(evaluation);
+  auto calibration = m.def_submodule("calibration", "hand-eye calibration (AX = XB)");
+  scanalign::python::defineCalibration(calibration);
+  auto grasp = m.def_submodule("grasp", "grasps, part symmetry, gripper, grasp planning with IK");
+  scanalign::python::defineGrasp(grasp);
   // Ctrl-C stops long loops: scanalign::Interrupted (common/interrupt.hpp) becomes the
   // exception the signal handler raised, KeyboardInterrupt by default. Registered last so
   // that it is tried first (pybind11 tries translators newest first), before any

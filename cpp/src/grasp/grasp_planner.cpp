@@ -1,0 +1,2 @@
+// placeholder: grasp planning (being written)
+#include "scanalign/grasp/grasp_planner.hpp"
