@@ -101,8 +101,8 @@ py::array_t<double> posesArray(const Poses& poses) {
   return out;
 }
 
-py::tuple builtinPartMeshPy(int segments) {
-  const BuiltinPartMesh m = builtinPartMesh(segments);
+py::tuple builtinPartMeshPy(int segments, const std::string& name) {
+  const BuiltinPartMesh m = builtinPartMesh(name, segments);
   const auto nv = static_cast<py::ssize_t>(m.vertices.size()), nf = static_cast<py::ssize_t>(m.faces.size());
   py::array_t<double> vertices({nv, py::ssize_t{3}});
   py::array_t<std::int64_t> faces({nf, py::ssize_t{3}});
@@ -220,10 +220,21 @@ void bindSynthetic(py::module_& m) {
       "(n_frames, 4, 4) T_base_camera on rings at `distance` (m) from target, one per elevation (rad, in (0, pi/2]), "
       "frames shared in proportion to cos(elevation), successive rings in opposite directions. ValueError naming a "
       "bad argument (n_frames an integer in [number of rings, 100000]; distance and target within 1e6 m).");
-  s.def("builtin_part_mesh", &builtinPartMeshPy, py::arg("segments"),
-        "The built-in part (see scanalign.parts) as a watertight mesh in metres: (vertices (V,3) float64, faces "
-        "(F,3) int64 wound counter-clockwise seen from outside, surface (F,) int32: 0 plane, 1 boss cylinder, 2 "
-        "cap sphere). ValueError for segments outside [8, 4096].");
+  s.def("builtin_part_mesh", &builtinPartMeshPy, py::arg("segments"), py::arg("name") = "block",
+        "A built-in part (see scanalign.parts: block, bracket, standoff) as a watertight mesh in metres, its own "
+        "frame: (vertices (V,3) float64, faces (F,3) int64 wound counter-clockwise seen from outside, surface (F,) "
+        "int32: 0 plane, 1 cylinder (boss, stud), 2 cap sphere). ValueError for segments outside [8, 4096] or an "
+        "unknown name.");
+  s.def(
+      "builtin_part_symmetry",
+      [](const std::string& name) {
+        const PartSymmetry p = builtinPartSymmetry(name);
+        return py::make_tuple(p.axis, p.point, p.order);
+      },
+      py::arg("name"),
+      "(axis (3,), point (3,) m, order) of a built-in part's rotational symmetry in its model frame: order 1 = none, "
+      "6 for the standoff (about z through the origin). ValueError for an unknown name.");
+  s.attr("BUILTIN_PART_NAMES") = builtinPartNames();
   s.def(
       "morton_order",
       [](const py::array& points) {

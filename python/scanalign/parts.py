@@ -1,9 +1,12 @@
-"""The built-in machined part (needs no download), and meshes turned into oriented clouds.
+"""The built-in parts (need no download), and meshes turned into oriented clouds.
 
-The part is defined once, as a closed triangle mesh (:func:`builtin_mesh`, generated in C++
-from the analytic surfaces below); :func:`builtin_object` samples its cloud from that mesh and
-puts the points of the curved faces back on the exact cylinder and sphere. In metres, in
-its own frame (origin at the box centre, z up):
+Each part is defined once, as a closed triangle mesh generated in C++ from its analytic
+surfaces (:func:`builtin_mesh`; :data:`BUILTIN_PARTS` names them with their symmetry). In
+metres, each in its own frame, z up:
+
+``"block"``, the machined block (origin at the box centre; :func:`builtin_object` samples its
+cloud from the mesh and puts the points of the curved faces back on the exact cylinder and
+sphere):
 
 - a box ``[-0.040, 0.040] x [-0.025, 0.025] x [-0.015, 0.015]`` (80 x 50 x 30 mm);
 - a cylindrical boss of radius 0.012 standing on the top face, axis along z through
@@ -13,13 +16,24 @@ its own frame (origin at the box centre, z up):
 
 Flat faces, a cylinder and a sphere without symmetry constrain point-to-plane ICP in all
 six degrees of freedom.
+
+``"bracket"``, an L-shaped angle bracket (origin at the base plate's centre on its bottom face):
+a 70 x 40 x 6 mm base plate ``[-0.035, 0.035] x [-0.020, 0.020] x [0, 0.006]``, a 40 x 40 x 6 mm
+upright plate at the +x end (x in ``[0.029, 0.035]``, top at ``z = 0.040``) and a triangular
+gusset (legs 20 mm, 6 mm thick, y in ``[0.014, 0.020]``) in the inner corner on the +y side,
+which breaks the mirror symmetry: no rotation or reflection maps it onto itself.
+
+``"standoff"``, a hexagonal standoff (origin at the bottom face centre): a hexagonal prism 30
+mm across flats (corners at angles ``k 60°``), 20 mm high, and a coaxial cylindrical stud of
+radius 6 mm, 15 mm high (top at ``z = 0.035``). It looks the same after a rotation by 60°
+about z: order 6.
 """
 
 from __future__ import annotations
 
 import functools
 import math
-from typing import Tuple, Union
+from typing import Any, Dict, NamedTuple, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -27,7 +41,7 @@ import numpy.typing as npt
 from . import _core, io
 from ._arrays import require_memory
 
-__all__ = ["builtin_mesh", "builtin_object", "sample_mesh", "normalize_mesh"]
+__all__ = ["builtin_mesh", "builtin_object", "sample_mesh", "normalize_mesh", "BUILTIN_PARTS"]
 
 MeshLike = Union[io.Mesh, Tuple[npt.ArrayLike, npt.ArrayLike]]
 
@@ -108,27 +122,56 @@ def normalize_mesh(mesh: io.Mesh, size: float) -> io.Mesh:
     return io.Mesh((v - offset) * (size / extent), mesh.faces.copy())
 
 
-@functools.lru_cache(maxsize=4)
-def _builtin(segments: int) -> Tuple[io.Mesh, np.ndarray]:
+class _Symmetry(NamedTuple):
+    """A part's rotational symmetry (the fields of ``_core.grasp.PartSymmetry``), used while
+    that class is not bound."""
+    axis: np.ndarray
+    point: np.ndarray
+    order: int
+
+
+def _symmetry(name: str) -> Any:
+    axis, point, order = _core.synthetic.builtin_part_symmetry(name)
+    cls = getattr(getattr(_core, "grasp", None), "PartSymmetry", None)
+    if cls is None:
+        return _Symmetry(axis, point, order)
+    s = cls()
+    s.axis, s.point, s.order = axis, point, order
+    return s
+
+
+#: Each built-in part's name and rotational symmetry in its model frame (``PartSymmetry``:
+#: ``axis``, ``point`` m, ``order``): block 1, bracket 1, standoff 6 about z through the origin.
+BUILTIN_PARTS: Dict[str, Any] = {name: _symmetry(name) for name in _core.synthetic.BUILTIN_PART_NAMES}
+
+
+@functools.lru_cache(maxsize=8)
+def _builtin(segments: int, name: str = "block") -> Tuple[io.Mesh, np.ndarray]:
     """The part's mesh and, per face, the surface it lies on (_PLANE, _BOSS or _CAP)."""
-    vertices, faces, surface = _core.synthetic.builtin_part_mesh(segments)
+    vertices, faces, surface = _core.synthetic.builtin_part_mesh(segments, name)
     return io.Mesh(vertices, faces), surface
 
 
-def builtin_mesh(segments: int = 96) -> io.Mesh:
-    """The built-in part (see the module docstring) as a closed triangle mesh, in metres in
-    the part's own frame (origin at the box centre, z up).
+def builtin_mesh(segments: int = 96, name: str = "block") -> io.Mesh:
+    """A built-in part (see the module docstring; :data:`BUILTIN_PARTS`) as a closed
+    triangle mesh, in metres in the part's own frame (z up).
 
     Watertight (every edge shared by exactly two faces), wound counter-clockwise seen from
-    outside, about 3000 triangles for ``segments=96``; the curved surfaces are inscribed
-    polygons (chord error 6 um at 96 segments) whose vertices lie on the exact surfaces.
+    outside (about 3000 triangles for the block at ``segments=96``); curved surfaces are
+    inscribed polygons (chord error 6 um for the block at 96 segments) whose vertices lie on
+    the exact surfaces.
 
     Args:
-        segments: vertices around the boss and the cap (integer >= 8).
+        segments: vertices around a curved surface (integer in [8, 4096]); the standoff's stud
+            rounds it up to a multiple of 6 (the mesh keeps the 6-fold symmetry); the bracket
+            has no curved surface.
+        name: ``"block"`` (default), ``"bracket"`` or ``"standoff"``.
     """
     if int(segments) != segments:
         raise ValueError(f"segments must be an integer >= 8, got {segments}")
-    m, _ = _builtin(int(segments))  # C++ raises ValueError for segments < 8
+    if name not in BUILTIN_PARTS:
+        raise ValueError(f"name: expected one of {sorted(BUILTIN_PARTS)}, got {name!r}")
+    m, _ = _builtin(int(segments), name)  # C++ raises ValueError for segments < 8
     return io.Mesh(m.vertices.copy(), m.faces.copy())
 
 

@@ -35,6 +35,12 @@ class MeshBuilder {
     mesh_.surface.push_back(surface);
   }
 
+  /// A planar triangle wound so that its normal points along `outward`.
+  void facing(int a, int b, int c, const Eigen::Vector3d& outward) {
+    if ((at(b) - at(a)).cross(at(c) - at(a)).dot(outward) < 0) std::swap(b, c);
+    triangle(a, b, c);
+  }
+
   /// Closed band between two rings of equal size, both counter-clockwise seen from
   /// outside-above; normals point away from the ring axis.
   void strip(const std::vector<int>& lower, const std::vector<int>& upper) {
@@ -122,12 +128,114 @@ std::vector<double> boundary(double a, double c) {
   return linspace(a, c, std::max(2, static_cast<int>(std::ceil(std::abs(c - a) / 0.004)) + 1));
 }
 
-}  // namespace
-
-BuiltinPartMesh builtinPartMesh(int segments) {
+void checkSegments(int segments) {
   if (segments < 8 || segments > kMaxPartSegments)
     throw std::invalid_argument("segments must be an integer in [8, " + std::to_string(kMaxPartSegments) + "], got " +
                                 std::to_string(segments));
+}
+
+/// The bracket: its L profile in the (x, z) plane, extruded along y in two slabs. The slab
+/// y in [kGussetY, kHalfW] adds the gusset to the profile (the diagonal E-G replaces the
+/// corner E-F-G); the step face at y = kGussetY is the gusset's triangle. The profile of the
+/// other slab keeps E and G as (collinear) vertices so the slabs share every edge.
+BuiltinPartMesh bracketMesh() {
+  constexpr double kHalfL = 0.035, kHalfW = 0.020, kT = 0.006, kHeight = 0.040, kLeg = 0.020, kGussetY = 0.014;
+  constexpr double kInner = kHalfL - kT;  // x of the upright's inner face
+  // Profile, counter-clockwise in (x, z): A B C D E F G H.
+  const std::vector<Eigen::Vector2d> p1 = {{-kHalfL, 0},        {kHalfL, 0},     {kHalfL, kHeight},
+                                           {kInner, kHeight},   {kInner, kT + kLeg}, {kInner, kT},
+                                           {kInner - kLeg, kT}, {-kHalfL, kT}};
+  std::vector<Eigen::Vector2d> p2 = p1;
+  p2.erase(p2.begin() + 5);  // F is inside the gusset
+  MeshBuilder b;
+  auto v = [&](const Eigen::Vector2d& q, double y) { return b.vertex(q.x(), y, q.y()); };
+  const Eigen::Vector3d minus_y(0, -1, 0), plus_y(0, 1, 0);
+  auto walls = [&](const std::vector<Eigen::Vector2d>& p, double y0, double y1) {
+    for (std::size_t j = 0; j < p.size(); ++j) {
+      const Eigen::Vector2d& a = p[j];
+      const Eigen::Vector2d& c = p[(j + 1) % p.size()];
+      const Eigen::Vector3d out(c.y() - a.y(), 0, a.x() - c.x());  // (dz, 0, -dx): outward of a CCW profile
+      b.facing(v(a, y0), v(c, y0), v(c, y1), out);
+      b.facing(v(a, y0), v(c, y1), v(a, y1), out);
+    }
+  };
+  // End caps: both profiles are star-shaped from B (index 1), so a fan from B covers them.
+  auto cap = [&](const std::vector<Eigen::Vector2d>& p, double y, const Eigen::Vector3d& out) {
+    for (std::size_t j = 2; j < p.size(); ++j) b.facing(v(p[1], y), v(p[j], y), v(p[(j + 1) % p.size()], y), out);
+  };
+  walls(p1, -kHalfW, kGussetY);
+  walls(p2, kGussetY, kHalfW);
+  cap(p1, -kHalfW, minus_y);
+  cap(p2, kHalfW, plus_y);
+  b.facing(v(p1[4], kGussetY), v(p1[5], kGussetY), v(p1[6], kGussetY), minus_y);  // the gusset's step E F G
+  return b.take();
+}
+
+/// The standoff: a hexagonal prism with a stud. The prism's top edges are subdivided (at
+/// most 4 mm apart) so that the annulus between them and the stud's ring is well shaped.
+BuiltinPartMesh standoffMesh(int segments) {
+  constexpr double kApothem = 0.015, kHeight = 0.020, kStudRadius = 0.006, kStudHeight = 0.015;
+  const double circumradius = kApothem / std::cos(kPi / 6);
+  const int n = 6 * ((segments + 5) / 6);  // the stud keeps the 6-fold symmetry
+  constexpr int kPerEdge = 5;              // 3.5 mm apart
+  MeshBuilder b;
+  std::vector<Eigen::Vector2d> corner(6);
+  for (int k = 0; k < 6; ++k) corner[static_cast<std::size_t>(k)] = circumradius * Eigen::Vector2d(std::cos(k * kPi / 3), std::sin(k * kPi / 3));
+  std::vector<int> outer;
+  std::vector<std::vector<int>> edge_top(6);
+  for (std::size_t k = 0; k < 6; ++k) {
+    const Eigen::Vector2d& a = corner[k];
+    const Eigen::Vector2d& c = corner[(k + 1) % 6];
+    for (int j = 0; j <= kPerEdge; ++j) {
+      const Eigen::Vector2d q = j == kPerEdge ? c : Eigen::Vector2d(a + (c - a) * (static_cast<double>(j) / kPerEdge));
+      edge_top[k].push_back(b.vertex(q.x(), q.y(), kHeight));
+      if (j < kPerEdge) outer.push_back(edge_top[k].back());
+    }
+  }
+  std::vector<int> stud_bottom, stud_top;
+  for (int j = 0; j < n; ++j) {
+    const double phi = 2 * kPi * j / n;
+    stud_bottom.push_back(b.vertex(kStudRadius * std::cos(phi), kStudRadius * std::sin(phi), kHeight));
+    stud_top.push_back(b.vertex(kStudRadius * std::cos(phi), kStudRadius * std::sin(phi), kHeight + kStudHeight));
+  }
+  b.surface = PartSurface::kBoss;
+  b.strip(stud_bottom, stud_top);
+  b.surface = PartSurface::kPlane;
+  b.fan(b.vertex(0, 0, kHeight + kStudHeight), stud_top);
+  b.annulus(0, 0, stud_bottom, outer);
+  std::vector<int> bottom;
+  for (const auto& q : corner) bottom.push_back(b.vertex(q.x(), q.y(), 0));
+  for (std::size_t k = 0; k < 6; ++k) b.rectangleSide(edge_top[k], bottom[k], bottom[(k + 1) % 6]);
+  for (std::size_t k = 1; k + 1 < 6; ++k) b.facing(bottom[0], bottom[k], bottom[k + 1], Eigen::Vector3d(0, 0, -1));
+  return b.take();
+}
+
+}  // namespace
+
+const std::vector<std::string>& builtinPartNames() {
+  static const std::vector<std::string> names = {"block", "bracket", "standoff"};
+  return names;
+}
+
+BuiltinPartMesh builtinPartMesh(const std::string& name, int segments) {
+  checkSegments(segments);
+  if (name == "block") return builtinPartMesh(segments);
+  if (name == "bracket") return bracketMesh();
+  if (name == "standoff") return standoffMesh(segments);
+  throw std::invalid_argument("name: unknown built-in part '" + name + "' (expected block, bracket or standoff)");
+}
+
+PartSymmetry builtinPartSymmetry(const std::string& name) {
+  const auto& names = builtinPartNames();
+  if (std::find(names.begin(), names.end(), name) == names.end())
+    throw std::invalid_argument("name: unknown built-in part '" + name + "' (expected block, bracket or standoff)");
+  PartSymmetry s;
+  if (name == "standoff") s.order = 6;  // axis z through the origin
+  return s;
+}
+
+BuiltinPartMesh builtinPartMesh(int segments) {
+  checkSegments(segments);
   MeshBuilder b;
   const auto n = static_cast<std::size_t>(segments);
   std::vector<double> cs(n), sn(n);
