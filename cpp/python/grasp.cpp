@@ -1,6 +1,283 @@
-// placeholder: Python bindings of the grasp area (being written)
+// Bindings of scanalign/grasp: grasps on a CAD part, the part's symmetry, the gripper, the
+// planner settings and planGrasp, with the C++ structs bound directly (their doc comments are
+// the docstrings). Every argument is checked in C++ (std::invalid_argument -> ValueError naming
+// the field); python/scanalign/grasp.py re-exports these classes and reads grasp files.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <string>
+#include <vector>
+
+#include "scanalign/common/rigid.hpp"
+#include "scanalign/grasp/grasp_planner.hpp"
+
 namespace py = pybind11;
+
 namespace scanalign::python {
-void defineGrasp(py::module_& m) { (void)m; }
+
+namespace {
+using namespace scanalign;
+using Matrix4 = Eigen::Matrix4d;
+
+Eigen::Isometry3d rigid(const Matrix4& M, const std::string& name) {
+  requireRigid(M, name);
+  Eigen::Isometry3d T;
+  T.matrix() = M;
+  return T;
+}
+
+GripperShape shapeOf(const std::string& s) {
+  if (s == "box") return GripperShape::Box;
+  if (s == "capsule") return GripperShape::Capsule;
+  throw std::invalid_argument("gripper.shape must be 'box' or 'capsule', got '" + s + "'");
+}
+
+/// A setter that validates the whole object after the change and keeps the old value on error.
+template <typename C, typename V, typename Set>
+auto checked(Set set) {
+  return [set](C& obj, const V& v) {
+    C copy = obj;
+    set(copy, v);
+    copy.validate();
+    obj = copy;
+  };
+}
+
+void bindSymmetry(py::module_& m) {
+  using S = PartSymmetry;
+  py::class_<S>(m, "PartSymmetry",
+                "A part's rotational symmetry in its model frame: it looks the same after a rotation by 2*pi/order "
+                "about the axis through point (order 1: none; 0: any rotation, a body of revolution)")
+      .def(py::init([](const Eigen::Vector3d& axis, const Eigen::Vector3d& point, int order) {
+             S s{axis, point, order};
+             s.validate();
+             return s;
+           }),
+           py::arg("axis") = Eigen::Vector3d::UnitZ(), py::arg("point") = Eigen::Vector3d::Zero(),
+           py::arg("order") = 1)
+      .def_property("axis", [](const S& s) { return s.axis; },
+                    checked<S, Eigen::Vector3d>([](S& s, const Eigen::Vector3d& v) { s.axis = v; }),
+                    "(3,) symmetry axis direction, model frame (normalised on use)")
+      .def_property("point", [](const S& s) { return s.point; },
+                    checked<S, Eigen::Vector3d>([](S& s, const Eigen::Vector3d& v) { s.point = v; }),
+                    "(3,) a point on the axis, model frame, m")
+      .def_property("order", [](const S& s) { return s.order; }, checked<S, int>([](S& s, int v) { s.order = v; }),
+                    "1: no symmetry; n >= 2: 2*pi/n rotations; 0: continuous")
+      .def(
+          "transforms",
+          [](const S& s, int continuous_steps) {
+            if (continuous_steps < 1 || continuous_steps > 3600)
+              throw std::invalid_argument("continuous_steps must be in 1..3600");
+            std::vector<Matrix4> out;
+            for (const auto& T : s.transforms(continuous_steps)) out.push_back(T.matrix());
+            return out;
+          },
+          py::arg("continuous_steps") = 72,
+          "The transforms S_k (model -> model, 4x4) that map the part onto itself, S_0 = identity; for a continuous "
+          "symmetry continuous_steps evenly spaced angles")
+      .def("__repr__", [](const S& s) {
+        return "PartSymmetry(axis=" + std::string(py::repr(py::cast(s.axis).attr("tolist")())) +
+               ", point=" + std::string(py::repr(py::cast(s.point).attr("tolist")())) +
+               ", order=" + std::to_string(s.order) + ")";
+      });
+}
+
+void bindGrasp(py::module_& m) {
+  py::class_<Grasp>(m, "Grasp",
+                    "A grasp on a CAD part: T_model_grasp (TCP pose at the grasp, model frame, m), the approach "
+                    "direction (unit, grasp/TCP frame: where the TCP moves to reach the grasp) and the pre-grasp "
+                    "distance (m): the pre-grasp is the grasp moved back by that distance against the approach")
+      .def(py::init([](const std::string& name, const Matrix4& T_model_grasp, const Eigen::Vector3d& approach,
+                       double pre_grasp_distance) {
+             Grasp g{name, rigid(T_model_grasp, "T_model_grasp"), approach, pre_grasp_distance};
+             g.validate("grasp '" + name + "'");
+             return g;
+           }),
+           py::arg("name") = "", py::arg("T_model_grasp") = Matrix4::Identity(),
+           py::arg("approach") = Eigen::Vector3d::UnitZ(), py::arg("pre_grasp_distance") = 0.08)
+      .def_readwrite("name", &Grasp::name, "name, for messages and files")
+      .def_property(
+          "T_model_grasp", [](const Grasp& g) { return Matrix4(g.T_model_grasp.matrix()); },
+          checked<Grasp, Matrix4>([](Grasp& g, const Matrix4& M) { g.T_model_grasp = rigid(M, "T_model_grasp"); }),
+          "(4, 4) TCP pose at the grasp in the model frame, m")
+      .def_property("approach", [](const Grasp& g) { return g.approach; },
+                    checked<Grasp, Eigen::Vector3d>([](Grasp& g, const Eigen::Vector3d& v) { g.approach = v; }),
+                    "(3,) unit approach direction in the grasp (TCP) frame; default +z, the tool axis")
+      .def_property("pre_grasp_distance", [](const Grasp& g) { return g.pre_grasp_distance; },
+                    checked<Grasp, double>([](Grasp& g, double v) { g.pre_grasp_distance = v; }),
+                    "m, from the pre-grasp to the grasp along the approach (>= 0)")
+      .def(
+          "pre_grasp", [](const Grasp& g) { return Matrix4(g.preGrasp().matrix()); },
+          "T_model_pregrasp (4, 4): the grasp pose moved back by pre_grasp_distance against the approach, m")
+      .def("__repr__", [](const Grasp& g) {
+        return "Grasp(name='" + g.name + "', pre_grasp_distance=" + std::string(py::repr(py::float_(g.pre_grasp_distance))) + ")";
+      });
+}
+
+void bindGripper(py::module_& m) {
+  using G = Gripper;
+  const auto vec = [](Eigen::Vector3d G::*field) {
+    return checked<G, Eigen::Vector3d>([field](G& g, const Eigen::Vector3d& v) { g.*field = v; });
+  };
+  const auto scalar = [](double G::*field) {
+    return checked<G, double>([field](G& g, double v) { g.*field = v; });
+  };
+  py::class_<G>(m, "Gripper",
+                "The tool on the flange: T_flange_tcp and a collision body (a box or a capsule, flange frame, m) "
+                "that the planner keeps above the table, plus the flange disc of flange_radius")
+      .def(py::init([](const Matrix4& T_flange_tcp, const std::string& shape, const Eigen::Vector3d& box_centre,
+                       const Eigen::Vector3d& box_half_extents, const Eigen::Vector3d& capsule_a,
+                       const Eigen::Vector3d& capsule_b, double capsule_radius, double flange_radius) {
+             G g;
+             g.T_flange_tcp = rigid(T_flange_tcp, "gripper.T_flange_tcp");
+             g.shape = shapeOf(shape);
+             g.box_centre = box_centre, g.box_half_extents = box_half_extents;
+             g.capsule_a = capsule_a, g.capsule_b = capsule_b, g.capsule_radius = capsule_radius;
+             g.flange_radius = flange_radius;
+             g.validate();
+             return g;
+           }),
+           py::arg("T_flange_tcp") = Matrix4::Identity(), py::arg("shape") = "box",
+           py::arg("box_centre") = Eigen::Vector3d::Zero(), py::arg("box_half_extents") = Eigen::Vector3d::Zero(),
+           py::arg("capsule_a") = Eigen::Vector3d::Zero(), py::arg("capsule_b") = Eigen::Vector3d::Zero(),
+           py::arg("capsule_radius") = 0.0, py::arg("flange_radius") = 0.0315)
+      .def_static("parallel_jaw", &G::parallelJaw,
+                  "A parallel-jaw gripper like the Robotiq 2F-85: TCP 0.15 m along the flange z; body a box "
+                  "0.08 x 0.14 x 0.15 m from the flange face to the TCP; flange radius 0.0315 m")
+      .def_property(
+          "T_flange_tcp", [](const G& g) { return Matrix4(g.T_flange_tcp.matrix()); },
+          checked<G, Matrix4>([](G& g, const Matrix4& M) { g.T_flange_tcp = rigid(M, "gripper.T_flange_tcp"); }),
+          "(4, 4) TCP -> flange, m")
+      .def_property(
+          "shape", [](const G& g) { return std::string(toString(g.shape)); },
+          checked<G, std::string>([](G& g, const std::string& s) { g.shape = shapeOf(s); }),
+          "'box' or 'capsule': which collision body is used")
+      .def_property("box_centre", [](const G& g) { return g.box_centre; }, vec(&G::box_centre), "(3,) flange frame, m")
+      .def_property("box_half_extents", [](const G& g) { return g.box_half_extents; }, vec(&G::box_half_extents),
+                    "(3,) half extents along flange x, y, z, m (>= 0)")
+      .def_property("capsule_a", [](const G& g) { return g.capsule_a; }, vec(&G::capsule_a),
+                    "(3,) capsule axis end, flange frame, m")
+      .def_property("capsule_b", [](const G& g) { return g.capsule_b; }, vec(&G::capsule_b),
+                    "(3,) capsule axis end, flange frame, m")
+      .def_property("capsule_radius", [](const G& g) { return g.capsule_radius; }, scalar(&G::capsule_radius),
+                    "m (>= 0)")
+      .def_property("flange_radius", [](const G& g) { return g.flange_radius; }, scalar(&G::flange_radius),
+                    "radius of the flange disc, m (>= 0)")
+      .def(
+          "lowest_height",
+          [](const G& g, const Matrix4& T_base_flange, const Eigen::Vector4d& table_plane) {
+            const Eigen::Isometry3d T = rigid(T_base_flange, "T_base_flange");
+            const Eigen::Vector3d n = table_plane.head<3>();
+            if (!table_plane.allFinite() || std::abs(n.norm() - 1) > 1e-6)
+              throw std::invalid_argument("table_plane: (n, d) must be finite with a unit normal n");
+            return std::min(g.bodyHeight(T, n, table_plane[3]), g.flangeHeight(T, n, table_plane[3]));
+          },
+          py::arg("T_base_flange"), py::arg("table_plane"),
+          "Signed height (m) above the plane n.p + d = 0 (base frame) of the lowest point of the body and the "
+          "flange disc with the flange at T_base_flange; negative: below the plane")
+      .def("__repr__", [](const G& g) { return std::string("Gripper(shape='") + toString(g.shape) + "')"; });
+}
+
+void bindSettings(py::module_& m) {
+  using S = GraspPlannerSettings;
+  py::class_<S>(m, "GraspPlannerSettings", "Settings of plan_grasp (checked when planning, naming the field)")
+      .def(py::init<>())
+      .def_readwrite("table_clearance", &S::table_clearance,
+                     "m, least height of the gripper body and flange above the table plane (default 0.005)")
+      .def_readwrite("check_arm_points", &S::check_arm_points,
+                     "also keep the arm's joint points (DH frame origins 2..5) above the table (default True)")
+      .def_readwrite("min_wrist_angle", &S::min_wrist_angle,
+                     "rad, least distance of the DH wrist angle theta5 from 0 or pi (default 0.05)")
+      .def_readwrite("min_shoulder_distance", &S::min_shoulder_distance,
+                     "m, least distance of the wrist centre (KUKA P_w, UR P_c) from the first axis (default 0.02)")
+      .def_readwrite("min_elbow_angle", &S::min_elbow_angle,
+                     "rad, least angle of the elbow away from stretched or folded (default 0.05)")
+      .def_readwrite("approach_step", &S::approach_step, "m, spacing of the approach samples (default 0.005, > 0)")
+      .def_readwrite("max_joint_step", &S::max_joint_step,
+                     "rad, largest joint change between approach samples that counts as continuous (default 0.1)")
+      .def_readwrite("joint_weights", &S::joint_weights, "(6,) weights of the cost sum w_i |dq_i| (default ones)")
+      .def_readwrite("respect_limits", &S::respect_limits, "reject solutions outside the joint limits (default True)")
+      .def_readwrite("continuous_symmetry_steps", &S::continuous_symmetry_steps,
+                     "copies of a grasp on a part with a continuous symmetry (order 0), 1..3600 (default 36)");
+}
+
+void bindResults(py::module_& m) {
+  using C = GraspCandidate;
+  const auto mat = [](Eigen::Isometry3d C::*f) { return [f](const C& c) { return Matrix4((c.*f).matrix()); }; };
+  py::class_<C>(m, "GraspCandidate", "One grasp x symmetry copy x IK configuration, with why it was rejected")
+      .def_readonly("grasp_index", &C::grasp_index, "index into the grasp list")
+      .def_readonly("symmetry_index", &C::symmetry_index, "symmetry copy k (PartSymmetry.transforms()[k])")
+      .def_readonly("config_index", &C::config_index,
+                    "IK configuration 4*(shoulder<0) + 2*(elbow<0) + (wrist<0) (scanalign.kinematics)")
+      .def_property_readonly("T_base_tcp_pregrasp", mat(&C::T_base_tcp_pregrasp), "(4, 4) m")
+      .def_property_readonly("T_base_tcp_grasp", mat(&C::T_base_tcp_grasp), "(4, 4) T_base_model T_model_grasp', m")
+      .def_property_readonly("T_base_flange_pregrasp", mat(&C::T_base_flange_pregrasp), "(4, 4) m")
+      .def_property_readonly("T_base_flange_grasp", mat(&C::T_base_flange_grasp),
+                             "(4, 4) T_base_tcp_grasp inv(T_flange_tcp), m")
+      .def_readonly("q_pregrasp", &C::q_pregrasp, "(6,) joints at the pre-grasp, rad (NaN if not reached)")
+      .def_readonly("q_grasp", &C::q_grasp, "(6,) joints at the grasp, rad (NaN unless the approach was followed)")
+      .def_property_readonly(
+          "reason", [](const C& c) { return toString(c.reason); },
+          "'ok', 'unreachable', 'outside_limits', 'near_singularity', 'below_table' or 'approach_branch_change'")
+      .def_readonly("detail", &C::detail, "the reason in words, with the measured value")
+      .def_readonly("cost", &C::cost, "weighted joint motion, rad (inf unless 'ok')")
+      .def("__repr__", [](const C& c) {
+        return "GraspCandidate(grasp_index=" + std::to_string(c.grasp_index) + ", symmetry_index=" +
+               std::to_string(c.symmetry_index) + ", config_index=" + std::to_string(c.config_index) + ", reason='" +
+               toString(c.reason) + "')";
+      });
+  py::class_<GraspPlan>(m, "GraspPlan", "The result of plan_grasp: the chosen candidate and every other one")
+      .def_readonly("found", &GraspPlan::found, "True when some candidate is 'ok'")
+      .def_readonly("message", &GraspPlan::message, "the choice, or why nothing was found")
+      .def_readonly("chosen", &GraspPlan::chosen, "index into candidates, -1 when none")
+      .def_readonly("candidates", &GraspPlan::candidates, "list of GraspCandidate")
+      .def_property_readonly(
+          "approach_q",
+          [](const GraspPlan& p) {
+            py::array_t<double> a({static_cast<py::ssize_t>(p.approach_q.size()), py::ssize_t{6}});
+            for (std::size_t i = 0; i < p.approach_q.size(); ++i)
+              std::copy(p.approach_q[i].data(), p.approach_q[i].data() + 6, a.mutable_data() + 6 * i);
+            return a;
+          },
+          "(K, 6) joints at every approach sample of the chosen candidate, pre-grasp first, rad")
+      .def_property_readonly(
+          "best",
+          [](const GraspPlan& p) -> py::object {
+            return p.found ? py::cast(p.candidates[static_cast<std::size_t>(p.chosen)]) : py::none();
+          },
+          "the chosen GraspCandidate, or None")
+      .def("__bool__", [](const GraspPlan& p) { return p.found; })
+      .def("__repr__", [](const GraspPlan& p) {
+        return std::string("GraspPlan(found=") + (p.found ? "True" : "False") + ", message='" + p.message + "')";
+      });
+}
+
+}  // namespace
+
+void defineGrasp(py::module_& m) {
+  bindSymmetry(m);
+  bindGrasp(m);
+  bindGripper(m);
+  bindSettings(m);
+  bindResults(m);
+  m.def(
+      "plan_grasp",
+      [](const Robot& robot, const Matrix4& T_base_model, const std::vector<Grasp>& grasps, const PartSymmetry& symmetry,
+         const Gripper& gripper, const Eigen::Vector4d& table_plane, const Vector6d& q_current,
+         const GraspPlannerSettings& settings) {
+        const Eigen::Isometry3d T = rigid(T_base_model, "T_base_model");
+        py::gil_scoped_release release;
+        return planGrasp(robot, T, grasps, symmetry, gripper, table_plane, q_current, settings);
+      },
+      py::arg("robot"), py::arg("T_base_model"), py::arg("grasps"), py::arg("symmetry"), py::arg("gripper"),
+      py::arg("table_plane"), py::arg("q_current"), py::arg("settings"),
+      "Joint targets to pick a part (see docs/api/grasp.md): every grasp x symmetry copy x IK configuration is "
+      "solved at the pre-grasp and checked (joint limits, singularity margins, table, a straight approach without "
+      "a branch change); the least weighted joint motion from q_current (rad) wins. T_base_model (4, 4, m): the "
+      "part in the cell; table_plane (4,): unit normal n (up) and d, n.p + d = 0 in the base frame. The robot's "
+      "tool is replaced by gripper.T_flange_tcp. ValueError naming the argument for bad input.");
+}
+
 }  // namespace scanalign::python
