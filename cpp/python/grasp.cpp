@@ -197,7 +197,7 @@ void bindSettings(py::module_& m) {
       .def_readwrite("approach_step", &S::approach_step, "m, spacing of the approach samples (default 0.005, > 0)")
       .def_readwrite("max_joint_step", &S::max_joint_step,
                      "rad, largest joint change between approach samples that counts as continuous (default 0.1)")
-      .def_readwrite("joint_weights", &S::joint_weights, "(6,) weights of the cost sum w_i |dq_i| (default ones)")
+      .def_readwrite("joint_weights", &S::joint_weights, "(6,) weights of the cost sum w_i |dq_i|, each in [0, 1e6] (default ones)")
       .def_readwrite("respect_limits", &S::respect_limits, "reject solutions outside the joint limits (default True)")
       .def_readwrite("continuous_symmetry_steps", &S::continuous_symmetry_steps,
                      "copies of a grasp on a part with a continuous symmetry (order 0), 1..3600 (default 36)");

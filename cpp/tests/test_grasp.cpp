@@ -339,7 +339,13 @@ TEST(GraspPlanner, BadInputNamesTheField) {
   EXPECT_NE(plan(robot, I, {topGrasp()}, {}, gr, kTable, q, s).find("approach_step"), std::string::npos);
   s = {}, s.table_clearance = NAN;
   EXPECT_NE(plan(robot, I, {topGrasp()}, {}, gr, kTable, q, s).find("table_clearance"), std::string::npos);
+  s = {}, s.joint_weights[3] = 1e7;
+  EXPECT_NE(plan(robot, I, {topGrasp()}, {}, gr, kTable, q, s).find("joint_weights"), std::string::npos);
   PartSymmetry sym;
+  sym.order = 0;
+  s = {}, s.continuous_symmetry_steps = 3600;
+  EXPECT_NE(plan(robot, I, std::vector<Grasp>(3, topGrasp()), sym, gr, kTable, q, s).find("symmetry copies exceeds"),
+            std::string::npos);
   sym.order = -1;
   EXPECT_NE(plan(robot, I, {topGrasp()}, sym, gr, kTable, q, {}).find("symmetry order"), std::string::npos);
   Vector6d qn = q;

@@ -21,6 +21,7 @@ namespace {
 constexpr double kUnitTolerance = 1e-6;   // |1 - |v|| accepted for a unit vector
 constexpr double kFkTolerance = 1e-9;     // FK(q) vs the commanded flange pose, m and matrix entries
 constexpr long kMaxApproachSamples = 100000;
+constexpr std::size_t kMaxGraspCopies = 10000;  // grasps x symmetry copies per call
 
 std::string num(double v, const char* fmt = "%.4g") {
   char buf[64];
@@ -131,8 +132,9 @@ void GraspPlannerSettings::validate() const {
   requireFinite(min_elbow_angle, "settings.min_elbow_angle (rad)");
   requireFinite(approach_step, "settings.approach_step (m)", true);
   requireFinite(max_joint_step, "settings.max_joint_step (rad)", true);
-  if (!joint_weights.allFinite() || (joint_weights.array() < 0).any())
-    throw std::invalid_argument("settings.joint_weights must be 6 finite values >= 0");
+  // Bounded so that a cost (weights times at most a few hundred rad) stays finite and comparable.
+  if (!joint_weights.allFinite() || (joint_weights.array() < 0).any() || (joint_weights.array() > 1e6).any())
+    throw std::invalid_argument("settings.joint_weights must be 6 values in [0, 1e6]");
   if (continuous_symmetry_steps < 1 || continuous_symmetry_steps > 3600)
     throw std::invalid_argument("settings.continuous_symmetry_steps must be in 1..3600, got " +
                                 std::to_string(continuous_symmetry_steps));
@@ -398,6 +400,13 @@ GraspPlan planGrasp(const Robot& robot, const Eigen::Isometry3d& T_base_model, c
                                   "exceeds 100000 approach samples");
   }
   symmetry.validate();
+  const std::size_t copies_per_grasp =
+      symmetry.order == 0 ? static_cast<std::size_t>(settings.continuous_symmetry_steps) : static_cast<std::size_t>(std::max(1, symmetry.order));
+  // About 0.1 ms per candidate: this bounds a call to seconds, never an apparent hang.
+  if (grasps.size() * copies_per_grasp > kMaxGraspCopies)
+    throw std::invalid_argument("grasps: " + std::to_string(grasps.size()) + " grasps x " +
+                                std::to_string(copies_per_grasp) + " symmetry copies exceeds " +
+                                std::to_string(kMaxGraspCopies) + " (8 IK candidates each)");
   const Eigen::Isometry3d T_tcp_flange = gripper.T_flange_tcp.inverse();
   GraspPlan plan;
   std::vector<Vector6d> path;

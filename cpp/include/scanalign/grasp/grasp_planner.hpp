@@ -77,7 +77,7 @@ struct GraspPlannerSettings {
   double min_elbow_angle = 0.05;
   double approach_step = 0.005;    ///< m, spacing of the samples of the straight approach (> 0)
   double max_joint_step = 0.1;     ///< rad, largest joint change between two approach samples that counts as continuous (> 0)
-  Vector6d joint_weights = Vector6d::Ones();  ///< weights w_i of the cost sum_i w_i |Δq_i| (>= 0)
+  Vector6d joint_weights = Vector6d::Ones();  ///< weights w_i of the cost sum_i w_i |Δq_i|, each in [0, 1e6]
   bool respect_limits = true;      ///< reject solutions outside the joint limits (false: ignore the limits)
   int continuous_symmetry_steps = 36;  ///< symmetry copies of a part with a continuous symmetry (order 0), 1..3600
 
@@ -117,7 +117,7 @@ struct GraspPlan {
 /// Throws std::invalid_argument naming the argument or field: non-rigid T_base_model, an
 /// empty grasp list or a bad grasp (Grasp::validate), a bad symmetry, gripper or setting, a
 /// non-finite or non-unit table normal, non-finite q_current, a robot the analytic IK does not
-/// cover, or an approach of more than 100000 samples.
+/// cover, an approach of more than 100000 samples, or more than 10000 grasps x symmetry copies.
 GraspPlan planGrasp(const Robot& robot, const Eigen::Isometry3d& T_base_model, const std::vector<Grasp>& grasps,
                     const PartSymmetry& symmetry, const Gripper& gripper, const Eigen::Vector4d& table_plane,
                     const Vector6d& q_current, const GraspPlannerSettings& settings = {});
