@@ -98,6 +98,25 @@ def test_settings_by_name_and_bad_arguments():
         G.plan_grasp(robot, T, g, q_current=[0, 0, float("inf"), 0, 0, 0])
     with pytest.raises(ValueError, match="unknown robot"):
         G.plan_grasp("ur99", T, g)
+    for kwargs, error, match in [
+        (dict(T_base_model=np.eye(3)), ValueError, r"T_base_model: expected shape \(4, 4\), got \(3, 3\)"),
+        (dict(T_base_model="abc"), TypeError, "T_base_model: expected real numbers"),
+        (dict(table_plane=(0, 0, 1)), ValueError, r"table_plane: expected shape \(4,\)"),
+        (dict(q_current=[0] * 5), ValueError, r"q_current: expected shape \(6,\)"),
+        (dict(q_current=np.zeros(6, complex)), TypeError, "q_current: expected real numbers"),
+        (dict(symmetry=3), TypeError, "symmetry: expected PartSymmetry"),
+        (dict(gripper="big"), TypeError, "gripper: expected Gripper"),
+        (dict(robot=5), TypeError, "robot: expected Robot"),
+        (dict(joint_weights=[1] * 5), ValueError, r"joint_weights: expected shape \(6,\)"),
+        (dict(joint_weights=[1, 1, 1, 1e7, 1, 1]), ValueError, r"joint_weights must be 6 values in \[0, 1e6\]"),
+    ]:
+        args = {"robot": robot, "T_base_model": T, "grasps": g, **kwargs}
+        with pytest.raises(error, match=match):
+            G.plan_grasp(args.pop("robot"), args.pop("T_base_model"), args.pop("grasps"), **args)
+    with pytest.raises(ValueError, match=r"approach: expected shape \(3,\)"):
+        G.Grasp("x", TOP, approach=(0, 0))
+    with pytest.raises(ValueError, match=r"gripper.capsule_a: expected shape \(3,\)"):
+        G.Gripper(capsule_a=[1, 2])
     with pytest.raises(ValueError, match="approach"):
         G.Grasp("x", TOP, approach=(0, 0, 2))
     with pytest.raises(ValueError, match="pre_grasp_distance"):

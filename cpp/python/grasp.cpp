@@ -7,6 +7,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <string>
 #include <vector>
 
@@ -21,12 +22,42 @@ namespace {
 using namespace scanalign;
 using Matrix4 = Eigen::Matrix4d;
 
-Eigen::Isometry3d rigid(const Matrix4& M, const std::string& name) {
-  requireRigid(M, name);
+std::string shapeText(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+/// `x` as a finite rows x cols (cols 0: a vector of `rows`) float64 matrix; TypeError naming
+/// `name` unless it holds real numbers, ValueError for another shape or a non-finite value.
+Eigen::MatrixXd realArray(const py::object& x, const std::string& name, int rows, int cols) {
+  const py::array a = py::array::ensure(x);
+  const char kind = a ? a.dtype().kind() : 'O';
+  if (kind != 'f' && kind != 'i' && kind != 'u')
+    throw py::type_error(name + ": expected real numbers, got " +
+                         (a ? "dtype " + std::string(py::str(a.dtype())) : std::string(py::str(py::type::of(x)))));
+  const auto f = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
+  const bool fits = cols == 0 ? f.ndim() == 1 && f.shape(0) == rows
+                              : f.ndim() == 2 && f.shape(0) == rows && f.shape(1) == cols;
+  if (!fits)
+    throw py::value_error(name + ": expected shape (" + std::to_string(rows) +
+                          (cols ? ", " + std::to_string(cols) + ")" : ",)") + ", got " + shapeText(f));
+  Eigen::MatrixXd M(rows, std::max(cols, 1));
+  for (int i = 0; i < rows; ++i)
+    for (int j = 0; j < std::max(cols, 1); ++j) M(i, j) = f.data()[i * std::max(cols, 1) + j];
+  if (!M.allFinite()) throw py::value_error(name + ": non-finite values");
+  return M;
+}
+
+Eigen::Vector3d vec3(const py::object& x, const std::string& name) { return realArray(x, name, 3, 0); }
+
+Eigen::Isometry3d rigid(const py::object& x, const std::string& name) {
   Eigen::Isometry3d T;
-  T.matrix() = M;
+  T.matrix() = realArray(x, name, 4, 4);
+  requireRigid(T.matrix(), name);
   return T;
 }
+
 
 GripperShape shapeOf(const std::string& s) {
   if (s == "box") return GripperShape::Box;
@@ -50,18 +81,18 @@ void bindSymmetry(py::module_& m) {
   py::class_<S>(m, "PartSymmetry",
                 "A part's rotational symmetry in its model frame: it looks the same after a rotation by 2*pi/order "
                 "about the axis through point (order 1: none; 0: any rotation, a body of revolution)")
-      .def(py::init([](const Eigen::Vector3d& axis, const Eigen::Vector3d& point, int order) {
-             S s{axis, point, order};
+      .def(py::init([](const py::object& axis, const py::object& point, int order) {
+             S s{vec3(axis, "axis"), vec3(point, "point"), order};
              s.validate();
              return s;
            }),
-           py::arg("axis") = Eigen::Vector3d::UnitZ(), py::arg("point") = Eigen::Vector3d::Zero(),
+           py::arg("axis") = std::vector<double>{0, 0, 1}, py::arg("point") = std::vector<double>{0, 0, 0},
            py::arg("order") = 1)
       .def_property("axis", [](const S& s) { return s.axis; },
-                    checked<S, Eigen::Vector3d>([](S& s, const Eigen::Vector3d& v) { s.axis = v; }),
+                    checked<S, py::object>([](S& s, const py::object& v) { s.axis = vec3(v, "PartSymmetry.axis"); }),
                     "(3,) symmetry axis direction, model frame (normalised on use)")
       .def_property("point", [](const S& s) { return s.point; },
-                    checked<S, Eigen::Vector3d>([](S& s, const Eigen::Vector3d& v) { s.point = v; }),
+                    checked<S, py::object>([](S& s, const py::object& v) { s.point = vec3(v, "PartSymmetry.point"); }),
                     "(3,) a point on the axis, model frame, m")
       .def_property("order", [](const S& s) { return s.order; }, checked<S, int>([](S& s, int v) { s.order = v; }),
                     "1: no symmetry; n >= 2: 2*pi/n rotations; 0: continuous")
@@ -89,21 +120,24 @@ void bindGrasp(py::module_& m) {
                     "A grasp on a CAD part: T_model_grasp (TCP pose at the grasp, model frame, m), the approach "
                     "direction (unit, grasp/TCP frame: where the TCP moves to reach the grasp) and the pre-grasp "
                     "distance (m): the pre-grasp is the grasp moved back by that distance against the approach")
-      .def(py::init([](const std::string& name, const Matrix4& T_model_grasp, const Eigen::Vector3d& approach,
+      .def(py::init([](const std::string& name, const py::object& T_model_grasp, const py::object& approach,
                        double pre_grasp_distance) {
-             Grasp g{name, rigid(T_model_grasp, "T_model_grasp"), approach, pre_grasp_distance};
+             Grasp g{name, Eigen::Isometry3d::Identity(), Eigen::Vector3d::UnitZ(), pre_grasp_distance};
+             if (!T_model_grasp.is_none()) g.T_model_grasp = rigid(T_model_grasp, "T_model_grasp");
+             if (!approach.is_none()) g.approach = vec3(approach, "approach");
              g.validate("grasp '" + name + "'");
              return g;
            }),
-           py::arg("name") = "", py::arg("T_model_grasp") = Matrix4::Identity(),
-           py::arg("approach") = Eigen::Vector3d::UnitZ(), py::arg("pre_grasp_distance") = 0.08)
+           py::arg("name") = "", py::arg("T_model_grasp") = py::none(), py::arg("approach") = py::none(),
+           py::arg("pre_grasp_distance") = 0.08,
+           "T_model_grasp (4, 4), default identity; approach (3,), default (0, 0, 1)")
       .def_readwrite("name", &Grasp::name, "name, for messages and files")
       .def_property(
           "T_model_grasp", [](const Grasp& g) { return Matrix4(g.T_model_grasp.matrix()); },
-          checked<Grasp, Matrix4>([](Grasp& g, const Matrix4& M) { g.T_model_grasp = rigid(M, "T_model_grasp"); }),
+          checked<Grasp, py::object>([](Grasp& g, const py::object& M) { g.T_model_grasp = rigid(M, "T_model_grasp"); }),
           "(4, 4) TCP pose at the grasp in the model frame, m")
       .def_property("approach", [](const Grasp& g) { return g.approach; },
-                    checked<Grasp, Eigen::Vector3d>([](Grasp& g, const Eigen::Vector3d& v) { g.approach = v; }),
+                    checked<Grasp, py::object>([](Grasp& g, const py::object& v) { g.approach = vec3(v, "approach"); }),
                     "(3,) unit approach direction in the grasp (TCP) frame; default +z, the tool axis")
       .def_property("pre_grasp_distance", [](const Grasp& g) { return g.pre_grasp_distance; },
                     checked<Grasp, double>([](Grasp& g, double v) { g.pre_grasp_distance = v; }),
@@ -118,8 +152,8 @@ void bindGrasp(py::module_& m) {
 
 void bindGripper(py::module_& m) {
   using G = Gripper;
-  const auto vec = [](Eigen::Vector3d G::*field) {
-    return checked<G, Eigen::Vector3d>([field](G& g, const Eigen::Vector3d& v) { g.*field = v; });
+  const auto vec = [](Eigen::Vector3d G::*field, const char* name) {
+    return checked<G, py::object>([field, name](G& g, const py::object& v) { g.*field = vec3(v, name); });
   };
   const auto scalar = [](double G::*field) {
     return checked<G, double>([field](G& g, double v) { g.*field = v; });
@@ -127,39 +161,42 @@ void bindGripper(py::module_& m) {
   py::class_<G>(m, "Gripper",
                 "The tool on the flange: T_flange_tcp and a collision body (a box or a capsule, flange frame, m) "
                 "that the planner keeps above the table, plus the flange disc of flange_radius")
-      .def(py::init([](const Matrix4& T_flange_tcp, const std::string& shape, const Eigen::Vector3d& box_centre,
-                       const Eigen::Vector3d& box_half_extents, const Eigen::Vector3d& capsule_a,
-                       const Eigen::Vector3d& capsule_b, double capsule_radius, double flange_radius) {
+      .def(py::init([](const py::object& T_flange_tcp, const std::string& shape, const py::object& box_centre,
+                       const py::object& box_half_extents, const py::object& capsule_a, const py::object& capsule_b,
+                       double capsule_radius, double flange_radius) {
              G g;
              g.T_flange_tcp = rigid(T_flange_tcp, "gripper.T_flange_tcp");
              g.shape = shapeOf(shape);
-             g.box_centre = box_centre, g.box_half_extents = box_half_extents;
-             g.capsule_a = capsule_a, g.capsule_b = capsule_b, g.capsule_radius = capsule_radius;
+             g.box_centre = vec3(box_centre, "gripper.box_centre");
+             g.box_half_extents = vec3(box_half_extents, "gripper.box_half_extents");
+             g.capsule_a = vec3(capsule_a, "gripper.capsule_a"), g.capsule_b = vec3(capsule_b, "gripper.capsule_b");
+             g.capsule_radius = capsule_radius;
              g.flange_radius = flange_radius;
              g.validate();
              return g;
            }),
-           py::arg("T_flange_tcp") = Matrix4::Identity(), py::arg("shape") = "box",
-           py::arg("box_centre") = Eigen::Vector3d::Zero(), py::arg("box_half_extents") = Eigen::Vector3d::Zero(),
-           py::arg("capsule_a") = Eigen::Vector3d::Zero(), py::arg("capsule_b") = Eigen::Vector3d::Zero(),
+           py::arg("T_flange_tcp") = std::vector<std::vector<double>>{{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}},
+           py::arg("shape") = "box", py::arg("box_centre") = std::vector<double>{0, 0, 0},
+           py::arg("box_half_extents") = std::vector<double>{0, 0, 0}, py::arg("capsule_a") = std::vector<double>{0, 0, 0},
+           py::arg("capsule_b") = std::vector<double>{0, 0, 0},
            py::arg("capsule_radius") = 0.0, py::arg("flange_radius") = 0.0315)
       .def_static("parallel_jaw", &G::parallelJaw,
                   "A parallel-jaw gripper like the Robotiq 2F-85: TCP 0.15 m along the flange z; body a box "
                   "0.08 x 0.14 x 0.15 m from the flange face to the TCP; flange radius 0.0315 m")
       .def_property(
           "T_flange_tcp", [](const G& g) { return Matrix4(g.T_flange_tcp.matrix()); },
-          checked<G, Matrix4>([](G& g, const Matrix4& M) { g.T_flange_tcp = rigid(M, "gripper.T_flange_tcp"); }),
+          checked<G, py::object>([](G& g, const py::object& M) { g.T_flange_tcp = rigid(M, "gripper.T_flange_tcp"); }),
           "(4, 4) TCP -> flange, m")
       .def_property(
           "shape", [](const G& g) { return std::string(toString(g.shape)); },
           checked<G, std::string>([](G& g, const std::string& s) { g.shape = shapeOf(s); }),
           "'box' or 'capsule': which collision body is used")
-      .def_property("box_centre", [](const G& g) { return g.box_centre; }, vec(&G::box_centre), "(3,) flange frame, m")
-      .def_property("box_half_extents", [](const G& g) { return g.box_half_extents; }, vec(&G::box_half_extents),
+      .def_property("box_centre", [](const G& g) { return g.box_centre; }, vec(&G::box_centre, "gripper.box_centre"), "(3,) flange frame, m")
+      .def_property("box_half_extents", [](const G& g) { return g.box_half_extents; }, vec(&G::box_half_extents, "gripper.box_half_extents"),
                     "(3,) half extents along flange x, y, z, m (>= 0)")
-      .def_property("capsule_a", [](const G& g) { return g.capsule_a; }, vec(&G::capsule_a),
+      .def_property("capsule_a", [](const G& g) { return g.capsule_a; }, vec(&G::capsule_a, "gripper.capsule_a"),
                     "(3,) capsule axis end, flange frame, m")
-      .def_property("capsule_b", [](const G& g) { return g.capsule_b; }, vec(&G::capsule_b),
+      .def_property("capsule_b", [](const G& g) { return g.capsule_b; }, vec(&G::capsule_b, "gripper.capsule_b"),
                     "(3,) capsule axis end, flange frame, m")
       .def_property("capsule_radius", [](const G& g) { return g.capsule_radius; }, scalar(&G::capsule_radius),
                     "m (>= 0)")
@@ -167,8 +204,9 @@ void bindGripper(py::module_& m) {
                     "radius of the flange disc, m (>= 0)")
       .def(
           "lowest_height",
-          [](const G& g, const Matrix4& T_base_flange, const Eigen::Vector4d& table_plane) {
+          [](const G& g, const py::object& T_base_flange, const py::object& plane) {
             const Eigen::Isometry3d T = rigid(T_base_flange, "T_base_flange");
+            const Eigen::Vector4d table_plane = realArray(plane, "table_plane", 4, 0);
             const Eigen::Vector3d n = table_plane.head<3>();
             if (!table_plane.allFinite() || std::abs(n.norm() - 1) > 1e-6)
               throw std::invalid_argument("table_plane: (n, d) must be finite with a unit normal n");
@@ -197,7 +235,9 @@ void bindSettings(py::module_& m) {
       .def_readwrite("approach_step", &S::approach_step, "m, spacing of the approach samples (default 0.005, > 0)")
       .def_readwrite("max_joint_step", &S::max_joint_step,
                      "rad, largest joint change between approach samples that counts as continuous (default 0.1)")
-      .def_readwrite("joint_weights", &S::joint_weights, "(6,) weights of the cost sum w_i |dq_i|, each in [0, 1e6] (default ones)")
+      .def_property(
+          "joint_weights", [](const S& s) { return s.joint_weights; },
+          [](S& s, const py::object& v) { s.joint_weights = realArray(v, "GraspPlannerSettings.joint_weights", 6, 0); }, "(6,) weights of the cost sum w_i |dq_i|, each in [0, 1e6] (default ones)")
       .def_readwrite("respect_limits", &S::respect_limits, "reject solutions outside the joint limits (default True)")
       .def_readwrite("continuous_symmetry_steps", &S::continuous_symmetry_steps,
                      "copies of a grasp on a part with a continuous symmetry (order 0), 1..3600 (default 36)");
@@ -264,10 +304,12 @@ void defineGrasp(py::module_& m) {
   bindResults(m);
   m.def(
       "plan_grasp",
-      [](const Robot& robot, const Matrix4& T_base_model, const std::vector<Grasp>& grasps, const PartSymmetry& symmetry,
-         const Gripper& gripper, const Eigen::Vector4d& table_plane, const Vector6d& q_current,
+      [](const Robot& robot, const py::object& T_base_model, const std::vector<Grasp>& grasps,
+         const PartSymmetry& symmetry, const Gripper& gripper, const py::object& plane, const py::object& q,
          const GraspPlannerSettings& settings) {
         const Eigen::Isometry3d T = rigid(T_base_model, "T_base_model");
+        const Eigen::Vector4d table_plane = realArray(plane, "table_plane", 4, 0);
+        const Vector6d q_current = realArray(q, "q_current", 6, 0);
         py::gil_scoped_release release;
         return planGrasp(robot, T, grasps, symmetry, gripper, table_plane, q_current, settings);
       },

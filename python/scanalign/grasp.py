@@ -50,6 +50,10 @@ def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmet
 
     if isinstance(robot, str):
         robot = kinematics.Robot.by_name(robot)
+    for value, name, cls in ((robot, "robot", kinematics.Robot), (symmetry, "symmetry", PartSymmetry),
+                             (gripper, "gripper", Gripper)):
+        if value is not None and not isinstance(value, cls):
+            raise TypeError(f"{name}: expected {cls.__name__}, got {type(value).__name__}")
     s = GraspPlannerSettings()
     for name, value in settings.items():
         if not hasattr(s, name) or name.startswith("_"):
@@ -57,8 +61,8 @@ def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmet
         setattr(s, name, value)
     if isinstance(grasps, Grasp) or not all(isinstance(g, Grasp) for g in grasps):
         raise TypeError("grasps: expected a list of scanalign.grasp.Grasp")
-    return _G.plan_grasp(robot, T_base_model, list(grasps), symmetry or PartSymmetry(),
-                         gripper or Gripper.parallel_jaw(), table_plane,
+    return _G.plan_grasp(robot, T_base_model, list(grasps), PartSymmetry() if symmetry is None else symmetry,
+                         Gripper.parallel_jaw() if gripper is None else gripper, table_plane,
                          np.zeros(6) if q_current is None else q_current, s)
 
 
