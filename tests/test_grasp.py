@@ -199,3 +199,7 @@ def test_grasp_file_errors_name_file_grasp_and_field(tmp_path):
         G.read_part_grasps(path)
     with pytest.raises(ValueError, match="path"):
         G.write_part_grasps(tmp_path / "part.txt", _part())
+    in_memory = _part()
+    in_memory.mesh = object()
+    with pytest.raises(ValueError, match="part.mesh"):
+        G.write_part_grasps(tmp_path / "part.json", in_memory)

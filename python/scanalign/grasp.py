@@ -73,7 +73,8 @@ class PartGrasps:
     grasps: List[Grasp]
     symmetry: Optional[PartSymmetry] = None
     gripper: Optional[Gripper] = None
-    mesh: Optional[str] = None  #: a mesh file path or "builtin:<name>"
+    #: a mesh file path (relative to the grasp file's folder) or "builtin:<name>"; in memory also an io.Mesh
+    mesh: Any = None
     scale: float = 1.0  #: mesh units -> metres (grasps are always in metres)
 
 
@@ -143,6 +144,9 @@ def write_part_grasps(path: Any, part: PartGrasps) -> None:
     p = Path(path)
     data: dict = {"name": part.name, "scale": float(part.scale)}
     if part.mesh is not None:
+        if not isinstance(part.mesh, str):
+            raise ValueError(f"part.mesh: only a mesh file path or 'builtin:<name>' can be written, got "
+                             f"{type(part.mesh).__name__}")
         data["mesh"] = part.mesh
     if part.symmetry is not None:
         s = part.symmetry
