@@ -265,6 +265,32 @@ TEST(GraspPlanner, ApproachThroughTheShoulderSingularityIsABranchChange) {
   }
 }
 
+TEST(GraspPlanner, ApproachBeyondReachIsUnreachableAlongTheApproach) {
+  // UR5 upright: the pre-grasp 0.65 m out is reachable, the grasp 1.25 m out (beyond the
+  // 0.85 m reach) is not; the straight line between them leaves the workspace on the way.
+  const Robot robot = Robot::ur5();
+  Grasp g = topGrasp();
+  g.T_model_grasp = pose({1.25, 0.1, 0.3}, rotX(M_PI));
+  g.approach = Eigen::Vector3d::UnitX();
+  g.pre_grasp_distance = 0.6;
+  const Vector6d q0 = (Vector6d() << 0, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0).finished();
+  GraspPlannerSettings s;  // the joints speed up towards the stretched elbow: only the reach is tested
+  s.max_joint_step = 3;
+  const GraspPlan plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, Gripper::parallelJaw(),
+                                   Eigen::Vector4d(0, 0, 1, 10), q0, s);
+  EXPECT_FALSE(plan.found);
+  int along = 0;
+  for (const GraspCandidate& c : plan.candidates) {
+    EXPECT_EQ(c.reason, GraspReason::Unreachable) << c.detail;
+    if (c.q_pregrasp.allFinite()) {
+      ++along;
+      EXPECT_NE(c.detail.find("approach sample"), std::string::npos) << c.detail;
+      EXPECT_LE(maxDiff(robot.forwardFlange(c.q_pregrasp), c.T_base_flange_pregrasp), 1e-9);
+    }
+  }
+  EXPECT_GT(along, 0);
+}
+
 TEST(GraspPlanner, EquivalentGraspsFollowTheSymmetry) {
   PartSymmetry sym;
   sym.order = 0;

@@ -278,9 +278,16 @@ bool followApproach(const Cell& c, const Grasp& g, GraspCandidate& cand, int n, 
     Eigen::Index j = 0;
     const double step = (s.q - path.back()).cwiseAbs().maxCoeff(&j);
     if (config != cand.config_index) {
+      // Say why the configuration was left: it ends there (reach, limits) or another one is nearer.
+      const IKSolution own = ik(c.arm, T, opt).solutions[static_cast<std::size_t>(cand.config_index)];
+      const std::string why = own.status == IKStatus::OutsideLimits ? " (configuration " +
+                                  std::to_string(cand.config_index) + " is outside the joint limits there)"
+                              : own.status == IKStatus::Unreachable ? " (configuration " +
+                                  std::to_string(cand.config_index) + " is out of reach there)"
+                                                                    : "";
       reject(cand, GraspReason::ApproachBranchChange,
              sampleName(k, n) + ": the IK configuration changes from " + std::to_string(cand.config_index) + " to " +
-                 std::to_string(config));
+                 std::to_string(config) + why);
       return false;
     }
     if (step > c.settings.max_joint_step) {
