@@ -172,6 +172,43 @@ TEST(GraspPlanner, WristSingularPoseIsNearSingularityForItsBranches) {
   }
 }
 
+TEST(GraspPlanner, ElbowAndShoulderMarginsMeasureTheArmGeometry) {
+  const Eigen::Vector4d far_table(0, 0, 1, 10);
+  Gripper flange_only = Gripper::parallelJaw();
+  flange_only.T_flange_tcp = Eigen::Isometry3d::Identity();
+  {  // UR5 with theta3 = 0.03 rad: upper arm and forearm (both in the arm plane) 0.03 rad from straight
+    const Robot robot = Robot::ur5();
+    const Vector6d q = (Vector6d() << 0.3, -1.2, 0.03, -1.0, 1.2, 0.5).finished();
+    Grasp g;
+    g.pre_grasp_distance = 0;
+    g.T_model_grasp = robot.forwardFlange(q);
+    const GraspPlan plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, flange_only, far_table, q);
+    const IKSolution mine = ikClosest(robot, g.T_model_grasp, q);
+    const GraspCandidate& c = plan.candidates[static_cast<std::size_t>(configIndex(mine.config))];
+    EXPECT_EQ(c.reason, GraspReason::NearSingularity);
+    EXPECT_NE(c.detail.find("elbow: 0.03 rad from stretched"), std::string::npos) << c.detail;
+  }
+  {  // KR6, tool down: the wrist centre is d6 = 0.08 m above the flange, here 0.01 m from the first axis
+    const Robot robot = Robot::kukaKR6R900sixx();
+    Grasp g;
+    g.pre_grasp_distance = 0;
+    g.T_model_grasp = pose({0.01 * std::cos(0.4), 0.01 * std::sin(0.4), 0.7}, rotX(M_PI));
+    const Vector6d q0 = (Vector6d() << 0, -M_PI / 2, M_PI / 2, 0, M_PI / 2, 0).finished();
+    const GraspPlan plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, flange_only, far_table, q0);
+    int shoulder = 0;
+    for (const GraspCandidate& c : plan.candidates) {
+      if (c.reason == GraspReason::Unreachable || c.reason == GraspReason::OutsideLimits) continue;
+      ++shoulder;
+      EXPECT_EQ(c.reason, GraspReason::NearSingularity) << c.detail;
+      EXPECT_NE(c.detail.find("shoulder: wrist centre 0.01 m from the first axis"), std::string::npos) << c.detail;
+    }
+    EXPECT_GT(shoulder, 0);
+    GraspPlannerSettings s;
+    s.min_shoulder_distance = 0.005;
+    EXPECT_TRUE(planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, flange_only, far_table, q0, s).found);
+  }
+}
+
 TEST(GraspPlanner, JointLimitsGiveOutsideLimits) {
   for (Cell cell : cells()) {
     SCOPED_TRACE(cell.robot.name);
