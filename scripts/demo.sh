@@ -4,3 +4,4 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 .venv/bin/scanalign demo --out out/demo
+.venv/bin/scanalign pick --demo --out out/pick

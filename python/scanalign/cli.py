@@ -5,6 +5,8 @@
   scanalign synth CONFIG DIR   render a synthetic scan into a TUM RGB-D folder
   scanalign register SRC TGT   ICP between two point-cloud files (PCD or PLY)
   scanalign register-demo      one simulated frame registered by scanalign and stock PCL
+  scanalign pick --demo        scan a built-in cell, find its parts, plan grasps and joint targets
+  scanalign demo --pick        the same
 
 Units: metres, radians, seconds. Run ``scanalign COMMAND --help`` for every option.
 """
@@ -437,6 +439,67 @@ def pose_command(args: argparse.Namespace) -> int:
     return 0 if any(r.found for r in results) else 1
 
 
+def _matrix_file(path: Optional[str], what: str) -> Optional[np.ndarray]:
+    if path is None:
+        return None
+    try:
+        return se3.require_rigid(np.loadtxt(path, ndmin=2), what)
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{what} {path}: expected a text file holding a rigid 4x4 matrix ({e})") from None
+
+
+def pick_command(args: argparse.Namespace) -> int:
+    """``scanalign pick``: scan -> part poses -> grasps -> joint targets; exit status 1 when
+    nothing can be picked."""
+    from . import pick as _pick
+    from .synthetic.cell import pick_cell
+
+    s = _pick.PickSettings()
+    truth = None
+    if args.demo:
+        cell = pick_cell(args.robot or "ur5", noise=args.noise, seed=args.seed)
+        scene, parts, robot, T_base_robot, T_fc, truth = cell.scan, cell.parts, cell.robot, None, None, cell.truth
+        print(f"scanalign pick: built-in cell: {cell.robot.name}, {len(cell.parts)} parts on the table, "
+              f"{len(cell.scan)} frames with {args.noise} noise")
+    else:
+        if args.scene is None or not args.parts or args.robot is None:
+            raise ValueError("give --scene, --parts and --robot (or --demo)")
+        scene, parts, robot = args.scene, args.parts, args.robot
+        T_base_robot, T_fc = _matrix_file(args.robot_base, "--robot-base"), _matrix_file(args.hand_eye, "--hand-eye")
+    result = _pick.pick(scene, parts, robot, T_base_robot=T_base_robot, T_flange_camera=T_fc, joints=args.joints,
+                        q_current=args.q_current, settings=s, progress=not args.quiet)
+    _pick.print_picks(result)
+    if truth is not None:
+        from .synthetic.cell import score_picks
+
+        for name, e in score_picks(result, truth).items():
+            print(f"  {name}: TCP at the chosen grasp {1000 * e['tcp_m']:.3f} mm / {e['tcp_deg']:.3f} deg "
+                  f"from the true grasp; part pose {1000 * e['pose_m']:.3f} mm / {e['pose_deg']:.3f} deg")
+    paths = result.save(args.out, plots=not args.no_plots)
+    print("wrote " + ", ".join(str(p) for p in paths.values()))
+    return 0 if any(p.status == "picked" for p in result.picks) else 1
+
+
+def _add_pick_options(p: argparse.ArgumentParser, demo: bool) -> None:
+    if not demo:
+        p.add_argument("--demo", action="store_true", help="the built-in cell (a UR5 or the KR6, three parts)")
+        p.add_argument("--scene", help="TUM RGB-D folder (with --joints), or a PLY / PCD cloud in the base frame")
+        p.add_argument("--parts", nargs="+", help="part files (JSON / YAML: mesh, grasps, symmetry) or built-in "
+                                                  "part names (block, bracket, standoff)")
+        p.add_argument("--joints", help="joint log of the scan (index,timestamp,q1..q6; as 'scanalign synth' writes)")
+        p.add_argument("--hand-eye", help="text file: T_flange_camera, 4x4 (camera -> flange, m)")
+        p.add_argument("--robot-base", help="text file: T_base_robot, 4x4 (robot base -> cell base, m)")
+    p.add_argument("--robot", help="the arm: ur5, kr6_r900_sixx, ... (demo: ur5)")
+    p.add_argument("--noise", default="sr300", choices=["sr300", "zivid", "d435", "none"],
+                   help="demo: sensor noise preset (sr300)")
+    p.add_argument("--seed", type=int, default=0, help="demo: noise seed (0)")
+    p.add_argument("--q-current", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
+                   help="the robot's joints now, rad (default: the scan's last)")
+    p.add_argument("--out", default="scanalign-pick", help="output folder (scanalign-pick)")
+    p.add_argument("--no-plots", action="store_true", help="do not write pick.png")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="scanalign", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -452,6 +515,16 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     # 10 mm normals: with SR300-like noise, 5 mm normals measured 12 mm ATE against 4 mm.
     # Its simulated SR300 noise also calls for the bilateral depth filter (ATE 12.6 -> 4.1 mm).
     p.set_defaults(crop=[-0.1, 0.1, -0.1, 0.1, 0.1, 1.0], normal_radius=0.01, depth_filter=True)
+    p.add_argument("--pick", action="store_true", help="instead: the pick demo (as 'scanalign pick --demo')")
+    p = sub.add_parser("pick", help="scan, find the known parts, plan grasps and joint targets to pick them",
+                       description="Reconstructs the scan in the robot's base frame (every frame placed by the "
+                                   "robot's forward kinematics and the hand-eye transform, refined by ICP), finds "
+                                   "each known part (table plane, clusters, CBD + ICP), and plans each part's grasp: "
+                                   "every grasp, symmetric copy and IK branch, rejected with a reason (unreachable, "
+                                   "joint limits, singularity, gripper below the table, branch change on the "
+                                   "approach) or ranked by joint motion. Writes picks.json, joints.csv, scene.ply "
+                                   "and pick.png. Exit status 1 when nothing can be picked.")
+    _add_pick_options(p, demo=False)
     p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder or a synthetic scan",
                        description="Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper) of SOURCE: a folder in the "
                                    "TUM RGB-D layout (depth/, rgb/, depth.txt, rgb.txt, optional groundtruth.txt), "
@@ -527,6 +600,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return ik_command(args)
         if args.command == "pose":
             return pose_command(args)
+        if args.command == "pick":
+            return pick_command(args)
+        if args.command == "demo" and args.pick:
+            ns = argparse.Namespace(demo=True, robot=args.robot, noise=args.noise or "sr300", seed=args.seed or 0,
+                                    q_current=None, out=args.out if args.out != "scanalign-demo" else "scanalign-pick",
+                                    no_plots=args.no_plots, quiet=args.quiet, joints=None)
+            return pick_command(ns)
         if args.command in ("demo", "reconstruct"):
             _run_reconstruction("builtin" if args.command == "demo" else args.source, args)
             return 0

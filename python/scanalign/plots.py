@@ -19,7 +19,7 @@ import numpy as np
 from .trajectory import Trajectory
 
 __all__ = ["plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory",
-           "pose_overlay"]
+           "pose_overlay", "plot_pick"]
 
 PathLike = Union[str, os.PathLike]
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -407,4 +407,40 @@ def pose_overlay(obj: np.ndarray, placed: np.ndarray, result: Any, path: PathLik
     axes[0].legend(loc="upper right", markerscale=12, fontsize=8)
     fig.suptitle(f"{result.method}: fitness {result.fitness:.3f}, coverage {result.coverage:.3f}, "
                  f"inlier RMSE {1000 * result.inlier_rmse:.3f} mm, {result.seconds:.2f} s")
+    return _save(fig, path, dpi)
+
+
+def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
+    """The arm at each chosen grasp over the scene (a :class:`scanalign.pick.PickResult`):
+    a 3D view and a top view in the base frame (m): scene points grey, placed parts coloured,
+    the arm as a stick figure from its base through the joints to the TCP, and the straight
+    approach from the pre-grasp (dashed)."""
+    fig = _figure((13, 6))
+    ax3, ax2 = fig.add_subplot(1, 2, 1, projection="3d"), fig.add_subplot(1, 2, 2)
+    pts = result.points[:: max(1, len(result.points) // 20000)]
+    ax3.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=0.2, c="0.6")
+    ax2.scatter(pts[:, 0], pts[:, 1], s=0.2, c="0.7")
+    robot, T_dh0 = result.robot, np.asarray(result.robot.T_base_dh0)
+    chains = [T_dh0[None, :3, 3]]
+    for k, p in enumerate(result.picks):
+        if p.status != "picked":
+            continue
+        c, colour = p.chosen, f"C{k % 10}"
+        chain = np.vstack([(T_dh0 @ np.asarray(robot.joint_frames(c.q_grasp)))[:, :3, 3],
+                           robot.fk(c.q_grasp)[None, :3, 3]])
+        chains.append(chain)
+        approach = np.array([np.asarray(c.T_base_tcp_pregrasp)[:3, 3], np.asarray(c.T_base_tcp_grasp)[:3, 3]])
+        for ax, dims in ((ax3, 3), (ax2, 2)):
+            ax.plot(*chain[:, :dims].T, "-o", color=colour, lw=2, ms=3, label=f"{p.part}: {p.grasp_names[c.grasp_index]}")
+            ax.plot(*approach[:, :dims].T, "--", color="k", lw=1)
+    allp = np.vstack([pts] + chains)
+    centre, half = 0.5 * (allp.min(0) + allp.max(0)), 0.55 * float(np.ptp(allp, axis=0).max())
+    ax3.set_xlim(centre[0] - half, centre[0] + half)
+    ax3.set_ylim(centre[1] - half, centre[1] + half)
+    ax3.set_zlim(centre[2] - half, centre[2] + half)
+    ax3.set_box_aspect((1, 1, 1))
+    ax2.set_aspect("equal")
+    ax2.set_title("top view (m, base frame)")
+    ax2.legend(loc="best", fontsize=8)
+    fig.suptitle(f"{robot.name}: joint targets at the chosen grasps")
     return _save(fig, path, dpi)

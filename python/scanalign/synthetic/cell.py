@@ -1,0 +1,125 @@
+"""The built-in pick cell: known parts at known poses on a table, a robot with a camera on its
+hand that scans them, and the ground truth a pick is scored against.
+
+Two cells, both with the parts of :data:`scanalign.pick.BUILTIN_PART_FILES` (the machined
+block, the angle bracket and the hexagonal standoff) and the camera at
+:data:`~scanalign.synthetic.DEFAULT_T_FLANGE_CAMERA`:
+
+* ``"ur5"``: a UR5 hanging 0.75 m above the table centre, as on a gantry. The parts lie
+  0.16 m from its first axis: a UR arm cannot put its wrist within d4 = 0.11 m of that axis
+  (the shoulder singularity of the analytic IK), so nothing right under the base is reachable
+  with the tool pointing down.
+* ``"kr6_r900_sixx"``: a KUKA KR6 R900 sixx standing upright beside the table (its base 0.6 m
+  from the table centre, at the table top's height): the KR6 cannot fold its arm under its
+  own base, so it does not hang.
+
+The camera circles the parts (:func:`loop_trajectory`, 0.35 m above the table, radius
+0.2 m), the arm following the path by inverse kinematics: the UR5 all the way round, the KR6
+on a 270 degree arc that leaves out the quarter nearest to it, where the camera would look
+away from the robot and the tool line up with the forearm (the wrist singularity, A5 = 0,
+where A4 and A6 would turn 1.6 rad between two frames). On the arc A5 stays above 0.48 rad
+and no joint moves more than 0.2 rad per frame.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .. import se3
+from .mount import robot_mount
+from .scan import SyntheticScan, render_scan
+from .scene import Scene
+from .trajectories import loop_trajectory
+
+__all__ = ["CELL_MOUNTS", "CELL_SCAN_ARCS", "DEFAULT_PLACEMENTS", "PickCell", "pick_cell", "score_picks"]
+
+#: Robot name -> its mounting ``T_base_robot`` (robot base -> cell base, m) in the built-in cell.
+CELL_MOUNTS: Dict[str, np.ndarray] = {"ur5": robot_mount(0.5, 0.0, 0.75),
+                                     "kr6_r900_sixx": robot_mount(-0.1, 0.0, 0.0, roll=0.0)}
+#: Robot name -> (start angle, sweep) of its scan loop, rad (see the module docstring).
+CELL_SCAN_ARCS: Dict[str, Tuple[float, float]] = {"ur5": (0.0, 2 * math.pi),
+                                                  "kr6_r900_sixx": (1.25 * math.pi, 1.5 * math.pi)}
+#: (part name, (x, y) on the table in m, yaw in rad) of the built-in cell's parts.
+DEFAULT_PLACEMENTS: Tuple[Tuple[str, Tuple[float, float], float], ...] = (
+    ("block", (0.36, -0.07), 0.3), ("bracket", (0.60, 0.12), 1.3), ("standoff", (0.58, -0.14), 0.5))
+
+
+@dataclass
+class PickCell:
+    """A rendered cell with its truth.
+
+    Attributes:
+        scan: the robot's scan (frames with joints, flange poses, the hand-eye transform).
+        parts: the parts' definitions (:class:`scanalign.grasp.PartGrasps`: mesh, grasps,
+            symmetry), one per placed part.
+        truth: part name -> true ``T_base_model`` (model -> base, m).
+        robot: the arm, placed in the cell (``robot.T_base_dh0`` includes the mount), its tool
+            the flange.
+        scene: the rendered :class:`Scene`.
+    """
+
+    scan: SyntheticScan
+    parts: List[Any]
+    truth: Dict[str, np.ndarray]
+    robot: Any
+    scene: Scene
+
+
+def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_frames: int = 24,
+              placements: Optional[Sequence[Tuple[str, Tuple[float, float], float]]] = None) -> PickCell:
+    """Renders the built-in cell (see the module docstring).
+
+    Args:
+        robot: ``"ur5"`` or ``"kr6_r900_sixx"`` (the two cells of :data:`CELL_MOUNTS`).
+        noise: sensor noise preset (``"sr300"``, ``"zivid"``, ``"d435"``, ``"none"``).
+        seed: noise seed.
+        n_frames: frames of the scan loop.
+        placements: (part name, (x, y) m, yaw rad) per part; default :data:`DEFAULT_PLACEMENTS`.
+    """
+    from ..pick import load_part
+
+    if robot not in CELL_MOUNTS:
+        raise ValueError(f"robot: the built-in cells are {sorted(CELL_MOUNTS)}, got {robot!r}")
+    scene = Scene(table_size=(0.6, 0.6))
+    parts, truth = [], {}
+    for name, xy, yaw in placements or DEFAULT_PLACEMENTS:
+        part = load_part(name)
+        obj = scene.add_object(part.mesh, position=xy, yaw=yaw, name=name)
+        parts.append(part)
+        truth[name] = np.array(obj.T_base_object)
+    start, sweep = CELL_SCAN_ARCS[robot]
+    traj = loop_trajectory(n_frames, center=(0.5, 0.0, 0.0), height=0.35, radius=0.2, robot=robot,
+                           T_base_robot=CELL_MOUNTS[robot], start_angle=start, sweep=sweep)
+    scan = render_scan(scene, traj, "sr300", noise=noise, seed=seed)
+    return PickCell(scan, parts, truth, scan.robot, scene)
+
+
+def _symmetric_error(T_est: np.ndarray, T_true: np.ndarray, symmetry: Any) -> Tuple[float, float]:
+    """(metres, degrees) between two poses of a part, the smallest over its symmetry."""
+    errs = [se3.pose_error(T_est, T_true @ np.asarray(S)) for S in symmetry.transforms()]
+    rot, dist = min(errs, key=lambda e: (e[0], e[1]))
+    return float(dist), math.degrees(float(rot))
+
+
+def score_picks(result: Any, truth: Dict[str, np.ndarray]) -> Dict[str, Dict[str, float]]:
+    """Errors of a :class:`scanalign.pick.PickResult` against the cell's truth, per picked part:
+    ``tcp_m`` / ``tcp_deg``, the TCP pose at the chosen grasp against the same grasp on the
+    truly placed part (the nearest of its symmetric copies), and ``pose_m`` / ``pose_deg``,
+    the part's pose error (up to its symmetry)."""
+    out = {}
+    parts = {p.name: p for p in result.parts}
+    for p in result.picks:
+        if p.status != "picked" or p.part not in truth:
+            continue
+        part, c = parts[p.part], p.chosen
+        G = np.asarray(part.grasps[c.grasp_index].T_model_grasp)
+        tcp = min((se3.pose_error(np.asarray(c.T_base_tcp_grasp), truth[p.part] @ np.asarray(S) @ G)
+                   for S in part.symmetry.transforms()), key=lambda e: (e[0], e[1]))
+        pose_m, pose_deg = _symmetric_error(p.T_base_model, truth[p.part], part.symmetry)
+        out[p.part] = {"tcp_m": float(tcp[1]), "tcp_deg": math.degrees(float(tcp[0])), "pose_m": pose_m,
+                       "pose_deg": pose_deg}
+    return out

@@ -1,0 +1,155 @@
+"""The cell pipeline, scan -> part pose -> grasp -> joint targets, against the synthetic cell's
+ground truth: the true part poses, the true grasps on them, and forward kinematics."""
+
+import csv
+import json
+import math
+
+import numpy as np
+import pytest
+
+from scanalign import grasp, io, pick, se3
+from scanalign.synthetic.cell import CELL_MOUNTS, pick_cell, score_picks
+
+CELLS = [("ur5", "sr300"), ("ur5", "zivid"), ("kr6_r900_sixx", "sr300")]
+
+
+@pytest.fixture(scope="module", params=CELLS, ids=lambda c: f"{c[0]}-{c[1]}")
+def picked(request):
+    robot, noise = request.param
+    cell = pick_cell(robot, noise=noise, seed=3)
+    return cell, pick.pick(cell.scan, cell.parts, progress=False)
+
+
+@pytest.fixture(scope="module")
+def ur5_cell():
+    cell = pick_cell("ur5", noise="sr300", seed=5)
+    return cell, pick.pick(cell.scan, cell.parts, progress=False)
+
+
+def test_every_part_is_picked_at_its_true_grasp(picked):
+    """TCP at the chosen grasp within 1 mm and 0.5 deg of the same grasp on the truly placed
+    part (the nearest symmetric copy for the standoff) for every part."""
+    cell, result = picked
+    assert sorted(p.part for p in result.picks) == sorted(cell.truth)
+    assert all(p.status == "picked" for p in result.picks), [(p.part, p.status, p.message) for p in result.picks]
+    errors = score_picks(result, cell.truth)
+    assert set(errors) == set(cell.truth)
+    for name, e in errors.items():
+        assert e["tcp_m"] < 1e-3 and e["tcp_deg"] < 0.5, (name, e)
+
+
+def test_joint_targets_reach_the_commanded_flange_poses(picked):
+    """FK of the pre-grasp and grasp joints equals the commanded flange pose to 1e-9, the
+    commanded pose is the part pose times the grasp times inv(T_flange_tcp), and the approach
+    path is continuous and ends at the grasp."""
+    cell, result = picked
+    flange = result.robot.with_tool(np.eye(4))
+    for p in result.picks:
+        c = p.chosen
+        part = next(q for q in result.parts if q.name == p.part)
+        for q, T in ((c.q_pregrasp, c.T_base_flange_pregrasp), (c.q_grasp, c.T_base_flange_grasp)):
+            assert np.abs(flange.fk(np.asarray(q)) - np.asarray(T)).max() < 1e-9
+        S = np.asarray(part.symmetry.transforms()[c.symmetry_index])
+        G = np.asarray(part.grasps[c.grasp_index].T_model_grasp)
+        T_ft = np.asarray(part.gripper.T_flange_tcp)
+        assert np.abs(p.T_base_model @ S @ G @ se3.inverse(T_ft) - np.asarray(c.T_base_flange_grasp)).max() < 1e-9
+        path = np.asarray(p.plan.approach_q)
+        assert np.abs(path[-1] - np.asarray(c.q_grasp)).max() < 1e-9
+        assert np.abs(path[0] - np.asarray(c.q_pregrasp)).max() < 1e-9
+        assert np.abs(np.diff(path, axis=0)).max() < 0.2
+        assert np.all(result.robot.limits[:, 0] <= path) and np.all(path <= result.robot.limits[:, 1])
+
+
+def test_outputs(ur5_cell, tmp_path):
+    cell, result = ur5_cell
+    paths = result.save(tmp_path / "out")
+    report = json.loads(paths["picks"].read_text())
+    assert report["robot"] == result.robot.name
+    by_part = {p["part"]: p for p in report["picks"]}
+    assert set(by_part) == set(cell.truth)
+    for name, p in by_part.items():
+        assert p["status"] == "picked"
+        assert len(p["chosen"]["q_grasp"]) == 6 and len(p["chosen"]["q_pregrasp"]) == 6
+        assert all(c["reason"] != "ok" for c in p["rejected"])
+        assert len(p["candidates"]) == len(p["rejected"]) + sum(c["reason"] == "ok" for c in p["candidates"])
+        assert np.allclose(p["T_base_model"], next(q.T_base_model for q in result.picks if q.part == name))
+    rows = list(csv.DictReader(paths["joints"].open()))
+    assert {r["part"] for r in rows} == set(cell.truth)
+    first = [r for r in rows if r["part"] == "block"]
+    block = next(q for q in result.picks if q.part == "block")
+    assert np.allclose([float(first[-1][f"q{i}"]) for i in range(1, 7)], block.chosen.q_grasp, atol=1e-12)
+    ply = io.read_ply_points(paths["scene"])
+    assert len(ply["points"]) > len(result.points)
+    assert paths["png"].stat().st_size > 10000
+
+
+def test_a_part_out_of_reach_is_reported_not_picked(ur5_cell):
+    """The same detections planned for a UR5 mounted 1.5 m away: every candidate is unreachable
+    and the part is reported so, never picked."""
+    cell, result = ur5_cell
+    far = result.robot.with_base(se3.rigid([0, 0, 1], 0.0, [-1.5, 0.0, 0.0]) @ np.asarray(result.robot.T_base_dh0))
+    picks = pick.plan_picks(result.detections, result.parts, far, q_current=result.q_current)
+    assert [p.status for p in picks] == ["no_grasp"] * 3
+    for p in picks:
+        assert {c.reason for c in p.plan.candidates} == {"unreachable"}
+        assert "reach" in p.message
+
+
+def test_a_grasp_into_the_table_is_rejected(ur5_cell):
+    """A side grasp with the TCP 5 mm above the table puts the gripper into the table: every
+    candidate of that grasp is rejected as below_table, and the part is not picked."""
+    cell, result = ur5_cell
+    block = next(p for p in result.parts if p.name == "block")
+    low = se3.rigid([0, 1, 0], math.pi / 2, [0.0, 0.0, 0.005 - 0.015])  # TCP z along the model +x, 5 mm up
+    low_part = grasp.PartGrasps(name="block", mesh=block.mesh, symmetry=block.symmetry, gripper=block.gripper,
+                                grasps=[grasp.Grasp(name="side_low", T_model_grasp=low)])
+    picks = pick.plan_picks(result.detections, [low_part if p.name == "block" else p for p in result.parts],
+                            result.robot, q_current=result.q_current)
+    p = next(p for p in picks if p.part == "block")
+    assert p.status == "no_grasp"
+    reasons = {c.reason for c in p.plan.candidates}
+    assert "below_table" in reasons and "ok" not in reasons
+
+
+def test_a_part_not_in_the_scene_is_reported_not_found(ur5_cell):
+    cell, result = ur5_cell
+    big = pick.load_part("block")
+    big = grasp.PartGrasps(name="big_block", mesh=io.Mesh(np.asarray(big.mesh.vertices) * 1.6, big.mesh.faces),
+                           symmetry=big.symmetry, gripper=big.gripper, grasps=big.grasps)
+    r = pick.pick(result.points, [big], result.robot, progress=False)
+    assert [(p.part, p.status) for p in r.picks] == [("big_block", "not_found")]
+
+
+def test_bad_input(ur5_cell):
+    cell, result = ur5_cell
+    with pytest.raises(ValueError, match="no points|empty|scene"):
+        pick.pick(np.zeros((0, 3)), cell.parts, result.robot, progress=False)
+    with pytest.raises(ValueError, match="unknown|robot"):
+        pick.pick(result.points, cell.parts, "ur99", progress=False)
+    huge = pick.load_part("block")
+    huge = grasp.PartGrasps(name="huge", mesh=io.Mesh(np.asarray(huge.mesh.vertices) * 40, huge.mesh.faces),
+                            symmetry=huge.symmetry, gripper=huge.gripper, grasps=huge.grasps)
+    with pytest.raises(ValueError, match="workspace"):
+        pick.pick(result.points, [huge], result.robot, progress=False)
+    with pytest.raises(ValueError, match="parts"):
+        pick.pick(result.points, [], result.robot, progress=False)
+
+
+def test_command_line_on_a_saved_scene(ur5_cell, tmp_path):
+    """``scanalign pick`` on the reconstruction written as PLY, with the robot's mount and the
+    built-in part names: the same parts picked."""
+    from scanalign import cli
+
+    cell, result = ur5_cell
+    io.write_ply(tmp_path / "scene.ply", result.points.astype(np.float32))
+    np.savetxt(tmp_path / "mount.txt", CELL_MOUNTS["ur5"])
+    rc = cli.main(["pick", "--scene", str(tmp_path / "scene.ply"), "--parts", "block", "bracket", "standoff",
+                   "--robot", "ur5", "--robot-base", str(tmp_path / "mount.txt"), "--out", str(tmp_path / "o"),
+                   "--quiet", "--no-plots"])
+    assert rc == 0
+    report = json.loads((tmp_path / "o" / "picks.json").read_text())
+    assert sorted(p["status"] for p in report["picks"]) == ["picked"] * 3
+    rc = cli.main(["pick", "--scene", str(tmp_path / "scene.ply"), "--parts", "block", "--robot", "ur99",
+                   "--out", str(tmp_path / "o2"), "--quiet"])
+    assert rc == 2
