@@ -19,12 +19,13 @@
 //      moved by multiples of 2π to those nearest q_current within the limits;
 //   2. gripper body, flange disc and arm joint points above the table at the pre-grasp
 //      (BelowTable), singularity margins at the pre-grasp (NearSingularity);
-//   3. the straight TCP line from the pre-grasp to the grasp, sampled every approach_step,
-//      followed with ikClosest from sample to sample: a sample without an Ok solution
-//      (Unreachable / OutsideLimits), or one in another configuration or with a joint step
-//      above max_joint_step (ApproachBranchChange);
-//   4. the table and the singularity margins at every approach sample (BelowTable,
-//      NearSingularity).
+//   3. the straight TCP line from the pre-grasp to the grasp in n = max(1, ceil(distance /
+//      approach_step)) equal steps, followed with ikClosest from sample to sample: a sample
+//      without an Ok solution (Unreachable / OutsideLimits), or one in another configuration
+//      or with a joint step above max_joint_step (ApproachBranchChange);
+//   4. forward kinematics of every sample's joints equals its flange pose to 1e-9 (else
+//      Unreachable), then the table and the singularity margins at every approach sample
+//      (BelowTable, NearSingularity).
 // A path through a singularity is reported as ApproachBranchChange when the IK labels change
 // there, before its samples' margins are looked at: it cannot be followed at all.
 // The cost of an Ok candidate is the weighted joint motion sum_i w_i |Δq_i| (rad) from
