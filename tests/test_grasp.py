@@ -183,6 +183,8 @@ def test_grasp_file_errors_name_file_grasp_and_field(tmp_path):
     _bad(tmp_path, {"grasps": [{"name": "s", "T_model_grasp": scaled}]}, r"grasps\[0\] \('s'\).*T_model_grasp.*rigid")
     _bad(tmp_path, {"grasps": [{"name": "s", "T_model_grasp": [[1, 0], [0, 1]]}]}, r"grasps\[0\] \('s'\)")
     _bad(tmp_path, {"grasps": [{**good, "approach": "down"}]}, r"grasps\[0\] \('g'\)")
+    _bad(tmp_path, {"grasps": [{**good, "approach": ["0", "0", "1"]}]}, r"grasps\[0\] \('g'\): approach: expected real")
+    _bad(tmp_path, {"grasps": [{**good, "T_model_grasp": [[1, 0], [0, 1, 0]]}]}, r"\('g'\): field 'T_model_grasp'")
     _bad(tmp_path, {"grasps": [{**good, "approach": [0, 0, 0]}]}, r"grasps\[0\] \('g'\).*approach")
     _bad(tmp_path, {"grasps": [{**good, "pre_grasp_distance": -1}]}, "pre_grasp_distance")
     _bad(tmp_path, {"grasps": [{**good, "aproach": [0, 0, 1]}]}, "unknown field 'aproach'")

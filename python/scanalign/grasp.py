@@ -93,8 +93,14 @@ def _build(where: str, cls: Any, fields: dict, allowed: set, required: Sequence[
     for key in required:
         if key not in fields:
             raise ValueError(f"{where}: missing field {key!r}")
+    args = {}
+    for key, value in fields.items():
+        try:
+            args[key] = np.asarray(value) if isinstance(value, list) else value
+        except ValueError as e:  # a ragged list
+            raise ValueError(f"{where}: field {key!r}: {e}") from None
     try:
-        return cls(**{k: np.asarray(v, dtype=np.float64) if isinstance(v, list) else v for k, v in fields.items()})
+        return cls(**args)  # the C++ checks name the field
     except (TypeError, ValueError) as e:
         raise ValueError(f"{where}: {e}") from None
 
