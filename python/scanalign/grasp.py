@@ -21,6 +21,7 @@ from typing import Any, List, Optional, Sequence
 import numpy as np
 
 from . import _core
+from ._arrays import set_fields
 
 __all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCandidate", "GraspPlan", "PartGrasps",
            "plan_grasp", "read_part_grasps", "write_part_grasps"]
@@ -54,11 +55,7 @@ def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmet
                              (gripper, "gripper", Gripper)):
         if value is not None and not isinstance(value, cls):
             raise TypeError(f"{name}: expected {cls.__name__}, got {type(value).__name__}")
-    s = GraspPlannerSettings()
-    for name, value in settings.items():
-        if not hasattr(s, name) or name.startswith("_"):
-            raise TypeError(f"plan_grasp: unknown setting {name!r} (fields of GraspPlannerSettings)")
-        setattr(s, name, value)
+    s = set_fields(GraspPlannerSettings(), settings, "plan_grasp")
     if isinstance(grasps, Grasp) or not all(isinstance(g, Grasp) for g in grasps):
         raise TypeError("grasps: expected a list of scanalign.grasp.Grasp")
     return _G.plan_grasp(robot, T_base_model, list(grasps), PartSymmetry() if symmetry is None else symmetry,
