@@ -23,7 +23,7 @@ __version__ = "0.1.0"
 
 _SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "parts", "rendering", "camera",
                "trajectory", "tum", "synthetic", "cga", "kinematics", "cad", "cbd", "pose", "fitting", "segmentation",
-               "pipeline", "evaluation", "mesh_metrics", "plots", "se3", "cli", "grasp")
+               "pipeline", "evaluation", "mesh_metrics", "plots", "se3", "cli", "calibration", "grasp")
 
 __all__ = ["__version__", *_SUBMODULES]
 
