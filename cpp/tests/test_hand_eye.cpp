@@ -66,6 +66,20 @@ TEST(HandEye, ExactRecoveryWithoutNoise) {
   }
 }
 
+TEST(HandEye, ManyPosesUseSpreadPairsAndStayExact) {
+  // beyond 64 poses: pairs j - i = 1, 2, 4, ..., 256 (500 poses: 499 + 498 + ... + 244)
+  const auto A = flangePoses(500, 11);
+  const HandEyeResult r = calibrateHandEye(A, cameraPoses(A));
+  ASSERT_TRUE(r.ok()) << r.message;
+  int expected = 0;
+  for (int step = 1; step < 500; step *= 2) expected += 500 - step;
+  EXPECT_LE(r.pairs, expected);  // less those rotating by over 174 deg
+  EXPECT_GT(r.pairs, expected * 9 / 10);
+  EXPECT_LT(maxDiff(r.T_flange_camera_closed_form, kX), 1e-9);
+  EXPECT_LT(maxDiff(r.T_flange_camera, kX), 1e-9);
+  EXPECT_LT(maxDiff(r.T_base_world, kZ), 1e-9);
+}
+
 TEST(HandEye, ExactRecoveryFromTargetViews) {
   const auto A = flangePoses(5, 42);
   std::vector<Eigen::Matrix4d> T_camera_target;

@@ -11,6 +11,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
+#include <Eigen/QR>
 #include <Eigen/SVD>
 
 #include "scanalign/common/rigid.hpp"
@@ -269,21 +270,64 @@ std::string degrees(double rad) {
   return buf;
 }
 
+/// Calls f(i, j) for the pose pairs of the closed form: all pairs i < j up to kAllPairsUpTo
+/// poses; beyond, the pairs j - i = 1, 2, 4, 8, ... (consecutive and spread motions, about
+/// N log2 N of them), so that memory and time stay near linear in N.
+constexpr std::size_t kAllPairsUpTo = 64;
+
+template <typename F>
+void forEachPair(std::size_t n, F&& f) {
+  if (n <= kAllPairsUpTo) {
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t j = i + 1; j < n; ++j) f(i, j);
+    return;
+  }
+  for (std::size_t step = 1; step < n; step *= 2)
+    for (std::size_t i = 0; i + step < n; ++i) f(i, i + step);
+}
+
+/// The triangular factor R of a tall matrix given in blocks of rows: R^T R = T^T T, and R has
+/// the right singular vectors of T, without storing T (Golub and Van Loan 2013, §5.2:
+/// Householder QR of [R; block] for each new block).
+class StreamingQr {
+ public:
+  void add(const Eigen::Matrix<double, 6, 8>& rows) {
+    buffer_.middleRows<6>(8 + 6 * pending_) = rows;
+    if (++pending_ == kBlocks) flush();
+  }
+  Eigen::Matrix<double, 8, 8> r() {
+    flush();
+    return buffer_.topRows<8>();
+  }
+
+ private:
+  static constexpr int kBlocks = 64;
+  void flush() {
+    if (pending_ == 0) return;
+    const Eigen::HouseholderQR<Eigen::MatrixXd> qr(buffer_.topRows(8 + 6 * pending_));
+    buffer_.topRows<8>() = qr.matrixQR().topRows<8>().triangularView<Eigen::Upper>();
+    pending_ = 0;
+  }
+  Eigen::MatrixXd buffer_ = Eigen::MatrixXd::Zero(8 + 6 * kBlocks, 8);
+  int pending_ = 0;
+};
+
 /// Rotation angles and axes of the robot's relative motions: the rotation about an axis is
 /// only determined by motions about another axis (Tsai and Lenz 1989, "A new technique for
 /// fully autonomous and efficient 3D robotics hand/eye calibration", IEEE T-RA 5(3), §III:
 /// two motions with non-parallel axes). Fills the diagnostics; false when degenerate.
 bool motionSpread(const std::vector<Mat4>& A, const HandEyeSettings& s, HandEyeResult& out) {
-  std::vector<Eigen::AngleAxisd> motions;
-  for (std::size_t i = 0; i < A.size(); ++i)
-    for (std::size_t j = i + 1; j < A.size(); ++j) motions.emplace_back(Mat3(rot(A[i]).transpose() * rot(A[j])));
-  const Eigen::AngleAxisd* largest = nullptr;
+  const auto motion = [&](std::size_t i, std::size_t j) {
+    return Eigen::AngleAxisd(Mat3(rot(A[i]).transpose() * rot(A[j])));
+  };
+  Eigen::AngleAxisd largest(0.0, Vec3::UnitZ());
   int counted = 0;
-  for (const auto& m : motions) {
+  forEachPair(A.size(), [&](std::size_t i, std::size_t j) {
+    const Eigen::AngleAxisd m = motion(i, j);
     if (m.angle() >= s.min_relative_rotation) ++counted;
-    if (!largest || m.angle() > largest->angle()) largest = &m;
-  }
-  out.max_relative_rotation = largest ? largest->angle() : 0.0;
+    if (m.angle() > largest.angle()) largest = m;
+  });
+  out.max_relative_rotation = largest.angle();
   if (counted < 2) {
     out.status = HandEyeStatus::DegenerateMotion;
     out.message = "rotations too small: " + std::to_string(counted) + " relative motions rotate by min_relative_rotation (" +
@@ -291,9 +335,11 @@ bool motionSpread(const std::vector<Mat4>& A, const HandEyeSettings& s, HandEyeR
                   degrees(out.max_relative_rotation) + ")";
     return false;
   }
-  for (const auto& m : motions)
+  forEachPair(A.size(), [&](std::size_t i, std::size_t j) {
+    const Eigen::AngleAxisd m = motion(i, j);
     if (m.angle() >= s.min_relative_rotation)
-      out.axis_spread = std::max(out.axis_spread, std::acos(std::min(1.0, std::abs(m.axis().dot(largest->axis())))));
+      out.axis_spread = std::max(out.axis_spread, std::acos(std::min(1.0, std::abs(m.axis().dot(largest.axis())))));
+  });
   if (out.axis_spread < s.min_axis_angle) {
     out.status = HandEyeStatus::DegenerateMotion;
     out.message = "all relative rotation axes are nearly parallel (spread " + degrees(out.axis_spread) +
@@ -356,22 +402,20 @@ HandEyeResult calibrateHandEye(const std::vector<Mat4>& A, const std::vector<Mat
   if (!checkPoses(A, "T_base_flange", out) || !checkPoses(B, "T_world_camera", out)) return out;
   if (!motionSpread(A, s, out)) return out;
 
-  // Closed form over all pairs. A pair whose rotation is near 180 deg has a rotor scalar part
-  // near 0, where the sign that makes a and b congruent is not known: such pairs are left out.
-  std::vector<Eigen::Matrix<double, 6, 8>> blocks;
-  for (std::size_t i = 0; i < A.size(); ++i)
-    for (std::size_t j = i + 1; j < A.size(); ++j) {
-      const DualQuaternion a = dualQuaternion(rigidInverse(A[i]) * A[j]);
-      const DualQuaternion b = dualQuaternion(rigidInverse(B[i]) * B[j]);
-      if (a.r.w() < 0.05 || b.r.w() < 0.05) continue;
-      blocks.push_back(motionEquations(a, b));
-    }
-  Eigen::MatrixXd T(6 * blocks.size(), 8);
-  for (std::size_t k = 0; k < blocks.size(); ++k) T.middleRows<6>(static_cast<Eigen::Index>(6 * k)) = blocks[k];
-  out.pairs = static_cast<int>(blocks.size());
-  if (blocks.size() < 2)
+  // Closed form over the pairs (forEachPair). A pair whose rotation is near 180 deg has a
+  // rotor scalar part near 0, where the sign that makes a and b congruent is not known: such
+  // pairs are left out.
+  StreamingQr qr;
+  forEachPair(A.size(), [&](std::size_t i, std::size_t j) {
+    const DualQuaternion a = dualQuaternion(rigidInverse(A[i]) * A[j]);
+    const DualQuaternion b = dualQuaternion(rigidInverse(B[i]) * B[j]);
+    if (a.r.w() < 0.05 || b.r.w() < 0.05) return;
+    qr.add(motionEquations(a, b));
+    ++out.pairs;
+  });
+  if (out.pairs < 2)
     return failure(HandEyeStatus::DegenerateMotion, "fewer than 2 relative motions below 174 deg of rotation");
-  const Eigen::JacobiSVD<Eigen::MatrixXd> svd(T, Eigen::ComputeThinV);
+  const Eigen::JacobiSVD<Eigen::Matrix<double, 8, 8>> svd(qr.r(), Eigen::ComputeFullV);
   out.T_flange_camera_closed_form = nullSpaceMotion(svd.matrixV().col(6), svd.matrixV().col(7));
   out.T_base_world_closed_form = meanWorld(A, B, out.T_flange_camera_closed_form);
   out.T_flange_camera = out.T_flange_camera_closed_form;

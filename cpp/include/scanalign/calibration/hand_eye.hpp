@@ -100,8 +100,9 @@ struct HandEyeResult {
 };
 
 /// Solves T_base_flange[i] X = Z T_world_camera[i] for X = T_flange_camera and
-/// Z = T_base_world (see the file comment). All relative motions (pairs i < j) enter the
-/// closed form. Never throws for bad poses: the result says why (a status and a message
+/// Z = T_base_world (see the file comment). The closed form uses all relative motions (pairs
+/// i < j) up to 64 poses, beyond that the pairs with j - i = 1, 2, 4, 8, ... (about N log2 N),
+/// so time and memory stay near linear in N. Never throws for bad poses: the result says why (a status and a message
 /// naming the index); throws std::invalid_argument for invalid settings (validate).
 HandEyeResult calibrateHandEye(const std::vector<Eigen::Matrix4d>& T_base_flange,
                                const std::vector<Eigen::Matrix4d>& T_world_camera,
