@@ -492,6 +492,116 @@ CoarseAligner alignerOf(const py::object& pcl) {
   return pclCoarseAligner(py::cast<PclFeatureAlignmentSettings>(pcl));
 }
 
+/// Part symmetries from Python: None (no part symmetric), or one object per part with the
+/// fields of PartSymmetry (axis, point, order) -- the class bound in scanalign._core.grasp or
+/// any object with those attributes -- or None for a part without symmetry.
+std::vector<PartSymmetry> symmetriesOf(const py::object& o) {
+  std::vector<PartSymmetry> out;
+  if (o.is_none()) return out;
+  if (!py::isinstance<py::sequence>(o) || py::isinstance<py::str>(o))
+    throw py::type_error("symmetries: expected a list with one PartSymmetry (or None) per part");
+  for (const py::handle h : o) {
+    PartSymmetry s;
+    if (!h.is_none()) {
+      const std::string at = "symmetries[" + std::to_string(out.size()) + "]";
+      if (!py::hasattr(h, "axis") || !py::hasattr(h, "point") || !py::hasattr(h, "order"))
+        throw py::type_error(at + ": expected a PartSymmetry (axis, point, order) or None");
+      try {
+        s.axis = py::cast<Eigen::Vector3d>(h.attr("axis"));
+        s.point = py::cast<Eigen::Vector3d>(h.attr("point"));
+        s.order = py::cast<int>(h.attr("order"));
+      } catch (const py::cast_error&) {
+        throw py::type_error(at + ": axis and point must be 3-vectors (m) and order an integer");
+      }
+      try {
+        s.validate();
+      } catch (const std::invalid_argument& e) {
+        throw py::value_error(at + ": " + e.what());
+      }
+    }
+    out.push_back(s);
+  }
+  return out;
+}
+
+void bindFindParts(py::module_& m) {
+  py::enum_<DetectionStatus>(m, "DetectionStatus", "How find_parts judged an object cluster")
+      .value("found", DetectionStatus::Found, "the best part's pose passes min_fitness/min_coverage, nothing else scores alike")
+      .value("not_found", DetectionStatus::NotFound, "no part's pose passes min_fitness/min_coverage (or all were skipped by size)")
+      .value("ambiguous", DetectionStatus::Ambiguous,
+             "found, but another part or a non-equivalent pose of the same part scores within ambiguity_margin");
+  py::class_<FindPartsSettings>(m, "FindPartsSettings", "Settings of find_parts (metres, radians)")
+      .def(py::init<>())
+      .def_readwrite("table", &FindPartsSettings::table, "TableSegmentationSettings (m)")
+      .def_readwrite("max_objects", &FindPartsSettings::max_objects, "clusters tried, largest first")
+      .def_readwrite("pose", &FindPartsSettings::pose, "PoseSettings per cluster and part")
+      .def_readwrite("ambiguity_margin", &FindPartsSettings::ambiguity_margin,
+                     "a runner-up scoring at least (1 - margin) x the best score makes the detection ambiguous (0.05)")
+      .def_readwrite("score_tie", &FindPartsSettings::score_tie,
+                     "candidates of the best part within this of its best score are ties: the smallest inlier RMSE "
+                     "wins (0.01)")
+      .def_readwrite("polish_distance", &FindPartsSettings::polish_distance,
+                     "m; the reported candidate is refined again by ICP with this correspondence distance and a tight "
+                     "stop (0.003; 0 = none)")
+      .def_readwrite("same_pose_angle", &FindPartsSettings::same_pose_angle,
+                     "rad; poses of one part this close (over its symmetry) are the same pose (5 degrees)")
+      .def_readwrite("same_pose_distance", &FindPartsSettings::same_pose_distance,
+                     "m; with same_pose_angle (0.005)")
+      .def_readwrite("max_size_ratio", &FindPartsSettings::max_size_ratio,
+                     "skip a part for a cluster larger than this x the part's size (largest principal extent); 0 = no "
+                     "bound (1.5)")
+      .def_readwrite("min_size_ratio", &FindPartsSettings::min_size_ratio,
+                     "skip a part for a cluster smaller than this x its smallest view; 0 = no bound (0.5)")
+      .def_readwrite("voxel_size", &FindPartsSettings::voxel_size,
+                     "m; each cluster reduced to one point (the centroid) per voxel before its pose; 0 = every point "
+                     "(0: default; 1 to 1.5 mm for a merged multi-view scan)");
+  py::class_<PartDetection>(m, "PartDetection", "One object cluster and the part found in it")
+      .def_readonly("status", &PartDetection::status, "DetectionStatus")
+      .def_property_readonly(
+          "part", [](const PartDetection& d) -> py::object { return d.part < 0 ? py::object(py::none()) : py::int_(d.part); },
+          "index of the best-scoring part in the models (None when every part was skipped)")
+      .def_readonly("pose", &PartDetection::pose, "PoseResult of that part (found False unless found/ambiguous)")
+      .def_readonly("score", &PartDetection::score, "its best candidate's score")
+      .def_property_readonly(
+          "runner_up_part",
+          [](const PartDetection& d) -> py::object {
+            return d.runner_up_part < 0 ? py::object(py::none()) : py::int_(d.runner_up_part);
+          },
+          "part of the best competing pose (None when there is none)")
+      .def_readonly("runner_up_score", &PartDetection::runner_up_score, "its score")
+      .def_readonly("runner_up_angle", &PartDetection::runner_up_angle,
+                    "rad; symmetric pose difference to the best pose (over the best part's symmetry)")
+      .def_readonly("runner_up_distance", &PartDetection::runner_up_distance, "m; the same, translation")
+      .def_property_readonly(
+          "indices", [](const PartDetection& d) { return vec<std::int64_t>(d.indices); },
+          "(N,) int64 the cluster's points, indices into the scene")
+      .def_readonly("parts", &PartDetection::parts, "PoseResult per part (a skipped part says why in its message)")
+      .def_readonly("size", &PartDetection::size, "m; the cluster's largest extent along its principal axes")
+      .def_readonly("message", &PartDetection::message, "why not found, or what made it ambiguous")
+      .def_readonly("seconds", &PartDetection::seconds, "wall time of this cluster, all parts");
+  py::class_<PartDetections>(m, "PartDetections", "Result of find_parts")
+      .def_readonly("detections", &PartDetections::detections, "PartDetection per object cluster, largest first")
+      .def_property_readonly(
+          "plane", [](const PartDetections& o) { return o.table.plane; }, "the table plane (PlaneResult)")
+      .def_readonly("table", &PartDetections::table, "the whole TableSegmentation")
+      .def_readonly("seconds", &PartDetections::seconds, "wall time");
+  m.def(
+      "find_parts",
+      [](const std::vector<std::vector<ModelView>>& models, const py::array& scene, const FindPartsSettings& s,
+         const py::object& symmetries, const std::vector<int>& ids, const py::object& pcl, const py::object& progress) {
+        const auto view = cloudView<double>(scene, "scene");
+        const std::vector<PartSymmetry> sym = symmetriesOf(symmetries);
+        const CoarseAligner aligner = alignerOf(pcl);
+        const PoseProgress cb = progressOf(progress);
+        py::gil_scoped_release release;
+        return findParts(models, sym, view, s, ids, aligner, cb);
+      },
+      py::arg("models"), py::arg("scene"), py::arg("settings"), py::arg("symmetries") = py::none(),
+      py::arg("view_ids") = std::vector<int>{}, py::arg("pcl_settings") = py::none(), py::arg("progress") = py::none(),
+      "Which of several parts (models: one list of ModelView per part) lies in each object cluster of a table scene "
+      "(N, 3) float64, m, and its pose; symmetries: one PartSymmetry (axis, point, order) or None per part, or None");
+}
+
 void bindPipeline(py::module_& m) {
   py::enum_<CoarseMethod>(m, "CoarseMethod", "How each model view is brought near the object before ICP")
       .value("cbd", CoarseMethod::Cbd, "curvature-based descriptor + RANSAC + motor refit (paper 5)")
@@ -516,7 +626,9 @@ void bindPipeline(py::module_& m) {
       .def_readonly("fitness", &PoseCandidate::fitness, "after ICP")
       .def_readonly("coverage", &PoseCandidate::coverage, "after ICP")
       .def_readonly("inlier_rmse", &PoseCandidate::inlier_rmse, "m, after ICP")
-      .def_readonly("score", &PoseCandidate::score, "2 fitness coverage / (fitness + coverage)");
+      .def_readonly("score", &PoseCandidate::score, "2 fitness coverage / (fitness + coverage)")
+      .def_readonly("T_scene_model", &PoseCandidate::T_scene_model,
+                    "(4, 4) the view's pose after ICP, model -> scene, m (identity when the coarse alignment failed)");
   py::class_<PoseResult>(m, "PoseResult", "Pose of a model in an object cloud")
       .def(py::init<>())
       .def_readwrite("T_scene_model", &PoseResult::T_scene_model, "(4, 4) maps model (CAD) coordinates into the scene")
@@ -612,6 +724,7 @@ void definePose(py::module_& m) {
   bindAlignment(m);
   bindViews(m);
   bindPipeline(m);
+  bindFindParts(m);
 }
 
 }  // namespace scanalign::python

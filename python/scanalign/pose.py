@@ -15,7 +15,8 @@ keyword arguments. Building blocks:
 Pipeline: :func:`estimate_pose` matches a model (a mesh rendered from the 42 vertices of a
 tessellated sphere, see :mod:`scanalign.cad`, or a cloud) against one object cloud, refines
 with scanalign's ICP and keeps the best view; :func:`find_objects` first segments the table
-and clusters the objects (paper 3).
+and clusters the objects (paper 3); :func:`find_parts` does that for several known parts and
+names the part in each cluster (``found`` / ``not_found`` / ``ambiguous``).
 
 Frames and units: metres and radians. Every transform is ``T_target_source``
 (``p_target = T @ p_source``); for the pipeline that is ``T_scene_model``: it maps model
@@ -24,6 +25,7 @@ Frames and units: metres and radians. Every transform is ``T_target_source``
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple, Union
@@ -35,7 +37,8 @@ from ._arrays import as_points, as_transform, fields_of, set_fields
 
 __all__ = [
     "MotorEstimate", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag", "FlagAlignmentResult",
-    "PclFeatureAlignmentResult", "PoseSettings", "PoseResult", "PoseCandidate", "ObjectPoses",
+    "PclFeatureAlignmentResult", "PoseSettings", "PoseResult", "PoseCandidate", "ObjectPoses", "DetectionStatus",
+    "PartDetection", "PartDetections", "find_parts",
     "estimate_motor", "estimate_rigid_svd", "motor_to_matrix", "ransac_rigid_motion", "align_cbd",
     "normal_line_flag", "align_flags", "pcl_feature_alignment", "alignment_fitness", "estimate_pose",
     "find_objects", "write_pose_outputs", "METHODS", "THESIS_PCL_PRESET",
@@ -52,6 +55,9 @@ PoseSettings = _P.PoseSettings
 PoseResult = _P.PoseResult
 PoseCandidate = _P.PoseCandidate
 ObjectPoses = _P.ObjectPoses
+DetectionStatus = _P.DetectionStatus
+PartDetection = _P.PartDetection
+PartDetections = _P.PartDetections
 
 Method = Literal["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags"]
 METHODS: Tuple[str, ...] = ("cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags")
@@ -297,6 +303,25 @@ def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", v
     return r
 
 
+def _table_settings(s: Any, method: str, max_objects: int, table_threshold: float, cluster_tolerance: float,
+                    min_cluster_size: int, viewpoint: Sequence[float], up: Optional[Sequence[float]], num_threads: int,
+                    pose_kwargs: Dict[str, Any]) -> Any:
+    """Fills find_objects / find_parts settings ``s``; returns the PCL settings (or None)."""
+    s.max_objects = int(max_objects)
+    s.pose = _pose_settings(method, pose_kwargs.pop("inlier_threshold", 0.005), pose_kwargs.pop("icp_distance", 0.01),
+                            pose_kwargs.pop("normal_radius", 0.005), pose_kwargs.pop("cbd_settings", None),
+                            pose_kwargs.pop("ransac", None), num_threads, pose_kwargs)
+    pcl = _pcl_settings(method, pose_kwargs.pop("pcl_settings", None) or {}) if method in _PCL_METHODS else None
+    t = s.table
+    t.plane.threshold, t.cluster_tolerance, t.min_cluster_size = float(table_threshold), float(cluster_tolerance), int(
+        min_cluster_size)
+    t.plane.num_threads = int(num_threads)
+    t.viewpoint = np.asarray(viewpoint, dtype=np.float64)
+    t.up = np.zeros(3) if up is None else np.asarray(up, dtype=np.float64)
+    s.table = t
+    return pcl
+
+
 def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", max_objects: int = 5,
                  table_threshold: float = 0.005, cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
                  viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
@@ -317,18 +342,8 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
         :class:`ObjectPoses` (``poses``, ``objects`` as index arrays, the table ``plane``).
     """
     s = _P.FindObjectsSettings()
-    s.max_objects = int(max_objects)
-    s.pose = _pose_settings(method, pose_kwargs.pop("inlier_threshold", 0.005), pose_kwargs.pop("icp_distance", 0.01),
-                            pose_kwargs.pop("normal_radius", 0.005), pose_kwargs.pop("cbd_settings", None),
-                            pose_kwargs.pop("ransac", None), num_threads, pose_kwargs)
-    pcl = _pcl_settings(method, pose_kwargs.pop("pcl_settings", None) or {}) if method in _PCL_METHODS else None
-    t = s.table
-    t.plane.threshold, t.cluster_tolerance, t.min_cluster_size = float(table_threshold), float(cluster_tolerance), int(
-        min_cluster_size)
-    t.plane.num_threads = int(num_threads)
-    t.viewpoint = np.asarray(viewpoint, dtype=np.float64)
-    t.up = np.zeros(3) if up is None else np.asarray(up, dtype=np.float64)
-    s.table = t
+    pcl = _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
+                          num_threads, pose_kwargs)
     pts = as_points(scene, "scene", np.dtype(np.float64))
     model_views, is_cloud = _model_views(model, resolution, num_threads)
     found = _P.find_objects(model_views, pts, s, [int(i) for i in views or []], pcl, _Progress(f"pose ({method})", True) if progress else None)
@@ -336,6 +351,66 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
         r.method = method
         if is_cloud:
             r.view = None
+    return found
+
+
+def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optional[Sequence[Any]] = None,
+               method: Method = "cbd", max_objects: int = 5, table_threshold: float = 0.005,
+               cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
+               viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
+               progress: bool = False, resolution: int = 150, views: Optional[Sequence[int]] = None,
+               num_threads: int = 0, ambiguity_margin: float = 0.05, same_pose_angle: float = math.radians(5),
+               same_pose_distance: float = 0.005, max_size_ratio: float = 1.5, min_size_ratio: float = 0.5,
+               voxel_size: float = 0.0, score_tie: float = 0.01, polish_distance: float = 0.003,
+               **pose_kwargs: Any) -> PartDetections:
+    """Which of several known parts lies in each object cluster of a table scene, and its
+    pose: the table and clusters as :func:`find_objects` (segmented once), then every part's
+    views aligned to each cluster (its normals and descriptors computed once), the best part
+    by score, and a :class:`DetectionStatus`: ``found``, ``not_found`` (no part passes
+    ``min_fitness`` / ``min_coverage``) or ``ambiguous`` (a runner-up -- another part, or a
+    pose of the same part that its symmetry does not make equivalent -- scores at least
+    ``(1 - ambiguity_margin)`` x the best).
+
+    Args:
+        models: one model per part, each as :func:`estimate_pose` takes it (a mesh, its
+            rendered views, or a cloud); render meshes once with :func:`scanalign.cad.render_views`
+            when calling repeatedly.
+        scene: (N, 3) scan, metres (camera or base frame; ``T_scene_model`` is in that frame).
+        symmetries: one ``PartSymmetry`` (``axis``, ``point`` m, ``order``; e.g. from
+            :data:`scanalign.parts.BUILTIN_PARTS`) or None per part; default none symmetric.
+        same_pose_angle / same_pose_distance: rad / m; two poses of one part closer than both
+            (over its symmetry) are the same pose, never a runner-up.
+        max_size_ratio / min_size_ratio: skip a part, before any alignment, for a cluster
+            larger than ``max_size_ratio`` x the part's size or smaller than ``min_size_ratio`` x
+            its smallest view (sizes: largest extent along the principal axes; 0 = no bound).
+        score_tie: candidates of the best part within this of its best score are ties, the
+            smallest inlier RMSE wins (scores saturate when the noise is far below
+            ``inlier_threshold``).
+        polish_distance: m; the reported pose is refined again by ICP with this
+            correspondence distance and a tight stop (0: no polish).
+        voxel_size: m; each cluster is reduced to one point per voxel before its pose (0: all).
+        other keywords: as :func:`find_objects` (``views`` applies to every part).
+
+    Returns:
+        :class:`PartDetections`: per cluster a :class:`PartDetection` (``status``, ``part``,
+        ``pose``, runner-up, ``indices``, ``parts``: the :class:`PoseResult` of every part).
+    """
+    if isinstance(models, (str, bytes)) or not isinstance(models, Sequence) or len(models) == 0:
+        raise ValueError("models: expected a non-empty list with one model per part")
+    s = _P.FindPartsSettings()
+    pcl = _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
+                          num_threads, pose_kwargs)
+    set_fields(s, dict(ambiguity_margin=ambiguity_margin, same_pose_angle=same_pose_angle,
+                       same_pose_distance=same_pose_distance, max_size_ratio=max_size_ratio,
+                       min_size_ratio=min_size_ratio, voxel_size=voxel_size, score_tie=score_tie,
+                       polish_distance=polish_distance),
+               "find_parts")
+    pts = as_points(scene, "scene", np.dtype(np.float64))
+    model_views = [_model_views(m, resolution, num_threads)[0] for m in models]
+    found = _P.find_parts(model_views, pts, s, None if symmetries is None else list(symmetries),
+                          [int(i) for i in views or []], pcl, _Progress(f"parts ({method})", True) if progress else None)
+    for d in found.detections:
+        d.pose.method = method
     return found
 
 

@@ -3,15 +3,18 @@
 
 #include <chrono>
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
 #include <stdexcept>
 #include <string>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "scanalign/common/interrupt.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/features/normals.hpp"
+#include "scanalign/reconstruction/voxel_grid.hpp"
 #include "scanalign/registration/icp.hpp"
 
 namespace scanalign {
@@ -147,12 +150,9 @@ PreparedScene prepareScene(const CloudView<double>& scene, const PoseSettings& s
   return p;
 }
 
-PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<double>& scene, const PoseSettings& s,
-                        const std::vector<int>& view_ids, const CoarseAligner& aligner, const PoseProgress& progress) {
-  const auto t0 = std::chrono::steady_clock::now();
-  validate(s);
-  if (s.method == CoarseMethod::External && !aligner)
-    throw std::invalid_argument("estimatePose: CoarseMethod::External needs a coarse aligner");
+namespace {
+
+std::vector<int> viewIds(const std::vector<ModelView>& views, const std::vector<int>& view_ids) {
   std::vector<int> ids = view_ids;
   if (ids.empty())
     for (std::size_t i = 0; i < views.size(); ++i) ids.push_back(static_cast<int>(i));
@@ -160,10 +160,16 @@ PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<dou
     if (i < 0 || static_cast<std::size_t>(i) >= views.size())
       throw std::invalid_argument("views: index " + std::to_string(i) + " out of range 0.." +
                                   std::to_string(static_cast<long>(views.size()) - 1));
+  return ids;
+}
+
+/// estimatePose on a scene already prepared (findParts prepares each cluster once for all
+/// parts); `ids` already checked. Leaves `seconds` to the caller.
+PoseResult poseInPrepared(const std::vector<ModelView>& views, const std::vector<int>& ids, const PreparedScene& prepared,
+                          const PoseSettings& s, const CoarseAligner& aligner, const PoseProgress& progress) {
   const std::string threshold_problem = undiscriminatingThreshold(views, ids, s.inlier_threshold);
   PoseResult best;
   best.method = s.method == CoarseMethod::External ? "external" : toString(s.method);
-  const PreparedScene prepared = prepareScene(scene, s);
   const std::size_t n = prepared.points.size() / 3;
   if (!threshold_problem.empty()) {
     best.message = threshold_problem;
@@ -178,7 +184,7 @@ PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<dou
     Icp<double> icp = sceneIcp(prepared, s);
     for (std::size_t k = 0; k < ids.size(); ++k) {
       checkInterrupt();  // Ctrl-C between views (each view's ICP also checks per iteration)
-      const ModelView& view = views[ids[k]];
+      const ModelView& view = views[static_cast<std::size_t>(ids[k])];
       PoseCandidate c;
       c.view = ids[k];
       const auto tc = std::chrono::steady_clock::now();
@@ -188,11 +194,10 @@ PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<dou
       if (cr.found) {
         c.coarse_fitness = alignmentFitness(view.cloud(), prepared.cloud(), cr.T_scene_model, s.inlier_threshold,
                                             s.num_threads).first;
-        Eigen::Matrix4d T;
-        refine(view, prepared, s, icp, cr.T_scene_model, c, T);
+        refine(view, prepared, s, icp, cr.T_scene_model, c, c.T_scene_model);
         if (c.score > best_score) {
           best_score = c.score;
-          best.T_scene_model = T;
+          best.T_scene_model = c.T_scene_model;
           best.found = true;
           best.fitness = c.fitness;
           best.coverage = c.coverage;
@@ -213,6 +218,19 @@ PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<dou
                      ": the part is not in this cloud, or only a small piece of it";
     }
   }
+  return best;
+}
+
+}  // namespace
+
+PoseResult estimatePose(const std::vector<ModelView>& views, const CloudView<double>& scene, const PoseSettings& s,
+                        const std::vector<int>& view_ids, const CoarseAligner& aligner, const PoseProgress& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  validate(s);
+  if (s.method == CoarseMethod::External && !aligner)
+    throw std::invalid_argument("estimatePose: CoarseMethod::External needs a coarse aligner");
+  const std::vector<int> ids = viewIds(views, view_ids);
+  PoseResult best = poseInPrepared(views, ids, prepareScene(scene, s), s, aligner, progress);
   best.seconds = since(t0);
   return best;
 }
@@ -231,6 +249,249 @@ ObjectPoses findObjects(const std::vector<ModelView>& views, const CloudView<dou
     object.clear();
     for (std::uint32_t i : idx) object.insert(object.end(), scene.ptr(i), scene.ptr(i) + 3);
     out.poses.push_back(estimatePose(views, CloudView<double>(object.data(), idx.size()), s.pose, view_ids, aligner, progress));
+  }
+  out.seconds = since(t0);
+  return out;
+}
+
+const char* toString(DetectionStatus status) {
+  switch (status) {
+    case DetectionStatus::Found: return "found";
+    case DetectionStatus::NotFound: return "not_found";
+    case DetectionStatus::Ambiguous: return "ambiguous";
+  }
+  return "?";
+}
+
+void validate(const FindPartsSettings& s) {
+  if (s.max_objects < 1) throw std::invalid_argument("max_objects must be >= 1");
+  validate(s.pose);
+  if (!(s.ambiguity_margin >= 0 && s.ambiguity_margin < 1))
+    throw std::invalid_argument("ambiguity_margin must be in [0, 1), got " + std::to_string(s.ambiguity_margin));
+  if (!(std::isfinite(s.same_pose_angle) && s.same_pose_angle >= 0 && s.same_pose_angle <= M_PI))
+    throw std::invalid_argument("same_pose_angle must be in [0, pi] rad, got " + std::to_string(s.same_pose_angle));
+  if (!(std::isfinite(s.same_pose_distance) && s.same_pose_distance >= 0))
+    throw std::invalid_argument("same_pose_distance must be a finite distance >= 0 in metres, got " +
+                                std::to_string(s.same_pose_distance));
+  if (!(std::isfinite(s.max_size_ratio) && s.max_size_ratio >= 0) || !(std::isfinite(s.min_size_ratio) && s.min_size_ratio >= 0))
+    throw std::invalid_argument("max_size_ratio and min_size_ratio must be finite and >= 0 (0 = no bound)");
+  if (!(std::isfinite(s.polish_distance) && s.polish_distance >= 0))
+    throw std::invalid_argument("polish_distance must be a finite distance >= 0 in metres (0 = no polish)");
+  if (!(s.score_tie >= 0 && s.score_tie <= 1)) throw std::invalid_argument("score_tie must be in [0, 1]");
+  if (!(std::isfinite(s.voxel_size) && s.voxel_size >= 0))
+    throw std::invalid_argument("voxel_size must be a finite length >= 0 in metres (0 = every point), got " +
+                                std::to_string(s.voxel_size));
+}
+
+namespace {
+
+/// The largest extent of a cloud along its principal axes (m): rotation invariant and never
+/// more than the cloud's diameter, so a view of a part is never larger than the part.
+double principalExtent(const CloudView<double>& c) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < c.size; ++i)
+    if (c.isFinite(i)) mean += Eigen::Vector3d(c.ptr(i)), ++n;
+  if (n < 2) return 0;
+  mean /= static_cast<double>(n);
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < c.size; ++i)
+    if (c.isFinite(i)) {
+      const Eigen::Vector3d d = Eigen::Vector3d(c.ptr(i)) - mean;
+      cov += d * d.transpose();
+    }
+  const Eigen::Matrix3d axes = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors();
+  Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+  for (std::size_t i = 0; i < c.size; ++i)
+    if (c.isFinite(i)) {
+      const Eigen::Vector3d q = axes.transpose() * Eigen::Vector3d(c.ptr(i));
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+  return (hi - lo).maxCoeff();
+}
+
+/// A part's sizes for the gate: all its views together, and its smallest tried view.
+struct PartSize {
+  double whole = 0, smallest_view = 0;
+};
+
+PartSize partSize(const std::vector<ModelView>& views, const std::vector<int>& ids) {
+  PartSize out;
+  std::vector<double> all;
+  for (const ModelView& v : views) all.insert(all.end(), v.points.begin(), v.points.end());
+  out.whole = principalExtent(CloudView<double>(all.data(), all.size() / 3));
+  out.smallest_view = INFINITY;
+  for (int i : ids) {
+    const ModelView& v = views[static_cast<std::size_t>(i)];
+    if (v.size() >= 2) out.smallest_view = std::min(out.smallest_view, principalExtent(v.cloud()));
+  }
+  if (!std::isfinite(out.smallest_view)) out.smallest_view = 0;
+  return out;
+}
+
+/// Why part `p` cannot be the cluster (the size gate), or an empty string.
+std::string sizeMismatch(double cluster, const PartSize& part, const FindPartsSettings& s) {
+  char m[200] = "";
+  if (s.max_size_ratio > 0 && cluster > s.max_size_ratio * part.whole)
+    std::snprintf(m, sizeof m, "skipped: the cluster (%.4g m) is more than %g x the part's size (%.4g m)", cluster,
+                  s.max_size_ratio, part.whole);
+  else if (s.min_size_ratio > 0 && cluster < s.min_size_ratio * part.smallest_view)
+    std::snprintf(m, sizeof m, "skipped: the cluster (%.4g m) is less than %g x the part's smallest view (%.4g m)",
+                  cluster, s.min_size_ratio, part.smallest_view);
+  return m;
+}
+
+double bestScore(const PoseResult& r) {
+  double best = 0;
+  for (const PoseCandidate& c : r.candidates)
+    if (c.found) best = std::max(best, c.score);
+  return best;
+}
+
+/// A candidate refined again by point-to-plane ICP with correspondences within
+/// polish_distance and a tight convergence test: the first ICP (icp_distance, PCL's 1e-8
+/// stop) can halt while a weakly constrained rotation (a hexagon's about its axis, seen on
+/// two faces) still slides.
+void polish(const ModelView& view, const PreparedScene& scene, const FindPartsSettings& s, PoseCandidate& c) {
+  PoseSettings ps = s.pose;
+  ps.icp_distance = s.polish_distance;
+  IcpSettings is;
+  is.max_correspondence_distance = s.polish_distance;
+  is.num_threads = ps.num_threads;
+  is.max_iterations = 100;
+  is.transformation_epsilon = 1e-14;
+  Icp<double> icp(is);
+  const std::size_t n = scene.oriented_points.size() / 3;
+  icp.setTarget(CloudView<double>(scene.oriented_points.data(), n), CloudView<double>(scene.oriented_normals.data(), n));
+  const Eigen::Matrix4d init = c.T_scene_model;
+  refine(view, scene, ps, icp, init, c, c.T_scene_model);
+}
+
+/// Best part, its status and the runner-up: the best-scoring pose of every other part, and
+/// every candidate of the best part whose pose its symmetry does not make the same.
+void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<PartSymmetry>& sym,
+           const std::vector<std::vector<ModelView>>& models, const PreparedScene& scene, const FindPartsSettings& s) {
+  int best = -1;
+  for (std::size_t p = 0; p < d.parts.size(); ++p) {
+    if (!tried[p]) continue;
+    const auto b = static_cast<std::size_t>(best);
+    if (best < 0 || (d.parts[p].found && !d.parts[b].found) ||
+        (d.parts[p].found == d.parts[b].found && bestScore(d.parts[p]) > bestScore(d.parts[b])))
+      best = static_cast<int>(p);
+  }
+  if (best < 0) {
+    d.message = "no part was tried: every part's size differs from the cluster's (see parts[i].message)";
+    return;
+  }
+  d.part = best;
+  d.pose = d.parts[static_cast<std::size_t>(best)];
+  d.score = bestScore(d.pose);
+  if (!d.pose.found) {
+    d.message = d.pose.message;
+    return;
+  }
+  // Scores saturate near 1 when the noise is far below inlier_threshold: among the
+  // candidates within score_tie of the best, the smallest inlier RMSE is the tightest fit.
+  const PoseCandidate* pick = nullptr;
+  for (const PoseCandidate& c : d.pose.candidates)
+    if (c.found && c.score >= d.score - s.score_tie && (!pick || c.inlier_rmse < pick->inlier_rmse)) pick = &c;
+  if (pick && s.polish_distance > 0) {
+    PoseCandidate c = *pick;
+    polish(models[static_cast<std::size_t>(best)][static_cast<std::size_t>(c.view)], scene, s, c);
+    if (c.score >= pick->score - s.score_tie) pick = &(d.pose.candidates.emplace_back(c));  // kept as a candidate
+  }
+  if (pick) {
+    d.pose.T_scene_model = pick->T_scene_model;
+    d.pose.fitness = pick->fitness;
+    d.pose.coverage = pick->coverage;
+    d.pose.inlier_rmse = pick->inlier_rmse;
+    d.pose.view = pick->view;
+    d.score = pick->score;
+  }
+  const Eigen::Isometry3d T_best(d.pose.T_scene_model);
+  const PartSymmetry& S = sym[static_cast<std::size_t>(best)];
+  for (std::size_t p = 0; p < d.parts.size(); ++p)
+    for (const PoseCandidate& candidate : d.parts[p].candidates) {
+      if (!candidate.found || candidate.score <= d.runner_up_score) continue;
+      PoseCandidate c = candidate;
+      const bool same_part = static_cast<int>(p) == best;
+      auto err = symmetricPoseError(T_best, Eigen::Isometry3d(c.T_scene_model), S);
+      auto same = [&] { return same_part && err.first <= s.same_pose_angle && err.second <= s.same_pose_distance; };
+      if (same()) continue;
+      // A candidate of the best part that would make the detection ambiguous may only have
+      // stopped short of the best pose: polished, it counts only if it stays apart.
+      if (same_part && s.polish_distance > 0 && c.score >= (1 - s.ambiguity_margin) * d.score) {
+        polish(models[p][static_cast<std::size_t>(c.view)], scene, s, c);
+        err = symmetricPoseError(T_best, Eigen::Isometry3d(c.T_scene_model), S);
+        if (same() || c.score <= d.runner_up_score) continue;
+      }
+      d.runner_up_part = static_cast<int>(p);
+      d.runner_up_score = c.score;
+      d.runner_up_angle = err.first;
+      d.runner_up_distance = err.second;
+    }
+  d.status = DetectionStatus::Found;
+  if (d.runner_up_part >= 0 && d.runner_up_score >= (1 - s.ambiguity_margin) * d.score) {
+    d.status = DetectionStatus::Ambiguous;
+    char m[240];
+    std::snprintf(m, sizeof m, "part %d (score %.4f) is within %g of the best (part %d, score %.4f), %.2f deg / %.2f mm away",
+                  d.runner_up_part, d.runner_up_score, s.ambiguity_margin, best, d.score, d.runner_up_angle * 180 / M_PI,
+                  d.runner_up_distance * 1e3);
+    d.message = m;
+  }
+}
+
+}  // namespace
+
+PartDetections findParts(const std::vector<std::vector<ModelView>>& models, const std::vector<PartSymmetry>& symmetries,
+                         const CloudView<double>& scene, const FindPartsSettings& s, const std::vector<int>& view_ids,
+                         const CoarseAligner& aligner, const PoseProgress& progress) {
+  const auto t0 = std::chrono::steady_clock::now();
+  validate(s);
+  if (models.empty()) throw std::invalid_argument("models: need at least one part");
+  if (!symmetries.empty() && symmetries.size() != models.size())
+    throw std::invalid_argument("symmetries: " + std::to_string(symmetries.size()) + " given for " +
+                                std::to_string(models.size()) + " parts (one per part, or none)");
+  if (s.pose.method == CoarseMethod::External && !aligner)
+    throw std::invalid_argument("findParts: CoarseMethod::External needs a coarse aligner");
+  std::vector<PartSymmetry> sym = symmetries;
+  sym.resize(models.size());  // no symmetry by default
+  for (const PartSymmetry& p : sym) p.validate();
+  std::vector<std::vector<int>> ids;
+  std::vector<PartSize> sizes;
+  for (std::size_t p = 0; p < models.size(); ++p) {
+    if (models[p].empty()) throw std::invalid_argument("models: part " + std::to_string(p) + " has no views");
+    ids.push_back(viewIds(models[p], view_ids));
+    sizes.push_back(partSize(models[p], ids.back()));
+  }
+  PartDetections out;
+  out.table = segmentTable(scene, s.table);
+  if (out.table.objects.size() > s.max_objects) out.table.objects.resize(s.max_objects);
+  std::vector<double> object;
+  for (const auto& idx : out.table.objects) {
+    const auto tc = std::chrono::steady_clock::now();
+    PartDetection d;
+    d.indices = idx;
+    object.clear();
+    for (std::uint32_t i : idx) object.insert(object.end(), scene.ptr(i), scene.ptr(i) + 3);
+    if (s.voxel_size > 0) object = voxelGrid(CloudView<double>(object.data(), idx.size()), s.voxel_size).points;
+    const CloudView<double> cloud(object.data(), object.size() / 3);
+    d.size = principalExtent(cloud);
+    const PreparedScene prepared = prepareScene(cloud, s.pose);  // once for every part
+    std::vector<bool> tried(models.size());
+    for (std::size_t p = 0; p < models.size(); ++p) {
+      const auto tp = std::chrono::steady_clock::now();
+      PoseResult r;
+      r.message = sizeMismatch(d.size, sizes[p], s);
+      tried[p] = r.message.empty();
+      if (tried[p]) r = poseInPrepared(models[p], ids[p], prepared, s.pose, aligner, progress);
+      r.seconds = since(tp);
+      d.parts.push_back(std::move(r));
+    }
+    judge(d, tried, sym, models, prepared, s);
+    d.seconds = since(tc);
+    out.detections.push_back(std::move(d));
   }
   out.seconds = since(t0);
   return out;

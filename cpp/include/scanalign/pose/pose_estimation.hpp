@@ -4,7 +4,9 @@
 // aligner such as the PCL baselines), refined with scanalign's point-to-plane ICP, and scored
 // by the harmonic mean of fitness (model points near the object) and coverage (object
 // points near the placed model). findObjects first finds the table plane and the object
-// clusters (paper 3's segmentation, fitting/ransac.hpp) and estimates a pose per cluster.
+// clusters (paper 3's segmentation, fitting/ransac.hpp) and estimates a pose per cluster;
+// findParts does the same for several known parts and names the part in each cluster, with
+// an "ambiguous" status when two different poses (or parts) score alike.
 //
 // Frames and units: metres. T_scene_model maps model (CAD) coordinates into the scene frame.
 #pragma once
@@ -22,6 +24,7 @@
 #include "scanalign/pose/model_views.hpp"
 #include "scanalign/pose/cbd_alignment.hpp"
 #include "scanalign/pose/flag_alignment.hpp"
+#include "scanalign/pose/part_symmetry.hpp"
 
 namespace scanalign {
 
@@ -83,6 +86,9 @@ struct PoseCandidate {
   bool found = false;          ///< the coarse alignment produced a pose
   double coarse_fitness = 0;   ///< fitness after the coarse alignment alone
   double fitness = 0, coverage = 0, inlier_rmse = 0, score = 0;  ///< after ICP (when found)
+  /// The view's pose after ICP (model -> scene, m); identity when the coarse alignment found
+  /// nothing. Kept so that a caller can compare candidates (findParts' ambiguity test).
+  Eigen::Matrix4d T_scene_model = Eigen::Matrix4d::Identity();
 };
 
 struct PoseResult {
@@ -124,5 +130,86 @@ struct ObjectPoses {
 ObjectPoses findObjects(const std::vector<ModelView>& views, const CloudView<double>& scene,
                         const FindObjectsSettings& settings = {}, const std::vector<int>& view_ids = {},
                         const CoarseAligner& aligner = {}, const PoseProgress& progress = {});
+
+/// How findParts judged one object cluster.
+enum class DetectionStatus {
+  Found,      ///< the best part's best pose passes min_fitness / min_coverage and nothing else scores alike
+  NotFound,   ///< no part's pose passes min_fitness / min_coverage (or every part was skipped by size)
+  Ambiguous,  ///< found, but a runner-up (another part, or a pose of the same part that its symmetry does
+              ///< not make equivalent) scores within ambiguity_margin of the best
+};
+const char* toString(DetectionStatus status);
+
+struct FindPartsSettings {
+  TableSegmentationSettings table;  ///< table plane and object clusters (m)
+  std::size_t max_objects = 5;      ///< clusters tried, largest first
+  PoseSettings pose;                ///< per cluster and part, as estimatePose
+  /// A runner-up whose score reaches (1 - ambiguity_margin) x the best score makes the
+  /// detection ambiguous (score = harmonic mean of fitness and coverage, in [0, 1]).
+  double ambiguity_margin = 0.05;
+  /// Candidates of the best part scoring within score_tie of its best score are ties: the one
+  /// with the smallest inlier RMSE is reported (with sensor noise far below
+  /// inlier_threshold, fitness and coverage saturate at 1 for poses a degree apart).
+  double score_tie = 0.01;
+  /// m; the reported candidate is refined once more by point-to-plane ICP with
+  /// correspondences within this distance and a tight stop (1e-14), and appended to the
+  /// part's candidates; it replaces the pick unless its score drops by more than score_tie.
+  /// 0 = no polish.
+  double polish_distance = 0.003;
+  /// Two poses of the same part are the same pose when symmetricPoseError (over the part's
+  /// symmetry) is at most same_pose_angle (rad) and same_pose_distance (m): the views that
+  /// converge to one pose, or to one of a symmetric part's equivalent poses, never compete.
+  double same_pose_angle = 5 * M_PI / 180;
+  double same_pose_distance = 0.005;
+  /// Cheap size gate before any alignment, on the rotation-invariant size of a cloud (its
+  /// largest extent along its principal axes, m). A part is skipped for a cluster larger than
+  /// max_size_ratio x the part's size (its views together: about its largest dimension; no
+  /// view of the part can be larger), or smaller than min_size_ratio x its smallest view
+  /// (the part seen from its narrowest side). 0 disables a bound.
+  double max_size_ratio = 1.5;
+  double min_size_ratio = 0.5;
+  /// m; each cluster is reduced to one point per voxel (the centroid) before its pose: a
+  /// merged scan holds several times the points the pose needs, and the cost grows with them.
+  /// 0 (default) keeps every point: a single depth image of the table is about as dense as
+  /// the model views. For a merged multi-view scan, about the views' point spacing (1 to
+  /// 1.5 mm at resolution 100 for a 10 cm part).
+  double voxel_size = 0.0;
+};
+void validate(const FindPartsSettings& settings);
+
+/// One object cluster and the part found in it.
+struct PartDetection {
+  DetectionStatus status = DetectionStatus::NotFound;
+  int part = -1;                 ///< index of the best-scoring part (-1: every part was skipped)
+  PoseResult pose;               ///< that part's pose (found false unless status is Found or Ambiguous)
+  double score = 0;              ///< the reported candidate's score
+  int runner_up_part = -1;       ///< part of the best competing pose (-1: none)
+  double runner_up_score = 0;    ///< its score
+  /// symmetricPoseError(best pose, runner-up pose) over the best part's symmetry: rad, m.
+  double runner_up_angle = 0, runner_up_distance = 0;
+  std::vector<std::uint32_t> indices;  ///< the cluster's points (indices into the scene, before the voxel grid)
+  std::vector<PoseResult> parts;       ///< per part; a part skipped by the size gate says so in its message
+  double size = 0;                     ///< the cluster's size (largest principal extent), m
+  std::string message;                 ///< why not found, or what made it ambiguous
+  double seconds = 0;                  ///< wall time of this cluster, all parts
+};
+
+struct PartDetections {
+  std::vector<PartDetection> detections;  ///< one per object cluster, largest first
+  TableSegmentation table;                ///< plane, clusters and counts
+  double seconds = 0;                     ///< wall time
+};
+
+/// Which of several known parts lies in each object cluster of a table scene, and its pose.
+/// `models[p]`: part p's views (renderModelViews); `symmetries`: one per part, or empty
+/// (none symmetric). The table is segmented once (as findObjects); each cluster's normals
+/// and descriptors are computed once and every part's views aligned to it (estimatePose),
+/// parts outside the size gate skipped. `view_ids` (empty: all) applies to every part.
+/// @throws std::invalid_argument for no models, a part without views, a symmetry count
+///         other than models.size(), a bad symmetry or settings, a view index out of range.
+PartDetections findParts(const std::vector<std::vector<ModelView>>& models, const std::vector<PartSymmetry>& symmetries,
+                         const CloudView<double>& scene, const FindPartsSettings& settings = {},
+                         const std::vector<int>& view_ids = {}, const CoarseAligner& aligner = {},
+                         const PoseProgress& progress = {});
 
 }  // namespace scanalign
