@@ -158,6 +158,14 @@ def test_a_loop_at_constant_tilt_is_reported_degenerate():
     assert "parallel" in r.message and r.axis_spread < math.radians(0.01)
 
 
+def test_robot_and_camera_poses_paired_wrongly_are_reported():
+    A, C, X, _ = target_views(20, "sr300", 1)
+    r = calibrate_hand_eye(A, np.roll(C, 1, axis=0))  # each view paired with the previous robot pose
+    assert r.status == "inconsistent_poses" and not r and "paired" in r.message
+    assert r.rms_translation > 0.02 and r.residual_translation.shape == (20,)
+    assert calibrate_hand_eye(A, C).rms_translation < 0.001  # the right pairing: sub-millimetre
+
+
 def test_too_few_poses_is_a_status():
     A, C, _, _ = target_views(2, "zivid", 0)
     r = calibrate_hand_eye(A, C)

@@ -81,6 +81,11 @@ void bindSettings(py::module_& m) {
                      "maximum-likelihood choice is sigma_translation / sigma_rotation of the camera poses")
       .def_readwrite("huber_delta", &S::huber_delta,
                      "m (default 0: least squares): Huber threshold on the weighted 6-vector residual of a pose")
+      .def_readwrite("max_rms_translation", &S::max_rms_translation,
+                     "m (default 0.02): largest RMS translation residual of an answer; above it: "
+                     "'inconsistent_poses'")
+      .def_readwrite("max_rms_rotation", &S::max_rms_rotation,
+                     "rad (default 5 deg): largest RMS rotation residual of an answer; above it: 'inconsistent_poses'")
       .def_readwrite("max_iterations", &S::max_iterations, "Levenberg-Marquardt iterations, >= 1 (default 50)")
       .def_readwrite("step_tolerance", &S::step_tolerance,
                      "m and rad (default 1e-12): stop when the step's largest component is below this")
@@ -99,8 +104,9 @@ void bindResult(py::module_& m) {
                 "T_world_camera[i]. Transforms are 4x4 read-only arrays, metres. Falsy unless status is 'ok'.")
       .def_property_readonly(
           "status", [](const R& r) { return toString(r.status); },
-          "'ok', 'too_few_poses' (< 3), 'invalid_input' or 'degenerate_motion' (rotations too small, or all "
-          "relative rotation axes nearly parallel)")
+          "'ok', 'too_few_poses' (< 3), 'invalid_input', 'degenerate_motion' (rotations too small, or all "
+          "relative rotation axes nearly parallel) or 'inconsistent_poses' (RMS residual above max_rms_*: the "
+          "transforms are filled in, to look at)")
       .def_readonly("message", &R::message, "empty when ok, else why")
       .def_property_readonly("ok", &R::ok, "status == 'ok'")
       .def_property_readonly(

@@ -1,5 +1,6 @@
 // Hand-eye calibration (calibration/hand_eye.hpp) against constructed truth: poses built
 // from a known X = T_flange_camera and Z = T_base_world, so that A_i X = Z B_i holds exactly.
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -133,6 +134,20 @@ TEST(HandEye, HuberLossResistsOneBadView) {
   EXPECT_EQ(worst, 4);
 }
 
+TEST(HandEye, PosesThatFitNoAnswerAreReported) {
+  // camera poses paired with the wrong robot poses (shifted by one): no X and Z fit them
+  const auto A = flangePoses(10, 9);
+  auto B = cameraPoses(A);
+  std::rotate(B.begin(), B.begin() + 1, B.end());
+  const HandEyeResult r = calibrateHandEye(A, B);
+  EXPECT_EQ(r.status, HandEyeStatus::InconsistentPoses);
+  EXPECT_STREQ(toString(r.status), "inconsistent_poses");
+  EXPECT_FALSE(r.ok());
+  EXPECT_GT(r.rms_translation, 0.02);
+  EXPECT_NE(r.message.find("paired"), std::string::npos) << r.message;
+  EXPECT_EQ(r.residual_translation.size(), 10);
+}
+
 TEST(HandEye, RotationsAboutOneAxisAreRefused) {
   std::vector<Eigen::Matrix4d> A;
   for (int i = 0; i < 10; ++i) A.push_back(pose({0.1, 0.2, 1.0}, 0.3 * i, {0.1 * i, 0.02 * i * i, 0.3}));
@@ -212,6 +227,8 @@ TEST(HandEye, InvalidSettingsThrow) {
   expectThrow([](HandEyeSettings& s) { s.rotation_weight = std::nan(""); });
   expectThrow([](HandEyeSettings& s) { s.huber_delta = -1.0; });
   expectThrow([](HandEyeSettings& s) { s.max_iterations = 0; });
+  expectThrow([](HandEyeSettings& s) { s.max_rms_translation = 0.0; });
+  expectThrow([](HandEyeSettings& s) { s.max_rms_rotation = -1.0; });
   expectThrow([](HandEyeSettings& s) { s.min_axis_angle = 2.0; });
   expectThrow([](HandEyeSettings& s) { s.min_relative_rotation = -0.1; });
   expectThrow([](HandEyeSettings& s) { s.step_tolerance = INFINITY; });

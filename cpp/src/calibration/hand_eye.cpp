@@ -369,6 +369,7 @@ const char* toString(HandEyeStatus status) {
     case HandEyeStatus::TooFewPoses: return "too_few_poses";
     case HandEyeStatus::InvalidInput: return "invalid_input";
     case HandEyeStatus::DegenerateMotion: return "degenerate_motion";
+    case HandEyeStatus::InconsistentPoses: return "inconsistent_poses";
   }
   return "invalid_input";
 }
@@ -385,6 +386,10 @@ void validate(const HandEyeSettings& s) {
     throw std::invalid_argument("HandEyeSettings.rotation_weight: expected a finite value > 0 (m/rad)");
   if (!std::isfinite(s.huber_delta) || s.huber_delta < 0)
     throw std::invalid_argument("HandEyeSettings.huber_delta: expected a finite value >= 0 (m; 0 = least squares)");
+  if (!std::isfinite(s.max_rms_translation) || !(s.max_rms_translation > 0))
+    throw std::invalid_argument("HandEyeSettings.max_rms_translation: expected a finite value > 0 (m)");
+  if (!std::isfinite(s.max_rms_rotation) || !(s.max_rms_rotation > 0))
+    throw std::invalid_argument("HandEyeSettings.max_rms_rotation: expected a finite value > 0 (rad)");
   if (s.max_iterations < 1) throw std::invalid_argument("HandEyeSettings.max_iterations: expected >= 1");
   if (!std::isfinite(s.step_tolerance) || s.step_tolerance < 0)
     throw std::invalid_argument("HandEyeSettings.step_tolerance: expected a finite value >= 0");
@@ -427,6 +432,15 @@ HandEyeResult calibrateHandEye(const std::vector<Mat4>& A, const std::vector<Mat
   if (s.refine) {
     refine(A, B, s, out);
     fillResiduals(A, B, out);
+  }
+  if (!(out.rms_translation <= s.max_rms_translation) || !(out.rms_rotation <= s.max_rms_rotation)) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "%.3g m and %.3g deg", out.rms_translation, out.rms_rotation * kDeg);
+    out.status = HandEyeStatus::InconsistentPoses;
+    out.message = std::string("the poses do not fit one T_flange_camera and T_base_world: RMS residual ") + buf +
+                  " (max_rms_translation " + std::to_string(s.max_rms_translation) + " m, max_rms_rotation " +
+                  degrees(s.max_rms_rotation) + "); are robot and camera poses paired by time, is a view wrong?";
+    return out;
   }
   out.status = HandEyeStatus::Ok;
   return out;

@@ -38,9 +38,13 @@ enum class HandEyeStatus {
   TooFewPoses,       ///< fewer than 3 poses (2 relative motions with non-parallel axes need 3)
   InvalidInput,      ///< sizes differ, or a pose is non-finite / not rigid (the message names it)
   DegenerateMotion,  ///< rotations too small, or all relative rotation axes (nearly) parallel
+  /// The answer leaves an RMS residual above max_rms_translation / max_rotation: the poses do
+  /// not fit one X and Z (robot and camera poses paired wrongly, a failed target detection, a
+  /// lost ICP track). The transforms and residuals are still filled in, to look at.
+  InconsistentPoses,
 };
 
-/// "ok", "too_few_poses", "invalid_input", "degenerate_motion".
+/// "ok", "too_few_poses", "invalid_input", "degenerate_motion", "inconsistent_poses".
 const char* toString(HandEyeStatus status);
 
 /// Settings of calibrateHandEye (units beside each field).
@@ -63,13 +67,19 @@ struct HandEyeSettings {
   /// Huber threshold on the weighted 6-vector residual of a pose, m (0: least squares). Poses
   /// beyond it count linearly, so one bad target detection does not pull the answer.
   double huber_delta = 0.0;
+  /// Largest RMS translation residual of an answer, m (default 2 cm: twenty times a drifting
+  /// ICP scan's); above it: InconsistentPoses.
+  double max_rms_translation = 0.02;
+  /// Largest RMS rotation residual of an answer, rad (default 5 deg); above it: InconsistentPoses.
+  double max_rms_rotation = 0.0872664626;
   int max_iterations = 50;        ///< Levenberg-Marquardt iterations, >= 1
   /// Stop when the step's largest component is below this (m and rad).
   double step_tolerance = 1e-12;
 };
 
 /// Throws std::invalid_argument naming the field: angles finite and in [0, pi/2],
-/// rotation_weight finite and > 0, huber_delta finite and >= 0, max_iterations >= 1,
+/// rotation_weight, max_rms_translation and max_rms_rotation finite and > 0, huber_delta
+/// finite and >= 0, max_iterations >= 1,
 /// step_tolerance finite and >= 0.
 void validate(const HandEyeSettings& settings);
 
