@@ -190,6 +190,10 @@ def test_bad_arguments_raise_clear_errors():
     bad[2, 0, 3] = np.nan
     with pytest.raises(ValueError, match=r"T_base_flange\[2\] .*non-finite"):
         calibrate_hand_eye(bad, C)
+    bad = A.copy()
+    bad[1, 2, 3] = 1e20
+    with pytest.raises(ValueError, match=r"T_base_flange\[1\]: its translation is beyond 1e6 m"):
+        calibrate_hand_eye(bad, C)
     with pytest.raises(TypeError, match="T_base_flange"):
         calibrate_hand_eye(A.astype(complex), C)
     with pytest.raises(TypeError, match="unknown hand-eye setting 'rotation_wieght'"):

@@ -41,6 +41,8 @@ std::vector<Eigen::Matrix4d> poses(py::handle x, const std::string& name) {
   for (std::size_t i = 0; i < out.size(); ++i) {
     out[i] = Eigen::Map<const RowMatrix4d>(f.data() + 16 * i);
     requireRigid(out[i], name + "[" + std::to_string(i) + "]");
+    if (!(out[i].topRightCorner<3, 1>().cwiseAbs().maxCoeff() <= 1e6))
+      throw py::value_error(name + "[" + std::to_string(i) + "]: its translation is beyond 1e6 m");
   }
   return out;
 }

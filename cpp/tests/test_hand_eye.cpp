@@ -210,6 +210,13 @@ TEST(HandEye, NonRigidOrNonFinitePosesAreNamed) {
   EXPECT_EQ(r.status, HandEyeStatus::InvalidInput);
   EXPECT_NE(r.message.find("T_camera_target[1]"), std::string::npos) << r.message;
 
+  auto far = cameraPoses(A);
+  far[2](1, 3) = 1e20;  // squared, still finite; but no robot cell is 1e20 m wide
+  r = calibrateHandEye(A, far);
+  EXPECT_EQ(r.status, HandEyeStatus::InvalidInput);
+  EXPECT_NE(r.message.find("T_world_camera[2]"), std::string::npos) << r.message;
+  EXPECT_NE(r.message.find("1e6 m"), std::string::npos) << r.message;
+
   r = calibrateHandEye(A, std::vector<Eigen::Matrix4d>(B.begin(), B.begin() + 5));
   EXPECT_EQ(r.status, HandEyeStatus::InvalidInput);
   EXPECT_NE(r.message.find("6 and 5"), std::string::npos) << r.message;

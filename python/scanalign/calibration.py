@@ -47,11 +47,14 @@ def calibrate_hand_eye(T_base_flange: Any, T_camera_target: Any = None, *, T_wor
 
     Returns:
         :class:`HandEyeResult`: ``status`` ``"ok"``, or ``"too_few_poses"`` (< 3),
-        ``"degenerate_motion"`` (rotations too small or about parallel axes) with a message.
+        ``"degenerate_motion"`` (rotations too small or about parallel axes) or
+        ``"inconsistent_poses"`` (an RMS residual above ``max_rms_translation`` /
+        ``max_rms_rotation``: poses paired wrongly, a bad view) with a message.
 
     Raises:
         ValueError: both or neither camera-pose argument, a shape other than (N, 4, 4), a
-            different N, a pose that is not rigid (named with its index), invalid settings.
+            different N, a pose that is not rigid or lies beyond 1e6 m (named with its index),
+            invalid settings.
         TypeError: a non-numeric array, an unknown setting.
     """
     if (T_camera_target is None) == (T_world_camera is None):

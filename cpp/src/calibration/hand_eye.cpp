@@ -351,13 +351,21 @@ bool motionSpread(const std::vector<Mat4>& A, const HandEyeSettings& s, HandEyeR
   return true;
 }
 
+/// Rigid, and within kMaxTranslation of the origin: beyond, squared residuals overflow long
+/// before a robot cell's poses could get there.
+constexpr double kMaxTranslation = 1e6;  // m
+
 bool checkPoses(const std::vector<Mat4>& T, const char* name, HandEyeResult& out) {
-  for (std::size_t i = 0; i < T.size(); ++i)
-    if (const char* problem = rigidProblem(T[i])) {
+  for (std::size_t i = 0; i < T.size(); ++i) {
+    const char* problem = rigidProblem(T[i]);
+    if (!problem && !(trans(T[i]).cwiseAbs().maxCoeff() <= kMaxTranslation))
+      problem = "its translation is beyond 1e6 m";
+    if (problem) {
       out = failure(HandEyeStatus::InvalidInput,
                     std::string(name) + "[" + std::to_string(i) + "] is not a rigid transform: " + problem);
       return false;
     }
+  }
   return true;
 }
 
