@@ -169,6 +169,12 @@ def test_targetless_from_the_icp_trajectory_of_a_rendered_scan():
     rot, trans = errors(r.T_flange_camera, X)
     assert rot < 0.25 and trans < 6.0, (rot, trans)
     assert rot < drift_rot and trans < drift_trans, (rot, trans, drift_rot, drift_trans)
+    # A Huber loss keeps the frames where the track slipped from pulling the answer (measured
+    # 0.07 deg, 1.8 mm here; with SR300-like depth noise, where the track drifts by 11 deg and
+    # 31 mm, 0.09 deg and 5.5 mm against 0.6 deg and 37 mm by least squares).
+    robust = calibrate_hand_eye(T_base_flange, T_world_camera=res.estimate.poses, huber_delta=0.0005)
+    rot_h, trans_h = errors(robust.T_flange_camera, X)
+    assert robust.status == "ok" and rot_h < 0.25 and trans_h < 6.0, (rot_h, trans_h)
     # The scan's world frame is the first camera's, T_base_world = T_base_camera[0], up to the
     # drift that Z absorbs (measured 0.8 deg, 5.4 mm).
     rot_z, trans_z = errors(r.T_base_world, scan.reference.poses[0])
