@@ -536,7 +536,7 @@ void bindFindParts(py::module_& m) {
       .def_readwrite("max_objects", &FindPartsSettings::max_objects, "clusters tried, largest first")
       .def_readwrite("pose", &FindPartsSettings::pose, "PoseSettings per cluster and part")
       .def_readwrite("ambiguity_margin", &FindPartsSettings::ambiguity_margin,
-                     "a runner-up scoring at least (1 - margin) x the best score makes the detection ambiguous (0.05)")
+                     "a runner-up scoring at least (1 - margin) x the best score makes the detection ambiguous (0.02)")
       .def_readwrite("score_tie", &FindPartsSettings::score_tie,
                      "candidates of the best part within this of its best score are ties: the smallest inlier RMSE "
                      "wins (0.01)")

@@ -359,7 +359,7 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
                cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
                viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
                progress: bool = False, resolution: int = 150, views: Optional[Sequence[int]] = None,
-               num_threads: int = 0, ambiguity_margin: float = 0.05, same_pose_angle: float = math.radians(5),
+               num_threads: int = 0, ambiguity_margin: float = 0.02, same_pose_angle: float = math.radians(5),
                same_pose_distance: float = 0.005, max_size_ratio: float = 1.5, min_size_ratio: float = 0.5,
                voxel_size: float = 0.0, score_tie: float = 0.01, polish_distance: float = 0.003,
                **pose_kwargs: Any) -> PartDetections:
