@@ -83,6 +83,11 @@ def test_each_cluster_gets_its_part_and_pose_and_the_box_is_no_part():
     # The size gate: the standoff (35 mm) cannot be the block's or the bracket's cluster.
     for name in ("block", "bracket"):
         assert found[name].parts[2].message.startswith("skipped"), found[name].parts[2].message
+    # Without the size gate every part is aligned to the ball, and none fits it.
+    ungated = pose.find_parts(_models(), cloud, symmetries=syms, max_size_ratio=0, min_size_ratio=0, **KW)
+    ball = next(d for d in ungated.detections if np.linalg.norm(cloud[d.indices].mean(0)[:2] - [0.60, -0.12]) < 0.03)
+    assert ball.status == pose.DetectionStatus.not_found, ball.message
+    assert not any(p.message.startswith("skipped") for p in ball.parts) and not any(p.found for p in ball.parts)
     # Every candidate keeps its pose; the reported one is among them.
     d = found["block"]
     assert any(np.allclose(c.T_scene_model, d.pose.T_scene_model) for c in d.pose.candidates)
