@@ -14,17 +14,25 @@ from scanalign.synthetic.cell import CELL_MOUNTS, pick_cell, score_picks
 CELLS = [("ur5", "sr300"), ("ur5", "zivid"), ("kr6_r900_sixx", "sr300")]
 
 
+_RUNS = {}
+
+
+def _run(robot, noise):
+    """The built-in cell scanned and picked once per (robot, noise) for the whole module."""
+    if (robot, noise) not in _RUNS:
+        cell = pick_cell(robot, noise=noise, seed=3)
+        _RUNS[robot, noise] = cell, pick.pick(cell.scan, cell.parts, progress=False)
+    return _RUNS[robot, noise]
+
+
 @pytest.fixture(scope="module", params=CELLS, ids=lambda c: f"{c[0]}-{c[1]}")
 def picked(request):
-    robot, noise = request.param
-    cell = pick_cell(robot, noise=noise, seed=3)
-    return cell, pick.pick(cell.scan, cell.parts, progress=False)
+    return _run(*request.param)
 
 
 @pytest.fixture(scope="module")
 def ur5_cell():
-    cell = pick_cell("ur5", noise="sr300", seed=5)
-    return cell, pick.pick(cell.scan, cell.parts, progress=False)
+    return _run("ur5", "sr300")
 
 
 def test_every_part_is_picked_at_its_true_grasp(picked):
@@ -153,3 +161,28 @@ def test_command_line_on_a_saved_scene(ur5_cell, tmp_path):
     rc = cli.main(["pick", "--scene", str(tmp_path / "scene.ply"), "--parts", "block", "--robot", "ur99",
                    "--out", str(tmp_path / "o2"), "--quiet"])
     assert rc == 2
+
+
+def test_scan_from_a_tum_folder_with_a_joint_log(ur5_cell, tmp_path):
+    """A real cell's input: depth images in a TUM folder without poses, and the robot's joint
+    log. Every frame is placed by FK and the hand-eye transform and refined by ICP: the
+    estimated camera poses match the true ones to a millimetre."""
+    from scanalign import pipeline, tum
+
+    cell, _ = ur5_cell
+    frames = cell.scan.frames
+    folder = tmp_path / "scan"
+    tum.write_tum_sequence(folder, frames, write_groundtruth=False)
+    pipeline.write_joints_csv(folder / "joints.csv", [f.index for f in frames], [f.timestamp for f in frames],
+                              cell.scan.joints)
+    points, rec = pick.scan_model(folder, cell.robot, T_flange_camera=cell.scan.T_flange_camera,
+                                  joints=folder / "joints.csv", progress=False)
+    assert len(points) > 100000 and rec.estimate.poses.shape == (len(frames), 4, 4)
+    for est, ref in zip(rec.estimate.poses, cell.scan.reference.poses):
+        rot, dist = se3.pose_error(est, ref)
+        assert dist < 1e-3 and math.degrees(rot) < 0.1
+    with pytest.raises(ValueError, match="no robot joints"):
+        pick.scan_model(folder, cell.robot, T_flange_camera=cell.scan.T_flange_camera, progress=False)
+    (folder / "bad.csv").write_text("index,timestamp,q1,q2,q3,q4,q5,q6\n0,0.0,1,2,3\n")
+    with pytest.raises(ValueError, match="bad.csv, line 2"):
+        pick.read_joint_log(folder / "bad.csv")

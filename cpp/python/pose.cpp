@@ -552,6 +552,17 @@ void bindFindParts(py::module_& m) {
                      "bound (1.5)")
       .def_readwrite("min_size_ratio", &FindPartsSettings::min_size_ratio,
                      "skip a part for a cluster smaller than this x its smallest view; 0 = no bound (0.5)")
+      .def_readwrite("max_table_penetration", &FindPartsSettings::max_table_penetration,
+                     "m; poses that put the part's surface (its views merged) further below the table plane are "
+                     "dropped (0.005; infinity: no check)")
+      .def_readwrite("surface_polish", &FindPartsSettings::surface_polish,
+                     "refine the reported pose against the part's whole surface, cluster points onto the model within "
+                     "polish_distance (True)")
+      .def_readwrite("cbd_radius_fraction", &FindPartsSettings::cbd_radius_fraction,
+                     "CBD radius per cluster: max(the CBD radius, this x the cluster's size); 0 = fixed (0)")
+      .def_readwrite("min_surface_coverage", &FindPartsSettings::min_surface_coverage,
+                     "fraction of the cluster's points within polish_distance of the part's whole surface a "
+                     "detection needs, else not_found (0.97; 0 = no check)")
       .def_readwrite("voxel_size", &FindPartsSettings::voxel_size,
                      "m; each cluster reduced to one point (the centroid) per voxel before its pose; 0 = every point "
                      "(0: default; 1 to 1.5 mm for a merged multi-view scan)");
@@ -562,6 +573,9 @@ void bindFindParts(py::module_& m) {
           "index of the best-scoring part in the models (None when every part was skipped)")
       .def_readonly("pose", &PartDetection::pose, "PoseResult of that part (found False unless found/ambiguous)")
       .def_readonly("score", &PartDetection::score, "its best candidate's score")
+      .def_readonly("surface_coverage", &PartDetection::surface_coverage,
+                    "fraction of the cluster's points within polish_distance of the part's whole surface at the "
+                    "reported pose")
       .def_property_readonly(
           "runner_up_part",
           [](const PartDetection& d) -> py::object {

@@ -362,6 +362,8 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
                num_threads: int = 0, ambiguity_margin: float = 0.02, same_pose_angle: float = math.radians(5),
                same_pose_distance: float = 0.005, max_size_ratio: float = 1.5, min_size_ratio: float = 0.5,
                voxel_size: float = 0.0, score_tie: float = 0.01, polish_distance: float = 0.003,
+               max_table_penetration: float = 0.005, surface_polish: bool = True, cbd_radius_fraction: float = 0.0,
+               min_surface_coverage: float = 0.97,
                **pose_kwargs: Any) -> PartDetections:
     """Which of several known parts lies in each object cluster of a table scene, and its
     pose: the table and clusters as :func:`find_objects` (segmented once), then every part's
@@ -389,6 +391,15 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
         polish_distance: m; the reported pose is refined again by ICP with this
             correspondence distance and a tight stop (0: no polish).
         voxel_size: m; each cluster is reduced to one point per voxel before its pose (0: all).
+        max_table_penetration: m; poses that put the part's surface further below the table
+            plane are dropped (a resting part cannot be in the table; ``math.inf``: no check).
+        surface_polish: refine the reported pose against the part's whole surface (every
+            view merged): each cluster point onto the model, within ``polish_distance``.
+        cbd_radius_fraction: CBD radius per cluster, ``max(radius, fraction x cluster size)``
+            (0: the fixed ``radius``; 0.15 suits merged scans of parts of 3 to 10 cm).
+        min_surface_coverage: fraction of a cluster's points within ``polish_distance`` of
+            the part's whole surface a detection needs (0.97; 0: no check): rejects another
+            part or a part of another size whose view alone still scores well.
         resolution: model view size, pixels (100 here: as accurate as 150 on the built-in
             parts, 2 to 3 times faster; see docs/api/pose.md).
         other keywords: as :func:`find_objects` (``views`` applies to every part).
@@ -405,7 +416,9 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
     set_fields(s, dict(ambiguity_margin=ambiguity_margin, same_pose_angle=same_pose_angle,
                        same_pose_distance=same_pose_distance, max_size_ratio=max_size_ratio,
                        min_size_ratio=min_size_ratio, voxel_size=voxel_size, score_tie=score_tie,
-                       polish_distance=polish_distance),
+                       polish_distance=polish_distance, max_table_penetration=max_table_penetration,
+                       surface_polish=surface_polish, cbd_radius_fraction=cbd_radius_fraction,
+                       min_surface_coverage=min_surface_coverage),
                "find_parts")
     pts = as_points(scene, "scene", np.dtype(np.float64))
     model_views = [_model_views(m, resolution, num_threads)[0] for m in models]

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <algorithm>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 #include <string>
 
@@ -78,10 +79,19 @@ Icp<double> sceneIcp(const PreparedScene& scene, const PoseSettings& s) {
   return icp;
 }
 
+void score(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, PoseCandidate& c,
+           const Eigen::Matrix4d& T);
+
 // ICP refinement of one view and its score 2 fitness coverage / (fitness + coverage).
 void refine(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, Icp<double>& icp,
             const Eigen::Matrix4d& init, PoseCandidate& c, Eigen::Matrix4d& T) {
   T = icp.align(view.cloud(), init).T_target_source;
+  score(view, scene, s, c, T);
+}
+
+// Fitness, coverage, inlier RMSE and score 2 fitness coverage / (fitness + coverage) of a view at T.
+void score(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, PoseCandidate& c,
+           const Eigen::Matrix4d& T) {
   const auto fit = alignmentFitness(view.cloud(), scene.cloud(), T, s.inlier_threshold, s.num_threads);
   const auto cov = alignmentFitness(scene.cloud(), view.cloud(), rigidInverse(T), s.inlier_threshold, s.num_threads);
   c.fitness = fit.first;
@@ -278,6 +288,12 @@ void validate(const FindPartsSettings& s) {
   if (!(std::isfinite(s.polish_distance) && s.polish_distance >= 0))
     throw std::invalid_argument("polish_distance must be a finite distance >= 0 in metres (0 = no polish)");
   if (!(s.score_tie >= 0 && s.score_tie <= 1)) throw std::invalid_argument("score_tie must be in [0, 1]");
+  if (!(std::isfinite(s.cbd_radius_fraction) && s.cbd_radius_fraction >= 0 && s.cbd_radius_fraction <= 1))
+    throw std::invalid_argument("cbd_radius_fraction must be in [0, 1] (0: the fixed CBD radius)");
+  if (!(s.min_surface_coverage >= 0 && s.min_surface_coverage <= 1))
+    throw std::invalid_argument("min_surface_coverage must be in [0, 1] (0: no check)");
+  if (!(s.max_table_penetration >= 0))
+    throw std::invalid_argument("max_table_penetration must be a distance >= 0 in metres (infinity: no check)");
   if (!(std::isfinite(s.voxel_size) && s.voxel_size >= 0))
     throw std::invalid_argument("voxel_size must be a finite length >= 0 in metres (0 = every point), got " +
                                 std::to_string(s.voxel_size));
@@ -368,10 +384,104 @@ void polish(const ModelView& view, const PreparedScene& scene, const FindPartsSe
   refine(view, scene, ps, icp, init, c, c.T_scene_model);
 }
 
+/// A part's visible surface from every view, model frame: points and normals (a view's normals
+/// face its camera: outward on a closed mesh), at most about max_points (every k-th point).
+struct PartSurface {
+  std::vector<double> points, normals;
+  CloudView<double> cloud() const { return {points.data(), points.size() / 3}; }
+  CloudView<double> normalCloud() const { return {normals.data(), normals.size() / 3}; }
+};
+
+PartSurface partSurface(const std::vector<ModelView>& views, std::size_t max_points) {
+  std::size_t total = 0;
+  for (const ModelView& v : views) total += v.size();
+  const std::size_t stride = std::max<std::size_t>(1, total / std::max<std::size_t>(1, max_points));
+  PartSurface out;
+  std::size_t k = 0;
+  for (const ModelView& v : views)
+    for (std::size_t i = 0; i < v.size(); ++i, ++k)
+      if (k % stride == 0) {
+        out.points.insert(out.points.end(), v.points.begin() + 3 * i, v.points.begin() + 3 * i + 3);
+        out.normals.insert(out.normals.end(), v.normals.begin() + 3 * i, v.normals.begin() + 3 * i + 3);
+      }
+  return out;
+}
+
+/// How far the part's surface at pose T reaches below the table plane, m (<= 0: not below).
+double tablePenetration(const PartSurface& surface, const Eigen::Matrix4d& T, const PlaneModel& plane) {
+  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = T.topRightCorner<3, 1>();
+  double lowest = std::numeric_limits<double>::infinity();
+  const CloudView<double> c = surface.cloud();
+  for (std::size_t i = 0; i < c.size; ++i)
+    lowest = std::min(lowest, plane.signedDistance(R * Eigen::Vector3d(c.ptr(i)) + t));
+  return -lowest;
+}
+
+/// Drops the candidates that put the part through the table (max_table_penetration) and
+/// picks r's best pose again among the rest.
+void dropPosesThroughTable(PoseResult& r, const PartSurface& surface, const PlaneModel& plane,
+                           const FindPartsSettings& s) {
+  int dropped = 0;
+  double deepest = 0;
+  for (PoseCandidate& c : r.candidates) {
+    if (!c.found) continue;
+    const double depth = tablePenetration(surface, c.T_scene_model, plane);
+    if (depth > s.max_table_penetration) {
+      c.found = false;
+      c.score = 0;
+      deepest = std::max(deepest, depth);
+      ++dropped;
+    }
+  }
+  if (dropped == 0) return;
+  const PoseCandidate* best = nullptr;
+  for (const PoseCandidate& c : r.candidates)
+    if (c.found && (!best || c.score > best->score)) best = &c;
+  char m[200];
+  if (!best) {
+    r.found = false;
+    r.view = -1;
+    std::snprintf(m, sizeof m, "every aligned pose (%d) puts the part through the table (up to %.1f mm below it)",
+                  dropped, deepest * 1e3);
+    r.message = m;
+    return;
+  }
+  r.T_scene_model = best->T_scene_model;
+  r.fitness = best->fitness;
+  r.coverage = best->coverage;
+  r.inlier_rmse = best->inlier_rmse;
+  r.view = best->view;
+  r.found = r.fitness >= s.pose.min_fitness && r.coverage >= s.pose.min_coverage;
+  std::snprintf(m, sizeof m, "%d pose(s) through the table dropped (up to %.1f mm below it)%s", dropped,
+                deepest * 1e3, r.found ? "" : "; the best other pose is below min_fitness / min_coverage");
+  r.message = m;
+}
+
+/// A pose refined against the part's whole surface (FindPartsSettings::surface_polish): the
+/// cluster's points onto the merged views; kept only while it stays the same pose
+/// (same_pose_angle, same_pose_distance), so a polish that slides off is not taken.
+Eigen::Matrix4d polishOnSurface(const Eigen::Matrix4d& T_scene_model, const PartSurface& surface,
+                                const PreparedScene& scene, const FindPartsSettings& s) {
+  IcpSettings is;
+  is.max_correspondence_distance = s.polish_distance;
+  is.num_threads = s.pose.num_threads;
+  is.max_iterations = 100;
+  is.transformation_epsilon = 1e-14;
+  Icp<double> icp(is);
+  icp.setTarget(surface.cloud(), surface.normalCloud());
+  const IcpResult r = icp.align(scene.cloud(), rigidInverse(T_scene_model));
+  if (!r.T_target_source.allFinite() || r.correspondence_count < 6) return T_scene_model;
+  const Eigen::Matrix4d T = rigidInverse(r.T_target_source);
+  const auto moved = symmetricPoseError(Eigen::Isometry3d(T_scene_model), Eigen::Isometry3d(T), PartSymmetry{});
+  return moved.first <= s.same_pose_angle && moved.second <= s.same_pose_distance ? T : T_scene_model;
+}
+
 /// Best part, its status and the runner-up: the best-scoring pose of every other part, and
 /// every candidate of the best part whose pose its symmetry does not make the same.
 void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<PartSymmetry>& sym,
-           const std::vector<std::vector<ModelView>>& models, const PreparedScene& scene, const FindPartsSettings& s) {
+           const std::vector<std::vector<ModelView>>& models, const std::vector<PartSurface>& surfaces,
+           const PreparedScene& scene, const FindPartsSettings& s) {
   int best = -1;
   for (std::size_t p = 0; p < d.parts.size(); ++p) {
     if (!tried[p]) continue;
@@ -409,6 +519,20 @@ void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<P
     d.pose.view = pick->view;
     d.score = pick->score;
   }
+  const bool surface_polish = s.surface_polish && s.polish_distance > 0;
+  if (surface_polish && d.pose.view >= 0) {  // reported as a candidate of its view, scored there
+    PoseCandidate c = pick ? *pick : PoseCandidate{};
+    c.view = d.pose.view;
+    c.found = true;
+    c.T_scene_model = polishOnSurface(d.pose.T_scene_model, surfaces[static_cast<std::size_t>(best)], scene, s);
+    score(models[static_cast<std::size_t>(best)][static_cast<std::size_t>(c.view)], scene, s.pose, c, c.T_scene_model);
+    d.pose.candidates.push_back(c);
+    d.pose.T_scene_model = c.T_scene_model;
+    d.pose.fitness = c.fitness;
+    d.pose.coverage = c.coverage;
+    d.pose.inlier_rmse = c.inlier_rmse;
+    d.score = c.score;
+  }
   const Eigen::Isometry3d T_best(d.pose.T_scene_model);
   const PartSymmetry& S = sym[static_cast<std::size_t>(best)];
   for (std::size_t p = 0; p < d.parts.size(); ++p)
@@ -423,6 +547,7 @@ void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<P
       // stopped short of the best pose: polished, it counts only if it stays apart.
       if (same_part && s.polish_distance > 0 && c.score >= (1 - s.ambiguity_margin) * d.score) {
         polish(models[p][static_cast<std::size_t>(c.view)], scene, s, c);
+        if (surface_polish) c.T_scene_model = polishOnSurface(c.T_scene_model, surfaces[p], scene, s);
         err = symmetricPoseError(T_best, Eigen::Isometry3d(c.T_scene_model), S);
         if (same() || c.score <= d.runner_up_score) continue;
       }
@@ -431,6 +556,20 @@ void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<P
       d.runner_up_angle = err.first;
       d.runner_up_distance = err.second;
     }
+  if (s.polish_distance > 0) {
+    const double reach = s.polish_distance;
+    d.surface_coverage = alignmentFitness(scene.cloud(), surfaces[static_cast<std::size_t>(best)].cloud(),
+                                          rigidInverse(d.pose.T_scene_model), reach, s.pose.num_threads).first;
+    if (d.surface_coverage < s.min_surface_coverage) {
+      char m[240];
+      std::snprintf(m, sizeof m, "only %.1f %% of the cluster's points lie within %.1f mm of part %d's surface at its best "
+                    "pose (min_surface_coverage %.1f %%): another part, or a part of another size",
+                    100 * d.surface_coverage, 1e3 * reach, best, 100 * s.min_surface_coverage);
+      d.message = m;
+      d.pose.found = false;
+      return;  // status stays NotFound
+    }
+  }
   d.status = DetectionStatus::Found;
   if (d.runner_up_part >= 0 && d.runner_up_score >= (1 - s.ambiguity_margin) * d.score) {
     d.status = DetectionStatus::Ambiguous;
@@ -465,6 +604,14 @@ PartDetections findParts(const std::vector<std::vector<ModelView>>& models, cons
     ids.push_back(viewIds(models[p], view_ids));
     sizes.push_back(partSize(models[p], ids.back()));
   }
+  // Every view of each part merged (not only the ids tried): the whole surface, for the table
+  // check (a few thousand points bound its lowest point to well under a millimetre) and the
+  // final polish.
+  std::vector<PartSurface> coarse_surfaces, surfaces;
+  for (const auto& views : models) {
+    coarse_surfaces.push_back(partSurface(views, 4000));
+    surfaces.push_back(partSurface(views, 40000));
+  }
   PartDetections out;
   out.table = segmentTable(scene, s.table);
   if (out.table.objects.size() > s.max_objects) out.table.objects.resize(s.max_objects);
@@ -478,18 +625,22 @@ PartDetections findParts(const std::vector<std::vector<ModelView>>& models, cons
     if (s.voxel_size > 0) object = voxelGrid(CloudView<double>(object.data(), idx.size()), s.voxel_size).points;
     const CloudView<double> cloud(object.data(), object.size() / 3);
     d.size = principalExtent(cloud);
-    const PreparedScene prepared = prepareScene(cloud, s.pose);  // once for every part
+    FindPartsSettings sc = s;  // this cluster's settings: its CBD radius may follow its size
+    sc.pose.cbd.cbd.radius = std::max(s.pose.cbd.cbd.radius, s.cbd_radius_fraction * d.size);
+    const PreparedScene prepared = prepareScene(cloud, sc.pose);  // once for every part
     std::vector<bool> tried(models.size());
     for (std::size_t p = 0; p < models.size(); ++p) {
       const auto tp = std::chrono::steady_clock::now();
       PoseResult r;
       r.message = sizeMismatch(d.size, sizes[p], s);
       tried[p] = r.message.empty();
-      if (tried[p]) r = poseInPrepared(models[p], ids[p], prepared, s.pose, aligner, progress);
+      if (tried[p]) r = poseInPrepared(models[p], ids[p], prepared, sc.pose, aligner, progress);
+      if (tried[p] && out.table.success() && std::isfinite(s.max_table_penetration))
+        dropPosesThroughTable(r, coarse_surfaces[p], out.table.plane.model, sc);
       r.seconds = since(tp);
       d.parts.push_back(std::move(r));
     }
-    judge(d, tried, sym, models, prepared, s);
+    judge(d, tried, sym, models, surfaces, prepared, sc);
     d.seconds = since(tc);
     out.detections.push_back(std::move(d));
   }
