@@ -806,3 +806,87 @@ def cli_commands(case):
                 raise ContractError("scanalign ik reported success but could not write its plot")
         finally:
             os.chdir(cwd)
+
+
+# -- hand-eye calibration ----------------------------------------------------------------
+def _hand_eye_data(n: int, motion: str, seed: int):
+    """Exact data from a known X = T_flange_camera and Z = T_base_world: robot poses A[i]
+    (general, tiny, parallel-axis or translation-only motions) and the camera poses they
+    imply, T_world_camera[i] = inv(Z) A[i] X (world = the target, so T_camera_target[i] is
+    its inverse)."""
+    rng = np.random.default_rng(seed)
+    X, Z = rigid_from(rng, rng.uniform(0.2, 3.0), 0.1), rigid_from(rng, rng.uniform(0, np.pi), 1.0)
+    A0 = rigid_from(rng, 1.0, 0.5)
+    A = []
+    for _ in range(n):
+        if motion == "general":
+            A.append(rigid_from(rng, rng.uniform(0.3, np.pi), 0.8))
+        elif motion == "tiny":  # rotations of 1e-4 rad: below min_relative_rotation
+            A.append(A0 @ rigid_from(rng, 1e-4, 0.2))
+        else:  # parallel: every rotation about one axis (X's shift along it is not determined); translation: none
+            T = np.eye(4)
+            if motion == "parallel":
+                angle = rng.uniform(-3, 3)
+                T[:2, :2] = [[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]]
+            T[:3, 3] = rng.uniform(-0.5, 0.5, 3)
+            A.append(A0 @ T)
+    A = np.array(A).reshape(n, 4, 4)
+    W = np.einsum("ij,njk,kl->nil", np.linalg.inv(Z), A, X)
+    return A, W, X
+
+
+_HE_ARGS = ["ok"] * 4 + ["mismatch", "3x4", "flat", "none", "str", "list", "int", "f4", "fortran", "strided", "object",
+                         "nan_robot"]
+
+
+def _he_arg(A, kind):
+    if kind == "mismatch":
+        return A[:-1] if len(A) else A[:, :0]
+    return {"ok": lambda: A, "3x4": lambda: A[:, :3], "flat": lambda: A.reshape(len(A), 16), "none": lambda: None,
+            "str": lambda: "poses", "list": lambda: A.tolist(), "int": lambda: A.astype(int), "f4": lambda: A.astype("f4"),
+            "fortran": lambda: np.asfortranarray(A), "strided": lambda: np.repeat(A, 2, axis=0)[::2],
+            "object": lambda: A.astype(object), "nan_robot": lambda: np.where(np.arange(4)[:, None] == 0, NAN, A)}[kind]()
+
+
+@target("calibration", n=Param(st.sampled_from([0, 1, 2, 3, 4, 6, 12, 40]), st.sampled_from([3, 4, 6, 12, 40])),
+        motion=choice(["general", "tiny", "parallel", "translation"], ["general"] * 3 + ["tiny", "parallel", "translation"]),
+        seed=st.integers(0, 2**16), target_views=st.booleans(), error=transforms("identity"), arg=choice(_HE_ARGS),
+        rotation_weight=numbers(0.3, 1e-12), huber_delta=numbers([0.0, 0.002], 1e-12), max_iterations=iterations(50),
+        refine=choice([True, False], [True, False]), min_relative_rotation=numbers(0.0872664626), step_tolerance=numbers(1e-12))
+def calibrate_hand_eye(case):
+    """Truth: camera poses made from a known X. "ok" means a finite rigid X, equal to the
+    truth to 1e-6 on exact data; fewer than 3 poses or a degenerate motion is never "ok"
+    (a parallel-axis motion leaves X's shift along the axis free)."""
+    from scanalign import calibration
+    A, W, X = _hand_eye_data(case["n"], case["motion"], case["seed"])
+    error = build(case["error"])  # one camera pose corrupted (NaN, scaled, sheared, far, ...) or the argument replaced
+    exact = case["error"][1] in ("identity", "int")
+    if isinstance(error, np.ndarray) and error.shape == (4, 4) and len(W):
+        with np.errstate(all="ignore"):
+            W = W.astype(np.result_type(W, error))
+            W[0] = W[0] @ error
+    elif not isinstance(error, np.ndarray) or error.shape != (4, 4):
+        W = error
+    cams = np.linalg.inv(W) if case["target_views"] and isinstance(W, np.ndarray) and W.dtype.kind == "f" and W.ndim == 3 \
+        and W.shape[1:] == (4, 4) and np.all(np.isfinite(W)) else W
+    robot = _he_arg(A, case["arg"])
+    settings = {k: case[k] for k in ("rotation_weight", "huber_delta", "max_iterations", "refine", "min_relative_rotation",
+                                     "step_tolerance")}
+    r = call(calibration.calibrate_hand_eye, robot, cams if case["target_views"] else None,
+             T_world_camera=None if case["target_views"] else cams, **settings)
+    if r is None or r.status != "ok":
+        return
+    Xe = np.asarray(r.T_flange_camera, dtype=float)
+    finite(Xe, "T_flange_camera")
+    if np.abs(Xe[:3, :3].T @ Xe[:3, :3] - np.eye(3)).max() > 1e-9 or np.abs(Xe[3] - (0, 0, 0, 1)).max() > 0 \
+            or np.linalg.det(Xe[:3, :3]) < 0:
+        raise ContractError(f"calibrate_hand_eye ok with a non-rigid T_flange_camera {Xe.tolist()}")
+    if case["n"] < 3 or len(A) < 3:
+        raise ContractError(f"calibrate_hand_eye ok from {case['n']} poses (3 are needed)")
+    typical = case["arg"] in ("ok", "list", "fortran", "strided", "object") and exact
+    degenerate = case["motion"] in ("tiny", "parallel", "translation") and case["min_relative_rotation"] == 0.0872664626
+    if typical and (case["motion"] == "general" or degenerate):
+        STATS["truth_checks"] += 1
+        err = np.abs(Xe - X).max()
+        if not err <= 1e-6:
+            raise ContractError(f"calibrate_hand_eye ok on exact {case['motion']} data but {err:.3g} from the true X")
