@@ -129,6 +129,26 @@ def test_a_part_not_in_the_scene_is_reported_not_found(ur5_cell):
     assert [(p.part, p.status) for p in r.picks] == [("big_block", "not_found")]
 
 
+def test_surface_coverage_rejects_a_part_of_another_size(ur5_cell):
+    """A block 1.6 times too large still passes fitness and coverage on one view (0.5) in the
+    real block's cluster; the share of cluster points on its whole surface does not, and the
+    true block's does (the check that makes "not in the scene" a status, not a wrong pick)."""
+    from scanalign import pose
+
+    cell, result = ur5_cell
+    block = pick.load_part("block")
+    big = io.Mesh(np.asarray(block.mesh.vertices) * 1.6, block.mesh.faces)
+    views = [4, 5, 9, 11, 12, 13, 14, 15, 22, 23, 24, 25, 27, 32, 33, 34, 35]
+    kw = dict(up=(0, 0, 1), table_threshold=0.004, min_cluster_size=300, voxel_size=0.001, views=views,
+              cbd_radius_fraction=0.15, max_objects=1)
+    loose = pose.find_parts([big], result.points, min_surface_coverage=0.0, **kw).detections[0]
+    strict = pose.find_parts([big], result.points, **kw).detections[0]
+    true = pose.find_parts([block.mesh], result.points, **kw).detections[0]
+    assert true.status.name == "found" and true.surface_coverage > 0.99
+    assert strict.status.name == "not_found" and "surface" in strict.message
+    assert loose.surface_coverage == pytest.approx(strict.surface_coverage) and loose.surface_coverage < 0.97
+
+
 def test_bad_input(ur5_cell):
     cell, result = ur5_cell
     with pytest.raises(ValueError, match="no points|empty|scene"):
