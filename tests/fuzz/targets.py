@@ -890,3 +890,138 @@ def calibrate_hand_eye(case):
         err = np.abs(Xe - X).max()
         if not err <= 1e-6:
             raise ContractError(f"calibrate_hand_eye ok on exact {case['motion']} data but {err:.3g} from the true X")
+
+
+# -- grasp planning --------------------------------------------------------------------------
+_TOP = np.diag([1.0, -1.0, -1.0, 1.0])  # tool z down onto the part, 3 cm above its origin
+_TOP[2, 3] = 0.03
+_APPROACH = [(0.0, 0.0, 1.0)] * 3 + [(0.0, 0.0, -1.0), (1.0, 0.0, 0.0), (0.0, 0.0, 0.0), (NAN, 0.0, 0.0), (1e300, 0.0, 0.0),
+                                     (1e-300, 0.0, 0.0), (0.0, 0.0, 7.0), (1.0, 2.0), "z", None]
+
+
+def _grasp_list(wild: bool):
+    pre = st.sampled_from([0.08, 0.05, 0.0] + ([-0.05, 1e300, NAN, INF, 1e-300, "0.08"] if wild else []))
+    approach = st.sampled_from(_APPROACH if wild else _APPROACH[:3])
+    yaw = st.sampled_from([0.0, 0.5, 2.0])
+    return st.lists(st.tuples(yaw, approach, pre), min_size=1, max_size=3)
+
+
+def _grasps(recipe):
+    from scanalign import grasp
+    out = []
+    for yaw, approach, pre in recipe:
+        T = _TOP @ se3_about_z(yaw)
+        g = call(grasp.Grasp, f"g{len(out)}", T, None if approach is None else np.asarray(approach)
+                 if not isinstance(approach, str) else approach, pre)
+        if g is None:
+            return None
+        out.append(g)
+    return out
+
+
+def se3_about_z(angle):
+    T = np.eye(4)
+    T[:2, :2] = [[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]]
+    return T
+
+
+_PLANES = [(0.0, 0.0, 1.0, 0.0)] * 4 + [(0.0, 0.0, 1.0, -0.4), (0.0, 0.0, 1.0, 5.0), (0.0, 0.0, 0.0, 0.0), (0.0, 0.0, 2.0, 0.0),
+                                        (NAN, 0.0, 1.0, 0.0), (0.0, 0.0, 1.0, INF), (0.0, 0.0, 1.0), "table", None]
+_QCUR = ["zeros", "home", "none"] + ["nan", "inf", "huge", "five", "seven", "complex", "str"]
+
+
+def _q_current(kind):
+    home = np.array([0.0, -np.pi / 2, np.pi / 2, -np.pi / 2, -np.pi / 2, 0.0])
+    return {"zeros": np.zeros(6), "home": home, "none": None, "nan": np.r_[home[:5], NAN], "inf": np.r_[INF, home[1:]],
+            "huge": home * 1e300, "five": home[:5], "seven": np.r_[home, 0.0], "complex": home.astype(complex),
+            "str": "home"}[kind]
+
+
+@target("grasp", robot=choice(["ur5", "kr6_r900_sixx", "ur99"], ["ur5", "kr6_r900_sixx"]),
+        T=transforms("identity"), place=st.sampled_from([(0.45, 0.1), (0.3, -0.35), (0.55, 0.2), (3.0, 0.0)]),
+        grasps=Param(_grasp_list(True), _grasp_list(False)), order=choice([1, 2, 6, 0, -1, 10**6, 2.5, "2"], [1, 2, 6]),
+        plane=choice(_PLANES), q=choice(_QCUR, ["zeros", "home", "none"]),
+        approach_step=numbers([0.005, 0.001, 0.02], 1e-9, 1e9), max_joint_step=numbers(0.1, 1e-9, 10.0),
+        clearance=numbers([0.005, 0.0], -0.5), limits=choice([True, False], [True, False]))
+def plan_grasp(case):
+    """Truth: the frames compose as documented. Every "ok" candidate's joints reach its
+    flange poses by FK (1e-9), its TCP pose is T_base_model S T_model_grasp (for a
+    finite symmetry), and the plan is found iff some candidate is ok (and its best is one)."""
+    from scanalign import grasp, kinematics
+    T = build(case["T"])
+    T_base_model = np.eye(4)
+    T_base_model[:2, 3] = case["place"]
+    if isinstance(T, np.ndarray) and T.shape == (4, 4):
+        with np.errstate(all="ignore"):
+            T_base_model = T_base_model @ T  # the part moved (or corrupted: NaN, scaled, sheared, complex)
+    else:
+        T_base_model = T
+    grasps = _grasps(case["grasps"])
+    sym = call(grasp.PartSymmetry, order=case["order"])
+    if grasps is None or sym is None:
+        return
+    plan = call(grasp.plan_grasp, case["robot"], T_base_model, grasps, symmetry=sym, table_plane=case["plane"],
+                q_current=_q_current(case["q"]), approach_step=case["approach_step"],
+                max_joint_step=case["max_joint_step"], table_clearance=case["clearance"], respect_limits=case["limits"])
+    if plan is None:
+        return
+    robot = kinematics.Robot.by_name(case["robot"])
+    T_flange_tcp = np.asarray(grasp.Gripper.parallel_jaw().T_flange_tcp)
+    S = sym.transforms() if sym.order >= 1 else None
+    ok = [c for c in plan.candidates if c.reason == "ok"]
+    if plan.found != bool(ok) or (plan.found and plan.best.reason != "ok"):
+        raise ContractError(f"plan_grasp found={plan.found} with {len(ok)} ok candidates: {plan.message}")
+    for c in ok:
+        STATS["truth_checks"] += 1
+        for q, T_flange in ((c.q_grasp, c.T_base_flange_grasp), (c.q_pregrasp, c.T_base_flange_pregrasp)):
+            err = np.abs(robot.fk_flange(np.asarray(q)) - np.asarray(T_flange)).max()
+            if not err < 1e-9:
+                raise ContractError(f"an ok grasp candidate's joints miss its flange pose by {err:.3g}")
+        tcp = np.asarray(T_base_model) @ (S[c.symmetry_index] if S is not None else np.eye(4)) \
+            @ np.asarray(grasps[c.grasp_index].T_model_grasp)
+        err = np.abs(robot.fk_flange(np.asarray(c.q_grasp)) @ T_flange_tcp - (tcp if S is not None else c.T_base_tcp_grasp)).max()
+        if not err < 1e-9:
+            raise ContractError(f"an ok grasp candidate's TCP is {err:.3g} from T_base_model S T_model_grasp")
+
+
+_GRASP_TEXT_EDITS = [("", "")] * 4 + [("1.0", "2.0"), ("0.0", "NaN"), ("0.0", "1e400"), ("0.08", "-1"), ("\"order\"", "\"ordre\""),
+                     ("order: 6", "order: 1000000"), ("grasps", "grasp"), ("[", ""), ("0.03", "\"x\""), ("6", "2.5"),
+                     ("name", "T_model_grasp"), ("1.0", "true"), ("0.0", "null")]
+
+
+@target("grasp", which=st.sampled_from(["part.json", "part.yaml", "missing.json", "part.txt"]),
+        text=st.sampled_from(_GRASP_TEXT_EDITS), edits=st.one_of(st.just([]), _EDITS))
+def read_part_grasps(case):
+    """Mutated grasp files: a result, a ValueError naming the file, or OSError only; a grasp
+    read holds a finite rigid T_model_grasp and a finite approach."""
+    import tempfile
+
+    from scanalign import grasp
+    part = grasp.PartGrasps("standoff", [grasp.Grasp("top", _TOP, pre_grasp_distance=0.08),
+                                         grasp.Grasp("side", _TOP @ se3_about_z(0.5), approach=np.array([0.0, 0.0, 1.0]))],
+                            symmetry=grasp.PartSymmetry(order=6), gripper=grasp.Gripper.parallel_jaw(), mesh="builtin:standoff")
+    with tempfile.TemporaryDirectory() as tmp:
+        src = f"{tmp}/{case['which'].replace('missing', 'part').replace('.txt', '.json')}"
+        grasp.write_part_grasps(src, part)
+        data = open(src, "rb").read().replace(*(s.encode() for s in case["text"]), 1)  # the first occurrence
+        path = f"{tmp}/{case['which']}"
+        if case["which"] != "missing.json":
+            with open(path, "wb") as fh:
+                fh.write(_mutate(data, case["edits"]))
+        try:
+            r = grasp.read_part_grasps(path)
+        except (ValueError, OSError) as exc:
+            STATS["refused"] += 1
+            if isinstance(exc, ValueError) and path not in str(exc):
+                raise ContractError(f"read_part_grasps: a ValueError that does not name the file: {exc}") from exc
+            return
+        except Exception as exc:  # noqa: BLE001 - anything else from a file reader is a finding
+            raise ContractError(f"read_part_grasps raised {type(exc).__name__}: {exc}") from exc
+    STATS["returned"] += 1
+    STATS["truth_checks"] += 1
+    for g in r.grasps:
+        T, a = np.asarray(g.T_model_grasp), np.asarray(g.approach)
+        finite(T, "T_model_grasp")
+        finite(a, "approach")
+        if np.abs(T[:3, :3].T @ T[:3, :3] - np.eye(3)).max() > 1e-6 or np.abs(T[3] - (0, 0, 0, 1)).max() > 1e-6:
+            raise ContractError(f"read_part_grasps accepted a non-rigid T_model_grasp {T.tolist()}")
