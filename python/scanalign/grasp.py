@@ -106,7 +106,10 @@ def read_part_grasps(path: Any) -> PartGrasps:
     """Reads a grasp file (``.json``, ``.yaml`` or ``.yml``). ValueError naming the file, the
     grasp and the field for a missing field, a wrong type or a non-rigid matrix."""
     p = Path(path)
-    text = p.read_text()
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{p}: not UTF-8 text ({e})") from None
     try:
         data = json.loads(text) if p.suffix.lower() == ".json" else __import__("yaml").safe_load(text)
     except Exception as e:  # the parsers' own errors, with the file named

@@ -43,7 +43,7 @@ from . import grasp as _grasp, io, se3
 from ._arrays import as_points
 
 __all__ = ["PickSettings", "PartPick", "PickResult", "pick", "scan_model", "plan_picks", "read_joint_log", "load_part",
-           "BUILTIN_PART_FILES"]
+           "placed_parts", "print_picks", "BUILTIN_PART_FILES"]
 
 #: Built-in part name -> its part file (mesh, grasps, symmetry): the parts of
 #: :data:`scanalign.parts.BUILTIN_PARTS` with grasps for a parallel-jaw gripper.
@@ -417,20 +417,24 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     return PickResult(picks, points, detections, arm, np.asarray(q_current, dtype=np.float64), part_list, seconds, rec)
 
 
-def _write_scene(path: Path, result: PickResult) -> None:
-    """The scene (grey) and every posed part's surface (one colour per part), base frame."""
+def placed_parts(result: PickResult, samples: int = 5000) -> List[tuple]:
+    """(pick index, (samples, 3) points of the part's surface at its found pose, base frame, m)
+    for every part with a pose."""
     from .parts import sample_mesh
 
+    meshes = {p.name: p.mesh for p in result.parts}
+    return [(k, (sample_mesh(meshes[p.part], samples, seed=0)[0] @ p.T_base_model[:3, :3].T + p.T_base_model[:3, 3]))
+            for k, p in enumerate(result.picks) if p.T_base_model is not None]
+
+
+def _write_scene(path: Path, result: PickResult) -> None:
+    """The scene (grey) and every posed part's surface (one colour per pick), base frame."""
+    palette = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189]], np.uint8)
     pts = [result.points.astype(np.float32)]
     cols = [np.full((len(result.points), 3), 150, np.uint8)]
-    palette = np.array([[230, 90, 40], [40, 110, 230], [60, 180, 80], [200, 60, 200], [230, 200, 40]], np.uint8)
-    names = [p.name for p in result.parts]
-    for p in result.picks:
-        if p.T_base_model is None:
-            continue
-        v, _ = sample_mesh(result.parts[names.index(p.part)].mesh, 5000, seed=0)
-        pts.append((v @ p.T_base_model[:3, :3].T + p.T_base_model[:3, 3]).astype(np.float32))
-        cols.append(np.tile(palette[names.index(p.part) % len(palette)], (len(v), 1)))
+    for k, v in placed_parts(result):
+        pts.append(v.astype(np.float32))
+        cols.append(np.tile(palette[k % len(palette)], (len(v), 1)))
     io.write_ply(path, np.vstack(pts), colors=np.vstack(cols))
 
 

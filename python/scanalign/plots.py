@@ -420,8 +420,13 @@ def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
     pts = result.points[:: max(1, len(result.points) // 20000)]
     ax3.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=0.2, c="0.6")
     ax2.scatter(pts[:, 0], pts[:, 1], s=0.2, c="0.7")
+    from .pick import placed_parts
+
     robot, T_dh0 = result.robot, np.asarray(result.robot.T_base_dh0)
     chains = [T_dh0[None, :3, 3]]
+    for k, v in placed_parts(result, 1500):  # the parts at their found poses, the pick's colour
+        ax3.scatter(v[:, 0], v[:, 1], v[:, 2], s=0.5, c=f"C{k % 10}")
+        ax2.scatter(v[:, 0], v[:, 1], s=0.5, c=f"C{k % 10}")
     for k, p in enumerate(result.picks):
         if p.status != "picked":
             continue
