@@ -206,3 +206,18 @@ def test_scan_from_a_tum_folder_with_a_joint_log(ur5_cell, tmp_path):
     (folder / "bad.csv").write_text("index,timestamp,q1,q2,q3,q4,q5,q6\n0,0.0,1,2,3\n")
     with pytest.raises(ValueError, match="bad.csv, line 2"):
         pick.read_joint_log(folder / "bad.csv")
+
+
+def test_demo_pick_command(tmp_path, capsys):
+    """``scanalign demo --pick`` (the README's pick demo): the built-in UR5 cell, every part
+    picked, the errors against the truth printed, the four files written."""
+    from scanalign import cli
+
+    rc = cli.main(["demo", "--pick", "--out", str(tmp_path / "demo"), "--quiet", "--no-plots"])
+    out = capsys.readouterr().out
+    assert rc == 0
+    assert out.count("TCP at the chosen grasp") == 3
+    report = json.loads((tmp_path / "demo" / "picks.json").read_text())
+    assert sorted(p["status"] for p in report["picks"]) == ["picked"] * 3
+    assert {"scan", "detect", "plan", "total"} <= set(report["seconds"])
+    assert (tmp_path / "demo" / "joints.csv").exists() and (tmp_path / "demo" / "scene.ply").exists()
