@@ -77,30 +77,14 @@ def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
     return report
 
 
-def _read_cloud(path: Path) -> tuple:
-    from . import io
-
-    suffix = path.suffix.lower()
-    if suffix == ".pcd":
-        fields, n = io.read_pcd(path), ("normal_x", "normal_y", "normal_z")
-        if not all(k in fields for k in "xyz"):
-            raise ValueError(f"{path}: PCD file has no x, y, z fields (it has {', '.join(fields) or 'none'})")
-        normals = np.column_stack([fields[k] for k in n]) if all(k in fields for k in n) else None
-        return np.column_stack([fields[k] for k in "xyz"]).astype(np.float64), normals
-    if suffix == ".ply":
-        d = io.read_ply_points(path)
-        return d["points"], d.get("normals")
-    raise ValueError(f"{path}: unsupported cloud format {path.suffix!r} (use .pcd or .ply)")
-
-
 def register(args: argparse.Namespace) -> int:
     """``scanalign register``: ICP between two files; prints JSON, writes the aligned source."""
     from . import io
     from .features import estimate_normals
     from .registration import icp
 
-    src, _ = _read_cloud(Path(args.source))
-    tgt, tgt_normals = _read_cloud(Path(args.target))
+    src, _ = io.read_cloud(Path(args.source))
+    tgt, tgt_normals = io.read_cloud(Path(args.target))
     if tgt_normals is None or not np.isfinite(tgt_normals).any():
         tgt_normals = estimate_normals(tgt, radius=args.normal_radius, viewpoint=(0.0, 0.0, 0.0))
     try:
@@ -401,7 +385,7 @@ def pose_command(args: argparse.Namespace) -> int:
     scene_path = Path(args.scene)
     if not scene_path.exists():
         raise FileNotFoundError(f"{scene_path}: no such scene file")
-    scene, _ = _read_cloud(scene_path)
+    scene, _ = io.read_cloud(scene_path)
     scene = scene[np.all(np.isfinite(scene), axis=1)]
     kw = dict(method=args.method, views=args.views, resolution=args.resolution,
               inlier_threshold=args.inlier_threshold, icp_distance=args.icp_distance, progress=not args.quiet)

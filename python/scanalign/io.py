@@ -33,8 +33,8 @@ from plyfile import PlyData, PlyElementParseError, PlyHeaderParseError
 
 from ._core import io as _io
 
-__all__ = ["Mesh", "atomic_open", "lzf_decompress", "read_mesh", "read_pcd", "read_pcd_points", "read_ply_points",
-           "unpack_rgb", "write_ply"]
+__all__ = ["Mesh", "atomic_open", "lzf_decompress", "read_cloud", "read_mesh", "read_pcd", "read_pcd_points",
+           "read_ply_points", "unpack_rgb", "write_ply"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -346,3 +346,20 @@ def read_ply_points(path: PathLike) -> dict[str, np.ndarray]:
             colors = np.rint(np.clip(colors, 0.0, 1.0) * 255.0)
         result["colors"] = np.clip(colors, 0, 255).astype(np.uint8)
     return result
+
+
+def read_cloud(path: PathLike) -> tuple:
+    """A point cloud file, PCD or PLY (by suffix): ``(points (N, 3) float64 m, normals (N, 3)
+    or None)``. ValueError naming the file for another format or a PCD without x, y, z."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".pcd":
+        fields, n = read_pcd(path), ("normal_x", "normal_y", "normal_z")
+        if not all(k in fields for k in "xyz"):
+            raise ValueError(f"{path}: PCD file has no x, y, z fields (it has {', '.join(fields) or 'none'})")
+        normals = np.column_stack([fields[k] for k in n]) if all(k in fields for k in n) else None
+        return np.column_stack([fields[k] for k in "xyz"]).astype(np.float64), normals
+    if suffix == ".ply":
+        d = read_ply_points(path)
+        return d["points"], d.get("normals")
+    raise ValueError(f"{path}: unsupported cloud format {path.suffix!r} (use .pcd or .ply)")

@@ -145,6 +145,7 @@ class PickResult:
         detections: the :func:`scanalign.pose.find_parts` result (table plane, clusters).
         robot: the picking robot (placed in the base frame, its tool the gripper's TCP).
         q_current: (6,) the joints the motion cost was measured from, rad.
+        parts: the parts as loaded (:func:`load_part`), in the order given.
         seconds: wall time per stage (``scan``, ``detect``, ``plan``, ``total``).
         reconstruction: the :class:`scanalign.pipeline.ReconstructionResult` when frames were
             reconstructed, else None.
@@ -212,9 +213,11 @@ def read_joint_log(path: Union[str, Path]) -> Dict[float, np.ndarray]:
 
 
 def _robot(robot: Any, T_base_robot: Optional[np.ndarray]) -> Any:
-    from .synthetic.mount import as_robot
+    from .kinematics import Robot
 
-    r = as_robot(robot)
+    r = Robot.by_name(robot) if isinstance(robot, str) else robot
+    if not isinstance(r, Robot):
+        raise TypeError(f"robot: expected a scanalign.kinematics.Robot or a robot name, got {type(robot)!r}")
     if T_base_robot is not None:
         r = r.with_base(se3.require_rigid(T_base_robot, "T_base_robot") @ r.T_base_dh0)
     return r
@@ -255,9 +258,7 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
     if isinstance(scene, pipeline.ReconstructionResult):
         return np.asarray(scene.model.points, dtype=np.float64), scene
     if isinstance(scene, (str, Path)) and not tum.is_tum_folder(scene):
-        from .cli import _read_cloud
-
-        return _read_cloud(Path(scene))[0].astype(np.float64), None
+        return io.read_cloud(scene)[0].astype(np.float64), None
     if isinstance(scene, np.ndarray):
         return as_points(scene, "scene", np.dtype(np.float64)), None
     frames = scene.frames if hasattr(scene, "frames") else scene
