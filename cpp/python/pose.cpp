@@ -441,6 +441,11 @@ void bindViews(py::module_& m) {
           "pixels", [](const ModelView& v) { return rows<std::int64_t>(v.pixels, 2); }, "(N, 2) (column, row) in the image")
       .def_readonly("T_model_camera", &ModelView::T_model_camera, "(4, 4) camera -> model (OpenCV camera axes)")
       .def_readonly("intrinsics", &ModelView::intrinsics, "the view's pinhole camera")
+      .def_readwrite("cbd", &ModelView::cbd,
+                     "CbdFeatures computed once for this view (describe_model_views, a part library), or None; "
+                     "estimate_pose uses them when its CBD settings equal cbd_settings (threads aside), else "
+                     "computes afresh")
+      .def_readwrite("cbd_settings", &ModelView::cbd_settings, "the CbdSettings cbd was computed with")
       .def_property_readonly(
           "viewpoint", [](const ModelView& v) { return Eigen::Vector3d(v.T_model_camera.topRightCorner<3, 1>()); },
           "(3,) camera centre, model frame, m")
@@ -616,6 +621,22 @@ void bindFindParts(py::module_& m) {
       "(N, 3) float64, m, and its pose; symmetries: one PartSymmetry (axis, point, order) or None per part, or None");
 }
 
+void bindDescribe(py::module_& m) {
+  m.def(
+      "describe_model_views",
+      [](std::vector<ModelView> views, const PoseSettings& s) {
+        {
+          py::gil_scoped_release release;
+          describeModelViews(views, s);
+        }
+        return views;
+      },
+      py::arg("views"), py::arg("settings"),
+      "Copies of the views with their CBD features computed (ModelView.cbd) with the settings estimate_pose, "
+      "find_objects and find_parts use for these PoseSettings, so those calls skip that work (most of a pose's "
+      "time). find_parts with cbd_radius_fraction > 0 changes the radius per cluster and recomputes.");
+}
+
 void bindPipeline(py::module_& m) {
   py::enum_<CoarseMethod>(m, "CoarseMethod", "How each model view is brought near the object before ICP")
       .value("cbd", CoarseMethod::Cbd, "curvature-based descriptor + RANSAC + motor refit (paper 5)")
@@ -739,6 +760,7 @@ void definePose(py::module_& m) {
   bindViews(m);
   bindPipeline(m);
   bindFindParts(m);
+  bindDescribe(m);
 }
 
 }  // namespace scanalign::python

@@ -86,12 +86,16 @@ def read_pcd_points(path: PathLike, dtype: npt.DTypeLike = np.float64, remove_na
         ``(N, 3)`` array of points in the file's unit (metres for PCL's own data).
 
     Raises:
-        ValueError: the file is not a valid PCD file or has no ``x``, ``y``, ``z`` fields.
+        ValueError: the file is not a valid PCD file, has no ``x``, ``y``, ``z`` fields, or
+            one of them has ``COUNT`` above 1.
     """
     fields = read_pcd(path)
     missing = [axis for axis in "xyz" if axis not in fields]
     if missing:
         raise _error(path, f"PCD file has no {'/'.join(missing)} field(s)")
+    shaped = [axis for axis in "xyz" if fields[axis].ndim != 1]
+    if shaped:  # COUNT > 1 makes a field (N, COUNT): not one coordinate per point
+        raise _error(path, f"PCD field(s) {'/'.join(shaped)} must have COUNT 1 to be coordinates")
     points = np.stack([fields["x"], fields["y"], fields["z"]], axis=1).astype(dtype)
     if remove_nan:
         points = points[np.isfinite(points).all(axis=1)]

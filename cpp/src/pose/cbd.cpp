@@ -417,6 +417,14 @@ CbdFeatures computeCbd(const CloudView<Scalar>& points, const CbdSettings& setti
   return out;
 }
 
+bool sameDescriptors(const CbdSettings& a, const CbdSettings& b) {
+  return a.radius == b.radius && a.gamma == b.gamma && a.min_neighbors == b.min_neighbors &&
+         a.keypoint_mode == b.keypoint_mode && a.num_keypoints == b.num_keypoints &&
+         a.thresholds.linear == b.thresholds.linear && a.thresholds.planar == b.thresholds.planar &&
+         a.thresholds.spherical == b.thresholds.spherical && a.max_keypoints == b.max_keypoints &&
+         a.max_sphere_radius == b.max_sphere_radius && a.variant == b.variant;
+}
+
 CbdMatches matchCbd(const CbdFeatures& source, const CbdFeatures& target, CbdDescriptorVariant variant, int k,
                     int num_threads) {
   if (k < 1) throw std::invalid_argument("matchCbd: k must be >= 1");

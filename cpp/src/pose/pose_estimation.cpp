@@ -32,12 +32,12 @@ void requirePositive(double v, const char* name) {
                                 std::to_string(v));
 }
 
-CbdAlignmentSettings cbdSettings(const PoseSettings& s) {
-  CbdAlignmentSettings c = s.cbd;
-  c.ransac.inlier_threshold = s.inlier_threshold;
-  if (c.cbd.num_threads == 0) c.cbd.num_threads = s.num_threads;
-  if (c.ransac.num_threads == 0) c.ransac.num_threads = s.num_threads;
-  return c;
+/// The view's cached CBD features when they were computed with these settings, else fresh ones
+/// (into `fresh`).
+const CbdFeatures& viewFeatures(const ModelView& view, const CbdSettings& settings, CbdFeatures& fresh) {
+  if (view.cbd && sameDescriptors(view.cbd_settings, settings)) return *view.cbd;
+  fresh = computeCbd(view.cloud(), settings);
+  return fresh;
 }
 
 // Coarse pose of one view, or found = false with the reason.
@@ -55,7 +55,8 @@ CoarseResult coarse(const ModelView& view, const PreparedScene& scene, const Pos
     return out;
   }
   const CbdAlignmentSettings c = cbdSettings(s);
-  const CbdFeatures f = computeCbd(view.cloud(), c.cbd);
+  CbdFeatures fresh;
+  const CbdFeatures& f = viewFeatures(view, c.cbd, fresh);
   if (f.keypoints.size() < 3) {
     out.message = "too few model keypoints";
     return out;
@@ -101,6 +102,25 @@ void score(const ModelView& view, const PreparedScene& scene, const PoseSettings
 }
 
 }  // namespace
+
+CbdAlignmentSettings cbdSettings(const PoseSettings& s) {
+  CbdAlignmentSettings c = s.cbd;
+  c.ransac.inlier_threshold = s.inlier_threshold;
+  if (c.cbd.num_threads == 0) c.cbd.num_threads = s.num_threads;
+  if (c.ransac.num_threads == 0) c.ransac.num_threads = s.num_threads;
+  return c;
+}
+
+void describeModelViews(std::vector<ModelView>& views, const PoseSettings& s) {
+  validate(s);
+  const CbdSettings c = cbdSettings(s).cbd;
+  for (ModelView& view : views) {
+    if (view.size() == 0 || (view.cbd && sameDescriptors(view.cbd_settings, c))) continue;
+    checkInterrupt();
+    view.cbd = computeCbd(view.cloud(), c);
+    view.cbd_settings = c;
+  }
+}
 
 const char* toString(CoarseMethod method) {
   switch (method) {

@@ -77,6 +77,10 @@ struct CbdSettings {
   int num_threads = 0;         ///< OpenMP threads; 0 = all cores
 };
 
+/// Whether two settings give the same keypoints and descriptors: every field but
+/// num_threads (the features do not depend on the thread count).
+bool sameDescriptors(const CbdSettings& a, const CbdSettings& b);
+
 /// PCA summary of one point's neighbourhood.
 struct NeighbourhoodPca {
   std::uint32_t count = 0;  ///< points within the radius, the point itself included

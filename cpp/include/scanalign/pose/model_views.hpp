@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 
 #include "scanalign/common/cloud_view.hpp"
+#include "scanalign/pose/cbd.hpp"
 #include "scanalign/reconstruction/depth_image.hpp"
 
 namespace scanalign {
@@ -74,6 +75,12 @@ struct ModelView {
   std::vector<std::int32_t> pixels;      ///< N x 2 (column, row) in the image
   Eigen::Matrix4d T_model_camera = Eigen::Matrix4d::Identity();  ///< camera -> model
   PinholeIntrinsics intrinsics;          ///< the view's camera
+  /// CBD keypoints and descriptors of this view, computed once (describeModelViews, a part
+  /// library) with `cbd_settings`. estimatePose uses them instead of recomputing when the CBD
+  /// settings it would use are the same (sameDescriptors): for a 42-view part that is most of
+  /// a pose's time. Empty: computed per call.
+  std::optional<CbdFeatures> cbd;
+  CbdSettings cbd_settings;              ///< the settings `cbd` was computed with
   std::size_t size() const { return points.size() / 3; }
   CloudView<double> cloud() const { return {points.data(), size()}; }
   CloudView<double> normalCloud() const { return {normals.data(), size()}; }

@@ -69,6 +69,15 @@ struct PreparedScene {
 };
 PreparedScene prepareScene(const CloudView<double>& scene, const PoseSettings& settings);
 
+/// The CBD settings estimatePose describes model views with (settings.cbd with its thread
+/// counts resolved and the RANSAC inlier threshold set to settings.inlier_threshold).
+CbdAlignmentSettings cbdSettings(const PoseSettings& settings);
+
+/// Computes and stores each view's CBD features (ModelView::cbd) with the settings
+/// estimatePose would use for `settings`, so later poses skip that work. Views whose cached
+/// features already match are left alone. @throws std::invalid_argument for bad settings.
+void describeModelViews(std::vector<ModelView>& views, const PoseSettings& settings);
+
 /// Outcome of a coarse aligner for one view.
 struct CoarseResult {
   Eigen::Matrix4d T_scene_model = Eigen::Matrix4d::Identity();
