@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "pickle.hpp"
 #include "scanalign/calibration/hand_eye.hpp"
 #include "scanalign/common/rigid.hpp"
 
@@ -17,6 +18,7 @@ namespace py = pybind11;
 namespace scanalign::python {
 
 namespace {
+constexpr int kHandEyeStatusCount = 5;  // ok, too_few_poses, invalid_input, degenerate_motion, inconsistent_poses
 using F64 = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using RowMatrix4d = Eigen::Matrix<double, 4, 4, Eigen::RowMajor>;
 
@@ -153,6 +155,24 @@ void defineCalibration(py::module_& m) {
   m.doc() = "Hand-eye calibration of an eye-in-hand camera (AX = ZB)";
   bindSettings(m);
   bindResult(m);
+  using S = HandEyeSettings;
+  pickleFields(m, "HandEyeSettings", field("min_relative_rotation", &S::min_relative_rotation),
+               field("min_axis_angle", &S::min_axis_angle), field("refine", &S::refine),
+               field("rotation_weight", &S::rotation_weight), field("huber_delta", &S::huber_delta),
+               field("max_rms_translation", &S::max_rms_translation), field("max_rms_rotation", &S::max_rms_rotation),
+               field("max_iterations", &S::max_iterations), field("step_tolerance", &S::step_tolerance));
+  using R = HandEyeResult;
+  pickleFields(m, "HandEyeResult", namedEnum("status", &R::status, kHandEyeStatusCount), field("message", &R::message),
+               field("T_flange_camera", &R::T_flange_camera), field("T_base_world", &R::T_base_world),
+               field("T_flange_camera_closed_form", &R::T_flange_camera_closed_form),
+               field("T_base_world_closed_form", &R::T_base_world_closed_form),
+               field("residual_rotation", &R::residual_rotation),
+               field("residual_translation", &R::residual_translation), field("rms_rotation", &R::rms_rotation),
+               field("rms_translation", &R::rms_translation),
+               field("rms_rotation_closed_form", &R::rms_rotation_closed_form),
+               field("rms_translation_closed_form", &R::rms_translation_closed_form),
+               field("iterations", &R::iterations), field("converged", &R::converged), field("pairs", &R::pairs),
+               field("axis_spread", &R::axis_spread), field("max_relative_rotation", &R::max_relative_rotation));
   m.def(
       "calibrate_hand_eye",
       [](const py::object& T_base_flange, const py::object& T_world_camera, const HandEyeSettings& settings) {

@@ -13,6 +13,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include "pickle.hpp"
 #include "scanalign/cga/multivector.hpp"
 #include "scanalign/cga/objects.hpp"
 
@@ -628,6 +629,24 @@ circle through infinity), a zero normal or a negative radius.)")
         py::overload_cast<const Multivector&>(&cga::rotationPlaneParallelToPlane), py::arg("plane"));
 
   // std::invalid_argument and std::domain_error reach Python as ValueError (pybind11 defaults).
+  // Pickled as their defining members; a multivector as its 32 orthonormal coefficients
+  // (exact, the storage), a motor through from_multivector, which re-checks M~M = 1.
+  pickleFields(m, "Multivector",
+               field<Multivector>(
+                   "coefficients", [](const Multivector& a) { return Coeffs(a.orthonormal()); },
+                   [](Multivector& a, const Coeffs& c) { a = Multivector::fromOrthonormal(c); }));
+  pickleFields(m, "Motor",
+               field<cga::Motor>(
+                   "multivector", [](const cga::Motor& M) { return Coeffs(M.multivector().orthonormal()); },
+                   [](cga::Motor& M, const Coeffs& c) { M = cga::Motor::fromMultivector(Multivector::fromOrthonormal(c)); }));
+  pickleFields(m, "Sphere", field("center", &cga::Sphere::center), field("radius2", &cga::Sphere::radius2));
+  pickleFields(m, "Plane", field("normal", &cga::Plane::normal), field("distance", &cga::Plane::distance));
+  pickleFields(m, "Line", field("point", &cga::Line::point), field("direction", &cga::Line::direction));
+  pickleFields(m, "PointPair", field("direct", &cga::PointPair::direct));
+  pickleFields(m, "FlatPoint", field("direct", &cga::FlatPoint::direct));
+  pickleFields(m, "Point", field("position", &cga::Point::position));
+  pickleFields(m, "Circle", field("center", &cga::Circle::center), field("normal", &cga::Circle::normal),
+               field("radius", &cga::Circle::radius));
 }
 
 }  // namespace scanalign::python

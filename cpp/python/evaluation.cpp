@@ -14,6 +14,7 @@
 #include <Eigen/LU>  // Matrix3d::determinant
 
 #include "arrays.hpp"
+#include "pickle.hpp"
 #include "scanalign/common/rigid.hpp"  // kRigidTolerance
 #include "scanalign/evaluation/associate.hpp"
 #include "scanalign/evaluation/associate_nearest.hpp"
@@ -253,6 +254,14 @@ scripts); ``sse`` the sum of squares; ``rmse = sqrt(sse / count)``; ``median`` a
 
 void defineEvaluation(py::module_& m) {
   defineStats(m);
+  using E = ErrorStats;
+  pickleFields(m, "ErrorStats", field("rmse", &E::rmse), field("mean", &E::mean), field("median", &E::median),
+               field("std", &E::std), field("min", &E::min), field("max", &E::max), field("sse", &E::sse),
+               field("count", &E::count), field("errors", &E::errors));
+  using D = MeshDistanceStats;
+  pickleFields(m, "MeshDistanceStats", field("mean", &D::mean), field("median", &D::median), field("p95", &D::p95),
+               field("max", &D::max), field("rmse", &D::rmse), field("count", &D::count),
+               field("dropped", &D::dropped));
   py::class_<MeshDistanceIndex>(m, "MeshDistanceIndex", R"doc(
 Exact point-to-triangle-mesh distance queries; build once, query many times.
 
@@ -297,6 +306,9 @@ frame, triangles (N,) int64 rows of faces)``. Rows of ``points`` with NaN/Inf gi
 distance NaN, point NaN and triangle -1.
 )doc");
 
+  // The BVH keeps only its triangles (no vertex table, no leaf size to rebuild from).
+  refusePickle<MeshDistanceIndex>(m, "MeshDistanceIndex",
+                                  "send the mesh (vertices, faces) and build the index in the worker");
   m.def("quaternions_from_rotations", &quaternionsFromRotations, py::arg("rotations"),
         "Unit quaternions (..., 4) as (qx, qy, qz, qw), Hamilton convention, qw >= 0, of rotation "
         "matrices (..., 3, 3) (Eigen's Shepperd method, accurate over the whole rotation group); a positive "

@@ -7,6 +7,7 @@
 #include <string>
 
 #include "arrays.hpp"
+#include "pickle.hpp"
 #include "scanalign/fitting/sphere_fit.hpp"
 
 namespace scanalign::python {
@@ -138,6 +139,16 @@ void defineFitting(py::module_& m) {
             return b.fits[static_cast<std::size_t>(g < 0 ? g + n : g)];
           },
           py::arg("group"), "the SphereFitResult of one group");
+
+  pickleFields(m, "SphereFitResult", field("dual", &SphereFit::dual), field("is_plane", &SphereFit::is_plane),
+               field("center", &SphereFit::center), field("radius", &SphereFit::radius),
+               field("imaginary", &SphereFit::imaginary), field("normal", &SphereFit::normal),
+               field("distance", &SphereFit::distance), field("rms", &SphereFit::rms),
+               field("objective", &SphereFit::objective), field("count", &SphereFit::count));
+  pickleFields(m, "CircleFitResult", field("center", &CircleFit::center), field("radius", &CircleFit::radius),
+               field("rms", &CircleFit::rms), field("coefficients", &CircleFit::coefficients),
+               field("count", &CircleFit::count));
+  pickleFields(m, "SphereFitBatch", field("fits", &SphereFitBatch::fits));
 
   m.attr("MIN_SPHERE_POINTS") = kMinSpherePoints;
   // std::invalid_argument reaches Python as ValueError (pybind11 default).

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "pickle.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/grasp/grasp_planner.hpp"
 
@@ -294,6 +295,44 @@ void bindResults(py::module_& m) {
       });
 }
 
+void pickleGrasp(py::module_& m) {
+  pickleFields(m, "PartSymmetry", field("axis", &PartSymmetry::axis), field("point", &PartSymmetry::point),
+               field("order", &PartSymmetry::order));
+  pickleFields(m, "Grasp", field("name", &Grasp::name), field("T_model_grasp", &Grasp::T_model_grasp),
+               field("approach", &Grasp::approach), field("pre_grasp_distance", &Grasp::pre_grasp_distance));
+  using G = Gripper;
+  pickleFields(m, "Gripper", field("T_flange_tcp", &G::T_flange_tcp), namedEnum("shape", &G::shape, 2),
+               field("capsule_a", &G::capsule_a), field("capsule_b", &G::capsule_b),
+               field("capsule_radius", &G::capsule_radius), field("box_centre", &G::box_centre),
+               field("box_half_extents", &G::box_half_extents), field("flange_radius", &G::flange_radius));
+  using S = GraspPlannerSettings;
+  pickleFields(m, "GraspPlannerSettings", field("table_clearance", &S::table_clearance),
+               field("check_arm_points", &S::check_arm_points), field("min_wrist_angle", &S::min_wrist_angle),
+               field("min_shoulder_distance", &S::min_shoulder_distance),
+               field("min_elbow_angle", &S::min_elbow_angle), field("approach_step", &S::approach_step),
+               field("max_joint_step", &S::max_joint_step), field("joint_weights", &S::joint_weights),
+               field("respect_limits", &S::respect_limits),
+               field("continuous_symmetry_steps", &S::continuous_symmetry_steps));
+  using C = GraspCandidate;
+  pickleFields(m, "GraspCandidate", field("grasp_index", &C::grasp_index),
+               field("symmetry_index", &C::symmetry_index), field("config_index", &C::config_index),
+               field("T_base_tcp_pregrasp", &C::T_base_tcp_pregrasp), field("T_base_tcp_grasp", &C::T_base_tcp_grasp),
+               field("T_base_flange_pregrasp", &C::T_base_flange_pregrasp),
+               field("T_base_flange_grasp", &C::T_base_flange_grasp), field("q_pregrasp", &C::q_pregrasp),
+               field("q_grasp", &C::q_grasp), namedEnum("reason", &C::reason, 6), field("detail", &C::detail),
+               field("cost", &C::cost));
+  // chosen after candidates: the chosen-candidate property indexes them unchecked.
+  pickleFields(m, "GraspPlan", field("found", &GraspPlan::found), field("message", &GraspPlan::message),
+               field("candidates", &GraspPlan::candidates), field("approach_q", &GraspPlan::approach_q),
+               field<GraspPlan>(
+                   "chosen", [](const GraspPlan& p) { return p.chosen; },
+                   [](GraspPlan& p, int v) {
+                     if (v < -1 || v >= static_cast<int>(p.candidates.size()) || (p.found && v < 0))
+                       throw py::value_error("GraspPlan: pickled state 'chosen' is not an index into candidates");
+                     p.chosen = v;
+                   }));
+}
+
 }  // namespace
 
 void defineGrasp(py::module_& m) {
@@ -302,6 +341,7 @@ void defineGrasp(py::module_& m) {
   bindGripper(m);
   bindSettings(m);
   bindResults(m);
+  pickleGrasp(m);
   m.def(
       "plan_grasp",
       [](const Robot& robot, const py::object& T_base_model, const std::vector<Grasp>& grasps,

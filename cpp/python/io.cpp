@@ -12,6 +12,7 @@
 #include <string>
 #include <string_view>
 
+#include "pickle.hpp"
 #include "scanalign/io/lzf.hpp"
 #include "scanalign/io/mesh_text.hpp"
 #include "scanalign/io/pcd.hpp"
@@ -86,6 +87,18 @@ void defineIo(py::module_& m) {
       .def_property_readonly(
           "data", [](const PcdHeader& h) { return std::string(dataName(h.data)); },
           "\"ascii\", \"binary\" or \"binary_compressed\"");
+  pickleFields(m, "PcdField", field("name", &PcdField::name), field("type", &PcdField::type),
+               field("size", &PcdField::size), field("count", &PcdField::count));
+  pickleFields(m, "PcdHeader", field("version", &PcdHeader::version), field("fields", &PcdHeader::fields),
+               field("width", &PcdHeader::width), field("height", &PcdHeader::height),
+               field("points", &PcdHeader::points), field("viewpoint", &PcdHeader::viewpoint),
+               field<PcdHeader>(
+                   "data", [](const PcdHeader& h) { return static_cast<int>(h.data); },
+                   [](PcdHeader& h, int v) {
+                     if (v < 0 || v > 2) throw py::value_error("PcdHeader: pickled state 'data' out of range");
+                     h.data = static_cast<PcdData>(v);
+                   }),
+               field("payload_offset", &PcdHeader::payload_offset));
 
   m.def(
       "parse_pcd",

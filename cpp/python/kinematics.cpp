@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "pickle.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/kinematics/ik.hpp"
 #include "scanalign/kinematics/robot.hpp"
@@ -667,6 +668,107 @@ Robot robotFromState(const py::tuple& s) {
   return fromDh(at(1), at(2), at(3), at(4), at(5), s[0].cast<std::string>(), at(6), at(7));
 }
 
+/// The configuration labels as 3 ints (+1 / -1); a pickled state with other values is refused.
+std::array<int, 3> configLabels(const IKConfig& c) { return {c.shoulder, c.elbow, c.wrist}; }
+IKConfig configFromLabels(const std::array<int, 3>& v) {
+  for (int x : v)
+    if (x != 1 && x != -1) throw py::value_error("IKSolution: pickled state 'config': labels must be +1 or -1");
+  return {static_cast<std::int8_t>(v[0]), static_cast<std::int8_t>(v[1]), static_cast<std::int8_t>(v[2])};
+}
+
+/// A status index read from a pickled state, in [0, n).
+template <typename E>
+E enumIndex(int v, int n, const char* what) {
+  if (v < 0 || v >= n) throw py::value_error(std::string(what) + ": pickled value out of range");
+  return static_cast<E>(v);
+}
+
+/// An (N, ...) array of `dtype` from a pickled state, with the shape the accessors index.
+template <typename A>
+A shapedArray(const py::array& a, std::vector<py::ssize_t> tail, py::ssize_t n, const char* what) {
+  if (!py::isinstance<A>(a)) throw py::type_error(std::string(what) + ": pickled array of the wrong dtype");
+  bool ok = a.ndim() == static_cast<py::ssize_t>(tail.size()) + 1 && (n < 0 || a.shape(0) == n);
+  for (std::size_t i = 0; ok && i < tail.size(); ++i) ok = a.shape(static_cast<py::ssize_t>(i) + 1) == tail[i];
+  if (!ok) throw py::value_error(std::string(what) + ": pickled array of the wrong shape");
+  return readonly(A::ensure(a.attr("copy")()));
+}
+
+void pickleResults(py::module_& m) {
+  pickleFields(m, "IKSolution", field("q", &IKSolution::q),
+               field<IKSolution>(
+                   "config", [](const IKSolution& s) { return configLabels(s.config); },
+                   [](IKSolution& s, const std::array<int, 3>& v) { s.config = configFromLabels(v); }),
+               field<IKSolution>(
+                   "status", [](const IKSolution& s) { return static_cast<int>(s.status); },
+                   [](IKSolution& s, int v) { s.status = enumIndex<IKStatus>(v, 4, "IKSolution.status"); }),
+               field("singular", &IKSolution::singular),
+               field<IKSolution>(
+                   "unreachable_step", [](const IKSolution& s) { return static_cast<int>(s.unreachable_step); },
+                   [](IKSolution& s, int v) { s.unreachable_step = enumIndex<IKStep>(v, 4, "IKSolution.unreachable_step"); }));
+  pickleFields(m, "IKSolutions", field("solutions", &IKResult::solutions),
+               field<IKResult>(
+                   "status_overall", [](const IKResult& r) { return static_cast<int>(r.status); },
+                   [](IKResult& r, int v) { r.status = enumIndex<IKStatus>(v, 4, "IKSolutions.status"); }));
+  // IKBatch and JointTrajectory hold their arrays already; their shapes are checked on load
+  // because the accessors index them without bounds checks.
+  pickleFields(
+      m, "IKBatch",
+      field<IKBatch>(
+          "q", [](const IKBatch& b) { return py::array(b.q); },
+          [](IKBatch& b, const py::array& a) { b.q = shapedArray<py::array_t<double>>(a, {8, 6}, -1, "IKBatch.q"); }),
+      field<IKBatch>(
+          "status", [](const IKBatch& b) { return py::array(b.status); },
+          [](IKBatch& b, const py::array& a) {
+            b.status = shapedArray<py::array_t<std::uint8_t>>(a, {8}, b.size(), "IKBatch.status");
+          }),
+      field<IKBatch>(
+          "singular", [](const IKBatch& b) { return py::array(b.singular); },
+          [](IKBatch& b, const py::array& a) {
+            b.singular = shapedArray<py::array_t<std::uint8_t>>(a, {8}, b.size(), "IKBatch.singular");
+          }),
+      field<IKBatch>(
+          "unreachable_step", [](const IKBatch& b) { return py::array(b.step); },
+          [](IKBatch& b, const py::array& a) {
+            b.step = shapedArray<py::array_t<std::uint8_t>>(a, {8}, b.size(), "IKBatch.unreachable_step");
+          }));
+  pickleFields(m, "JointTrajectory",
+               field<JointTrajectory>(
+                   "q", [](const JointTrajectory& t) { return py::array(t.q); },
+                   [](JointTrajectory& t, const py::array& a) {
+                     t.q = shapedArray<py::array_t<double>>(a, {6}, -1, "JointTrajectory.q");
+                   }),
+               field<JointTrajectory>(
+                   "status",
+                   [](const JointTrajectory& t) {
+                     std::vector<std::uint8_t> v;
+                     for (IKStatus s : t.status) v.push_back(static_cast<std::uint8_t>(s));
+                     return v;
+                   },
+                   [](JointTrajectory& t, const std::vector<std::uint8_t>& v) {
+                     t.status.clear();
+                     for (auto s : v) t.status.push_back(enumIndex<IKStatus>(s, 4, "JointTrajectory.status"));
+                   }));
+  pickleFields(m, "IKConstruction",
+               field<IKConstruction>(
+                   "geometry", [](const IKConstruction& k) { return static_cast<int>(k.geometry); },
+                   [](IKConstruction& k, int v) { k.geometry = static_cast<ArmGeometry>(v); }),
+               field("solution", &IKConstruction::solution), field("names", &IKConstruction::names),
+               field<IKConstruction>("points",
+                     [](const IKConstruction& k) { return std::vector<Eigen::Vector3d>(k.points.begin(), k.points.end()); },
+                     [](IKConstruction& k, const std::vector<Eigen::Vector3d>& v) {
+                       if (v.size() != k.points.size()) throw py::value_error("IKConstruction.points: expected 8 rows");
+                       std::copy(v.begin(), v.end(), k.points.begin());
+                     }),
+               field<IKConstruction>(
+                   "num_points", [](const IKConstruction& k) { return k.num_points; },
+                   [](IKConstruction& k, int v) {
+                     if (v < 0 || v > 8) throw py::value_error("IKConstruction.num_points: pickled value out of range");
+                     k.num_points = v;
+                   }),
+               field("shoulder_discriminant", &IKConstruction::shoulder_discriminant),
+               field("elbow_discriminant", &IKConstruction::elbow_discriminant));
+}
+
 void bindRobot(py::module_& m) {
   RobotClass c(m, "Robot", kRobotDoc);
   c.def(py::init<const Robot&>(), py::arg("robot"), "A copy of robot")
@@ -747,6 +849,7 @@ void defineKinematics(py::module_& m) {
   bindTrajectory(m);
   bindConstruction(m);
   bindRobot(m);
+  pickleResults(m);
 }
 
 }  // namespace scanalign::python

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "arrays.hpp"
+#include "pickle.hpp"
 #include "scanalign/features/pcl/feature_alignment.hpp"
 #include "scanalign/pose/pcl_coarse_aligner.hpp"
 
@@ -44,6 +45,7 @@ void definePclFeatures(py::module_& m) {
       .def_readwrite("ppf_scene_fraction", &S::ppf_scene_fraction, "PPF: fraction of target points used as references")
       .def_readwrite("seed", &S::seed, "seeds std::srand, which PCL's samplers use")
       .def_readwrite("num_threads", &S::num_threads, "OpenMP threads, 0 = all cores");
+  pickleFields(m, "PclFeatureAlignmentSettings", field("descriptor", &S::descriptor), field("matcher", &S::matcher), field("voxel_size", &S::voxel_size), field("normal_radius", &S::normal_radius), field("feature_radius", &S::feature_radius), field("shot_lrf_radius", &S::shot_lrf_radius), field("shape_context_min_radius", &S::shape_context_min_radius), field("shape_context_density_radius", &S::shape_context_density_radius), field("max_iterations", &S::max_iterations), field("inlier_threshold", &S::inlier_threshold), field("num_samples", &S::num_samples), field("correspondence_randomness", &S::correspondence_randomness), field("similarity_threshold", &S::similarity_threshold), field("inlier_fraction", &S::inlier_fraction), field("min_sample_distance", &S::min_sample_distance), field("ppf_angle_step", &S::ppf_angle_step), field("ppf_distance_step", &S::ppf_distance_step), field("ppf_scene_fraction", &S::ppf_scene_fraction), field("seed", &S::seed), field("num_threads", &S::num_threads));
   m.def("thesis_pcl_preset", &thesisPclPreset, py::arg("descriptor"), py::arg("matcher"),
         "the thesis's baseline settings for a descriptor (1 mm voxels, 30 mm radii, 3DSC 40 mm, 1000 iterations, 5 mm)");
   using R = PclFeatureAlignmentResult;
@@ -60,6 +62,7 @@ void definePclFeatures(py::module_& m) {
       .def_readonly("feature_seconds", &R::feature_seconds)
       .def_readonly("seconds", &R::seconds)
       .def_readonly("message", &R::message, "why it failed");
+  pickleFields(m, "PclFeatureAlignmentResult", field("T_target_source", &R::T_target_source), field("converged", &R::converged), field("fitness", &R::fitness), field("inlier_rmse", &R::inlier_rmse), field("source_points", &R::source_points), field("target_points", &R::target_points), field("source_descriptors", &R::source_descriptors), field("target_descriptors", &R::target_descriptors), field("feature_seconds", &R::feature_seconds), field("seconds", &R::seconds), field("message", &R::message));
   m.def(
       "pcl_feature_alignment",
       [](const py::array& source, const py::array& target, const S& settings) {

@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include "arrays.hpp"
+#include "pickle.hpp"
 #include "scanalign/pose/cbd.hpp"
 #include "scanalign/pose/model_views.hpp"
 #include "scanalign/pose/pcl_coarse_aligner.hpp"
@@ -751,6 +752,283 @@ void bindPipeline(py::module_& m) {
       py::arg("progress") = py::none(), "Poses of the model in a table scene: table plane, clusters, estimate_pose each");
 }
 
+/// An enum index read from a pickled state, in [0, n).
+template <typename E>
+E enumIndex(int v, int n, const char* what) {
+  if (v < 0 || v >= n) throw py::value_error(std::string(what) + ": pickled value out of range");
+  return static_cast<E>(v);
+}
+
+Eigen::Vector3d thresholdArray(const ShapeThresholds& t) { return {t.linear, t.planar, t.spherical}; }
+ShapeThresholds thresholdsFrom(const Eigen::Vector3d& v) { return {v[0], v[1], v[2]}; }
+
+/// CbdSettings as flat fields (enums as ints, thresholds as a (3,) array): the part library
+/// stores a ModelView's cached descriptors with np.savez(allow_pickle=False), which takes
+/// only arrays and scalars.
+std::vector<PickleField<CbdSettings>> cbdSettingsFields() {
+  using S = CbdSettings;
+  return {field("radius", &S::radius), field("gamma", &S::gamma), field("min_neighbors", &S::min_neighbors),
+          field<S>(
+              "keypoint_mode", [](const S& s) { return static_cast<int>(s.keypoint_mode); },
+              [](S& s, int v) { s.keypoint_mode = enumIndex<CbdKeypointMode>(v, 2, "CbdSettings.keypoint_mode"); }),
+          field("num_keypoints", &S::num_keypoints),
+          field<S>(
+              "thresholds", [](const S& s) { return thresholdArray(s.thresholds); },
+              [](S& s, const Eigen::Vector3d& v) { s.thresholds = thresholdsFrom(v); }),
+          field("max_keypoints", &S::max_keypoints), field("max_sphere_radius", &S::max_sphere_radius),
+          field<S>(
+              "variant", [](const S& s) { return static_cast<int>(s.variant); },
+              [](S& s, int v) { s.variant = enumIndex<CbdDescriptorVariant>(v, 2, "CbdSettings.variant"); }),
+          field("num_threads", &S::num_threads)};
+}
+
+/// One column of a per-keypoint sphere list.
+template <typename V, typename Get, typename Set>
+PickleField<CbdFeatures> sphereColumn(const std::string& name, std::vector<CbdSphere> CbdFeatures::*spheres, Get get,
+                                      Set set) {
+  return field<CbdFeatures>(
+      name.c_str(),
+      [spheres, get](const CbdFeatures& f) {
+        std::vector<V> v;
+        for (const CbdSphere& s : f.*spheres) v.push_back(get(s));
+        return v;
+      },
+      [spheres, set](CbdFeatures& f, const std::vector<V>& v) {
+        (f.*spheres).resize(v.size());
+        for (std::size_t i = 0; i < v.size(); ++i) set((f.*spheres)[i], v[i]);
+      });
+}
+
+/// CbdFeatures as flat arrays (K keypoints): keypoints (K,) uint32, descriptors (K, 4),
+/// scalar (K,), sphere{1,2}_{dual (K, 5), radius, distance, flat}, axes (K, 3, 3),
+/// thresholds (3,), and three scalars.
+std::vector<PickleField<CbdFeatures>> cbdFeatureFields() {
+  using F = CbdFeatures;
+  using Dual = Eigen::Matrix<double, 5, 1>;
+  std::vector<PickleField<F>> fields{field("keypoints", &F::keypoints), field("descriptors", &F::descriptors),
+                                     field("scalar", &F::scalar)};
+  for (const auto& [prefix, member] : {std::pair{std::string("sphere1"), &F::sphere1}, std::pair{std::string("sphere2"), &F::sphere2}}) {
+    fields.push_back(sphereColumn<Dual>(prefix + "_dual", member, [](const CbdSphere& s) { return s.dual; },
+                                        [](CbdSphere& s, const Dual& v) { s.dual = v; }));
+    fields.push_back(sphereColumn<double>(prefix + "_radius", member, [](const CbdSphere& s) { return s.radius; },
+                                          [](CbdSphere& s, double v) { s.radius = v; }));
+    fields.push_back(sphereColumn<double>(prefix + "_distance", member, [](const CbdSphere& s) { return s.distance; },
+                                          [](CbdSphere& s, double v) { s.distance = v; }));
+    fields.push_back(sphereColumn<bool>(prefix + "_flat", member, [](const CbdSphere& s) { return s.flat; },
+                                        [](CbdSphere& s, bool v) { s.flat = v; }));
+  }
+  fields.push_back(field("axes", &F::axes));
+  fields.push_back(field<F>(
+      "thresholds", [](const F& f) { return thresholdArray(f.thresholds); },
+      [](F& f, const Eigen::Vector3d& v) { f.thresholds = thresholdsFrom(v); }));
+  fields.push_back(field("points_with_min_neighbors", &F::points_with_min_neighbors));
+  fields.push_back(field("min_neighbors", &F::min_neighbors));
+  fields.push_back(field("seconds", &F::seconds));
+  return fields;
+}
+
+/// The matcher indexes every per-keypoint array by keypoint: a state whose arrays disagree
+/// in length is refused instead of read out of bounds.
+void checkCbdFeatures(const CbdFeatures& f, const std::string& cls) {
+  const std::size_t k = f.keypoints.size();
+  if (f.descriptors.size() != k || f.scalar.size() != k || f.sphere1.size() != k || f.sphere2.size() != k ||
+      f.axes.size() != k)
+    throw py::value_error(cls + ": pickled per-keypoint arrays differ in length");
+}
+
+/// `state` entries whose key starts with `prefix`, the prefix removed.
+py::dict withPrefix(const py::dict& state, const std::string& prefix) {
+  py::dict d;
+  for (const auto& item : state) {
+    const std::string key = py::str(item.first);
+    if (key.rfind(prefix, 0) == 0) d[py::str(key.substr(prefix.size()))] = item.second;
+  }
+  return d;
+}
+
+/// ModelView's own fields (N points): points, normals (N, 3) float64, face_id (N,) int32,
+/// pixels (N, 2) int32, T_model_camera (4, 4), intrinsics (6,) [width, height, fx, fy, cx, cy].
+std::vector<PickleField<ModelView>> modelViewFields() {
+  using V = ModelView;
+  const auto rows = [](const char* name, auto member, auto tag) {
+    using Row = decltype(tag);
+    return field<V>(
+        name,
+        [member](const V& v) {
+          std::vector<Row> r((v.*member).size() / Row::RowsAtCompileTime);
+          for (std::size_t i = 0; i < r.size(); ++i)
+            for (int c = 0; c < Row::RowsAtCompileTime; ++c) r[i][c] = (v.*member)[Row::RowsAtCompileTime * i + c];
+          return r;
+        },
+        [member](V& v, const std::vector<Row>& r) {
+          (v.*member).clear();
+          for (const Row& x : r) (v.*member).insert((v.*member).end(), x.data(), x.data() + Row::RowsAtCompileTime);
+        });
+  };
+  return {rows("points", &V::points, Eigen::Vector3d{}), rows("normals", &V::normals, Eigen::Vector3d{}),
+          field("face_id", &V::face_id), rows("pixels", &V::pixels, Eigen::Matrix<std::int32_t, 2, 1>{}),
+          field("T_model_camera", &V::T_model_camera),
+          field<V>(
+              "intrinsics",
+              [](const V& v) {
+                const PinholeIntrinsics& k = v.intrinsics;
+                return Eigen::Matrix<double, 6, 1>(k.width, k.height, k.fx, k.fy, k.cx, k.cy);
+              },
+              [](V& v, const Eigen::Matrix<double, 6, 1>& k) {
+                v.intrinsics = {static_cast<int>(k[0]), static_cast<int>(k[1]), k[2], k[3], k[4], k[5]};
+              })};
+}
+
+/// ModelView's state: its fields, cbd_settings/<name> (cbdSettingsFields), has_cbd and, when
+/// it has cached descriptors, cbd/<name> (cbdFeatureFields). Flat: every value an array or
+/// a Python scalar.
+py::dict modelViewState(const ModelView& v) {
+  py::dict d = stateOf(v, modelViewFields());
+  for (const auto& item : stateOf(v.cbd_settings, cbdSettingsFields()))
+    d[py::str("cbd_settings/" + std::string(py::str(item.first)))] = item.second;
+  d["has_cbd"] = v.cbd.has_value();
+  if (v.cbd)
+    for (const auto& item : stateOf(*v.cbd, cbdFeatureFields()))
+      d[py::str("cbd/" + std::string(py::str(item.first)))] = item.second;
+  return d;
+}
+
+ModelView modelViewFromState(const py::dict& state) {
+  const std::string cls = "ModelView";
+  if (!state.contains("has_cbd")) throw py::value_error(cls + ": pickled state lacks 'has_cbd'");
+  const bool has_cbd = fromState<bool>(state["has_cbd"], cls + ": pickled state 'has_cbd'");
+  py::dict own;
+  for (const auto& item : state) {
+    const std::string key = py::str(item.first);
+    if (key != "has_cbd" && key.rfind("cbd_settings/", 0) != 0 && key.rfind("cbd/", 0) != 0) own[item.first] = item.second;
+  }
+  ModelView v;
+  assignState(v, own, modelViewFields(), cls);
+  const std::size_t n = v.points.size() / 3;
+  if (v.normals.size() != 3 * n || v.face_id.size() != n || v.pixels.size() != 2 * n)
+    throw py::value_error(cls + ": pickled points, normals, face_id and pixels differ in length");
+  assignState(v.cbd_settings, withPrefix(state, "cbd_settings/"), cbdSettingsFields(), cls + " cbd_settings/");
+  const py::dict cbd = withPrefix(state, "cbd/");
+  if (has_cbd) {
+    CbdFeatures f;
+    assignState(f, cbd, cbdFeatureFields(), cls + " cbd/");
+    checkCbdFeatures(f, cls);
+    for (std::uint32_t i : f.keypoints)
+      if (i >= n) throw py::value_error(cls + ": pickled cbd/keypoints index past the view's points");
+    v.cbd = std::move(f);
+  } else if (!cbd.empty()) {
+    throw py::value_error(cls + ": pickled state has cbd/ entries but has_cbd is False");
+  }
+  return v;
+}
+
+void pickleCbdAndViews(py::module_& m) {
+  pickleFields(m, "ShapeThresholds", field("linear", &ShapeThresholds::linear),
+               field("planar", &ShapeThresholds::planar), field("spherical", &ShapeThresholds::spherical));
+  auto settings = py::reinterpret_borrow<py::class_<CbdSettings>>(m.attr("CbdSettings"));
+  pickleFields(settings, cbdSettingsFields());
+  auto features = py::reinterpret_borrow<py::class_<CbdFeatures>>(m.attr("CbdFeatures"));
+  features.def(py::pickle([](const CbdFeatures& f) { return stateOf(f, cbdFeatureFields()); },
+                          [](const py::dict& state) {
+                            CbdFeatures f;
+                            assignState(f, state, cbdFeatureFields(), "CbdFeatures");
+                            checkCbdFeatures(f, "CbdFeatures");
+                            return f;
+                          }));
+  auto views = py::reinterpret_borrow<py::class_<ModelView>>(m.attr("ModelView"));
+  views.def(py::pickle(&modelViewState, &modelViewFromState));
+}
+
+void picklePoseResults(py::module_& m) {
+  using ME = MotorEstimate;
+  pickleFields(m, "MotorEstimate", field("T_target_source", &ME::T_target_source), field("motor", &ME::motor),
+               field("rmse", &ME::rmse), field("count", &ME::count), field("valid", &ME::valid),
+               field("message", &ME::message));
+  using CS = CorrespondenceRansacSettings;
+  pickleFields(m, "CorrespondenceRansacSettings", field("max_iterations", &CS::max_iterations),
+               field("inlier_threshold", &CS::inlier_threshold), field("edge_similarity", &CS::edge_similarity),
+               field("min_edge", &CS::min_edge), field("confidence", &CS::confidence),
+               field("refine_iterations", &CS::refine_iterations), field("seed", &CS::seed),
+               field("num_threads", &CS::num_threads));
+  using CR = CorrespondenceRansacResult;
+  pickleFields(m, "CorrespondenceRansacResult", field("T_target_source", &CR::T_target_source),
+               field("found", &CR::found), field("inliers", &CR::inliers), field("inlier_rmse", &CR::inlier_rmse),
+               field("iterations", &CR::iterations), field("message", &CR::message));
+  using AS = CbdAlignmentSettings;
+  pickleFields(m, "CbdAlignmentSettings", field("cbd", &AS::cbd), field("ransac", &AS::ransac),
+               field("matches_per_keypoint", &AS::matches_per_keypoint),
+               field("target_thresholds_from_source", &AS::target_thresholds_from_source));
+  using AR = CbdAlignmentResult;
+  pickleFields(m, "CbdAlignmentResult", field("T_target_source", &AR::T_target_source), field("found", &AR::found),
+               field("fitness", &AR::fitness), field("inlier_rmse", &AR::inlier_rmse),
+               field("source_keypoints", &AR::source_keypoints), field("target_keypoints", &AR::target_keypoints),
+               field("matches", &AR::matches), field("match_inliers", &AR::match_inliers),
+               field("feature_seconds", &AR::feature_seconds), field("match_seconds", &AR::match_seconds),
+               field("ransac_seconds", &AR::ransac_seconds), field("seconds", &AR::seconds),
+               field("message", &AR::message));
+  using NF = NormalLineFlag;
+  pickleFields(m, "NormalLineFlag", field("centroid", &NF::centroid), field("direction", &NF::direction),
+               field("foot", &NF::foot), field("mean_normal_length", &NF::mean_normal_length),
+               field("pitch", &NF::pitch), field("count", &NF::count));
+  using FS = FlagAlignmentSettings;
+  pickleFields(m, "FlagAlignmentSettings", field("min_mean_normal_length", &FS::min_mean_normal_length),
+               field("min_centroid_offset", &FS::min_centroid_offset), field("min_points", &FS::min_points),
+               field("max_iterations", &FS::max_iterations), field("tolerance", &FS::tolerance));
+  using FR = FlagAlignmentResult;
+  pickleFields(m, "FlagAlignmentResult", field("T_target_source", &FR::T_target_source), field("valid", &FR::valid),
+               field("iterations", &FR::iterations), field("cost", &FR::cost),
+               field("source_flag", &FR::source_flag), field("target_flag", &FR::target_flag),
+               field("message", &FR::message));
+  using VS = ModelViewSettings;
+  pickleFields(m, "ModelViewSettings", field("resolution", &VS::resolution), field("view_angle", &VS::view_angle),
+               field("level", &VS::level), field("distance", &VS::distance), field("center", &VS::center),
+               field("num_threads", &VS::num_threads), field("max_memory_bytes", &VS::max_memory_bytes));
+  using PS = PoseSettings;
+  pickleFields(m, "PoseSettings", field("method", &PS::method), field("inlier_threshold", &PS::inlier_threshold),
+               field("icp_distance", &PS::icp_distance), field("normal_radius", &PS::normal_radius),
+               field("min_fitness", &PS::min_fitness), field("min_coverage", &PS::min_coverage),
+               field("cbd", &PS::cbd), field("flags", &PS::flags), field("num_threads", &PS::num_threads));
+  using PC = PoseCandidate;
+  pickleFields(m, "PoseCandidate", field("view", &PC::view), field("found", &PC::found),
+               field("coarse_fitness", &PC::coarse_fitness), field("fitness", &PC::fitness),
+               field("coverage", &PC::coverage), field("inlier_rmse", &PC::inlier_rmse), field("score", &PC::score),
+               field("T_scene_model", &PC::T_scene_model));
+  // view: the raw index (-1: none), which the property shows as None.
+  using PR = PoseResult;
+  pickleFields(m, "PoseResult", field("T_scene_model", &PR::T_scene_model), field("found", &PR::found),
+               field("fitness", &PR::fitness), field("coverage", &PR::coverage),
+               field("inlier_rmse", &PR::inlier_rmse), field("method", &PR::method), field("view", &PR::view),
+               field("seconds", &PR::seconds), field("coarse_seconds", &PR::coarse_seconds),
+               field("candidates", &PR::candidates), field("message", &PR::message));
+  using OS = FindObjectsSettings;
+  pickleFields(m, "FindObjectsSettings", field("table", &OS::table), field("max_objects", &OS::max_objects),
+               field("pose", &OS::pose));
+  using OP = ObjectPoses;
+  pickleFields(m, "ObjectPoses", field("poses", &OP::poses), field("table", &OP::table),
+               field("seconds", &OP::seconds));
+  using FP = FindPartsSettings;
+  pickleFields(m, "FindPartsSettings", field("table", &FP::table), field("max_objects", &FP::max_objects),
+               field("pose", &FP::pose), field("ambiguity_margin", &FP::ambiguity_margin),
+               field("score_tie", &FP::score_tie), field("polish_distance", &FP::polish_distance),
+               field("same_pose_angle", &FP::same_pose_angle), field("same_pose_distance", &FP::same_pose_distance),
+               field("max_size_ratio", &FP::max_size_ratio), field("min_size_ratio", &FP::min_size_ratio),
+               field("max_table_penetration", &FP::max_table_penetration),
+               field("surface_polish", &FP::surface_polish), field("cbd_radius_fraction", &FP::cbd_radius_fraction),
+               field("min_surface_coverage", &FP::min_surface_coverage), field("voxel_size", &FP::voxel_size));
+  // part and runner_up_part: raw indices (-1: none), shown as None by their properties.
+  using PD = PartDetection;
+  pickleFields(m, "PartDetection", field("status", &PD::status), field("part", &PD::part), field("pose", &PD::pose),
+               field("score", &PD::score), field("runner_up_part", &PD::runner_up_part),
+               field("runner_up_score", &PD::runner_up_score), field("runner_up_angle", &PD::runner_up_angle),
+               field("runner_up_distance", &PD::runner_up_distance),
+               field("surface_coverage", &PD::surface_coverage), field("indices", &PD::indices),
+               field("parts", &PD::parts), field("size", &PD::size), field("message", &PD::message),
+               field("seconds", &PD::seconds));
+  using PDs = PartDetections;
+  pickleFields(m, "PartDetections", field("detections", &PDs::detections), field("table", &PDs::table),
+               field("seconds", &PDs::seconds));
+}
+
 }  // namespace
 
 void definePose(py::module_& m) {
@@ -761,6 +1039,8 @@ void definePose(py::module_& m) {
   bindPipeline(m);
   bindFindParts(m);
   bindDescribe(m);
+  pickleCbdAndViews(m);
+  picklePoseResults(m);
 }
 
 }  // namespace scanalign::python

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "arrays.hpp"
+#include "pickle.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/reconstruction/depth_image.hpp"
 #include "scanalign/reconstruction/frame_to_model.hpp"
@@ -242,6 +243,52 @@ std::string describe(const FrameReport& r) {
   return os.str();
 }
 
+/// A per-point vector (3 values per point) as a pickled field: an (N, 3) array, as the
+/// Python property shows it.
+template <typename T, typename V>
+PickleField<T> rowsField(const char* name, std::vector<V> T::*member) {
+  return {name, [member](const T& t) { return py::object(toArray(t.*member, 3)); },
+          [member](T& t, py::handle h, const std::string& what) {
+            const auto rows = pickling::arrayToVector<std::vector<Eigen::Matrix<V, 3, 1>>>(h, what);
+            (t.*member).clear();
+            for (const auto& r : rows) (t.*member).insert((t.*member).end(), r.data(), r.data() + 3);
+          }};
+}
+
+void pickleReconstruction(py::module_& m) {
+  using K = PinholeIntrinsics;
+  pickleFields(m, "PinholeIntrinsics", field("width", &K::width), field("height", &K::height), field("fx", &K::fx),
+               field("fy", &K::fy), field("cx", &K::cx), field("cy", &K::cy));
+  using D = DepthToCloudSettings;
+  pickleFields(m, "DepthToCloudSettings", field("depth_scale", &D::depth_scale), field("min_depth", &D::min_depth),
+               field("max_depth", &D::max_depth), field("stride", &D::stride));
+  using S = FrameToModelSettings;
+  pickleFields(m, "FrameToModelSettings", field("normal_radius", &S::normal_radius),
+               field("model_voxel_size", &S::model_voxel_size), field("frame_voxel_size", &S::frame_voxel_size),
+               field("crop_box", &S::crop_box), field("min_frame_points", &S::min_frame_points),
+               field("min_fitness", &S::min_fitness), field("require_convergence", &S::require_convergence),
+               field("max_translation_change", &S::max_translation_change),
+               field("max_rotation_change", &S::max_rotation_change), namedEnum("motion_model", &S::motion_model, 2),
+               field("num_threads", &S::num_threads), field("icp", &S::icp));
+  using R = FrameReport;
+  pickleFields(m, "FrameReport", field("index", &R::index), field("timestamp", &R::timestamp),
+               field("input_points", &R::input_points), namedEnum("status", &R::status, 8),
+               field("T_model_camera", &R::T_model_camera), field("icp", &R::icp),
+               field("frame_points", &R::frame_points), field("model_points", &R::model_points),
+               field("far_points", &R::far_points), field("prepare_seconds", &R::prepare_seconds),
+               field("register_seconds", &R::register_seconds), field("merge_seconds", &R::merge_seconds),
+               field("total_seconds", &R::total_seconds));
+  using P = PreparedFrame;
+  pickleFields(m, "PreparedFrame", rowsField("points", &P::points), rowsField("normals", &P::normals),
+               rowsField("colors", &P::colors), field("input_points", &P::input_points),
+               field("far_points", &P::far_points), field("seconds", &P::seconds));
+  // Its voxel model (per-voxel sums and counts, the grid's hash) is not worth a format;
+  // a worker rebuilds one from the settings and the frames.
+  refusePickle<FrameToModel>(m, "FrameToModel",
+                             "send its FrameToModelSettings and the frames (or the model's points from "
+                             "model_points() / model_normals()) and build a FrameToModel in the worker");
+}
+
 }  // namespace
 
 void defineReconstruction(py::module_& m) {
@@ -314,7 +361,12 @@ void defineReconstruction(py::module_& m) {
       .def_property(
           "crop_box", [](const FrameToModelSettings& s) { return s.crop_box; },
           [](FrameToModelSettings& s, const py::object& v) {
-            s.crop_box = v.is_none() ? std::nullopt : std::optional<Box>(py::type::of<Box>()(v).cast<Box>());
+            if (v.is_none())
+              s.crop_box = std::nullopt;
+            else if (py::isinstance<Box>(v))  // Box(a Box) is no constructor: take it as it is
+              s.crop_box = v.cast<Box>();
+            else
+              s.crop_box = py::type::of<Box>()(v).cast<Box>();
           },
           "optional Box (or 6 numbers, m) in the frame's camera coordinates; points outside are dropped before "
           "anything, so they are neither registered nor merged (bounds the model to the workspace)")
@@ -477,6 +529,7 @@ void defineReconstruction(py::module_& m) {
             self.settings() = s;
           });
 
+  pickleReconstruction(m);
   m.def(
       "voxel_grid",
       [](const py::array& points, double leaf_size, const py::object& attributes,

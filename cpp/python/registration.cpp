@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "arrays.hpp"
+#include "pickle.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/registration/icp.hpp"
 #include "scanalign/registration/pcl/baselines.hpp"
@@ -110,6 +111,10 @@ class AnyIcp {
  public:
   AnyIcp(const py::array& target, const py::object& normals, const IcpSettings& settings) {
     validate(settings);
+    // Copies kept for pickling (the tree reorders and filters its points): the engine is
+    // rebuilt from them on load, exactly as here.
+    target_ = target.attr("copy")();
+    normals_ = normals.is_none() ? normals : py::array::ensure(normals).attr("copy")();
     if (isDouble(target) || (!normals.is_none() && isDouble(py::cast<py::array>(normals))))
       engine_.emplace<Icp<double>>(settings);
     else
@@ -158,9 +163,13 @@ class AnyIcp {
   }
   bool hasNormals() const { return std::visit([](const auto& icp) { return icp.hasNormals(); }, engine_); }
   std::string dtype() const { return std::holds_alternative<Icp<double>>(engine_) ? "float64" : "float32"; }
+  const py::array& target() const { return target_; }
+  const py::object& targetNormals() const { return normals_; }
 
  private:
   std::variant<Icp<float>, Icp<double>> engine_;
+  py::array target_;   ///< the target as given (a copy), for pickling
+  py::object normals_;  ///< its normals (a copy) or None
 };
 
 void defineIcp(py::module_& m) {
@@ -181,7 +190,49 @@ void defineIcp(py::module_& m) {
       .def_property_readonly("tree_height", &AnyIcp::treeHeight, "levels of the target's tree below its root")
       .def_property_readonly("tree_build_seconds", &AnyIcp::treeBuildSeconds,
                              "time spent building the target's k-d tree and normal table, s")
-      .def_property_readonly("dtype", &AnyIcp::dtype, "'float32' or 'float64': the engine's precision");
+      .def_property_readonly("dtype", &AnyIcp::dtype, "'float32' or 'float64': the engine's precision")
+      .def(py::pickle(
+          [](const AnyIcp& icp) {
+            py::dict d;
+            d["target"] = icp.target();
+            d["target_normals"] = icp.targetNormals();
+            d["settings"] = icp.settings();
+            return d;
+          },
+          [](const py::dict& d) {
+            for (const char* key : {"target", "target_normals", "settings"})
+              if (!d.contains(key)) throw py::value_error(std::string("Icp: pickled state lacks '") + key + "'");
+            if (!py::isinstance<py::array>(d["target"]))
+              throw py::type_error("Icp: pickled state 'target' must be a NumPy array");
+            if (!py::isinstance<IcpSettings>(d["settings"]))
+              throw py::type_error("Icp: pickled state 'settings' must be an IcpSettings");
+            return AnyIcp(d["target"].cast<py::array>(), d["target_normals"], d["settings"].cast<IcpSettings>());
+          }));
+}
+
+/// A tree's points back in input order, (max index + 1, 3), NaN rows for the input rows the
+/// tree left out (non-finite): rebuilding from it gives the same tree and the same indices.
+template <typename Scalar, typename IndexAt, typename PointAt>
+py::array_t<Scalar> inputOrderPoints(std::size_t size, IndexAt index_at, PointAt point_at) {
+  std::size_t rows = 0;
+  for (std::size_t i = 0; i < size; ++i) rows = std::max<std::size_t>(rows, index_at(i) + std::size_t{1});
+  py::array_t<Scalar> a({static_cast<py::ssize_t>(rows), py::ssize_t{3}});
+  std::fill(a.mutable_data(), a.mutable_data() + 3 * rows, std::numeric_limits<Scalar>::quiet_NaN());
+  for (std::size_t i = 0; i < size; ++i) {
+    Scalar* row = a.mutable_data() + 3 * static_cast<std::size_t>(index_at(i));
+    point_at(i, row);
+  }
+  return a;
+}
+
+/// The "points" entry of a pickled tree: a float array of the tree's precision.
+template <typename Scalar>
+py::array pickledPoints(const py::dict& d, const char* cls) {
+  if (!d.contains("points")) throw py::value_error(std::string(cls) + ": pickled state lacks 'points'");
+  if (!py::isinstance<py::array_t<Scalar>>(d["points"]))
+    throw py::type_error(std::string(cls) + ": pickled state 'points' must be a " +
+                         std::string(py::str(py::dtype::of<Scalar>())) + " array");
+  return d["points"].cast<py::array>();
 }
 
 /// The left-balanced k-d tree of the eye-in-hand paper, §3.1, in the points' precision.
@@ -204,6 +255,17 @@ class AnyKdTree {
   }
   std::size_t size() const { return std::visit([](const auto& t) { return t.size(); }, tree_); }
   int height() const { return std::visit([](const auto& t) { return t.height(); }, tree_); }
+  /// The input points (input order, NaN rows for the ones left out), for pickling.
+  py::array points() const {
+    return std::visit(
+        [](const auto& tree) -> py::array {
+          using Scalar = typename ScalarOf<std::decay_t<decltype(tree)>>::type;
+          return inputOrderPoints<Scalar>(
+              tree.size(), [&](std::size_t i) { return tree.node(i).index(); },
+              [&](std::size_t i, Scalar* row) { std::copy(tree.node(i).p, tree.node(i).p + 3, row); });
+        },
+        tree_);
+  }
 
   py::tuple nearest(const py::array& queries, double max_distance, int stack_depth) const {
     if (stack_depth < 1 || stack_depth > LeftBalancedKdTree<float>::kMaxStack)
@@ -239,7 +301,19 @@ void defineKdTree(py::module_& m) {
            py::arg("max_distance") = std::numeric_limits<double>::infinity(), py::arg("stack_depth") = 20,
            "Nearest neighbour of each (N, 3) query within max_distance (m, exclusive; positive), stack_depth in "
            "[1, 64]. Returns (indices int64 into points, -1 for none in range; Euclidean distances, m, float64, inf "
-           "where none; exact: per-query flags telling whether the fixed stack sufficed)");
+           "where none; exact: per-query flags telling whether the fixed stack sufficed)")
+      .def(py::pickle(
+          [](const AnyKdTree& t) {
+            py::dict d;
+            d["points"] = t.points();
+            return d;
+          },
+          [](const py::dict& d) {
+            if (!d.contains("points")) throw py::value_error("KdTree: pickled state lacks 'points'");
+            if (!py::isinstance<py::array>(d["points"]) || py::array(d["points"]).dtype().kind() != 'f')
+              throw py::type_error("KdTree: pickled state 'points' must be a float array");
+            return AnyKdTree(d["points"].cast<py::array>());
+          }));
 }
 
 template <typename Scalar>
@@ -265,7 +339,28 @@ void defineBucketKdTree(py::module_& m, const char* name) {
                 [&](std::uint32_t node) { return tree.index(node); });
             return py::tuple(r[py::slice(0, 2, 1)]);  // (indices, distances): always exact
           },
-          py::arg("queries"), py::arg("max_distance"));
+          py::arg("queries"), py::arg("max_distance"))
+      .def(py::pickle(
+          [](const Tree& tree) {
+            py::dict d;
+            d["points"] = inputOrderPoints<Scalar>(
+                tree.size(), [&](std::size_t i) { return tree.index(i); },
+                [&](std::size_t i, Scalar* row) {
+                  row[0] = tree.x(i);
+                  row[1] = tree.y(i);
+                  row[2] = tree.z(i);
+                });
+            d["leaf_size"] = tree.leafSize();
+            return d;
+          },
+          [name = std::string(name)](const py::dict& d) {
+            const py::array points = pickledPoints<Scalar>(d, name.c_str());
+            if (!d.contains("leaf_size")) throw py::value_error(name + ": pickled state lacks 'leaf_size'");
+            const int leaf_size = boundedInt(d["leaf_size"], (name + ": pickled state 'leaf_size'").c_str(), 1);
+            const auto view = cloudView<Scalar>(points, "points");
+            py::gil_scoped_release release;
+            return Tree(view, leaf_size);
+          }));
 }
 
 std::string describe(const IcpResult& r) {
@@ -400,6 +495,30 @@ void defineRegistration(py::module_& m) {
       .def_readonly("seconds", &IcpResult::seconds, "wall time of the alignment, s (target tree build excluded)")
       .def("__repr__", &describe);
 
+  pickleFields(m, "Box", field("min", &Box::min), field("max", &Box::max));
+  pickleFields(m, "IcpSettings", namedEnum("estimator", &IcpSettings::estimator, 2),
+               field("max_correspondence_distance", &IcpSettings::max_correspondence_distance),
+               field("max_iterations", &IcpSettings::max_iterations),
+               field("transformation_epsilon", &IcpSettings::transformation_epsilon),
+               field("transformation_rotation_epsilon", &IcpSettings::transformation_rotation_epsilon),
+               field("fitness_epsilon", &IcpSettings::fitness_epsilon),
+               field("absolute_mse_epsilon", &IcpSettings::absolute_mse_epsilon),
+               namedEnum("robust_kernel", &IcpSettings::robust_kernel, 3),
+               field("robust_scale", &IcpSettings::robust_scale), field("box", &IcpSettings::box),
+               namedEnum("search", &IcpSettings::search, 2),
+               field("search_stack_depth", &IcpSettings::search_stack_depth),
+               field("warm_start", &IcpSettings::warm_start),
+               field("min_correspondences", &IcpSettings::min_correspondences),
+               field("degeneracy_threshold", &IcpSettings::degeneracy_threshold),
+               field("coarse_stride", &IcpSettings::coarse_stride), field("num_threads", &IcpSettings::num_threads));
+  pickleFields(m, "IcpResult", field("T_target_source", &IcpResult::T_target_source),
+               field("converged", &IcpResult::converged), namedEnum("status", &IcpResult::status, 6),
+               field("iterations", &IcpResult::iterations), field("coarse_iterations", &IcpResult::coarse_iterations),
+               field("fitness", &IcpResult::fitness), field("inlier_rmse", &IcpResult::inlier_rmse),
+               field("correspondence_count", &IcpResult::correspondence_count),
+               field("source_points_used", &IcpResult::source_points_used), field("mse", &IcpResult::mse),
+               field("degenerate", &IcpResult::degenerate), field("min_rank", &IcpResult::min_rank),
+               field("exact_search", &IcpResult::exact_search), field("seconds", &IcpResult::seconds));
   defineIcp(m);
   defineKdTree(m);
   m.attr("RIGID_TOLERANCE") = kRigidTolerance;

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "arrays.hpp"
+#include "pickle.hpp"
 #include "scanalign/fitting/ransac.hpp"
 
 namespace scanalign::python {
@@ -84,6 +85,58 @@ py::object signedDistance(const PlaneResult& r, const py::array_t<double, py::ar
   for (py::ssize_t i = 0; i < p.shape(0); ++i)
     out.mutable_data()[i] = r.model.signedDistance(Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)));
   return std::move(out);
+}
+
+/// A RANSAC model as 4 numbers: a plane (normal, distance), a sphere (center, radius); m.
+Eigen::Vector4d packModel(const PlaneModel& p) { return {p.normal.x(), p.normal.y(), p.normal.z(), p.distance}; }
+Eigen::Vector4d packModel(const SphereModel& s) { return {s.center.x(), s.center.y(), s.center.z(), s.radius}; }
+void unpackModel(const Eigen::Vector4d& v, PlaneModel& p) { p.normal = v.head<3>(), p.distance = v[3]; }
+void unpackModel(const Eigen::Vector4d& v, SphereModel& s) { s.center = v.head<3>(), s.radius = v[3]; }
+
+template <typename Model>
+void pickleRansacResult(py::module_& m, const char* name) {
+  using R = RansacResult<Model>;
+  pickleFields(m, name, namedEnum("status", &R::status, 3),
+               field<R>(
+                   "model", [](const R& r) { return packModel(r.model); },
+                   [](R& r, const Eigen::Vector4d& v) { unpackModel(v, r.model); }),
+               field<R>(
+                   "hypothesis", [](const R& r) { return packModel(r.hypothesis); },
+                   [](R& r, const Eigen::Vector4d& v) { unpackModel(v, r.hypothesis); }),
+               field("inliers", &R::inliers), field("hypothesis_inliers", &R::hypothesis_inliers),
+               field("iterations", &R::iterations), field("degenerate_samples", &R::degenerate_samples),
+               field("refined", &R::refined));
+}
+
+void pickleSegmentation(py::module_& m) {
+  pickleRansacResult<PlaneModel>(m, "PlaneResult");
+  pickleRansacResult<SphereModel>(m, "SphereResult");
+  using T = TableSegmentation;
+  pickleFields(m, "TableSegmentation", namedEnum("status", &T::status, 3), field("plane", &T::plane),
+               field<T>(
+                   "objects",
+                   [](const T& t) {
+                     py::list l;  // one uint32 index array per cluster
+                     for (const auto& c : t.objects) l.append(pickling::vectorToArray(c));
+                     return l;
+                   },
+                   [](T& t, const py::list& l) {
+                     t.objects.clear();
+                     for (py::handle c : l)
+                       t.objects.push_back(
+                           pickling::arrayToVector<std::vector<std::uint32_t>>(c, "TableSegmentation: pickled state 'objects'"));
+                   }),
+               field("cropped_points", &T::cropped_points), field("above_points", &T::above_points));
+  pickleFields(m, "RansacSettings", field("threshold", &RansacSettings::threshold),
+               field("max_iterations", &RansacSettings::max_iterations),
+               field("confidence", &RansacSettings::confidence), field("seed", &RansacSettings::seed),
+               field("num_threads", &RansacSettings::num_threads), field("refine", &RansacSettings::refine),
+               field("msac", &RansacSettings::msac));
+  using S = TableSegmentationSettings;
+  pickleFields(m, "TableSegmentationSettings", field("crop", &S::crop), field("crop_min", &S::crop_min),
+               field("crop_max", &S::crop_max), field("plane", &S::plane), field("viewpoint", &S::viewpoint),
+               field("up", &S::up), field("cluster_tolerance", &S::cluster_tolerance),
+               field("min_cluster_size", &S::min_cluster_size), field("max_cluster_size", &S::max_cluster_size));
 }
 
 }  // namespace
@@ -181,6 +234,7 @@ void defineSegmentation(py::module_& m) {
       .def_readwrite("min_cluster_size", &TableSegmentationSettings::min_cluster_size, "points")
       .def_readwrite("max_cluster_size", &TableSegmentationSettings::max_cluster_size, "points")
       .def("validate", [](const TableSegmentationSettings& s) { validate(s); }, "ValueError naming an invalid field");
+  pickleSegmentation(m);
   const RansacSettings dr;
   m.def(
       "ransac_plane",

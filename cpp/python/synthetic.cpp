@@ -8,6 +8,7 @@
 #include <pybind11/stl.h>
 
 #include "arrays.hpp"
+#include "pickle.hpp"
 #include "scanalign/reconstruction/depth_renderer.hpp"
 #include "scanalign/synthetic/builtin_part.hpp"
 #include "scanalign/common/morton_order.hpp"
@@ -177,6 +178,12 @@ void bindSensorNoise(py::module_& s) {
         return "SensorNoise(name='" + n.name + "', axial_sigma_ref=" + std::to_string(n.axial_sigma_ref) +
                ", z_ref=" + std::to_string(n.z_ref) + ", depth_unit=" + std::to_string(n.depth_unit) + ", ...)";
       });
+  using N = SensorNoise;
+  pickleFields(s, "SensorNoise", field("name", &N::name), field("axial_sigma_ref", &N::axial_sigma_ref),
+               field("z_ref", &N::z_ref), field("depth_unit", &N::depth_unit), field("min_range", &N::min_range),
+               field("max_range", &N::max_range), field("grazing_cos", &N::grazing_cos),
+               field("edge_threshold", &N::edge_threshold), field("edge_width", &N::edge_width),
+               field("dropout", &N::dropout));
   s.def("apply_sensor_noise", &applySensorNoisePy, py::arg("noise"), py::arg("depth"), py::arg("cos_incidence"),
         py::arg("seed"),
         "Noisy (H, W) float32 depth in metres (NaN = missing) from noise-free `depth` (m, NaN = nothing hit) and the "
