@@ -407,6 +407,12 @@ def test_engines_rebuilt_from_their_state_answer_the_same():
         np.testing.assert_array_equal(a.T_target_source, b.T_target_source)
         if n is not None:  # point-to-plane on the exact pair: the true motion
             assert np.abs(a.T_target_source - _small_motion()).max() < 1e-6
+    from scanalign import registration
+
+    wrapped = registration.Icp(target, normals, max_correspondence_distance=0.02)  # the package's subclass
+    copy = pickle.loads(pickle.dumps(wrapped, protocol=5))
+    assert type(copy) is registration.Icp and copy.settings.max_correspondence_distance == 0.02
+    np.testing.assert_array_equal(copy.align(source).T_target_source, wrapped.align(source).T_target_source)
     cloud = np.vstack([target, [[np.nan, 0, 0]], target[:5] + 1.0])
     queries = target[::7] + 0.003
     for tree in (_core.registration.KdTree(cloud), _core.registration.BucketKdTree64(cloud, 8),
@@ -492,33 +498,46 @@ def test_corrupt_arrays_are_refused_not_read_out_of_bounds(instances):
         _corrupt(instances["grasp.GraspPlan"][0], lambda s: s.__setitem__("chosen", 10**6))
     with pytest.raises(ValueError, match="shape"):
         _corrupt(instances["kinematics.IKBatch"][0], lambda s: s.__setitem__("status", s["status"][:, :3]))
+    with pytest.raises(ValueError, match="dropout"):  # validated after loading, as the constructor does
+        _corrupt(_sensor_noise(), lambda s: s.__setitem__("dropout", 2.0))
     with pytest.raises(ValueError, match="unknown value 'sideways'"):
         _corrupt(instances["registration.IcpSettings"][0], lambda s: s.__setitem__("estimator", "sideways"))
 
 
 def test_python_records_holding_core_objects_pickle(instances):
     """The package's dataclasses cross process boundaries once the C++ objects they hold do."""
-    from scanalign import pick
+    from scanalign import pick, pipeline, reconstruction
 
     mesh = parts.builtin_mesh(name="bracket")
     plan = instances["grasp.GraspPlan"][0]
+    trajectory = Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4), ROT]))
+    grasps = G.PartGrasps(name="bracket", mesh=mesh, grasps=[G.Grasp("top", ROT)], symmetry=G.PartSymmetry(order=3))
+    part_pick = pick.PartPick(part="bracket", status="picked", T_base_model=ROT, plan=plan)
+    model = reconstruction.Model(mesh.vertices, mesh.vertices * 0, None)
+    run = pipeline.ReconstructionResult(model=model, records=instances["reconstruction.FrameReport"],
+                                        estimate=trajectory, reference=None, T_model_camera0=ROT,
+                                        settings=_changed(_core.reconstruction.FrameToModelSettings()),
+                                        registration="scanalign", seconds=1.5)
     records = [
-        mesh, Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4), ROT])),
-        G.PartGrasps(name="bracket", mesh=mesh, grasps=[G.Grasp("top", ROT)], symmetry=G.PartSymmetry(order=3)),
-        pick.PickSettings(planner={"min_wrist_angle": 0.1}),
-        pick.PartPick(part="bracket", status="picked", T_base_model=ROT, plan=plan),
+        mesh, trajectory, grasps, pick.PickSettings(planner={"min_wrist_angle": 0.1}), part_pick, model, run,
+        pick.PickResult(picks=[part_pick], points=mesh.vertices, detections=instances["pose.PartDetections"][0],
+                        robot=kinematics.ur5(), q_current=np.zeros(6), parts=[grasps], reconstruction=run),
     ]
     for record in records:
-        copy = pickle.loads(pickle.dumps(record, protocol=5))
-        for name in vars(record):
-            a, b = getattr(record, name), getattr(copy, name)
-            if isinstance(a, list):
-                for x, y in zip(a, b):
-                    _assert_same(vars(x) if hasattr(x, "__dict__") else x, vars(y) if hasattr(y, "__dict__") else y, name)
-            elif hasattr(a, "__dataclass_fields__"):
-                _assert_same(vars(a), vars(b), name)
-            else:
-                _assert_same(a, b, f"{type(record).__name__}.{name}")
+        _assert_same(_plain(record), _plain(pickle.loads(pickle.dumps(record, protocol=5))), type(record).__name__)
+
+
+def _plain(x):
+    """A Python record as nested dicts (dataclasses by their fields, bound objects by properties)."""
+    if hasattr(x, "__dataclass_fields__"):
+        return {name: _plain(getattr(x, name)) for name in x.__dataclass_fields__}
+    if isinstance(x, dict):
+        return {k: _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return type(x)(_plain(v) for v in x)
+    if type(x).__name__ == "Robot":
+        return pickle.dumps(x)  # its state is its DH table, limits and transforms
+    return _snapshot(x)
 
 
 def _worker_icp(settings, robot, source, target, normals):

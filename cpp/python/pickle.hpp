@@ -245,8 +245,9 @@ struct HasValidate<T, std::void_t<decltype(std::declval<const T&>().validate())>
 /// Adds __getstate__ / __setstate__ (py::pickle) to `cls` from `fields`; T is default-
 /// constructed and then assigned, so a field left out keeps its default (and the round-trip
 /// test, which sets every field to a non-default value, catches it). A T with a validate()
-/// member (SensorNoise, Gripper, PartSymmetry) is validated after loading, as its
-/// constructor does: a mangled state is a ValueError, not an object no constructor makes.
+/// member (SensorNoise, PinholeIntrinsics, Gripper, PartSymmetry, Grasp,
+/// GraspPlannerSettings) is validated after loading, as its constructor does: a mangled
+/// state is a ValueError, not an object no constructor makes.
 template <typename T, typename... Extra>
 void pickleFields(py::class_<T, Extra...>& cls, std::vector<PickleField<T>> fields) {
   const std::string name = py::str(cls.attr("__name__"));
