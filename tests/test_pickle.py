@@ -27,6 +27,9 @@ from scanalign import kinematics
 from scanalign.trajectory import Trajectory
 
 PROTOCOLS = (2, 5)
+# One OpenMP thread for the runs here: on a shared machine with more busy threads than cores,
+# OpenMP's spinning workers made this file 50x slower.
+THREADS = 1
 
 # Engines whose state is not worth a format: pickling raises TypeError saying what to send.
 REFUSED = {
@@ -188,9 +191,14 @@ def _icp_inputs():
 @functools.lru_cache(maxsize=None)
 def _views():
     """The bracket's model views with their CBD features cached (describe_model_views)."""
-    views = cad.render_views(parts.builtin_mesh(name="bracket"), resolution=60)
-    settings = _core.pose.PoseSettings()
-    return views, _core.pose.describe_model_views(views, settings)
+    views = cad.render_views(parts.builtin_mesh(name="bracket"), resolution=60, num_threads=THREADS)
+    return views, _core.pose.describe_model_views(views, _pose_settings())
+
+
+def _pose_settings():
+    s = _core.pose.PoseSettings()
+    s.num_threads = THREADS
+    return s
 
 
 @functools.lru_cache(maxsize=None)
@@ -199,15 +207,14 @@ def _pose_run():
     views, described = _views()
     T = _small_motion()
     obj = described[5].points @ T[:3, :3].T + T[:3, 3]
-    s = _core.pose.PoseSettings()
-    return _core.pose.estimate_pose(list(described[:8]), obj, s)
+    return _core.pose.estimate_pose(list(described[:8]), obj, _pose_settings())
 
 
 def _results():
     """One instance (or several) of every result class, from real runs on small inputs."""
     out = {}
     source, target, normals = _icp_inputs()
-    icp = _core.registration.Icp(target, normals, _core.registration.IcpSettings())
+    icp = _core.registration.Icp(target, normals, _icp_settings())
     out["registration.Icp"] = [icp, _core.registration.Icp(target.astype(np.float32), None, _settings_p2p())]
     out["registration.IcpResult"] = icp.align(source, np.eye(4))
     cloud = np.vstack([target, [[np.nan, 0, 0]], target[:5] + 1.0])  # a NaN row: left out of the trees
@@ -221,7 +228,7 @@ def _results():
     out["kinematics.Robot"] = robot
     out["kinematics.IKSolutions"] = robot.ik(T)
     out["kinematics.IKSolution"] = robot.ik_closest(T, [0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
-    out["kinematics.IKBatch"] = robot.ik_batch(np.stack([T, T]))
+    out["kinematics.IKBatch"] = robot.ik_batch(np.stack([T, T]), num_threads=THREADS)
     out["kinematics.JointTrajectory"] = robot.ik_trajectory(np.stack([T, T]), [0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
     out["kinematics.IKConstruction"] = robot.ik_construction(T, 1, 1, 1)
 
@@ -229,17 +236,17 @@ def _results():
     d = rng.normal(size=(60, 3))
     sphere = 0.05 * d / np.linalg.norm(d, axis=1, keepdims=True) + [0.1, 0.2, 0.3]
     out["fitting.SphereFitResult"] = _core.fitting.fit_sphere(sphere, None)
-    out["fitting.SphereFitBatch"] = _core.fitting.fit_spheres(sphere, np.array([0, 30, 60]))
+    out["fitting.SphereFitBatch"] = _core.fitting.fit_spheres(sphere, np.array([0, 30, 60]), num_threads=THREADS)
     t = np.linspace(0, 6, 20)
     out["fitting.CircleFitResult"] = _core.fitting.fit_circle_2d(np.c_[0.1 + 0.2 * np.cos(t), 0.2 * np.sin(t)])
 
     table = np.c_[rng.uniform(-0.3, 0.3, (3000, 2)), np.zeros(3000)]
     box = rng.uniform([0.0, 0.0, 0.005], [0.04, 0.04, 0.04], (400, 3))
     scene = np.vstack([table, box, box + [0.15, 0.1, 0.0]])
-    out["segmentation.PlaneResult"] = _core.segmentation.ransac_plane(scene, 0.002)
-    out["segmentation.SphereResult"] = _core.segmentation.ransac_sphere(sphere, 0.001)
+    out["segmentation.PlaneResult"] = _core.segmentation.ransac_plane(scene, 0.002, num_threads=THREADS)
+    out["segmentation.SphereResult"] = _core.segmentation.ransac_sphere(sphere, 0.001, num_threads=THREADS)
     out["segmentation.TableSegmentation"] = _core.segmentation.segment_table_full(
-        scene, threshold=0.002, up=(0, 0, 1), cluster_tolerance=0.01, min_cluster_size=50)
+        scene, threshold=0.002, up=(0, 0, 1), cluster_tolerance=0.01, min_cluster_size=50, num_threads=THREADS)
 
     poses = [robot.fk(q) for q in rng.uniform(-1, 1, (6, 6))]
     X = _small_motion()
@@ -259,7 +266,9 @@ def _results():
     out["grasp.GraspPlan"] = plan
     out["grasp.GraspCandidate"] = list(plan.candidates[:3])
 
-    f2m = _core.reconstruction.FrameToModel(_core.reconstruction.FrameToModelSettings())
+    f2m_settings = _core.reconstruction.FrameToModelSettings()
+    f2m_settings.num_threads = THREADS
+    f2m = _core.reconstruction.FrameToModel(f2m_settings)
     frame = target.astype(np.float32)
     reports = [f2m.integrate(frame, None, None, "scanalign"), f2m.integrate(frame + np.float32(0.001), None, None,
                                                                             "scanalign")]
@@ -272,7 +281,7 @@ def _results():
     mesh = parts.builtin_mesh(name="bracket")
     index = _core.evaluation.MeshDistanceIndex(mesh.vertices, mesh.faces)
     out["evaluation.MeshDistanceIndex"] = index
-    out["evaluation.MeshDistanceStats"] = index.stats(mesh.vertices[:50] + 0.001)
+    out["evaluation.MeshDistanceStats"] = index.stats(mesh.vertices[:50] + 0.001, num_threads=THREADS)
 
     header = b"VERSION .7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n1 2 3\n"
     out["io.PcdHeader"] = _core.io.parse_pcd(header)[0]
@@ -290,7 +299,9 @@ def _results():
     out["pose.CorrespondenceRansacResult"] = _core.pose.ransac_rigid_motion(
         src, dst, pairs, _core.pose.CorrespondenceRansacSettings())
     moved = described[3].points @ ROT[:3, :3].T + ROT[:3, 3]
-    out["pose.CbdAlignmentResult"] = _core.pose.align_cbd(described[3].points, moved, _core.pose.CbdAlignmentSettings())
+    cbd = _core.pose.CbdAlignmentSettings()
+    cbd.cbd.num_threads = cbd.ransac.num_threads = THREADS
+    out["pose.CbdAlignmentResult"] = _core.pose.align_cbd(described[3].points, moved, cbd)
     nrm = described[3].normals
     out["pose.NormalLineFlag"] = _core.pose.normal_line_flag(described[3].points, nrm)
     out["pose.FlagAlignmentResult"] = _core.pose.align_flags(described[3].points, nrm, moved, nrm @ ROT[:3, :3].T,
@@ -308,14 +319,14 @@ def _results():
 
     table_scene = _table_scene()
     found = pose.find_parts([list(described[:8])], table_scene, up=(0, 0, 1), table_threshold=0.002,
-                            cluster_tolerance=0.01)
+                            cluster_tolerance=0.01, num_threads=THREADS)
     assert found.detections
     out["pose.PartDetections"] = found
     out["pose.PartDetection"] = list(found.detections)
     out["pose.ObjectPoses"] = pose.find_objects(list(described[:8]), table_scene, up=(0, 0, 1), table_threshold=0.002,
-                                                cluster_tolerance=0.01)
+                                                cluster_tolerance=0.01, num_threads=THREADS)
     pcl = _core.pose.thesis_pcl_preset(_core.pose.PclDescriptor.fpfh, _core.pose.PclMatcher.prerejective)
-    pcl.voxel_size, pcl.max_iterations = 0.004, 200
+    pcl.voxel_size, pcl.max_iterations, pcl.num_threads = 0.004, 200, THREADS
     out["pose.PclFeatureAlignmentResult"] = _core.pose.pcl_feature_alignment(
         described[3].points.astype(np.float32), moved.astype(np.float32), pcl)
     return out
@@ -330,8 +341,14 @@ def _table_scene():
     return np.vstack([table, obj - [*obj[:, :2].mean(axis=0), obj[:, 2].min() - 0.004]])
 
 
-def _settings_p2p():
+def _icp_settings():
     s = _core.registration.IcpSettings()
+    s.num_threads = THREADS
+    return s
+
+
+def _settings_p2p():
+    s = _icp_settings()
     s.estimator = "point_to_point"
     return s
 
@@ -399,7 +416,7 @@ def test_changed_settings_keep_every_field():
 def test_engines_rebuilt_from_their_state_answer_the_same():
     source, target, normals = _icp_inputs()
     for dtype, n in ((np.float64, normals), (np.float32, None)):
-        s = _core.registration.IcpSettings() if n is not None else _settings_p2p()
+        s = _icp_settings() if n is not None else _settings_p2p()
         icp = _core.registration.Icp(target.astype(dtype), n, s)
         copy = pickle.loads(pickle.dumps(icp, protocol=5))
         assert copy.dtype == icp.dtype and copy.target_size == icp.target_size
@@ -409,7 +426,7 @@ def test_engines_rebuilt_from_their_state_answer_the_same():
             assert np.abs(a.T_target_source - _small_motion()).max() < 1e-6
     from scanalign import registration
 
-    wrapped = registration.Icp(target, normals, max_correspondence_distance=0.02)  # the package's subclass
+    wrapped = registration.Icp(target, normals, max_correspondence_distance=0.02, num_threads=THREADS)  # the package's subclass
     copy = pickle.loads(pickle.dumps(wrapped, protocol=5))
     assert type(copy) is registration.Icp and copy.settings.max_correspondence_distance == 0.02
     np.testing.assert_array_equal(copy.align(source).T_target_source, wrapped.align(source).T_target_source)
@@ -442,7 +459,7 @@ def test_model_view_state_is_flat_and_survives_npz(tmp_path):
     copy.__setstate__(loaded)
     _assert_same(view, copy, "ModelView")
     assert copy.cbd_settings.radius == view.cbd_settings.radius
-    plain = cad.render_views(parts.builtin_mesh(name="bracket"), resolution=60)[2]
+    plain = _views()[0][2]
     assert plain.cbd is None and not plain.__getstate__()["has_cbd"]
     assert not any(k.startswith("cbd/") for k in plain.__getstate__())
 
@@ -453,7 +470,7 @@ def test_pose_from_unpickled_views_equals_the_original():
     T = _small_motion()
     obj = described[5].points @ T[:3, :3].T + T[:3, 3]
     a = _pose_run()
-    b = _core.pose.estimate_pose(copies, obj, _core.pose.PoseSettings())
+    b = _core.pose.estimate_pose(copies, obj, _pose_settings())
     np.testing.assert_array_equal(a.T_scene_model, b.T_scene_model)
     assert a.found and np.abs(a.T_scene_model - T).max() < 1e-3  # the bracket found where it was moved to
 
@@ -467,7 +484,8 @@ def _corrupt(obj, mutate):
 
 @pytest.mark.parametrize("key", ["registration.IcpSettings", "registration.IcpResult", "pose.ModelView",
                                  "pose.CbdFeatures", "grasp.GraspPlan", "kinematics.IKSolution",
-                                 "segmentation.TableSegmentation", "registration.Icp", "registration.BucketKdTree64"])
+                                 "segmentation.TableSegmentation", "registration.Icp", "registration.BucketKdTree64",
+                                 "kinematics.Robot"])
 def test_corrupt_state_is_a_clear_error(instances, key):
     obj = instances[key][-1]
     state = obj.__getstate__()
@@ -476,12 +494,23 @@ def test_corrupt_state_is_a_clear_error(instances, key):
     with pytest.raises(ValueError, match=f"{name}.*'{first}'"):
         _corrupt(obj, lambda s: s.pop(first))
     with pytest.raises((TypeError, ValueError), match=name):
-        _corrupt(obj, lambda s: s.__setitem__(first, "not a value"))
+        _corrupt(obj, lambda s: s.__setitem__(first, object()))
     with pytest.raises(TypeError):
         type(obj).__new__(type(obj)).__setstate__(["not", "a", "dict"])
     if key not in ("registration.Icp", "registration.BucketKdTree64"):
         with pytest.raises(ValueError, match="unknown key 'extra'"):
             _corrupt(obj, lambda s: s.__setitem__("extra", 1))
+
+
+def test_robot_loads_the_tuple_state_of_earlier_pickles():
+    robot = kinematics.kuka_kr6_r900_sixx()
+    state = robot.__getstate__()
+    old = tuple(state[k] for k in ("name", "a", "alpha", "d", "theta_offset", "limits", "T_base_dh0", "T_flange_tool"))
+    copy = _core.kinematics.Robot.__new__(_core.kinematics.Robot)
+    copy.__setstate__(old)
+    _assert_same(robot, copy, "Robot")
+    with pytest.raises(ValueError, match="non-finite|finite"):
+        _corrupt(robot, lambda s: s.__setitem__("a", np.full(6, np.nan)))
 
 
 def test_corrupt_arrays_are_refused_not_read_out_of_bounds(instances):
@@ -550,7 +579,7 @@ def _worker_icp(settings, robot, source, target, normals):
 
 def test_objects_cross_a_spawned_process_pool():
     source, target, normals = _icp_inputs()
-    settings = _core.registration.IcpSettings()
+    settings = _icp_settings()
     settings.max_iterations = 40
     robot = kinematics.ur5()
     want = _core.registration.Icp(target, normals, settings).align(source, np.eye(4))

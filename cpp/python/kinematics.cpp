@@ -7,6 +7,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -656,17 +657,43 @@ Robot withTransform(const Robot& r, const py::object& T, const char* name) {
   return c;
 }
 
-py::tuple robotState(const Robot& r) {
-  return py::make_tuple(r.name, dhColumn(r, 0), dhColumn(r, 1), dhColumn(r, 2), dhColumn(r, 3),
-                        readonlyMatrix(limitTable(r)), readonlyMatrix(r.T_base_dh0.matrix()),
-                        readonlyMatrix(r.T_flange_tool.matrix()));
+/// Pickled as the arguments of Robot.from_dh (the DH columns, limits, name and the two
+/// transforms), so loading checks them as from_dh does.
+constexpr const char* kRobotKeys[] = {"name", "a", "alpha", "d", "theta_offset", "limits", "T_base_dh0", "T_flange_tool"};
+
+py::dict robotState(const Robot& r) {
+  py::dict d;
+  d["name"] = r.name;
+  for (int c = 0; c < 4; ++c) d[kRobotKeys[1 + c]] = dhColumn(r, c);
+  d["limits"] = readonlyMatrix(limitTable(r));
+  d["T_base_dh0"] = readonlyMatrix(r.T_base_dh0.matrix());
+  d["T_flange_tool"] = readonlyMatrix(r.T_flange_tool.matrix());
+  return d;
 }
 
-Robot robotFromState(const py::tuple& s) {
-  if (s.size() != 8) throw py::value_error("Robot: unexpected pickled state");
-  const auto at = [&](std::size_t i) { return py::object(s[i]); };
-  return fromDh(at(1), at(2), at(3), at(4), at(5), s[0].cast<std::string>(), at(6), at(7));
+/// From robotState's dict, or the 8-tuple in its key order that pickles of earlier versions hold.
+Robot robotFromState(const py::object& state) {
+  py::dict d;
+  if (py::isinstance<py::tuple>(state) && py::len(state) == 8) {
+    for (std::size_t i = 0; i < 8; ++i) d[kRobotKeys[i]] = py::tuple(state)[i];
+  } else if (py::isinstance<py::dict>(state)) {
+    d = py::reinterpret_borrow<py::dict>(state);
+  } else {
+    throw py::type_error("Robot: pickled state must be a dict");
+  }
+  for (const auto& item : d) {
+    const std::string key = py::str(item.first);
+    if (std::find(std::begin(kRobotKeys), std::end(kRobotKeys), key) == std::end(kRobotKeys))
+      throw py::value_error("Robot: pickled state has an unknown key '" + key + "'");
+  }
+  for (const char* key : kRobotKeys)
+    if (!d.contains(key)) throw py::value_error(std::string("Robot: pickled state lacks '") + key + "'");
+  if (!py::isinstance<py::str>(d["name"])) throw py::type_error("Robot: pickled state 'name' must be a str");
+  const auto at = [&](const char* key) { return py::object(d[key]); };
+  return fromDh(at("a"), at("alpha"), at("d"), at("theta_offset"), at("limits"), d["name"].cast<std::string>(),
+                at("T_base_dh0"), at("T_flange_tool"));
 }
+
 
 /// The configuration labels as 3 ints (+1 / -1); a pickled state with other values is refused.
 std::array<int, 3> configLabels(const IKConfig& c) { return {c.shoulder, c.elbow, c.wrist}; }
