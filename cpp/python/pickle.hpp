@@ -16,7 +16,6 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include <cstring>
 #include <functional>
 #include <string>
 #include <type_traits>
@@ -122,15 +121,18 @@ M arrayToVector(py::handle h, const std::string& what) {
 
 /// A member (or property) as a pickled value: numbers, bool, str, Eigen arrays, bound structs
 /// and std::optional through the bindings' casters; vectors of numbers or fixed-size Eigen
-/// matrices as one NumPy array; an enum as its bound Python enum, or as an int when it is not
-/// bound (its Python property is a string, the member is saved raw).
+/// matrices as one NumPy array; an Eigen::Isometry3d as its 4x4 matrix; an enum bound with
+/// py::enum_ as its member (an unbound one needs namedEnum).
 template <typename M>
 py::object toState(const M& v) {
   if constexpr (pickling::isArrayVector<M>()) {
     return pickling::vectorToArray(v);
   } else if constexpr (std::is_enum_v<M>) {
-    if (py::detail::get_type_info(typeid(M))) return py::cast(v);
-    return py::int_(static_cast<long long>(v));
+    // An unbound enum has no checked Python form here: bind it with namedEnum (its name) or
+    // an accessor field with a range check, never a raw int nobody validates on load.
+    if (!py::detail::get_type_info(typeid(M)))
+      throw py::type_error("pickling an unbound enum as a plain field: use namedEnum (pickle.hpp)");
+    return py::cast(v);
   } else if constexpr (py::detail::is_pyobject<M>::value) {
     return py::reinterpret_borrow<py::object>(v);
   } else if constexpr (std::is_same_v<M, Eigen::Isometry3d>) {
@@ -145,11 +147,6 @@ template <typename M>
 M fromState(py::handle h, const std::string& what) {
   if constexpr (pickling::isArrayVector<M>()) {
     return pickling::arrayToVector<M>(h, what);
-  } else if constexpr (std::is_enum_v<M>) {
-    if (py::detail::get_type_info(typeid(M))) return h.cast<M>();
-    if (!py::isinstance<py::int_>(h) || py::isinstance<py::bool_>(h))
-      throw py::type_error(what + ": expected an int (enum value), got " + std::string(py::str(py::type::of(h))));
-    return static_cast<M>(h.cast<long long>());
   } else if constexpr (std::is_same_v<M, Eigen::Isometry3d>) {
     Eigen::Isometry3d T;
     T.matrix() = h.cast<Eigen::Matrix4d>();
