@@ -4,8 +4,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh -Ccmake.define.SCANALIGN_BUILD_TESTS=ON
-echo "[test] test-only Python packages (evo: reference ATE/RPE; clifford: reference CGA; hypothesis and atheris: fuzzing; OpenCV: hand-eye reference)"
-.venv/bin/python -m pip install -q "evo>=1.20" "clifford>=1.4" "eaik>=1.2" "ur-analytic-ik>=0.1" "hypothesis>=6.100" "atheris>=2.3" "opencv-python-headless>=4.8,<5"
+echo "[test] test-only Python packages (evo: reference ATE/RPE; clifford: reference CGA; hypothesis and atheris: fuzzing; OpenCV: hand-eye reference; Ray and pyarrow: batch runs)"
+.venv/bin/python -m pip install -q "evo>=1.20" "clifford>=1.4" "eaik>=1.2" "ur-analytic-ik>=0.1" "hypothesis>=6.100" "atheris>=2.3" "opencv-python-headless>=4.8,<5" "ray>=2.9" "pyarrow>=12"
 echo "[test] fetching test data (Debian packages libcgal-demo and python3-pcl)"
 .venv/bin/python -m scanalign.datasets fetch
 echo "[test] ctest"

@@ -22,4 +22,4 @@ def test_example_runs(example, tmp_path):
 
 
 def test_every_numbered_example_is_collected():
-    assert [p.name[:2] for p in EXAMPLES] == ["01", "02", "03", "04", "05"]
+    assert [p.name[:2] for p in EXAMPLES] == ["01", "02", "03", "04", "05", "06"]

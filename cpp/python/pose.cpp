@@ -565,7 +565,7 @@ void bindFindParts(py::module_& m) {
                      "refine the reported pose against the part's whole surface, cluster points onto the model within "
                      "polish_distance (True)")
       .def_readwrite("cbd_radius_fraction", &FindPartsSettings::cbd_radius_fraction,
-                     "CBD radius per cluster: max(the CBD radius, this x the cluster's size); 0 = fixed (0)")
+                     "CBD radius per part: max(the CBD radius, this x the part's size); 0 = fixed (0)")
       .def_readwrite("min_surface_coverage", &FindPartsSettings::min_surface_coverage,
                      "fraction of the cluster's points within polish_distance of the part's whole surface a "
                      "detection needs, else not_found (0.97; 0 = no check)")
@@ -635,7 +635,14 @@ void bindDescribe(py::module_& m) {
       py::arg("views"), py::arg("settings"),
       "Copies of the views with their CBD features computed (ModelView.cbd) with the settings estimate_pose, "
       "find_objects and find_parts use for these PoseSettings, so those calls skip that work (most of a pose's "
-      "time). find_parts with cbd_radius_fraction > 0 changes the radius per cluster and recomputes.");
+      "time). For find_parts pass part_pose_settings(views, find_parts_settings): with cbd_radius_fraction the "
+      "radius follows each part's size.");
+  m.def(
+      "part_pose_settings",
+      [](const std::vector<ModelView>& views, const FindPartsSettings& s) { return partPoseSettings(views, s); },
+      py::arg("views"), py::arg("settings"),
+      "The PoseSettings find_parts matches this part (its views) with: settings.pose with the part's CBD radius, "
+      "max(radius, cbd_radius_fraction x the part's size, m)");
 }
 
 void bindPipeline(py::module_& m) {

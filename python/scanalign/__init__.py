@@ -7,7 +7,9 @@ plane fits), ``cga``, ``cad``, ``cbd`` and ``pose`` (CAD-model pose), ``kinemati
 analytic IK of 6R arms), ``io``, ``tum``, ``trajectory`` and ``datasets`` (files and data),
 ``camera``, ``rendering``, ``parts`` and ``synthetic`` (the simulated eye-in-hand scanner),
 ``pipeline``, ``evaluation`` and ``mesh_metrics`` (the reconstruction job and its metrics),
-``se3``, ``plots`` and ``cli``. Each module's docstring describes it.
+``calibration``, ``grasp`` and ``pick`` (hand-eye, grasps, the pick pipeline), ``part_library``
+and ``batch`` (batch runs on a process pool or Ray), ``se3``, ``plots`` and ``cli``. Each
+module's docstring describes it.
 
 Units are metres and radians throughout.  A transform named ``T_a_b`` is a 4x4
 homogeneous matrix that maps coordinates expressed in frame ``b`` into frame ``a``
@@ -23,7 +25,8 @@ __version__ = "0.1.0"
 
 _SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "parts", "rendering", "camera",
                "trajectory", "tum", "synthetic", "cga", "kinematics", "cad", "cbd", "pose", "fitting", "segmentation",
-               "pipeline", "evaluation", "mesh_metrics", "plots", "se3", "cli", "calibration", "grasp")
+               "pipeline", "evaluation", "mesh_metrics", "plots", "se3", "cli", "calibration", "grasp", "pick",
+               "part_library", "batch")
 
 __all__ = ["__version__", *_SUBMODULES]
 

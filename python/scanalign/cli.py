@@ -484,6 +484,32 @@ def _add_pick_options(p: argparse.ArgumentParser, demo: bool) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bars")
 
 
+def batch_command(args: argparse.Namespace) -> int:
+    """``scanalign batch``: every job of a manifest on a process pool or Ray; exit status 1
+    when a job failed or crashed."""
+    from . import batch
+
+    jobs = batch.read_manifest(args.manifest)
+    if not args.quiet:
+        print(f"scanalign batch: {len(jobs)} jobs from {args.manifest} on {args.executor}")
+    result = batch.run_batch(jobs, args.out, executor=args.executor, workers=args.workers, address=args.address,
+                             threads_per_job=args.threads_per_job, retries=args.retries, progress=not args.quiet,
+                             plots=not args.no_plots)
+    s = batch.summarize(result)
+    print(f"  {s['executor']}: {s['jobs']} jobs ({s['skipped_as_done']} done before), status {s['status']}, "
+          f"{s['wall_seconds']:.1f} s" + (f", {s['jobs_per_minute']:.1f} jobs/min" if s["jobs_per_minute"] else ""))
+    for kind, k in s["kinds"].items():
+        extra = ", ".join(f"{key[:-7]} {v * (1000 if key.endswith('_m_median') else 1):.3g}"
+                          + (" mm" if key.endswith("_m_median") else " deg" if "deg" in key else "")
+                          for key, v in k.items() if key.endswith("_median") and key != "seconds_median")
+        print(f"  {kind}: {k['ok']}/{k['jobs']} ok, median {k['seconds_median']:.2f} s per job"
+              + (f"; medians: {extra}" if extra else ""))
+    for job_id, error in s["failures"].items():
+        print(f"  {job_id}: {error}", file=sys.stderr)
+    print("wrote " + ", ".join(str(p) for p in result.paths.values()))
+    return 0 if all(r["status"] == "ok" for r in result.records) else 1
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="scanalign", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -578,8 +604,25 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--icp-distance", type=float, default=0.01, help="ICP correspondence distance, m (0.01)")
     p.add_argument("--out", default="scanalign-pose", help="output folder (scanalign-pose)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p = sub.add_parser("batch", help="run a manifest of reconstruction, pose and pick jobs (process pool or Ray)",
+                       description="Runs every job of MANIFEST (YAML or CSV, see docs/batch.md) on a local process "
+                                   "pool or a Ray cluster, with the part library built once and shared, and writes "
+                                   "results.csv, results.parquet, summary.json and results.png into --out. A re-run "
+                                   "with the same --out skips the jobs already done. Exit status 1 when a job failed.")
+    p.add_argument("manifest", help="manifest file (.yaml/.yml or .csv)")
+    p.add_argument("--executor", choices=["local", "ray"], default="local", help="where the jobs run (local)")
+    p.add_argument("--address", help="Ray cluster address ('auto', 'ray://head:10001'); default: a local Ray "
+                                     "instance")
+    p.add_argument("--workers", type=int, help="parallel jobs (default: cores / --threads-per-job)")
+    p.add_argument("--threads-per-job", type=int, default=1, help="OpenMP threads (and Ray CPUs) per job (1)")
+    p.add_argument("--retries", type=int, default=1, help="times a failed or crashed job is tried again (1)")
+    p.add_argument("--out", default="scanalign-batch", help="output folder (scanalign-batch)")
+    p.add_argument("--no-plots", action="store_true", help="skip results.png")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     try:
+        if args.command == "batch":
+            return batch_command(args)
         if args.command == "ik":
             return ik_command(args)
         if args.command == "pose":
@@ -600,7 +643,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             register_demo(Path(args.out), seed=args.seed, noise=args.noise)
             return 0
         return register(args)
-    except (ValueError, TypeError, OSError, RuntimeError) as e:  # OSError: unreadable input, unwritable output
+    except (ValueError, TypeError, OSError, RuntimeError, ImportError) as e:  # OSError: unreadable input, unwritable output
         print(f"scanalign {args.command}: error: {e}", file=sys.stderr)
         return 2
 

@@ -69,7 +69,7 @@ class PickSettings:
     min_cluster_size: int = 300         #: smallest object cluster, points
     max_objects: int = 10               #: clusters matched, largest first
     cluster_voxel: float = 0.001        #: each cluster reduced to one point per voxel before its pose, m
-    #: CBD neighbourhood per cluster: max(6.3 mm, this x the cluster's size). Merged scans with
+    #: CBD neighbourhood per part: max(6.3 mm, this x the part's size). Merged scans with
     #: millimetre noise need a neighbourhood well above the noise on large parts (12.5 mm on
     #: the block) and a small one on small parts (6.3 mm on the standoff); see
     #: :func:`scanalign.pose.find_parts`.
@@ -350,7 +350,7 @@ def _parts(parts: Sequence[Any]) -> List[Any]:
 def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: Optional[np.ndarray] = None,
          T_flange_camera: Optional[np.ndarray] = None, joints: Optional[Union[str, Path]] = None, gripper: Any = None,
          q_current: Optional[Sequence[float]] = None, settings: Optional[PickSettings] = None,
-         progress: bool = True) -> PickResult:
+         progress: bool = True, library: Any = None) -> PickResult:
     """Scan, find every known part, and plan the joint targets to pick each one.
 
     Args:
@@ -370,6 +370,9 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
         q_current: (6,) the robot's joints now, rad (default the scan's last joints, else 0).
         settings: :class:`PickSettings`.
         progress: progress bars on stderr.
+        library: a :class:`scanalign.part_library.PartLibrary`: the views of the parts it
+            holds are taken from it instead of rendered (their descriptors are recomputed
+            when ``cbd_radius_fraction`` makes the CBD radius depend on the cluster).
 
     Returns:
         :class:`PickResult` (``save(out_dir)`` writes the files).
@@ -403,7 +406,8 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
         raise ValueError(f"settings.views must be 'upper' or 'all', got {s.views!r}")
     directions, _ = cad.tessellated_sphere(1)
     views = [i for i, d in enumerate(directions) if d[2] > 0] if s.views == "upper" else None
-    detections = pose.find_parts([p.mesh for p in part_list], points, symmetries=[p.symmetry for p in part_list],
+    models = [library[p.name].views if library is not None and p.name in library else p.mesh for p in part_list]
+    detections = pose.find_parts(models, points, symmetries=[p.symmetry for p in part_list],
                                  up=(0.0, 0.0, 1.0), table_threshold=s.table_threshold,
                                  cluster_tolerance=s.cluster_tolerance, min_cluster_size=s.min_cluster_size,
                                  max_objects=s.max_objects, voxel_size=s.cluster_voxel, views=views,

@@ -18,7 +18,7 @@ import numpy as np
 
 from .trajectory import Trajectory
 
-__all__ = ["plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory",
+__all__ = ["plot_batch", "plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory",
            "pose_overlay", "plot_pick"]
 
 PathLike = Union[str, os.PathLike]
@@ -448,4 +448,35 @@ def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
     ax2.set_title("top view (m, base frame)")
     ax2.legend(loc="best", fontsize=8)
     fig.suptitle(f"{robot.name}: joint targets at the chosen grasps")
+    return _save(fig, path, dpi)
+
+
+def plot_batch(records: Sequence[Mapping[str, Any]], path: PathLike, *, dpi: int = 110) -> Path:
+    """Distributions of a batch's results (:func:`scanalign.batch.run_batch` records): time per
+    job by kind, and the accuracy metrics that the jobs report (ATE RMSE, pose and TCP
+    errors, in mm / degrees), one histogram each; failed jobs are counted in the title."""
+    panels = [("seconds", "time per job (s)", 1.0), ("ate_rmse_m", "reconstruction ATE RMSE (mm)", 1000.0),
+              ("pose_error_max_m", "worst part pose error per job (mm)", 1000.0),
+              ("pose_error_max_deg", "worst part pose error per job (deg)", 1.0),
+              ("tcp_error_max_m", "worst grasp TCP error per job (mm)", 1000.0)]
+
+    def values(key: str, kind: str) -> np.ndarray:
+        v = np.array([r.get(key) for r in records if r.get("kind") == kind and r.get("status") == "ok"], dtype=float)
+        return v[np.isfinite(v)]
+
+    kinds = sorted({str(r.get("kind")) for r in records})
+    shown = [p for p in panels if any(values(p[0], k).size for k in kinds)] or panels[:1]
+    fig = _figure((4.2 * len(shown), 3.6))
+    for i, (key, label, scale) in enumerate(shown):
+        ax = fig.add_subplot(1, len(shown), i + 1)
+        for j, kind in enumerate(kinds):
+            v = values(key, kind) * scale
+            if v.size:
+                ax.hist(v, bins=min(30, max(5, v.size // 2)), alpha=0.6, color=f"C{j}",
+                        label=f"{kind} (n={v.size}, median {np.median(v):.3g})")
+        ax.set_xlabel(label)
+        ax.set_ylabel("jobs")
+        ax.legend(fontsize=7)
+    bad = sum(r.get("status") != "ok" for r in records)
+    fig.suptitle(f"batch: {len(records)} jobs, {bad} failed or crashed")
     return _save(fig, path, dpi)

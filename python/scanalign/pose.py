@@ -38,7 +38,7 @@ from ._arrays import as_points, as_transform, fields_of, set_fields
 __all__ = [
     "MotorEstimate", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag", "FlagAlignmentResult",
     "PclFeatureAlignmentResult", "PoseSettings", "PoseResult", "PoseCandidate", "ObjectPoses", "DetectionStatus",
-    "PartDetection", "PartDetections", "find_parts",
+    "PartDetection", "PartDetections", "find_parts", "find_parts_settings",
     "estimate_motor", "estimate_rigid_svd", "motor_to_matrix", "ransac_rigid_motion", "align_cbd",
     "normal_line_flag", "align_flags", "pcl_feature_alignment", "alignment_fitness", "estimate_pose",
     "find_objects", "write_pose_outputs", "METHODS", "THESIS_PCL_PRESET",
@@ -395,8 +395,10 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
             plane are dropped (a resting part cannot be in the table; ``math.inf``: no check).
         surface_polish: refine the reported pose against the part's whole surface (every
             view merged): each cluster point onto the model, within ``polish_distance``.
-        cbd_radius_fraction: CBD radius per cluster, ``max(radius, fraction x cluster size)``
-            (0: the fixed ``radius``; 0.15 suits merged scans of parts of 3 to 10 cm).
+        cbd_radius_fraction: CBD radius per part, ``max(radius, fraction x part size)`` (the
+            part's views together; 0: the fixed ``radius``; 0.15 suits merged scans of parts
+            of 3 to 10 cm). Tied to the part, its view descriptors are computed once
+            (:mod:`scanalign.part_library`).
         min_surface_coverage: fraction of a cluster's points within ``polish_distance`` of
             the part's whole surface a detection needs (0.97; 0: no check): rejects another
             part or a part of another size whose view alone still scores well.
@@ -410,16 +412,13 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
     """
     if isinstance(models, (str, bytes)) or not isinstance(models, Sequence) or len(models) == 0:
         raise ValueError("models: expected a non-empty list with one model per part")
-    s = _P.FindPartsSettings()
-    pcl = _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
-                          num_threads, pose_kwargs)
-    set_fields(s, dict(ambiguity_margin=ambiguity_margin, same_pose_angle=same_pose_angle,
-                       same_pose_distance=same_pose_distance, max_size_ratio=max_size_ratio,
-                       min_size_ratio=min_size_ratio, voxel_size=voxel_size, score_tie=score_tie,
-                       polish_distance=polish_distance, max_table_penetration=max_table_penetration,
-                       surface_polish=surface_polish, cbd_radius_fraction=cbd_radius_fraction,
-                       min_surface_coverage=min_surface_coverage),
-               "find_parts")
+    s, pcl = find_parts_settings(
+        method=method, max_objects=max_objects, table_threshold=table_threshold, cluster_tolerance=cluster_tolerance,
+        min_cluster_size=min_cluster_size, viewpoint=viewpoint, up=up, num_threads=num_threads,
+        ambiguity_margin=ambiguity_margin, same_pose_angle=same_pose_angle, same_pose_distance=same_pose_distance,
+        max_size_ratio=max_size_ratio, min_size_ratio=min_size_ratio, voxel_size=voxel_size, score_tie=score_tie,
+        polish_distance=polish_distance, max_table_penetration=max_table_penetration, surface_polish=surface_polish,
+        cbd_radius_fraction=cbd_radius_fraction, min_surface_coverage=min_surface_coverage, **pose_kwargs)
     pts = as_points(scene, "scene", np.dtype(np.float64))
     model_views = [_model_views(m, resolution, num_threads)[0] for m in models]
     found = _P.find_parts(model_views, pts, s, None if symmetries is None else list(symmetries),
@@ -427,6 +426,24 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
     for d in found.detections:
         d.pose.method = method
     return found
+
+
+def find_parts_settings(*, method: Method = "cbd", max_objects: int = 5, table_threshold: float = 0.005,
+                        cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
+                        viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
+                        num_threads: int = 0, **keywords: Any) -> Tuple[Any, Any]:
+    """``(FindPartsSettings, PCL settings or None)`` that :func:`find_parts` builds from these
+    keywords (its own, same defaults): e.g. to describe part views once with
+    ``_core.pose.part_pose_settings`` (see :mod:`scanalign.part_library`)."""
+    names = ("ambiguity_margin", "same_pose_angle", "same_pose_distance", "max_size_ratio", "min_size_ratio",
+             "voxel_size", "score_tie", "polish_distance", "max_table_penetration", "surface_polish",
+             "cbd_radius_fraction", "min_surface_coverage")
+    fields = {k: keywords.pop(k) for k in names if k in keywords}
+    s = _P.FindPartsSettings()
+    pcl = _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
+                          num_threads, keywords)
+    set_fields(s, fields, "find_parts")
+    return s, pcl
 
 
 def write_pose_outputs(model: object, scene: np.ndarray, result: PoseResult, prefix: Union[str, Path], *,

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <stdexcept>
 #include <string>
 
@@ -603,6 +604,13 @@ void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<P
 
 }  // namespace
 
+PoseSettings partPoseSettings(const std::vector<ModelView>& views, const FindPartsSettings& s) {
+  PoseSettings out = s.pose;
+  if (s.cbd_radius_fraction > 0)
+    out.cbd.cbd.radius = std::max(s.pose.cbd.cbd.radius, s.cbd_radius_fraction * partSize(views, {}).whole);
+  return out;
+}
+
 PartDetections findParts(const std::vector<std::vector<ModelView>>& models, const std::vector<PartSymmetry>& symmetries,
                          const CloudView<double>& scene, const FindPartsSettings& s, const std::vector<int>& view_ids,
                          const CoarseAligner& aligner, const PoseProgress& progress) {
@@ -627,6 +635,8 @@ PartDetections findParts(const std::vector<std::vector<ModelView>>& models, cons
   // Every view of each part merged (not only the ids tried): the whole surface, for the table
   // check (a few thousand points bound its lowest point to well under a millimetre) and the
   // final polish.
+  std::vector<PoseSettings> part_settings;
+  for (const auto& views : models) part_settings.push_back(partPoseSettings(views, s));
   std::vector<PartSurface> coarse_surfaces, surfaces;
   for (const auto& views : models) {
     coarse_surfaces.push_back(partSurface(views, 4000));
@@ -645,22 +655,35 @@ PartDetections findParts(const std::vector<std::vector<ModelView>>& models, cons
     if (s.voxel_size > 0) object = voxelGrid(CloudView<double>(object.data(), idx.size()), s.voxel_size).points;
     const CloudView<double> cloud(object.data(), object.size() / 3);
     d.size = principalExtent(cloud);
-    FindPartsSettings sc = s;  // this cluster's settings: its CBD radius may follow its size
-    sc.pose.cbd.cbd.radius = std::max(s.pose.cbd.cbd.radius, s.cbd_radius_fraction * d.size);
-    const PreparedScene prepared = prepareScene(cloud, sc.pose);  // once for every part
+    // Normals once per cluster; CBD features once per distinct part radius.
+    PoseSettings base = s.pose;
+    base.cbd.cbd.radius = part_settings.front().cbd.cbd.radius;
+    const PreparedScene prepared = prepareScene(cloud, base);
+    std::map<double, PreparedScene> by_radius;
     std::vector<bool> tried(models.size());
     for (std::size_t p = 0; p < models.size(); ++p) {
       const auto tp = std::chrono::steady_clock::now();
       PoseResult r;
       r.message = sizeMismatch(d.size, sizes[p], s);
       tried[p] = r.message.empty();
-      if (tried[p]) r = poseInPrepared(models[p], ids[p], prepared, sc.pose, aligner, progress);
+      const PoseSettings& ps = part_settings[p];
+      if (tried[p]) {
+        const double radius = ps.cbd.cbd.radius;
+        if (radius != base.cbd.cbd.radius && ps.method == CoarseMethod::Cbd && !by_radius.count(radius)) {
+          PreparedScene other = prepared;
+          other.cbd = computeCbd(other.cloud(), cbdSettings(ps).cbd);
+          by_radius.emplace(radius, std::move(other));
+        }
+        const PreparedScene& scene_p = radius == base.cbd.cbd.radius || ps.method != CoarseMethod::Cbd
+                                           ? prepared : by_radius.at(radius);
+        r = poseInPrepared(models[p], ids[p], scene_p, ps, aligner, progress);
+      }
       if (tried[p] && out.table.success() && std::isfinite(s.max_table_penetration))
-        dropPosesThroughTable(r, coarse_surfaces[p], out.table.plane.model, sc);
+        dropPosesThroughTable(r, coarse_surfaces[p], out.table.plane.model, s);
       r.seconds = since(tp);
       d.parts.push_back(std::move(r));
     }
-    judge(d, tried, sym, models, surfaces, prepared, sc);
+    judge(d, tried, sym, models, surfaces, prepared, s);
     d.seconds = since(tc);
     out.detections.push_back(std::move(d));
   }

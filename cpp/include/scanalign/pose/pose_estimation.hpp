@@ -201,8 +201,12 @@ struct FindPartsSettings {
   /// (same_pose_angle, same_pose_distance). A same-part rival is polished the same way before
   /// it may make the detection ambiguous.
   bool surface_polish = true;
-  /// CBD neighbourhood radius per cluster as a fraction of the cluster's size: radius =
-  /// max(pose.cbd.cbd.radius, cbd_radius_fraction x size). 0 (default) keeps the fixed radius.
+  /// CBD neighbourhood radius per part as a fraction of the part's size (its views together,
+  /// PartSize::whole): radius = max(pose.cbd.cbd.radius, cbd_radius_fraction x size). 0
+  /// (default) keeps the fixed radius. The hypothesis "this cluster is part p" fixes the scale
+  /// the descriptor should have; tied to the part, the model's descriptors depend on the part
+  /// alone and are computed once (partPoseSettings, describeModelViews: a part library),
+  /// while the cluster is described once per distinct radius.
   /// On merged scans with millimetre noise the descriptor needs a neighbourhood well above
   /// the noise on large parts (12.5 mm on the 85 mm block: the thesis's 6.3 mm lost it in one
   /// SR300-like scan in eight) but a small part needs a small one (6.3 mm on the 37 mm
@@ -218,6 +222,11 @@ struct FindPartsSettings {
   double min_surface_coverage = 0.97;
 };
 void validate(const FindPartsSettings& settings);
+
+/// The pose settings findParts matches part `views` with: settings.pose with the CBD radius of
+/// this part (cbd_radius_fraction). Describe a part's views with them (describeModelViews) and
+/// findParts reuses the descriptors.
+PoseSettings partPoseSettings(const std::vector<ModelView>& views, const FindPartsSettings& settings);
 
 /// One object cluster and the part found in it.
 struct PartDetection {
