@@ -19,14 +19,13 @@ A worker that dies (a crash in native code, the OOM killer) must not take the ba
 from __future__ import annotations
 
 import concurrent.futures as cf
-import math
 import multiprocessing
 import os
 import platform
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
-from .jobs import RECORD_FIELDS, Job, run_job
+from .jobs import Job, empty_record, run_job
 
 __all__ = ["EXECUTORS", "LocalExecutor", "RayExecutor", "crashed_record"]
 
@@ -40,9 +39,8 @@ _worker_library: Any = None  # the part library of this worker process (local po
 
 def crashed_record(job: Job, message: str) -> Dict[str, Any]:
     """The record of a job whose worker died."""
-    record: Dict[str, Any] = {k: math.nan for k in RECORD_FIELDS}
-    record.update(id=job.id, kind=job.kind, source=job.source, robot=job.robot, noise=job.noise, seed=job.seed,
-                  frames=job.n_frames, status="crashed", error=message, attempts=1, seconds=math.nan, worker="")
+    record = empty_record(job)
+    record.update(status="crashed", error=message)
     return record
 
 

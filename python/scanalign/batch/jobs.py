@@ -36,7 +36,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 __all__ = ["DEFAULT_PARTS", "Job", "KINDS", "LIBRARY_SETTINGS", "POSE_SETTINGS", "RECORD_FIELDS",
-           "SYNTHETIC_RECONSTRUCTION", "run_job"]
+           "SYNTHETIC_RECONSTRUCTION", "TEXT_FIELDS", "empty_record", "run_job"]
 
 KINDS = ("reconstruct", "pose", "pick")
 #: Parts of the built-in cell, used by pose and pick jobs that name none.
@@ -62,6 +62,20 @@ RECORD_FIELDS = (
     # per part, as JSON: {part: {status, pose_m, pose_deg[, tcp_m, tcp_deg]}}
     "detail",
 )
+#: Columns holding text; the others hold numbers (NaN where they do not apply).
+TEXT_FIELDS = frozenset({"id", "kind", "source", "robot", "noise", "status", "error", "worker", "detail"})
+#: Columns holding counts (integers; empty where they do not apply).
+COUNT_FIELDS = frozenset({"seed", "frames", "attempts", "merged", "model_points", "parts", "found", "picked"})
+
+
+def empty_record(job: "Job") -> Dict[str, Any]:
+    """A record of ``job`` with nothing measured yet: text fields empty, numbers NaN."""
+    record: Dict[str, Any] = {k: "" if k in TEXT_FIELDS else math.nan for k in RECORD_FIELDS}
+    record.update(id=job.id, kind=job.kind, source=job.source, robot=job.robot, noise=job.noise, seed=job.seed,
+                  frames=job.n_frames, attempts=1)
+    return record
+
+
 #: find_parts keywords of the part library and of every pose and pick job: the pick
 #: pipeline's CBD radius per part (:attr:`scanalign.pick.PickSettings.cbd_radius_fraction`).
 LIBRARY_SETTINGS = {"cbd_radius_fraction": 0.15}
@@ -136,9 +150,8 @@ def run_job(job: Job, library: Any = None) -> Dict[str, Any]:
     :class:`scanalign.part_library.PartLibrary` holding the job's parts (pose and pick
     jobs; without one, or for a part it lacks, the views are rendered and described here).
     """
-    record: Dict[str, Any] = {k: math.nan for k in RECORD_FIELDS}
-    record.update(id=job.id, kind=job.kind, source=job.source, robot=job.robot, noise=job.noise, seed=job.seed,
-                  frames=job.n_frames, status="ok", error="", attempts=1, worker=f"{platform.node()}:{os.getpid()}")
+    record = empty_record(job)
+    record.update(status="ok", worker=f"{platform.node()}:{os.getpid()}")
     t0 = time.perf_counter()
     try:
         record.update(_RUNNERS[job.kind](job, library))

@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Union
 
 from .executors import EXECUTORS, LocalExecutor, RayExecutor, Runner
-from .jobs import KINDS, LIBRARY_SETTINGS, RECORD_FIELDS, Job, run_job
+from .jobs import COUNT_FIELDS, KINDS, LIBRARY_SETTINGS, RECORD_FIELDS, TEXT_FIELDS, Job, run_job
 
 __all__ = ["BatchResult", "read_manifest", "run_batch"]
 
@@ -145,6 +145,15 @@ def _journal(out: Path) -> Dict[str, Dict[str, Any]]:
     return last
 
 
+def _end_torn_line(journal: Any) -> None:
+    """Starts a new line when an interrupted run left a record half written: the next record
+    must not be glued to it (the torn line is then ignored by _journal)."""
+    if journal.tell() > 0:
+        journal.seek(journal.tell() - 1)
+        if journal.read(1) != "\n":
+            journal.write("\n")
+
+
 def _library(jobs: Sequence[Job], out: Path, progress: bool) -> Any:
     """The part library for the pose and pick jobs: out/parts.npz when it holds their parts
     described with LIBRARY_SETTINGS, else built (once) and saved there."""
@@ -222,8 +231,9 @@ def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "lo
     attempts = {j.id: int(last.get(j.id, {}).get("attempts", 0)) if j.id in last else 0 for j in todo}
     first = {j.id: attempts[j.id] for j in todo}
     try:
-        with open(out / "records.jsonl", "a", encoding="utf-8") as journal, \
+        with open(out / "records.jsonl", "a+", encoding="utf-8") as journal, \
                 tqdm(total=len(todo), desc="batch", unit="job", file=sys.stderr, disable=not progress) as bar:
+            _end_torn_line(journal)
             queue = list(todo)
             while queue:
                 retry = []
@@ -267,9 +277,17 @@ def _write_tables(records: List[Dict[str, Any]], out: Path) -> Dict[str, Path]:
         import pyarrow.parquet as pq
     except ImportError:  # the CSV holds the same table
         return paths
-    columns = {k: [r.get(k) for r in records] for k in RECORD_FIELDS}
+    def column(k: str) -> Any:  # typed: a custom runner's record may leave fields out
+        if k in TEXT_FIELDS:
+            return pa.array(["" if r.get(k) is None else str(r.get(k)) for r in records], pa.string())
+        values = [None if v is None or v == "" or (isinstance(v, float) and math.isnan(v)) else v
+                  for v in (r.get(k) for r in records)]
+        if k in COUNT_FIELDS:
+            return pa.array([None if v is None else int(v) for v in values], pa.int64())
+        return pa.array([math.nan if v is None else float(v) for v in values], pa.float64())
+
     paths["parquet"] = out / "results.parquet"
-    pq.write_table(pa.table(columns), paths["parquet"])
+    pq.write_table(pa.table({k: column(k) for k in RECORD_FIELDS}), paths["parquet"])
     return paths
 
 
