@@ -139,8 +139,11 @@ def test_surface_coverage_rejects_a_part_of_another_size(ur5_cell):
     block = pick.load_part("block")
     big = io.Mesh(np.asarray(block.mesh.vertices) * 1.6, block.mesh.faces)
     views = [4, 5, 9, 11, 12, 13, 14, 15, 22, 23, 24, 25, 27, 32, 33, 34, 35]
-    kw = dict(up=(0, 0, 1), table_threshold=0.004, min_cluster_size=300, voxel_size=0.001, views=views,
-              cbd_radius_fraction=0.15, max_objects=1)
+    # Both parts at the radius 0.15 x the cluster's size (12.9 mm): with the big block's own radius
+    # (0.15 x its size, 20 mm) no pose of it passes even fitness and coverage, so the surface check
+    # would not be reached; at this radius one does, and only the surface check rejects it.
+    kw = dict(up=(0, 0, 1), table_threshold=0.004, min_cluster_size=300, voxel_size=0.001, views=views, max_objects=1)
+    kw["radius"] = 0.15 * pose.find_parts([block.mesh], result.points, **kw).detections[0].size
     loose = pose.find_parts([big], result.points, min_surface_coverage=0.0, **kw).detections[0]
     strict = pose.find_parts([big], result.points, **kw).detections[0]
     true = pose.find_parts([block.mesh], result.points, **kw).detections[0]
