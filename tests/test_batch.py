@@ -47,6 +47,16 @@ def plain(records):
     return [{k: "nan" if isinstance(v, float) and math.isnan(v) else v for k, v in r.items()} for r in records]
 
 
+def threads_runner(job: Job, library):
+    """Reports the OpenMP thread count the job would run with."""
+    from threadpoolctl import threadpool_info
+
+    from scanalign import _core  # noqa: F401 -- its libgomp
+
+    counts = [i["num_threads"] for i in threadpool_info() if i["user_api"] == "openmp"]
+    return {"id": job.id, "kind": job.kind, "status": "ok", "error": "", "seconds": 0.0, "threads": counts}
+
+
 def comparable(records):
     return [{k: v for k, v in r.items() if k not in TIMING} for r in records]
 
@@ -137,6 +147,17 @@ def test_ray_gives_the_serial_table(serial, corrupt, ray_instance, tmp_path):
     result = batch.run_batch(jobs, tmp_path / "out", executor="ray", retries=0, progress=False, plots=False)
     assert same_table(result.records, serial)
     assert result.executor.startswith("Ray, 1 node(s), 2 CPU(s)")
+
+
+@pytest.mark.parametrize("executor", ["local", "ray"])
+def test_each_job_runs_with_threads_per_job_openmp_threads(executor, tmp_path, request):
+    if executor == "ray":
+        request.getfixturevalue("ray_instance").cloudpickle.register_pickle_by_value(sys.modules[__name__])
+    for threads in (1, 2):
+        result = batch.run_batch([Job(f"t{k}", "reconstruct") for k in range(2)], tmp_path / f"{threads}",
+                                 executor=executor, workers=1, threads_per_job=threads, progress=False, plots=False,
+                                 runner=threads_runner)
+        assert [set(r["threads"]) for r in result.records] == [{threads}] * 2, result.records
 
 
 # --------------------------------------------------------------------------- isolation, retries, resume
@@ -256,10 +277,12 @@ def test_manifest_yaml_and_csv(tmp_path):
         "jobs:\n"
         "  - {id: rec, kind: reconstruct, seeds: 3, frames: 12}\n"
         "  - {id: one, kind: pose, source: scans/a.ply, parts: [block, parts/mine.json], seed: 4, noise: sr300}\n"
-        "  - {id: picks, kind: pick, seeds: [5, 9], robot: kr6_r900_sixx, settings: {pixel_stride: 3}}\n")
+        "  - {id: picks, kind: pick, seeds: [5, 9], robot: kr6_r900_sixx, settings: {pixel_stride: 3}}\n"
+        "  - {id: real, kind: pick, source: scans/s1, settings: {joints: scans/s1/joints.csv, hand_eye: /etc/T.txt}}\n")
     jobs = batch.read_manifest(tmp_path / "m.yaml")
-    assert [j.id for j in jobs] == ["rec-s0", "rec-s1", "rec-s2", "one", "picks-s5", "picks-s9"]
-    assert [j.seed for j in jobs] == [0, 1, 2, 4, 5, 9] and jobs[0].noise == "zivid" and jobs[3].noise == "sr300"
+    assert [j.id for j in jobs] == ["rec-s0", "rec-s1", "rec-s2", "one", "picks-s5", "picks-s9", "real"]
+    assert jobs[6].settings == {"joints": str(tmp_path / "scans/s1/joints.csv"), "hand_eye": "/etc/T.txt"}
+    assert [j.seed for j in jobs] == [0, 1, 2, 4, 5, 9, 0] and jobs[0].noise == "zivid" and jobs[3].noise == "sr300"
     assert jobs[3].source == str(tmp_path / "scans/a.ply") and jobs[3].parts == ("block", str(tmp_path / "parts/mine.json"))
     assert jobs[4].settings == {"pixel_stride": 3} and jobs[4].n_frames == 24 and jobs[0].n_frames == 12
     (tmp_path / "m.csv").write_text('id,kind,seeds,parts,settings\nrec,reconstruct,2,,\n'

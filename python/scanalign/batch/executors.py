@@ -111,7 +111,8 @@ def _run_ray(job: Job, library: Any, threads: int, runner: Runner) -> Dict[str, 
 class RayExecutor:
     """Tasks on a Ray cluster: ``ray.init()`` starts a local instance (``workers`` CPUs)
     when ``address`` is None, else connects to the cluster at ``address`` (``"auto"``, or
-    ``"ray://host:10001"``). Each task reserves ``threads_per_job`` CPUs."""
+    ``"ray://host:10001"``). Each task reserves ``threads_per_job`` CPUs; ``workers`` caps
+    the tasks in flight (None: as many as the cluster's CPUs take)."""
 
     def __init__(self, address: Optional[str] = None, workers: Optional[int] = None, threads_per_job: int = 1):
         try:
@@ -120,6 +121,7 @@ class RayExecutor:
             raise ImportError("the ray executor needs Ray: pip install 'scanalign[ray]' (or pip install ray)") from None
         self.ray = ray
         self.threads = threads_per_job
+        self.workers = workers  # at most this many tasks in flight (None: as many as the cluster takes)
         self._started = not ray.is_initialized()
         if self._started:
             kw: Dict[str, Any] = dict(include_dashboard=False, log_to_driver=False, configure_logging=False)
@@ -139,8 +141,13 @@ class RayExecutor:
             ) -> Iterator[Tuple[Job, Dict[str, Any]]]:
         ray = self.ray
         ref = ray.put(library)  # once: every task gets this reference, not a copy per task
-        pending = {self._task.remote(job, ref, self.threads, runner): job for job in jobs}
-        while pending:
+        queue = list(jobs)
+        limit = self.workers or len(queue)
+        pending: Dict[Any, Job] = {}
+        while queue or pending:
+            while queue and len(pending) < limit:
+                job = queue.pop(0)
+                pending[self._task.remote(job, ref, self.threads, runner)] = job
             done, _ = ray.wait(list(pending), num_returns=1)
             job = pending.pop(done[0])
             try:

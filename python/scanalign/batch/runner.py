@@ -28,6 +28,7 @@ from .jobs import COUNT_FIELDS, KINDS, LIBRARY_SETTINGS, RECORD_FIELDS, TEXT_FIE
 
 __all__ = ["BatchResult", "read_manifest", "run_batch"]
 
+_SETTING_FILES = {"joints", "hand_eye", "robot_base"}  # files a pick job's settings name
 _JOB_KEYS = {"id", "kind", "source", "robot", "noise", "seed", "frames", "parts", "settings", "save"}
 
 
@@ -43,6 +44,9 @@ def _jobs_from_entry(entry: Dict[str, Any], defaults: Dict[str, Any], where: str
     for key in ("source", "save"):  # relative paths are relative to the manifest
         if e.get(key) and e[key] != "synthetic" and not Path(e[key]).is_absolute():
             e[key] = str(root / e[key])
+    if isinstance(e.get("settings"), dict):
+        e["settings"] = {k: str(root / v) if k in _SETTING_FILES and isinstance(v, str) and not Path(v).is_absolute()
+                         else v for k, v in e["settings"].items()}
     parts = e.get("parts", ())
     e["parts"] = tuple(p if "/" not in str(p) and not str(p).endswith((".json", ".yaml", ".yml"))
                        or Path(p).is_absolute() else str(root / p) for p in ([parts] if isinstance(parts, str) else parts))
@@ -194,8 +198,9 @@ def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "lo
         out: output folder; when it holds a journal from an earlier run, the jobs recorded
             ``ok`` there are skipped (resume).
         executor: ``"local"`` (a process pool) or ``"ray"``.
-        workers: local: processes (default cores / threads_per_job); ray without an address:
-            the local instance's CPUs / threads_per_job.
+        workers: local: processes (default cores / threads_per_job); ray: at most this many
+            jobs at once (default: as many as the cluster's CPUs take; without an address the
+            local instance gets workers x threads_per_job CPUs).
         address: Ray cluster address (``"auto"``, ``"ray://head:10001"``); None starts a
             local Ray instance.
         threads_per_job: OpenMP threads of each job, and CPUs it reserves (Ray).
