@@ -51,6 +51,14 @@ def test_one_input(data: bytes) -> None:
     for name, column in fields.items():
         assert column.shape[0] == header_.points, (name, column.shape, header_.points)
     if all(axis in fields for axis in "xyz"):
+        if any(fields[axis].ndim != 1 for axis in "xyz"):  # COUNT > 1: not one coordinate per point
+            try:
+                io.read_pcd_points(path)
+            except ValueError as e:
+                assert "COUNT 1" in str(e) and str(path) in str(e), e
+                _fuzzlib.outcome("coordinates with COUNT > 1")
+                return
+            raise AssertionError("read_pcd_points accepted a coordinate field with COUNT > 1")
         points = io.read_pcd_points(path)
         assert points.ndim == 2 and points.shape[1] == 3 and np.isfinite(points).all()
 
