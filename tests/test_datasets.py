@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
+import tarfile
 from pathlib import Path
 
 import numpy as np
@@ -209,59 +210,237 @@ def fake_apt_get(bin_dir: Path, calls: Path) -> None:
 
 def test_missing_apt_get_raises(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache"))
+    monkeypatch.delenv(datasets.OFFLINE_ENV, raising=False)
     monkeypatch.setenv("PATH", str(tmp_path))  # nothing on PATH
     with pytest.raises(datasets.DatasetUnavailableError, match="apt-get update") as info:
-        datasets.pcl_cloud_names()
-    assert "not available" in str(info.value) and "python3-pcl" in str(info.value)
+        datasets.fetch_all()
+    assert "not available" in str(info.value) and "libcgal-demo" in str(info.value)
+    assert datasets.OFFLINE_ENV in str(info.value)  # how to supply the file by hand
 
 
 def test_failing_apt_get_raises(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     calls = tmp_path / "calls.txt"
     fake_apt_get(tmp_path, calls)
     monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache"))
+    monkeypatch.delenv(datasets.OFFLINE_ENV, raising=False)
     monkeypatch.setenv("PATH", f"{tmp_path}{os.pathsep}{os.environ['PATH']}")
     with pytest.raises(datasets.DatasetUnavailableError, match="apt-get update") as info:
-        datasets.load_cgal_mesh("fandisk")
+        datasets.fetch_all()
     assert "Unable to locate package" in str(info.value)
-    assert calls.read_text().split() == ["download", "libcgal-demo"]
-    assert not list((tmp_path / "cache" / "debs").iterdir())  # no partial download left
+    # The pinned version is asked for, and nothing partial is left behind.
+    assert calls.read_text().split() == ["download", "libcgal-demo=5.5.1-2"]
+    assert not list((tmp_path / "cache" / "debs").iterdir())
 
 
-@pytest.mark.skipif(shutil.which("dpkg-deb") is None, reason="needs dpkg-deb")
-def test_cached_deb_is_reused(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    # Build a tiny stand-in for python3-pcl holding one cloud, and put it in the cache.
-    tree = tmp_path / "tree"
+def test_pinned_files_are_well_formed() -> None:
+    assert set(datasets.PINNED_FILES) == {datasets.CGAL_PACKAGE, datasets.PCL_PACKAGE, datasets.SMALL_GICP}
+    for pin in datasets.PINNED_FILES.values():
+        assert len(pin.sha256) == 64 and int(pin.sha256, 16) >= 0
+        assert pin.url.startswith("https://")
+    for key in (datasets.CGAL_PACKAGE, datasets.PCL_PACKAGE):  # the Debian pool address of the pinned .deb
+        pin = datasets.PINNED_FILES[key]
+        assert pin.url.rsplit("/", 1)[1].replace("%7e", "~").replace("%2b", "+") == pin.filename
+        assert pin.fetched_with.startswith(f"apt-get download {key}")
+
+
+def make_deb(path: Path, package: str, files: dict) -> Path:
+    """A tiny stand-in ``.deb`` of ``package`` holding ``files`` ({relative path: bytes})."""
+    tree = path.parent / f"tree-{path.name}"
     (tree / "DEBIAN").mkdir(parents=True)
     (tree / "DEBIAN" / "control").write_text(
-        "Package: python3-pcl\nVersion: 1.0\nArchitecture: all\n"
+        f"Package: {package}\nVersion: 1.0\nArchitecture: all\n"
         "Maintainer: test <test@example.com>\nDescription: test package\n"
     )
-    clouds = tree / "usr/share/doc/python3-pcl/examples/tutorials"
-    clouds.mkdir(parents=True)
-    (clouds / "tiny.pcd").write_text(
-        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
-        "VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n0 0 0\nnan nan nan\n0.1 0.2 0.3\n"
-    )
+    for name, data in files.items():
+        (tree / name).parent.mkdir(parents=True, exist_ok=True)
+        (tree / name).write_bytes(data)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    subprocess.run(["dpkg-deb", "--root-owner-group", "--build", str(tree), str(path)],
+                   check=True, capture_output=True)
+    shutil.rmtree(tree)
+    return path
+
+
+TINY_PCD = (b"VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 3\nHEIGHT 1\n"
+            b"VIEWPOINT 0 0 0 1 0 0 0\nPOINTS 3\nDATA ascii\n0 0 0\nnan nan nan\n0.1 0.2 0.3\n")
+
+
+def pin(monkeypatch: pytest.MonkeyPatch, key: str, path: Path) -> None:
+    """Pins ``path`` (name and sha256) as the file of ``key``."""
+    old = datasets.PINNED_FILES[key]
+    monkeypatch.setitem(datasets.PINNED_FILES, key, datasets.PinnedFile(
+        path.name, datasets.sha256_file(path), old.url, old.fetched_with))
+
+
+@pytest.fixture
+def fake_pcl_deb(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> Path:
+    """A pinned stand-in for python3-pcl holding one cloud (outside the cache), an empty
+    cache, no offline folder, and an ``apt-get`` that records calls and fails."""
+    if shutil.which("dpkg-deb") is None:
+        pytest.skip("needs dpkg-deb")
+    deb = make_deb(tmp_path / "files" / "python3-pcl_1.0_all.deb", "python3-pcl",
+                   {"usr/share/doc/python3-pcl/examples/tutorials/tiny.pcd": TINY_PCD})
+    pin(monkeypatch, datasets.PCL_PACKAGE, deb)
+    fake_apt_get(tmp_path, tmp_path / "calls.txt")
+    monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache"))
+    monkeypatch.delenv(datasets.OFFLINE_ENV, raising=False)
+    monkeypatch.setenv("PATH", f"{tmp_path}{os.pathsep}{os.environ['PATH']}")
+    return deb
+
+
+def test_cached_deb_is_reused(fake_pcl_deb: Path, tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     (cache / "debs").mkdir(parents=True)
-    subprocess.run(
-        ["dpkg-deb", "--root-owner-group", "--build", str(tree),
-         str(cache / "debs" / "python3-pcl_1.0_all.deb")],
-        check=True, capture_output=True,
-    )
-    calls = tmp_path / "calls.txt"
-    fake_apt_get(tmp_path, calls)
-    monkeypatch.setenv("SCANALIGN_DATA", str(cache))
-    monkeypatch.setenv("PATH", f"{tmp_path}{os.pathsep}{os.environ['PATH']}")
+    shutil.copy(fake_pcl_deb, cache / "debs")
 
     assert datasets.pcl_cloud_names() == ["tiny"]
     path = datasets.pcl_cloud_path("tiny")
     assert path.is_relative_to(cache / "packages" / "python3-pcl")
     expected = np.array([[0, 0, 0], [0.1, 0.2, 0.3]], dtype=np.float32)
     np.testing.assert_array_equal(datasets.load_pcl_cloud("tiny"), expected)
-    assert not calls.exists()  # apt-get was never needed
+    assert not (tmp_path / "calls.txt").exists()  # apt-get was never needed
     with pytest.raises(ValueError, match="did you mean tiny"):
         datasets.pcl_cloud_path("tiyn")
+    # The unpacked tree records the .deb it came from.
+    marker = cache / "packages" / "python3-pcl" / ".complete"
+    assert marker.read_text().strip() == datasets.sha256_file(fake_pcl_deb)
+
+
+def test_missing_dataset_names_the_fetch_command(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """No loader downloads: each raises an error naming the fetch command and the offline
+    folder, and runs no subprocess (no apt-get, no pip)."""
+    monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache"))
+    monkeypatch.delenv(datasets.OFFLINE_ENV, raising=False)
+
+    def no_subprocess(*args, **kwargs):
+        raise AssertionError(f"a loader ran {args}")
+
+    monkeypatch.setattr(datasets.subprocess, "run", no_subprocess)
+    for load, pinned in ((lambda: datasets.load_cgal_mesh("fandisk"), datasets.CGAL_PACKAGE),
+                         (datasets.cgal_mesh_names, datasets.CGAL_PACKAGE),
+                         (lambda: datasets.load_pcl_cloud("milk"), datasets.PCL_PACKAGE),
+                         (datasets.pcl_cloud_names, datasets.PCL_PACKAGE),
+                         (datasets.small_gicp_lidar_pair, datasets.SMALL_GICP)):
+        with pytest.raises(datasets.DatasetUnavailableError) as info:
+            load()
+        message = str(info.value)
+        assert "`python -m scanalign.datasets fetch`" in message
+        assert datasets.PINNED_FILES[pinned].filename in message and datasets.OFFLINE_ENV in message
+        assert datasets.PINNED_FILES[pinned].sha256 in message and datasets.PINNED_FILES[pinned].url in message
+    assert not (tmp_path / "cache" / "debs").exists() or not list((tmp_path / "cache" / "debs").iterdir())
+
+
+def test_corrupted_cached_deb_is_detected(fake_pcl_deb: Path, tmp_path: Path,
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    cached = tmp_path / "cache" / "debs" / fake_pcl_deb.name
+    cached.parent.mkdir(parents=True)
+    cgal = shutil.copy(fake_pcl_deb, cached.parent / "libcgal-demo_1.0_all.deb")  # a good CGAL stand-in
+    pin(monkeypatch, datasets.CGAL_PACKAGE, Path(cgal))
+    data = bytearray(fake_pcl_deb.read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    cached.write_bytes(bytes(data))
+    expected, actual = datasets.sha256_file(fake_pcl_deb), datasets.sha256_file(cached)
+    for call in (datasets.pcl_cloud_names, datasets.fetch_all):
+        with pytest.raises(datasets.DatasetIntegrityError) as info:
+            call()
+        message = str(info.value)
+        assert str(cached) in message and expected in message and actual in message
+        assert "`python -m scanalign.datasets fetch`" in message
+    assert not (tmp_path / "cache" / "packages" / "python3-pcl").exists()  # nothing unpacked from it
+
+    # A good copy unpacks; `fetch` checks the cached .deb again even then.
+    shutil.copy(fake_pcl_deb, cached)
+    assert datasets.pcl_cloud_names() == ["tiny"]
+    cached.write_bytes(bytes(data))
+    with pytest.raises(datasets.DatasetIntegrityError, match=actual):
+        datasets.fetch_all()
+
+
+def test_mismatching_download_is_not_kept(fake_pcl_deb: Path, tmp_path: Path,
+                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """An apt-get that 'downloads' another file under the pinned name: refused, not cached."""
+    calls = tmp_path / "calls.txt"
+    cgal = datasets.PINNED_FILES[datasets.CGAL_PACKAGE].filename
+    script = tmp_path / "apt-get"  # CGAL's stand-in is fine, python3-pcl's is not
+    script.write_text(f"#!/bin/sh\necho \"$@\" >> {calls}\n"
+                      f"case \"$2\" in python3-pcl*) echo other > '{fake_pcl_deb.name}';; "
+                      f"*) cp '{fake_pcl_deb}' '{cgal}';; esac\n")
+    script.chmod(0o755)
+    monkeypatch.setitem(datasets.PINNED_FILES, datasets.CGAL_PACKAGE, datasets.PinnedFile(
+        cgal, datasets.sha256_file(fake_pcl_deb), "https://example.org/cgal.deb", "apt-get download libcgal-demo"))
+    with pytest.raises(datasets.DatasetIntegrityError) as info:
+        datasets.fetch_all()
+    message = str(info.value)
+    assert "as downloaded by `apt-get download python3-pcl" in message
+    assert datasets.sha256_file(fake_pcl_deb) in message
+    assert len(calls.read_text().splitlines()) == 2
+    assert (tmp_path / "cache" / "debs" / cgal).exists()
+    assert not (tmp_path / "cache" / "debs" / fake_pcl_deb.name).exists()
+    assert sorted(p.name for p in (tmp_path / "cache" / "debs").iterdir()) == [cgal]  # no scratch left
+
+
+def test_offline_folder_is_used(fake_pcl_deb: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    offline = tmp_path / "offline"
+    offline.mkdir()
+    shutil.copy(fake_pcl_deb, offline)
+    monkeypatch.setenv(datasets.OFFLINE_ENV, str(offline))
+    # A loader copies the verified file into the cache; apt-get is never run.
+    np.testing.assert_array_equal(datasets.load_pcl_cloud("tiny"), np.float32([[0, 0, 0], [0.1, 0.2, 0.3]]))
+    assert (tmp_path / "cache" / "debs" / fake_pcl_deb.name).read_bytes() == fake_pcl_deb.read_bytes()
+    assert not (tmp_path / "calls.txt").exists()
+
+    # A corrupt file in the offline folder is refused, naming it.
+    monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache2"))
+    (offline / fake_pcl_deb.name).write_bytes(b"not a deb")
+    with pytest.raises(datasets.DatasetIntegrityError) as info:
+        datasets.pcl_cloud_names()
+    assert str(offline / fake_pcl_deb.name) in str(info.value)
+    assert datasets.sha256_file(fake_pcl_deb) in str(info.value)
+    assert not (tmp_path / "cache2" / "debs" / fake_pcl_deb.name).exists()
+
+
+def make_small_gicp_sdist(path: Path) -> Path:
+    """A stand-in small_gicp sdist with a 3-point LiDAR pair and its pose."""
+    root = path.parent / "sdist-tree" / "small_gicp-1.0.1" / "data"
+    root.mkdir(parents=True)
+    pts = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0]])
+    io.write_ply(root / "source.ply", pts)
+    io.write_ply(root / "target.ply", pts + 1.0)
+    np.savetxt(root / "T_target_source.txt", np.eye(4))
+    with tarfile.open(path, "w:gz") as tar:
+        tar.add(root.parent, arcname="small_gicp-1.0.1")
+    return path
+
+
+def test_small_gicp_sdist_offline_and_corrupted(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    offline = tmp_path / "offline"
+    offline.mkdir()
+    sdist = make_small_gicp_sdist(offline / datasets.SMALL_GICP_SDIST)
+    pin(monkeypatch, datasets.SMALL_GICP, sdist)
+    monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache"))
+    monkeypatch.setenv(datasets.OFFLINE_ENV, str(offline))
+    monkeypatch.setattr(datasets, "_pip_download", lambda scratch: pytest.fail("pip was run"))
+    source, target, T = datasets.fetch_small_gicp() and datasets.small_gicp_lidar_pair()
+    assert source.shape == (3, 3) and np.array_equal(T, np.eye(4))
+    np.testing.assert_array_equal(target, source + 1.0)
+    cached = tmp_path / "cache" / "sdists" / datasets.SMALL_GICP_SDIST
+    assert cached.exists()
+    # A corrupted cached sdist: `fetch` names it with both hashes.
+    cached.write_bytes(cached.read_bytes()[:-10])
+    with pytest.raises(datasets.DatasetIntegrityError) as info:
+        datasets.fetch_small_gicp()
+    assert str(cached) in str(info.value) and datasets.sha256_file(sdist) in str(info.value)
+    assert datasets.sha256_file(cached) in str(info.value)
+
+
+def test_fetch_command_reports_a_mismatch(fake_pcl_deb: Path, tmp_path: Path,
+                                          capsys: pytest.CaptureFixture) -> None:
+    cached = tmp_path / "cache" / "debs" / datasets.PINNED_FILES[datasets.CGAL_PACKAGE].filename
+    cached.parent.mkdir(parents=True)
+    cached.write_bytes(b"corrupt")
+    assert datasets.main(["fetch"]) == 1
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "sha256 mismatch" in err and str(cached) in err
 
 
 # --------------------------------------------------------------------------- real data
@@ -332,6 +511,7 @@ def test_cgal_fandisk(dataset_cache: Path) -> None:
 @pytest.mark.data
 def test_small_gicp_lidar_pair() -> None:
     try:
+        datasets.fetch_small_gicp()  # explicit: the loader itself never downloads
         source, target, T = datasets.small_gicp_lidar_pair()
     except datasets.DatasetUnavailableError as exc:
         if os.environ.get("CI") or os.environ.get("SCANALIGN_REQUIRE_DATA"):
