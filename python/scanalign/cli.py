@@ -22,7 +22,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from . import se3
+from . import config as _cfg, se3
 
 
 def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
@@ -510,6 +510,20 @@ def batch_command(args: argparse.Namespace) -> int:
     return 0 if all(r["status"] == "ok" for r in result.records) else 1
 
 
+def _record_config(sub, args: argparse.Namespace, rc: int) -> int:
+    """Writes the settings a run used beside its outputs (``config.yaml`` in ``--out``;
+    ``register``: ``NAME.config.yaml`` beside ``--out NAME.ply``, none without ``--out``);
+    returns ``rc``."""
+    if args.command not in _cfg.COMMANDS or not args.out:
+        return rc
+    out = Path(args.out)
+    path = out.with_suffix(".config.yaml") if args.command == "register" else out / "config.yaml"
+    _cfg.write_effective(sub.choices[args.command], args.command, args, path)
+    if args.command != "register" and not getattr(args, "quiet", False):  # register's stdout is JSON
+        print(f"  wrote {path} (the settings of this run: --config {path} repeats it)")
+    return rc
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="scanalign", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -619,16 +633,34 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--out", default="scanalign-batch", help="output folder (scanalign-batch)")
     p.add_argument("--no-plots", action="store_true", help="skip results.png")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p = sub.add_parser("dump-config", help="print every setting of a command with its default and unit (YAML)",
+                       description="Prints every setting of COMMAND as YAML, with its default and a comment "
+                                   "giving the option, unit and meaning. Edit it and pass it back with "
+                                   "'scanalign COMMAND ... --config FILE'; flags given on the command line override "
+                                   "the file. Every run of these commands writes the settings it used beside its "
+                                   "outputs (config.yaml in --out; register: NAME.config.yaml beside --out).")
+    p.add_argument("config_command", metavar="COMMAND", choices=_cfg.COMMANDS,
+                   help="one of " + ", ".join(_cfg.COMMANDS))
+    for name in _cfg.COMMANDS:
+        _cfg.add_config_option(sub.choices[name], name)
+    try:  # --config FILE: the file's settings become the command's defaults
+        _cfg.use_config_file(sub, sys.argv[1:] if argv is None else argv)
+    except _cfg.ConfigFileError as e:
+        print(f"scanalign {e.command}: error: {e}", file=sys.stderr)
+        return 2
     args = parser.parse_args(argv)
     try:
+        if args.command == "dump-config":
+            print(_cfg.dump(sub.choices[args.config_command], args.config_command), end="")
+            return 0
         if args.command == "batch":
             return batch_command(args)
         if args.command == "ik":
             return ik_command(args)
         if args.command == "pose":
-            return pose_command(args)
+            return _record_config(sub, args, pose_command(args))
         if args.command == "pick":
-            return pick_command(args)
+            return _record_config(sub, args, pick_command(args))
         if args.command == "demo" and args.pick:
             ns = argparse.Namespace(demo=True, robot=args.robot, noise=args.noise or "sr300", seed=args.seed or 0,
                                     q_current=None, out=args.out if args.out != "scanalign-demo" else "scanalign-pick",
@@ -636,13 +668,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
             return pick_command(ns)
         if args.command in ("demo", "reconstruct"):
             _run_reconstruction("builtin" if args.command == "demo" else args.source, args)
-            return 0
+            return _record_config(sub, args, 0)
         if args.command == "synth":
             return synth(args)
         if args.command == "register-demo":
             register_demo(Path(args.out), seed=args.seed, noise=args.noise)
             return 0
-        return register(args)
+        return _record_config(sub, args, register(args))
     except (ValueError, TypeError, OSError, RuntimeError, ImportError) as e:  # OSError: unreadable input, unwritable output
         print(f"scanalign {args.command}: error: {e}", file=sys.stderr)
         return 2
