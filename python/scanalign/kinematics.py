@@ -63,7 +63,7 @@ from . import _core
 __all__ = [
     "Robot", "IKSolutions", "IKSolution", "IKBatch", "JointTrajectory", "IKConstruction", "STATUS_NAMES",
     "SINGULAR_NAMES", "STEP_NAMES", "CONFIGS", "BUILTIN_ROBOTS", "config_index",
-    "kuka_kr6_r900_sixx", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis"]
+    "kuka_kr6_r900_sixx", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis", "robot_from_urdf"]
 
 _K = _core.kinematics
 
@@ -74,6 +74,12 @@ IKBatch = _K.IKBatch
 JointTrajectory = _K.JointTrajectory
 IKConstruction = _K.IKConstruction
 config_index = _K.config_index
+
+from .urdf import robot_from_urdf  # noqa: E402  (imports yourdfpy only when called)
+
+# Robot is the bound C++ class; the URDF front end is Python (it needs a URDF parser), attached
+# here so that it reads like the other constructors: Robot.from_urdf(path, base_link, tip_link).
+Robot.from_urdf = staticmethod(robot_from_urdf)
 
 #: Status names by code (C++ ``IKStatus``): 0 ok, 1 outside_limits, 2 unreachable, 3 invalid_input.
 STATUS_NAMES: Tuple[str, ...] = _K.STATUS_NAMES
