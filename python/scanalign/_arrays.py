@@ -5,17 +5,99 @@ from __future__ import annotations
 import functools
 import os
 import re
-from typing import Optional
+from typing import Optional, Tuple
 
 import numpy as np
 
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 
 
+# --- Open3D and trimesh objects, duck-typed: neither package is imported here ---------------
+
+_FOREIGN = ("open3d", "trimesh")
+
+
+def is_foreign(obj: object) -> bool:
+    """Whether ``obj`` is an Open3D or trimesh object (by its type's module)."""
+    return type(obj).__module__.startswith(_FOREIGN) and not isinstance(obj, np.ndarray)
+
+
+def _tensor(t: object) -> np.ndarray:
+    """An Open3D ``core.Tensor`` (any device) as a NumPy array."""
+    return t.cpu().numpy() if hasattr(t, "cpu") else np.asarray(t)
+
+
+def foreign_kind(obj: object) -> Optional[str]:
+    """``"cloud"`` (Open3D ``PointCloud``, legacy or ``open3d.t``; ``trimesh.PointCloud``),
+    ``"mesh"`` (Open3D ``TriangleMesh``, legacy or ``open3d.t``; ``trimesh.Trimesh``), ``"array"``
+    (an Open3D ``Vector3dVector`` / ``Tensor``) or None for anything else."""
+    if not is_foreign(obj):
+        return None
+    kind = {"PointCloud": "cloud", "TriangleMesh": "mesh", "Trimesh": "mesh", "Tensor": "array"}.get(type(obj).__name__)
+    return kind or ("array" if type(obj).__name__.startswith("Vector") else None)
+
+
+def _origin(obj: object) -> str:
+    """"o3d.t" (Open3D tensor geometry), "o3d" (legacy Open3D) or "trimesh"."""
+    module = type(obj).__module__
+    return "trimesh" if module.startswith("trimesh") else "o3d.t" if ".t." in module else "o3d"
+
+
+def foreign_points(obj: object, name: str = "points") -> np.ndarray:
+    """The points of an Open3D / trimesh cloud or the vertices of a mesh, as a NumPy array
+    (float64 for legacy Open3D and trimesh, the tensor's dtype for ``open3d.t``).
+    TypeError for another Open3D / trimesh type."""
+    kind, origin = foreign_kind(obj), _origin(obj)
+    if kind == "array":
+        return _tensor(obj)
+    if kind in ("cloud", "mesh") and origin == "o3d.t":
+        return _tensor(obj.point.positions if kind == "cloud" else obj.vertex.positions)
+    if kind in ("cloud", "mesh"):
+        return np.asarray(obj.points if kind == "cloud" and origin == "o3d" else obj.vertices)
+    raise TypeError(f"{name}: expected points, got {type(obj).__module__}.{type(obj).__name__}")
+
+
+def foreign_attribute(obj: object, what: str) -> Optional[np.ndarray]:
+    """Per-point ``"normals"`` or ``"colors"`` (float in [0, 1] for Open3D, uint8 RGB for
+    trimesh) of an Open3D cloud (legacy or tensor) or a trimesh cloud when it has them, else None."""
+    if foreign_kind(obj) != "cloud":
+        return None
+    origin = _origin(obj)
+    if origin == "o3d.t":
+        return _tensor(obj.point[what]) if what in obj.point else None
+    if origin == "o3d":
+        return np.asarray(getattr(obj, what)) if getattr(obj, f"has_{what}")() else None
+    c = np.asarray(obj.colors) if what == "colors" else np.empty(0)  # trimesh: RGBA, empty when unset
+    return c[:, :3] if c.size else None
+
+
+def mesh_arrays(obj: object) -> Optional[Tuple[np.ndarray, np.ndarray]]:
+    """``(vertices (V, 3) float64, faces (F, 3) int64)`` of an Open3D (legacy or tensor) or
+    trimesh triangle mesh, None for anything else."""
+    if foreign_kind(obj) != "mesh":
+        return None
+    origin = _origin(obj)
+    if origin == "o3d.t":
+        v, f = _tensor(obj.vertex.positions), _tensor(obj.triangle.indices)
+    else:
+        v, f = np.asarray(obj.vertices), np.asarray(obj.triangles if origin == "o3d" else obj.faces)
+    return np.asarray(v, dtype=np.float64), np.asarray(f, dtype=np.int64).reshape(-1, 3)
+
+
+def native(obj: object) -> object:
+    """``obj`` with an Open3D / trimesh geometry replaced by its points (mesh: vertices) as a
+    NumPy array; anything else unchanged."""
+    return foreign_points(obj) if foreign_kind(obj) is not None else obj
+
+
 def as_points(array: object, name: str, dtype: Optional[np.dtype] = None) -> np.ndarray:
     """``array`` as an (N, 3) float32/float64 array the C++ core can view, without a copy when
-    its layout allows (e.g. ``a[:, :3]`` of an (N, 8) PCL-layout array). TypeError for a
-    non-float array (integer, bool, object, complex), ValueError for another shape."""
+    its layout allows (e.g. ``a[:, :3]`` of an (N, 8) PCL-layout array). An Open3D point cloud
+    (legacy or ``open3d.t``) or triangle mesh, or a trimesh ``PointCloud`` / ``Trimesh``, gives
+    its points (vertices). TypeError for a non-float array (integer, bool, object, complex),
+    ValueError for another shape."""
+    if not isinstance(array, np.ndarray) and is_foreign(array):
+        array = foreign_points(array, name)
     a = np.asarray(array)
     if a.dtype not in _FLOATS:
         raise TypeError(f"{name}: expected a float32 or float64 array, got dtype {a.dtype}")
@@ -120,6 +202,8 @@ def explain_bad_arguments(module: object) -> None:
     def wrap(fn, label=None):
         @functools.wraps(fn)
         def call(*args, **kwargs):
+            if any(map(is_foreign, args)) or any(map(is_foreign, kwargs.values())):  # Open3D / trimesh objects
+                args, kwargs = tuple(map(native, args)), {k: native(v) for k, v in kwargs.items()}
             try:
                 return fn(*args, **kwargs)
             except TypeError as e:

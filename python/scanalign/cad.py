@@ -21,7 +21,7 @@ from typing import List, Optional, Sequence, Tuple
 import numpy as np
 
 from . import _core
-from ._arrays import set_fields
+from ._arrays import mesh_arrays, set_fields
 
 __all__ = ["tessellated_sphere", "ModelView", "ModelViewSettings", "render_views", "view_intrinsics",
            "DEFAULT_VIEW_ANGLE"]
@@ -47,7 +47,9 @@ def view_intrinsics(resolution: int, view_angle: float = DEFAULT_VIEW_ANGLE):
 
 
 def _mesh_arrays(mesh: object) -> Tuple[np.ndarray, np.ndarray]:
-    if isinstance(mesh, tuple) and len(mesh) == 2:
+    if (foreign := mesh_arrays(mesh)) is not None:  # an Open3D or trimesh mesh
+        vertices, faces = foreign
+    elif isinstance(mesh, tuple) and len(mesh) == 2:
         vertices, faces = mesh
     else:
         vertices, faces = getattr(mesh, "vertices", None), getattr(mesh, "faces", None)
@@ -67,8 +69,8 @@ def render_views(mesh: object, *, resolution: int = 150, view_angle: float = DEF
     """The partial clouds of a model seen from the vertices of a tessellated sphere.
 
     Args:
-        mesh: a :class:`scanalign.io.Mesh` or ``(vertices (V, 3), faces (F, 3))``, metres, in
-            the model frame.
+        mesh: a :class:`scanalign.io.Mesh`, ``(vertices (V, 3), faces (F, 3))`` or an Open3D /
+            trimesh triangle mesh, metres, in the model frame.
         resolution: image width and height, pixels (the thesis uses 90 to 400).
         view_angle: field of view, rad (PCL's default 57 degrees).
         level: subdivisions of the icosahedron; 1 gives the thesis's 42 views.

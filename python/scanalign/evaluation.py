@@ -23,6 +23,7 @@ from typing import Any, Dict, Optional, Tuple, Union
 import numpy as np
 
 from . import _core, se3
+from ._arrays import mesh_arrays
 from ._core.evaluation import ErrorStats
 from .mesh_metrics import MeshDistanceIndex, MeshDistanceStats, mesh_distance_stats, point_to_mesh_distance
 from .trajectory import Trajectory, associate_timestamps
@@ -315,7 +316,7 @@ def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike,
 
     The defaults are the TUM benchmark's: ATE after rigid alignment, RPE over every pair
     (i, i + 1 frame).  ``points`` (reconstructed cloud, in the mesh's frame) and ``mesh``
-    ``(vertices, faces)`` add a ``"cloud_to_mesh_m"`` entry.  All lengths are in metres,
+    ``(vertices, faces)`` (or an Open3D / trimesh mesh) add a ``"cloud_to_mesh_m"`` entry.  All lengths are in metres,
     angles in degrees.  Keys: ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe``
     (:meth:`RpeResult.as_dict`), optionally ``cloud_to_mesh_m``.
     """
@@ -326,5 +327,6 @@ def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike,
     rpe = relative_pose_error(est, ref, delta=rpe_delta, delta_unit=rpe_delta_unit, all_pairs=rpe_all_pairs)
     out: Dict[str, Any] = {"poses": len(est), "ate": ate.as_dict(), "rpe": rpe.as_dict()}
     if mesh is not None:
+        mesh = mesh_arrays(mesh) or mesh  # or an Open3D / trimesh mesh
         out["cloud_to_mesh_m"] = mesh_distance_stats(points, mesh[0], mesh[1]).as_dict()
     return out

@@ -39,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from . import _core, io
-from ._arrays import require_memory
+from ._arrays import mesh_arrays, require_memory
 
 __all__ = ["builtin_mesh", "builtin_object", "sample_mesh", "normalize_mesh", "BUILTIN_PARTS"]
 
@@ -78,7 +78,8 @@ def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) 
     in [0, 1)); zero-area triangles are never drawn.
 
     Args:
-        mesh_or_vertices_faces: a :class:`scanalign.io.Mesh` or ``(vertices (V, 3), faces (F, 3))``.
+        mesh_or_vertices_faces: a :class:`scanalign.io.Mesh`, ``(vertices (V, 3), faces (F, 3))`` or an
+            Open3D / trimesh triangle mesh.
         n_points: number of points (>= 0).
         seed: random seed; equal seeds give equal samples.
 
@@ -91,7 +92,7 @@ def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) 
         ValueError: bad shapes, negative or memory-exceeding ``n_points``, a mesh of zero area.
     """
     m = mesh_or_vertices_faces
-    mesh = m if isinstance(m, io.Mesh) else io.Mesh(*m)
+    mesh = m if isinstance(m, io.Mesh) else io.Mesh(*(mesh_arrays(m) or m))  # or an Open3D / trimesh mesh
     if n_points < 0:
         raise ValueError(f"n_points must be non-negative, got {n_points}")
     require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws

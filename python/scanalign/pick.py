@@ -40,7 +40,7 @@ from typing import Any, Dict, List, Optional, Sequence, Union
 import numpy as np
 
 from . import grasp as _grasp, io, se3
-from ._arrays import as_points
+from ._arrays import as_points, foreign_kind
 
 __all__ = ["PickSettings", "PartPick", "PickResult", "pick", "scan_model", "plan_picks", "read_joint_log", "load_part",
            "placed_parts", "print_picks", "BUILTIN_PART_FILES"]
@@ -244,14 +244,15 @@ def _frames_with_robot_poses(frames: Sequence[Any], robot: Any, T_flange_camera:
 
 def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.ndarray] = None,
                joints: Optional[Union[str, Path]] = None, settings: Optional[PickSettings] = None,
-               progress: bool = True) -> tuple:
+               progress: bool = True, on_frame: Any = None) -> tuple:
     """The scene in the robot's base frame, metres: ``(points (N, 3), reconstruction or None)``.
 
     ``scene`` is a :class:`scanalign.synthetic.SyntheticScan` (its robot and hand-eye
     transform are used unless given), a list of :class:`scanalign.camera.Frame` or a TUM
     RGB-D folder (with ``joints``, a joint log, unless the frames carry their joints), a
     :class:`scanalign.pipeline.ReconstructionResult` built in the base frame, a PLY / PCD
-    cloud file or an (N, 3) array already in the base frame."""
+    cloud file or an (N, 3) array already in the base frame (or an Open3D / trimesh cloud).
+    ``on_frame``: the per-frame hook of :func:`scanalign.pipeline.reconstruct`."""
     from . import pipeline, tum
 
     s = settings or PickSettings()
@@ -259,7 +260,7 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
         return np.asarray(scene.model.points, dtype=np.float64), scene
     if isinstance(scene, (str, Path)) and not tum.is_tum_folder(scene):
         return io.read_cloud(scene)[0].astype(np.float64), None
-    if isinstance(scene, np.ndarray):
+    if isinstance(scene, np.ndarray) or foreign_kind(scene) == "cloud":
         return as_points(scene, "scene", np.dtype(np.float64)), None
     frames = scene.frames if hasattr(scene, "frames") else scene
     if isinstance(scene, (str, Path)):
@@ -274,7 +275,7 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
     placed = _frames_with_robot_poses(list(frames), robot, se3.require_rigid(T_flange_camera, "T_flange_camera"), log)
     rec = pipeline.reconstruct(placed, model_frame="base", initial_guess="reference", pixel_stride=s.pixel_stride,
                                max_depth=s.max_depth, model_voxel_size=s.voxel, progress=progress,
-                               icp=dict(max_correspondence_distance=s.icp_distance))
+                               icp=dict(max_correspondence_distance=s.icp_distance), on_frame=on_frame)
     return np.asarray(rec.model.points, dtype=np.float64), rec
 
 
@@ -350,7 +351,7 @@ def _parts(parts: Sequence[Any]) -> List[Any]:
 def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: Optional[np.ndarray] = None,
          T_flange_camera: Optional[np.ndarray] = None, joints: Optional[Union[str, Path]] = None, gripper: Any = None,
          q_current: Optional[Sequence[float]] = None, settings: Optional[PickSettings] = None,
-         progress: bool = True, library: Any = None) -> PickResult:
+         progress: bool = True, library: Any = None, viewer: Any = None) -> PickResult:
     """Scan, find every known part, and plan the joint targets to pick each one.
 
     Args:
@@ -373,6 +374,8 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
         library: a :class:`scanalign.part_library.PartLibrary`: the views of the parts it
             holds are taken from it instead of rendered (their descriptors are recomputed
             when ``cbd_radius_fraction`` makes the CBD radius depend on the cluster).
+        viewer: a :class:`scanalign.viewer.Viewer`: the scan streamed while it is reconstructed
+            (the arm drawn is the picking robot unless the viewer has one), then the result.
 
     Returns:
         :class:`PickResult` (``save(out_dir)`` writes the files).
@@ -398,7 +401,10 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
         if size > reach:
             raise ValueError(f"part {p.name!r} is {size:.3f} m across, larger than the {arm.name}'s workspace "
                              f"(sum of its link lengths {reach:.3f} m): check the part's scale (metres)")
-    points, rec = scan_model(scene, arm, T_flange_camera=T_flange_camera, joints=joints, settings=s, progress=progress)
+    if viewer is not None and viewer.robot is None:
+        viewer.robot = arm
+    points, rec = scan_model(scene, arm, T_flange_camera=T_flange_camera, joints=joints, settings=s, progress=progress,
+                             on_frame=None if viewer is None else viewer.on_frame)
     if len(points) == 0:
         raise ValueError("the scene has no points")
     t1 = time.perf_counter()
@@ -419,7 +425,11 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     picks = plan_picks(detections, part_list, arm, gripper=gripper, q_current=q_current, planner=s.planner)
     t3 = time.perf_counter()
     seconds = {"scan": t1 - t0, "detect": t2 - t1, "plan": t3 - t2, "total": t3 - t0}
-    return PickResult(picks, points, detections, arm, np.asarray(q_current, dtype=np.float64), part_list, seconds, rec)
+    q_current = np.asarray(q_current, dtype=np.float64)
+    result = PickResult(picks, points, detections, arm, q_current, part_list, seconds, rec)
+    if viewer is not None:
+        viewer.log_pick(result)
+    return result
 
 
 def placed_parts(result: PickResult, samples: int = 5000) -> List[tuple]:

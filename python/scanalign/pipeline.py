@@ -208,6 +208,7 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
                 registration: str = "scanalign", model_frame: str = "auto", initial_guess: str = "previous",
                 min_depth: float = 0.1, max_depth: float = 2.0, pixel_stride: int = 1, depth_filter: Optional[Any] = None,
                 progress: Union[bool, Callable[[FrameReport], None]] = True, evaluate: bool = True,
+                on_frame: Optional[Callable[[Frame, FrameReport, Reconstructor], None]] = None,
                 **overrides: Any) -> ReconstructionResult:
     """Reconstructs a sequence of RGB-D frames frame-to-model (Algorithm 1 of the eye-in-hand paper).
 
@@ -231,6 +232,8 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
         progress: show a progress bar (True), none (False), or a callable per record.
         evaluate: compute ATE/RPE against the reference poses when available; when that
             fails (a reference that never moves), ``metrics["evaluation_error"]`` says why.
+        on_frame: called after each frame with ``(frame, record, reconstructor)`` (e.g.
+            :meth:`scanalign.viewer.Viewer.on_frame`: ``reconstructor.model`` is the model so far).
 
     Returns:
         :class:`ReconstructionResult`.
@@ -289,6 +292,8 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
                 bar.update(1)
             if callback is not None:
                 callback(record)
+            if on_frame is not None:
+                on_frame(frame, record, rec)
     finally:
         if bar is not None:
             bar.close()

@@ -33,7 +33,7 @@ from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _core, cbd as _cbd
-from ._arrays import as_points, as_transform, fields_of, set_fields
+from ._arrays import as_points, as_transform, fields_of, foreign_kind, set_fields
 
 __all__ = [
     "MotorEstimate", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag", "FlagAlignmentResult",
@@ -220,7 +220,7 @@ def _model_views(model: object, resolution: int, num_threads: int) -> Tuple[List
         return model, False
     if isinstance(model, (str, Path)):
         model = io.read_mesh(model)
-    if isinstance(model, np.ndarray):
+    if isinstance(model, np.ndarray) or foreign_kind(model) == "cloud":  # or an Open3D / trimesh cloud
         p = as_points(model, "model", np.dtype(np.float64))
         if len(p) == 0:
             raise ValueError("model: empty cloud")
@@ -462,7 +462,7 @@ def write_pose_outputs(model: object, scene: np.ndarray, result: PoseResult, pre
     scene = as_points(scene, "scene", np.dtype(np.float64))
     if isinstance(model, (str, Path)):
         model = _io.read_mesh(model)
-    if isinstance(model, np.ndarray):
+    if isinstance(model, np.ndarray) or foreign_kind(model) == "cloud":
         mp = as_points(model, "model", np.dtype(np.float64))
     else:
         mp, _ = sample_mesh(model, samples, seed=0)

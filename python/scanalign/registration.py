@@ -25,7 +25,7 @@ from typing import Literal, Optional, Sequence, Union
 import numpy as np
 
 from . import _core
-from ._arrays import as_points, as_transform, set_fields
+from ._arrays import as_points, as_transform, foreign_attribute, set_fields
 
 Box = _core.registration.Box
 IcpSettings = _core.registration.IcpSettings
@@ -65,7 +65,8 @@ class Icp(_core.registration.Icp):
     Args:
         target: (N, 3) float32/float64 target points, metres, target frame.
         target_normals: (N, 3) unit normals of the target (required for point-to-plane);
-            points whose normal is non-finite or zero are left out.
+            points whose normal is non-finite or zero are left out. Default: the normals of
+            an Open3D ``target`` cloud that has them.
         settings: an :class:`IcpSettings`; keyword overrides are applied on top.
 
     The tree keeps the target's dtype (float32 if both arrays are: half the memory,
@@ -75,6 +76,8 @@ class Icp(_core.registration.Icp):
 
     def __init__(self, target: np.ndarray, target_normals: Optional[np.ndarray] = None,
                  settings: Optional[IcpSettings] = None, **overrides: object) -> None:
+        if target_normals is None:  # an Open3D cloud's own normals, when it has them
+            target_normals = foreign_attribute(target, "normals")
         n = None if target_normals is None else as_points(target_normals, "target_normals")
         super().__init__(as_points(target, "target"), n, make_settings(settings, **overrides))
 
@@ -98,7 +101,8 @@ def icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndar
     Args:
         source: (N, 3) float32/float64 points in the source frame, metres.
         target: (M, 3) points in the target frame, metres.
-        target_normals: (M, 3) unit target normals; required for point-to-plane.
+        target_normals: (M, 3) unit target normals; required for point-to-plane (default: those
+            of an Open3D ``target`` cloud that has them).
         init: initial ``T_target_source`` (4x4 rigid), identity by default.
         max_correspondence_distance: metres; farther pairs are rejected [0.05].
         box: optional box in the source camera frame (:class:`Box` or 6 numbers, metres).
@@ -146,6 +150,7 @@ def pcl_icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.
     s = _settings(settings, overrides, max_correspondence_distance=max_correspondence_distance, box=box,
                   max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
                   fitness_epsilon=fitness_epsilon)
+    target_normals = foreign_attribute(target, "normals") if target_normals is None else target_normals
     nrm = None if target_normals is None else as_points(target_normals, "target_normals", _F32)
     return _core.registration.pcl_icp(as_points(source, "source", _F32), as_points(target, "target", _F32), nrm,
                                       np.eye(4) if init is None else as_transform(init), s, variant)

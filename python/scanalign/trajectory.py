@@ -5,6 +5,9 @@ into the trajectory's world frame; metres) with timestamps in seconds.  The TUM 
 text format has one pose per line, ``timestamp tx ty tz qx qy qz qw``, where (tx, ty, tz)
 is the camera centre in the world frame and (qx, qy, qz, qw) the unit quaternion of the
 camera's orientation in the world frame (Hamilton convention, scalar last).
+:class:`Trajectory` also reads and writes the KITTI odometry format (:meth:`Trajectory.write_kitti`)
+and EuRoC MAV CSV (:meth:`Trajectory.write_euroc`), and converts to and from ``evo``
+(:meth:`Trajectory.to_evo`, optional package).
 :func:`associate_timestamps` is the package's one rule for pairing two timestamp streams
 (depth with colour images, an estimate with its ground truth).
 """
@@ -15,7 +18,7 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import List, Optional, Sequence, Tuple, Union
+from typing import Any, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -112,6 +115,93 @@ class Trajectory:
     def write_tum(self, path: PathLike, header: Optional[str] = None) -> None:
         """:func:`write_tum_trajectory`."""
         write_tum_trajectory(path, self, header)
+
+    def write_kitti(self, path: PathLike, times_path: Optional[PathLike] = None) -> None:
+        """Writes the KITTI odometry format: per pose the first three rows of ``T_world_camera``,
+        12 numbers row-major (full double precision). KITTI keeps no timestamps in it: they go
+        to ``times_path`` (one time in seconds per line, KITTI's ``times.txt``) when given."""
+        with atomic_open(path, "w", encoding="utf-8") as f:
+            f.writelines(" ".join(f"{v:.17g}" for v in T[:3].ravel()) + "\n" for T in self.poses)
+        if times_path is not None:
+            with atomic_open(times_path, "w", encoding="utf-8") as f:
+                f.writelines(f"{t:.17g}\n" for t in self.timestamps)
+
+    @classmethod
+    def read_kitti(cls, path: PathLike, times_path: Optional[PathLike] = None) -> "Trajectory":
+        """Reads a KITTI pose file (12 numbers per line, see :meth:`write_kitti`); timestamps
+        from ``times_path`` (one per line), else the frame numbers 0, 1, 2, ...
+
+        Raises:
+            TumFormatError (a ValueError): a line without 12 finite numbers, or a times file
+                with another number of lines (file and line named).
+        """
+        values, _, _ = read_tum_rows(path, 12, "12 values (a 3x4 pose, row-major)")
+        times = np.arange(len(values), dtype=np.float64)
+        if times_path is not None:
+            times = read_tum_rows(times_path, 1, "1 value (a time in seconds)")[0].reshape(-1)
+            if len(times) != len(values):
+                raise TumFormatError(f"{len(times)} times for {len(values)} poses in {os.fspath(path)}", times_path)
+        poses = np.tile(np.eye(4), (len(values), 1, 1))
+        poses[:, :3] = values.reshape(-1, 3, 4)
+        return cls(times, poses)
+
+    def write_euroc(self, path: PathLike) -> None:
+        """Writes the EuRoC MAV ground-truth CSV: ``#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],
+        p_RS_R_z [m],q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []`` (integer nanoseconds; position and
+        Hamilton quaternion, scalar first, of the camera in the world frame)."""
+        whole = np.floor(self.timestamps)
+        ns = [int(a) * 10**9 + int(round(b)) for a, b in zip(whole, (self.timestamps - whole) * 1e9)]
+        q = quaternion_from_matrix(self.rotations)[:, [3, 0, 1, 2]]
+        with atomic_open(path, "w", encoding="utf-8") as f:
+            f.write(",".join(["#timestamp [ns]", *(f"p_RS_R_{a} [m]" for a in "xyz"),
+                              *(f"q_RS_{a} []" for a in "wxyz")]) + "\n")
+            rows = np.c_[self.positions, q]
+            f.writelines(f"{t}," + ",".join(f"{v:.17g}" for v in row) + "\n" for t, row in zip(ns, rows))
+
+    @classmethod
+    def read_euroc(cls, path: PathLike) -> "Trajectory":
+        """Reads a EuRoC MAV pose CSV (``vicon0/data.csv``: 8 columns, or the 17 of
+        ``state_groundtruth_estimate0/data.csv``, whose velocities and biases are ignored):
+        nanosecond timestamps, position, quaternion ``w x y z``.
+
+        Raises:
+            TumFormatError (a ValueError): a malformed line (file and line named).
+        """
+        ns, values = [], []
+        for n, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
+            if not line.strip() or line.lstrip().startswith("#"):
+                continue
+            parts = line.split(",")
+            try:
+                ns.append(int(parts[0]))
+                row = [float(v) for v in parts[1:8]]
+            except ValueError:
+                row = []
+            if len(row) != 7 or not all(map(math.isfinite, row)) or not any(row[3:]):
+                raise TumFormatError(f"expected timestamp [ns], 3 position and 4 quaternion values (w x y z), got "
+                                     f"{line.strip()!r}", path, n)
+            values.append(row)
+        values = np.array(values, dtype=np.float64).reshape(-1, 7)
+        t = np.array([a // 10**9 + (a % 10**9) * 1e-9 for a in ns], dtype=np.float64)
+        return cls(t, pose_from_tum(values[:, [0, 1, 2, 4, 5, 6, 3]]))
+
+    def to_evo(self) -> Any:
+        """This trajectory as an ``evo.core.trajectory.PoseTrajectory3D`` (poses and timestamps
+        copied). ImportError when evo is not installed (``pip install evo``)."""
+        try:
+            from evo.core.trajectory import PoseTrajectory3D
+        except ImportError as e:
+            raise ImportError("Trajectory.to_evo needs the optional package 'evo': pip install evo") from e
+        return PoseTrajectory3D(poses_se3=list(self.poses.copy()), timestamps=self.timestamps.copy())
+
+    @classmethod
+    def from_evo(cls, trajectory: Any) -> "Trajectory":
+        """A Trajectory of an evo ``PoseTrajectory3D`` (its timestamps) or ``PosePath3D`` (frame
+        numbers 0, 1, 2, ... as timestamps)."""
+        poses = np.array(trajectory.poses_se3, dtype=np.float64).reshape(-1, 4, 4)
+        times = getattr(trajectory, "timestamps", None)
+        times = np.arange(len(poses)) if times is None else times
+        return cls(np.array(times, dtype=np.float64), poses)
 
     def interpolate(self, timestamps: Sequence[float], max_gap: float = np.inf) -> "Trajectory":
         """Poses at the given times: linear in position, spherical-linear in rotation.

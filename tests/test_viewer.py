@@ -1,0 +1,111 @@
+"""The rerun live view (scanalign.viewer): recordings hold the expected entities; the arm's
+joint chain matches the robot's forward kinematics. Skipped without rerun-sdk."""
+
+from __future__ import annotations
+
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from scanalign import kinematics, parts
+from scanalign.viewer import Viewer, arm_points
+
+
+def _contents(path):
+    """{entity path: set of its archetype:component columns} of a .rrd file, read back with
+    rerun's own reader."""
+    from rerun.chunk import RrdReader
+
+    out = {}
+    for chunk in RrdReader(str(path)).stream():
+        out.setdefault(str(chunk.entity_path), set()).update(
+            f.name for f in chunk.to_record_batch().schema if ":" in f.name)
+    return out
+
+
+@pytest.fixture(scope="module")
+def small_scan():
+    from scanalign.synthetic.config import builtin_scan
+
+    return builtin_scan(n_frames=6, resolution_scale=0.25)
+
+
+def test_arm_points_follow_forward_kinematics():
+    robot = kinematics.ur5().with_tool(np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0.1], [0, 0, 0, 1.0]]))
+    q = np.array([0.3, -1.2, 1.4, -0.6, 1.1, 0.4])
+    pts = arm_points(robot, q)
+    assert pts.shape == (8, 3)
+    np.testing.assert_allclose(pts[0], np.asarray(robot.T_base_dh0)[:3, 3], atol=1e-12)
+    np.testing.assert_allclose(pts[6], np.asarray(robot.fk_flange(q))[:3, 3], atol=1e-12)
+    np.testing.assert_allclose(pts[7], np.asarray(robot.fk(q))[:3, 3], atol=1e-12)
+    T_mount = np.eye(4)
+    T_mount[:3, 3] = [0.5, -0.2, 0.1]  # the same arm mounted elsewhere: re-anchored on its logged flange
+    moved = arm_points(robot, q, T_mount @ np.asarray(robot.fk_flange(q)))
+    np.testing.assert_allclose(moved, pts + T_mount[:3, 3], atol=1e-12)
+
+
+def test_reconstruction_recording(small_scan, tmp_path):
+    pytest.importorskip("rerun")
+    from scanalign.pipeline import reconstruct
+
+    path = tmp_path / "scan.rrd"
+    with Viewer(save=path, model_every=2) as view:
+        result = reconstruct(small_scan.frames, on_frame=view.on_frame, progress=False)
+        view.log_reconstruction(result)
+    assert len(result.estimate) >= 4
+    got = _contents(path)
+    assert {"Points3D:positions", "Points3D:colors"} <= got["/world/model"]
+    assert {"Transform3D:translation", "Pinhole:image_from_camera"} <= got["/world/camera"]
+    for strip in ("/world/camera_path", "/world/reference_path", "/world/arm"):
+        assert "LineStrips3D:strips" in got[strip], strip
+
+
+def test_pick_recording(tmp_path):
+    """log_pick: the scene, each posed part as its mesh at its pose, the arm at the chosen grasp."""
+    pytest.importorskip("rerun")
+    from scanalign.pick import PartPick, PickResult
+
+    robot = kinematics.ur5()
+    q = np.array([0.1, -1.3, 1.5, -1.8, -1.6, 0.2])
+    T = np.eye(4)
+    T[:3, 3] = [0.4, 0.1, 0.02]
+    plan = SimpleNamespace(candidates=[SimpleNamespace(q_grasp=q, T_base_tcp_grasp=robot.fk(q))], chosen=0)
+    picks = [PartPick("block", "picked", T_base_model=T, plan=plan, grasp_names=["top"]),
+             PartPick("standoff", "not_found")]
+    mesh = parts.builtin_mesh(segments=24)
+    result = PickResult(picks, np.random.default_rng(0).random((500, 3)), None, robot, np.zeros(6),
+                        [SimpleNamespace(name="block", mesh=mesh), SimpleNamespace(name="standoff", mesh=mesh)])
+    path = tmp_path / "pick.rrd"
+    with Viewer(save=path) as view:
+        view.log_pick(result)
+    got = _contents(path)
+    assert "Points3D:positions" in got["/world/scene"]
+    part = got["/world/parts/0_block"]
+    assert {"Transform3D:translation", "Mesh3D:vertex_positions", "Mesh3D:triangle_indices"} <= part
+    assert "LineStrips3D:strips" in got["/world/grasps/0_block/arm"]
+    assert "Transform3D:translation" in got["/world/grasps/0_block/tcp"]
+    assert not any("standoff" in k for k in got)
+
+
+def test_command_line_view_save(tmp_path):
+    pytest.importorskip("rerun")
+    from scanalign.cli import main
+
+    path = tmp_path / "cli.rrd"
+    assert main(["reconstruct", "builtin", "--frames", "4", "--pixel-stride", "4", "--out", str(tmp_path / "out"),
+                 "--quiet", "--no-plots", "--view-save", str(path)]) == 0
+    got = _contents(path)
+    assert {"/world/model", "/world/camera", "/world/camera_path", "/world/arm"} <= set(got)
+
+
+def test_missing_rerun_is_named(monkeypatch, tmp_path, capsys):
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    with pytest.raises(ImportError, match="pip install rerun-sdk"):
+        Viewer()
+    from scanalign.cli import main
+
+    assert main(["reconstruct", "builtin", "--frames", "2", "--out", str(tmp_path), "--quiet",
+                 "--view-save", str(tmp_path / "x.rrd")]) == 2
+    assert "pip install rerun-sdk" in capsys.readouterr().err
