@@ -194,6 +194,21 @@ def _settings_from_args(args: argparse.Namespace) -> dict:
     return out
 
 
+def _viewer(args: argparse.Namespace):
+    """The rerun live view of ``--view`` / ``--view-save FILE.rrd``, or None."""
+    if not (getattr(args, "view", False) or getattr(args, "view_save", None)):
+        return None
+    from .viewer import Viewer
+
+    return Viewer(spawn=bool(getattr(args, "view", False)), save=getattr(args, "view_save", None))
+
+
+def _add_view_options(g) -> None:
+    g.add_argument("--view", action="store_true", help="stream the run to a rerun viewer (spawned, or one already "
+                                                       "running; needs pip install rerun-sdk)")
+    g.add_argument("--view-save", metavar="FILE.rrd", help="save the rerun recording of the run to this file")
+
+
 def _run_reconstruction(source: str, args: argparse.Namespace) -> dict:
     from .pipeline import model_mesh_distance, reconstruct
 
@@ -204,11 +219,18 @@ def _run_reconstruction(source: str, args: argparse.Namespace) -> dict:
         n = len(frames) if hasattr(frames, "__len__") else "?"
         print(f"scanalign: reconstructing {what}: {n} frames"
               + (f" (rendered in {load_seconds:.2f} s)" if scan is not None else ""))
-    result = reconstruct(frames, registration=args.registration, model_frame=args.model_frame,
-                         initial_guess=args.initial_guess, min_depth=args.min_depth, max_depth=args.max_depth,
-                         pixel_stride=args.pixel_stride, progress=not (args.no_progress or args.quiet),
-                         depth_filter="default" if args.depth_filter else None,
-                         **_settings_from_args(args))
+    view = _viewer(args)
+    try:
+        result = reconstruct(frames, registration=args.registration, model_frame=args.model_frame,
+                             initial_guess=args.initial_guess, min_depth=args.min_depth, max_depth=args.max_depth,
+                             pixel_stride=args.pixel_stride, progress=not (args.no_progress or args.quiet),
+                             depth_filter="default" if args.depth_filter else None,
+                             on_frame=None if view is None else view.on_frame, **_settings_from_args(args))
+        if view is not None:
+            view.log_reconstruction(result)
+    finally:
+        if view is not None:
+            view.close()
     if scan is not None:
         result.metrics["model_to_mesh_m"] = model_mesh_distance(result, scan.mesh.vertices, scan.mesh.faces)
         result.metrics["render_seconds"] = load_seconds
@@ -246,6 +268,7 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
     g.add_argument("--no-plots", action="store_true", help="do not write trajectory.png / frames.png")
     g.add_argument("--no-progress", action="store_true", help="no progress bar")
     g.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    _add_view_options(g)
     g = p.add_argument_group("synthetic scans (builtin or a config file)")
     g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
     g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
@@ -450,8 +473,13 @@ def pick_command(args: argparse.Namespace) -> int:
             raise ValueError("give --scene, --parts and --robot (or --demo)")
         scene, parts, robot = args.scene, args.parts, args.robot
         T_base_robot, T_fc = _matrix_file(args.robot_base, "--robot-base"), _matrix_file(args.hand_eye, "--hand-eye")
-    result = _pick.pick(scene, parts, robot, T_base_robot=T_base_robot, T_flange_camera=T_fc, joints=args.joints,
-                        q_current=args.q_current, settings=s, progress=not args.quiet)
+    view = _viewer(args)
+    try:
+        result = _pick.pick(scene, parts, robot, T_base_robot=T_base_robot, T_flange_camera=T_fc, joints=args.joints,
+                            q_current=args.q_current, settings=s, progress=not args.quiet, viewer=view)
+    finally:
+        if view is not None:
+            view.close()
     _pick.print_picks(result)
     if truth is not None:
         from .synthetic.cell import score_picks
@@ -482,6 +510,7 @@ def _add_pick_options(p: argparse.ArgumentParser, demo: bool) -> None:
     p.add_argument("--out", default="scanalign-pick", help="output folder (scanalign-pick)")
     p.add_argument("--no-plots", action="store_true", help="do not write pick.png")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_view_options(p)
 
 
 def batch_command(args: argparse.Namespace) -> int:
@@ -664,7 +693,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if args.command == "demo" and args.pick:
             ns = argparse.Namespace(demo=True, robot=args.robot, noise=args.noise or "sr300", seed=args.seed or 0,
                                     q_current=None, out=args.out if args.out != "scanalign-demo" else "scanalign-pick",
-                                    no_plots=args.no_plots, quiet=args.quiet, joints=None)
+                                    no_plots=args.no_plots, quiet=args.quiet, joints=None,
+                                    view=args.view, view_save=args.view_save)
             return pick_command(ns)
         if args.command in ("demo", "reconstruct"):
             _run_reconstruction("builtin" if args.command == "demo" else args.source, args)
