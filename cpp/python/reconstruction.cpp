@@ -99,8 +99,19 @@ std::pair<py::array, bool> depthImage(const py::array& depth) {
 }
 
 py::tuple depthToCloudPy(const py::array& depth_in, const PinholeIntrinsics& K, const DepthToCloudSettings& s,
-                         const py::object& rgb_obj) {
+                         const py::object& rgb_obj, const py::object& rays_obj) {
   checkImage(depth_in, K);
+  // The ray table of a distorted camera (undistorted_rays): (H, W, 2) float64, used as is.
+  py::array_t<double, py::array::c_style> rays;
+  if (!rays_obj.is_none()) {
+    const auto a = py::cast<py::array>(rays_obj);
+    if (a.ndim() != 3 || a.shape(0) != K.height || a.shape(1) != K.width || a.shape(2) != 2)
+      throw py::value_error("rays: expected shape (" + std::to_string(K.height) + ", " + std::to_string(K.width) +
+                            ", 2) matching the depth image (undistorted_rays of its intrinsics)");
+    if (!holds<double>(a)) throw py::type_error("rays: expected float64, got " + std::string(py::str(a.dtype())));
+    rays = py::array_t<double, py::array::c_style>::ensure(a);
+  }
+  const double* r = rays_obj.is_none() ? nullptr : rays.data();
   const auto [depth, is_float] = depthImage(depth_in);
   py::array_t<std::uint8_t, py::array::c_style> rgb;
   if (!rgb_obj.is_none()) {
@@ -116,8 +127,8 @@ py::tuple depthToCloudPy(const py::array& depth_in, const PinholeIntrinsics& K, 
   DepthCloud cloud;
   {
     py::gil_scoped_release release;
-    cloud = is_float ? depthToCloud(static_cast<const float*>(depth.data()), K, s, c)
-                     : depthToCloud(static_cast<const std::uint16_t*>(depth.data()), K, s, c);
+    cloud = is_float ? depthToCloud(static_cast<const float*>(depth.data()), K, s, c, r)
+                     : depthToCloud(static_cast<const std::uint16_t*>(depth.data()), K, s, c, r);
   }
   py::object colors = py::none();
   if (c) colors = toArray(cloud.colors, 3);
@@ -341,7 +352,32 @@ void defineReconstruction(py::module_& m) {
       "kMaxImagePixels (2^27) pixels, checked before allocating, a radius outside [0, 32] pixels, sigma_space < "
       "1e-3 pixels, sigma_depth < 1e-9 m or depth_scale outside (0, 1] m per unit");
   m.def("depth_to_cloud", &depthToCloudPy, py::arg("depth"), py::arg("intrinsics"), py::arg("settings"),
-        py::arg("rgb"), "(points (N, 3) float32 m, colors (N, 3) uint8 or None, pixels (N,) int32 row * W + column)");
+        py::arg("rgb"), py::arg("rays") = py::none(),
+        "(points (N, 3) float32 m, colors (N, 3) uint8 or None, pixels (N,) int32 row * W + column); rays: None "
+        "(pinhole) or the (H, W, 2) float64 undistorted_rays table of a distorted camera");
+  m.def(
+      "undistorted_rays",
+      [](const PinholeIntrinsics& K, const std::vector<double>& coefficients, int max_iterations,
+         double max_reprojection_error, int num_threads) {
+        if (coefficients.size() != 5)
+          throw py::value_error("distortion: expected 5 coefficients (k1, k2, p1, p2, k3), got " +
+                                std::to_string(coefficients.size()));
+        const LensDistortion d{coefficients[0], coefficients[1], coefficients[2], coefficients[3], coefficients[4]};
+        std::vector<double> rays;
+        {
+          py::gil_scoped_release release;
+          rays = undistortedRays(K, d, max_iterations, max_reprojection_error, num_threads);
+        }
+        py::array_t<double> out(
+            {static_cast<py::ssize_t>(K.height), static_cast<py::ssize_t>(K.width), py::ssize_t{2}});
+        std::copy(rays.begin(), rays.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("intrinsics"), py::arg("distortion"), py::arg("max_iterations") = 100,
+      py::arg("max_reprojection_error") = 1e-3, py::arg("num_threads") = 0,
+      "(H, W, 2) float64: the undistorted normalised coordinates (x, y) = (X/Z, Y/Z) of every pixel centre of a "
+      "Brown-Conrady camera (distortion k1 k2 p1 p2 k3, OpenCV's order), by OpenCV undistortPoints' fixed-point "
+      "iteration; NaN where the ray does not re-project onto its pixel within max_reprojection_error pixels");
 
   // Field order is the report's order (scanalign.pipeline.settings_to_dict).
   py::class_<FrameToModelSettings>(m, "FrameToModelSettings",

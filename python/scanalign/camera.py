@@ -15,24 +15,33 @@ import os
 import re
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Dict, Mapping, Optional, Union
+from typing import Any, Dict, Mapping, Optional, Tuple, Union
 
 import numpy as np
 import yaml
 
 from . import _core
 
-__all__ = ["Intrinsics", "Frame", "INTRINSICS_PRESETS"]
+__all__ = ["Intrinsics", "Frame", "INTRINSICS_PRESETS", "read_camera_file", "read_camera", "camera_from_dict",
+           "NO_DISTORTION"]
+
+#: The distortion of a pinhole camera (rectified images): k1 k2 p1 p2 k3 all zero.
+NO_DISTORTION: Tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """Pinhole intrinsics of a depth image (no distortion: rectified images).
+    """Intrinsics of a depth image: a pinhole camera, optionally with lens distortion.
 
     Attributes:
         width, height: image size, pixels.
         fx, fy: focal lengths along x and y, pixels.
         cx, cy: principal point (column and row of the optical axis), pixels.
+        distortion: Brown-Conrady lens distortion ``(k1, k2, p1, p2, k3)`` of normalised
+            image coordinates, in OpenCV's order (ROS ``camera_info`` "plumb_bob"); all zero
+            (the default) for a pinhole camera / rectified images. Back-projection
+            (:func:`scanalign.reconstruction.depth_to_cloud`) undistorts every pixel's ray
+            as OpenCV's ``undistortPoints`` does.
     """
 
     width: int
@@ -41,6 +50,7 @@ class Intrinsics:
     fy: float
     cx: float
     cy: float
+    distortion: Tuple[float, float, float, float, float] = NO_DISTORTION
 
     def __post_init__(self) -> None:
         for name in ("width", "height", "fx", "fy", "cx", "cy"):
@@ -50,6 +60,25 @@ class Intrinsics:
             object.__setattr__(self, name, int(v) if name in ("width", "height") else float(v))
         # The C++ checks (positive size and focal lengths, finite values): ValueError naming them.
         _core.reconstruction.PinholeIntrinsics(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
+        d = self.distortion
+        try:
+            values = tuple(float(x) for x in np.asarray(d, dtype=np.float64).reshape(-1)) \
+                if not isinstance(d, (str, bytes)) else ()
+        except (TypeError, ValueError):
+            values = ()
+        if len(values) != 5 or not all(math.isfinite(x) for x in values):
+            raise ValueError(f"Intrinsics.distortion must be 5 finite numbers (k1, k2, p1, p2, k3), got {d!r}")
+        object.__setattr__(self, "distortion", values)
+
+    def __repr__(self) -> str:
+        extra = "" if not self.has_distortion else f", distortion={self.distortion}"
+        return (f"Intrinsics(width={self.width}, height={self.height}, fx={self.fx}, fy={self.fy}, cx={self.cx}, "
+                f"cy={self.cy}{extra})")
+
+    @property
+    def has_distortion(self) -> bool:
+        """True when any distortion coefficient is non-zero."""
+        return any(x != 0.0 for x in self.distortion)
 
     @property
     def K(self) -> np.ndarray:
@@ -68,21 +97,31 @@ class Intrinsics:
         w, h = int(round(self.width * factor)), int(round(self.height * factor))
         # Pixel centres sit at integer coordinates, so the principal point maps as
         # (c + 0.5) * s - 0.5.
+        # Distortion acts on normalised coordinates: a resized image keeps its coefficients.
         return Intrinsics(w, h, self.fx * factor, self.fy * factor, (self.cx + 0.5) * factor - 0.5,
-                          (self.cy + 0.5) * factor - 0.5)
+                          (self.cy + 0.5) * factor - 0.5, self.distortion)
 
     def to_dict(self) -> Dict[str, Any]:
-        """The fields as a dict (the keys :meth:`from_dict` reads)."""
-        return asdict(self)
+        """The fields as a dict (the keys :meth:`from_dict` reads); ``distortion`` only when
+        it is not zero."""
+        d = asdict(self)
+        if self.has_distortion:
+            d["distortion"] = list(self.distortion)
+        else:
+            del d["distortion"]
+        return d
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> "Intrinsics":
-        """From a mapping with keys width, height, fx, fy, cx, cy (other keys are ignored)."""
+        """From a mapping with keys width, height, fx, fy, cx, cy and optional distortion
+        (k1, k2, p1, p2, k3); other keys are ignored. :func:`camera_from_dict` also reads
+        ROS ``camera_info`` and OpenCV calibration layouts."""
         missing = [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]
         if missing:
             raise ValueError(f"intrinsics: missing keys {missing}")
+        dist = d.get("distortion")
         return cls(int(d["width"]), int(d["height"]), float(d["fx"]), float(d["fy"]), float(d["cx"]),
-                   float(d["cy"]))
+                   float(d["cy"]), NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
 
     @classmethod
     def preset(cls, name: str) -> "Intrinsics":
@@ -94,20 +133,44 @@ class Intrinsics:
 
     @classmethod
     def from_file(cls, path: Union[str, os.PathLike]) -> "Intrinsics":
-        """Reads a JSON or YAML file (:func:`read_camera_file`) with keys width, height, fx,
-        fy, cx, cy. Other keys (e.g. ``depth_scale``) are ignored here; see
-        :func:`read_camera_file` for them."""
-        return cls.from_dict(read_camera_file(path))
+        """Reads a camera file (:func:`read_camera`: scanalign's flat keys, a ROS
+        ``camera_info`` YAML or an OpenCV calibration YAML, with distortion). Other keys
+        (e.g. ``depth_scale``) are ignored here; :func:`read_camera` returns it too."""
+        return read_camera(path)[0]
 
 
-#: A number in exponent notation, which YAML 1.1 (PyYAML) reads as a string unless it has a dot.
-_EXPONENT_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+class _CameraYamlLoader(yaml.SafeLoader):
+    """PyYAML's safe loader plus what camera files need: numbers in exponent notation without
+    a dot or an exponent sign (``1e-3``, ``5.25e2``: floats in YAML 1.2 and JSON, text in
+    YAML 1.1) are floats, and OpenCV's ``!!opencv-matrix`` mappings (rows, cols, dt, data)
+    become (rows, cols) float64 arrays."""
+
+
+_CameraYamlLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$"),
+    list("-+0123456789."))
+
+
+def _opencv_matrix(loader: yaml.SafeLoader, node: yaml.Node) -> np.ndarray:
+    m = loader.construct_mapping(node, deep=True)
+    try:
+        rows, cols, data = int(m["rows"]), int(m["cols"]), m["data"]
+        return np.asarray(data, dtype=np.float64).reshape(rows, cols)
+    except (KeyError, TypeError, ValueError) as e:
+        raise yaml.constructor.ConstructorError(None, None, f"malformed !!opencv-matrix ({type(e).__name__}: {e}): "
+                                                "expected rows, cols and rows x cols numbers in data",
+                                                node.start_mark) from None
+
+
+_CameraYamlLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_matrix)
 
 
 def read_camera_file(path: Union[str, os.PathLike]) -> Dict[str, Any]:
-    """Reads a small camera description, JSON or YAML (a leading OpenCV ``%YAML:1.0`` line,
-    which YAML parsers reject as a directive, is skipped), as a mapping; strings that are
-    numbers in exponent notation (``1e-3``, which YAML 1.1 reads as text) become floats.
+    """Reads a small camera description, JSON or YAML, as a mapping, with PyYAML: a leading
+    OpenCV ``%YAML:1.0`` line (a directive YAML parsers reject) is skipped, OpenCV's
+    ``!!opencv-matrix`` entries become float64 arrays of their shape, and numbers in
+    exponent notation (``1e-3``, which YAML 1.1 reads as text) are floats. The keys are as
+    written; :func:`read_camera` / :func:`camera_from_dict` interpret them.
 
     Raises:
         OSError: the file cannot be read.
@@ -116,12 +179,120 @@ def read_camera_file(path: Union[str, os.PathLike]) -> Dict[str, Any]:
     text = Path(path).read_text(encoding="utf-8")
     as_json = str(path).lower().endswith(".json") or text.lstrip().startswith("{")
     try:  # JSON is nearly YAML, but not quite (tabs, escapes): a JSON file is read as JSON
-        d = json.loads(text) if as_json else yaml.safe_load(re.sub(r"\A%YAML:1\.0[^\n]*", "", text))
+        d = json.loads(text) if as_json else yaml.load(re.sub(r"\A%YAML:1\.0[^\n]*", "", text),
+                                                       Loader=_CameraYamlLoader)
     except (json.JSONDecodeError, yaml.YAMLError) as e:
         raise ValueError(f"{path}: not valid JSON or YAML: {e}") from None
     if not isinstance(d, dict):
         raise ValueError(f"{path}: expected 'key: value' entries, got {type(d).__name__}")
-    return {k: float(v) if isinstance(v, str) and _EXPONENT_NUMBER.fullmatch(v) else v for k, v in d.items()}
+    return d
+
+
+#: Distortion models whose coefficients are Brown-Conrady's k1 k2 p1 p2 k3 (ROS names,
+#: RealSense's, OpenCV's); "rational_polynomial" (8 coefficients) is accepted when its
+#: k4 k5 k6 are zero. Any model is accepted when all its coefficients are zero.
+_BROWN_CONRADY = ("plumb_bob", "brown_conrady", "modified_brown_conrady", "rational_polynomial", "opencv", "radtan")
+
+
+def _distortion5(values: Any, model: Any = None) -> Tuple[float, ...]:
+    """(k1, k2, p1, p2, k3) from a coefficient list (4, 5, 8, 12 or 14 numbers, OpenCV's
+    order; beyond the fifth they must be zero) of a Brown-Conrady model."""
+    try:
+        v = np.asarray(values, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"distortion coefficients must be numbers, got {values!r}") from None
+    if v.size == 0 or not np.any(v != 0):
+        return NO_DISTORTION
+    name = None if model is None else str(model).strip().lower().replace(" ", "_").replace("-", "_")
+    if name is not None and name not in _BROWN_CONRADY:
+        raise ValueError(f"distortion model {model!r} is not supported: back-projection undistorts the Brown-Conrady "
+                         f"('plumb_bob') model k1 k2 p1 p2 k3 only (models read: {', '.join(_BROWN_CONRADY)})")
+    if v.size not in (4, 5, 8, 12, 14):
+        raise ValueError(f"distortion: expected 4, 5, 8, 12 or 14 coefficients (OpenCV's order k1 k2 p1 p2 [k3 ...]), "
+                         f"got {v.size}")
+    if np.any(v[5:] != 0):
+        raise ValueError(f"distortion coefficients beyond k1 k2 p1 p2 k3 are not supported (rational / thin-prism / "
+                         f"tilt terms {v[5:].tolist()} must be zero)")
+    out = np.zeros(5)
+    out[:min(5, v.size)] = v[:5]
+    return tuple(float(x) for x in out)
+
+
+def _first(d: Mapping[str, Any], *keys: str) -> Any:
+    return next((d[k] for k in keys if k in d and d[k] is not None), None)
+
+
+def _numbers(value: Any, n: Optional[int], what: str) -> np.ndarray:
+    """A matrix entry as a flat float64 array: a list, an array (OpenCV), or a ROS
+    ``{rows, cols, data}`` mapping."""
+    if isinstance(value, Mapping):
+        value = value.get("data")
+    try:
+        a = np.asarray(value, dtype=np.float64).reshape(-1)
+    except (TypeError, ValueError):
+        raise ValueError(f"{what}: expected numbers, got {value!r}") from None
+    if n is not None and a.size != n:
+        raise ValueError(f"{what}: expected {n} numbers, got {a.size}")
+    return a
+
+
+def camera_from_dict(d: Mapping[str, Any]) -> Tuple[Intrinsics, Optional[float]]:
+    """Intrinsics (with distortion) and the optional ``depth_scale`` (m per unit) from a
+    camera description in any of the layouts :func:`read_camera` reads:
+
+    - scanalign's flat keys: ``width height fx fy cx cy`` (+ optional ``distortion``:
+      k1 k2 p1 p2 k3, ``depth_scale``);
+    - a ROS ``camera_info`` YAML (``camera_calibration_parsers``): ``image_width``,
+      ``image_height``, ``camera_matrix: {rows, cols, data}``, ``distortion_model``,
+      ``distortion_coefficients: {rows, cols, data}``; or a CameraInfo message as YAML
+      (``width``, ``height``, ``K``/``k`` 9 numbers, ``D``/``d``, ``distortion_model``);
+    - an OpenCV calibration file (``%YAML:1.0``; ``camera_matrix`` / ``cameraMatrix`` /
+      ``K`` and ``distortion_coefficients`` / ``distCoeffs`` / ``D`` as ``!!opencv-matrix``,
+      ``image_width`` / ``image_height``).
+
+    Distortion: Brown-Conrady coefficients in OpenCV's order (4, 5, 8, 12 or 14 numbers,
+    those after k3 zero); another non-zero model is a ValueError.
+
+    Raises:
+        ValueError: missing keys, malformed numbers, unsupported distortion, invalid
+        intrinsics (the message says which).
+    """
+    if not isinstance(d, Mapping):
+        raise ValueError(f"camera: expected a mapping, got {type(d).__name__}")
+    scale = d.get("depth_scale")
+    if scale is not None and (isinstance(scale, bool) or not isinstance(scale, (int, float, np.number))
+                              or not (math.isfinite(float(scale)) and 0 < float(scale))):
+        raise ValueError(f"depth_scale must be a positive number of metres per unit, got {scale!r}")
+    scale = None if scale is None else float(scale)
+    K = _first(d, "camera_matrix", "cameraMatrix", "K", "k", "intrinsic_matrix")
+    flat = any(k in d for k in ("fx", "fy", "cx", "cy")) or K is None
+    model = _first(d, "distortion_model", "distortionModel")
+    dist = _first(d, "distortion", "distortion_coefficients", "distCoeffs", "dist_coeffs", "D", "d")
+    if flat:
+        return Intrinsics.from_dict({**d, "distortion": dist, "distortion_model": model}), scale
+    K = _numbers(K, 9, "camera_matrix")
+    if K[1] != 0 or K[3] != 0 or K[6] != 0 or K[7] != 0 or K[8] != 1:
+        raise ValueError(f"camera_matrix must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got {K.tolist()}")
+    width, height = _first(d, "image_width", "width", "imageWidth"), _first(d, "image_height", "height", "imageHeight")
+    if width is None or height is None:
+        raise ValueError("camera: missing the image size (image_width and image_height, or width and height)")
+    distortion = NO_DISTORTION if dist is None else _distortion5(_numbers(dist, None, "distortion_coefficients"), model)
+    return Intrinsics(int(width), int(height), float(K[0]), float(K[4]), float(K[2]), float(K[5]), distortion), scale
+
+
+def read_camera(path: Union[str, os.PathLike]) -> Tuple[Intrinsics, Optional[float]]:
+    """Intrinsics (with distortion) and the optional ``depth_scale`` (m per unit) of a camera
+    file: JSON or YAML in any layout of :func:`camera_from_dict` (scanalign's flat keys, ROS
+    ``camera_info`` YAML, OpenCV calibration YAML), read by :func:`read_camera_file`.
+
+    Raises:
+        OSError: the file cannot be read. ValueError: malformed file or camera, naming the file.
+    """
+    d = read_camera_file(path)
+    try:
+        return camera_from_dict(d)
+    except (ValueError, TypeError) as e:
+        raise ValueError(f"{path}: {e}") from None
 
 
 #: Named intrinsics. TUM values are from the TUM RGB-D benchmark's published calibration

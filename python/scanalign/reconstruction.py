@@ -22,6 +22,7 @@ Example::
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Any, Dict, List, Optional, Union
 
@@ -33,7 +34,8 @@ from .camera import Frame, Intrinsics
 from .registration import IcpSettings, make_settings
 from .trajectory import Trajectory
 
-__all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "frame_to_cloud", "DepthFilter", "bilateral_filter_depth",
+__all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "undistorted_rays", "frame_to_cloud", "DepthFilter",
+           "bilateral_filter_depth",
            "FrameToModelSettings", "make_reconstruction_settings", "FrameReport", "Model", "Reconstructor",
            "REGISTRATION_METHODS"]
 
@@ -94,6 +96,37 @@ def voxel_grid(points: np.ndarray, leaf_size: float = 0.001, *, normals: Optiona
     return VoxelGridResult(centroids, out_normals, out_colors, counts)
 
 
+@functools.lru_cache(maxsize=8)
+def _ray_table(intrinsics: Intrinsics) -> np.ndarray:
+    """The read-only undistorted ray table of a distorted camera, computed once per
+    intrinsics (image size, K, coefficients) and kept for the next frames."""
+    K = _core.reconstruction.PinholeIntrinsics(intrinsics.width, intrinsics.height, intrinsics.fx, intrinsics.fy,
+                                               intrinsics.cx, intrinsics.cy)
+    rays = _core.reconstruction.undistorted_rays(K, list(intrinsics.distortion))
+    rays.flags.writeable = False
+    return rays
+
+
+def undistorted_rays(intrinsics: Intrinsics) -> np.ndarray:
+    """(H, W, 2) float64: the normalised coordinates ``(x, y) = (X/Z, Y/Z)`` of the ray through
+    every pixel centre ``(u, v)`` (``[v, u]``), as :func:`depth_to_cloud` uses them.
+
+    Pinhole (zero distortion): ``((u - cx) / fx, (v - cy) / fy)``. With Brown-Conrady
+    distortion ``(k1, k2, p1, p2, k3)`` each pixel is undistorted by OpenCV's
+    ``undistortPoints`` fixed-point iteration, run until a step changes nothing (at most 100
+    steps): equal to ``cv2.undistortPointsIter`` with 100 COUNT iterations. A pixel whose ray
+    does not re-project onto it within 1e-3 pixels (diverged, or beyond the field of view
+    where the radial factor folds over) is NaN and gives no point. The table is computed once
+    per intrinsics (C++, all threads; under 0.1 s for 640x480) and cached (8 cameras)."""
+    if not isinstance(intrinsics, Intrinsics):
+        raise TypeError("intrinsics must be a scanalign.camera.Intrinsics")
+    if intrinsics.has_distortion:
+        return _ray_table(intrinsics).copy()
+    u = (np.arange(intrinsics.width) - intrinsics.cx) / intrinsics.fx
+    v = (np.arange(intrinsics.height) - intrinsics.cy) / intrinsics.fy
+    return np.stack(np.broadcast_arrays(u[None, :], v[:, None]), axis=-1)
+
+
 def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[np.ndarray] = None,
                    depth_scale: float = 0.001, min_depth: float = 0.1, max_depth: float = 2.0, stride: int = 1,
                    return_pixels: bool = False):
@@ -101,11 +134,15 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[n
 
     ``p = (z (u - cx) / fx, z (v - cy) / fy, z)`` for every valid pixel ``(u, v)``
     (column, row); invalid pixels (0, NaN, outside ``[min_depth, max_depth]``) are dropped.
+    With lens distortion (``intrinsics.distortion`` not zero) ``p = (z x, z y, z)`` with the
+    pixel's undistorted ray ``(x, y)`` from :func:`undistorted_rays` (computed once per
+    camera and cached, so a frame costs what a pinhole frame costs); a pixel without a valid
+    ray is dropped. Zero distortion takes the pinhole formula, bit for bit as before.
 
     Args:
         depth: (H, W) uint16 in units of ``depth_scale`` metres, or float32/float64 in
             metres. (H, W) must equal ``intrinsics.shape``.
-        intrinsics: pinhole intrinsics of the depth image.
+        intrinsics: intrinsics of the depth image (with its lens distortion, if any).
         rgb: optional (H, W, 3) uint8 colour image registered to the depth image.
         depth_scale: metres per unit of an integer image (1e-3: millimetres; TUM: 1/5000).
         min_depth, max_depth: valid depth range along z, metres.
@@ -126,7 +163,8 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[n
                                                intrinsics.cx, intrinsics.cy)
     s = set_fields(_core.reconstruction.DepthToCloudSettings(), dict(
         depth_scale=float(depth_scale), min_depth=float(min_depth), max_depth=float(max_depth), stride=stride), "depth")
-    points, colors, pixels = _core.reconstruction.depth_to_cloud(np.asarray(depth), K, s, rgb)
+    rays = (_ray_table(intrinsics),) if intrinsics.has_distortion else ()  # pinhole: the call as before
+    points, colors, pixels = _core.reconstruction.depth_to_cloud(np.asarray(depth), K, s, rgb, *rays)
     return (points, colors, pixels) if return_pixels else (points, colors)
 
 

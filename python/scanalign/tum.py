@@ -23,7 +23,8 @@ part of the robot's base frame.
 :class:`TumSequence` reads such a folder lazily (PNGs are decoded when a frame is
 requested) and :func:`write_tum_sequence` writes frames into the same layout, so
 synthetic data can be stored and replayed like a real recording.  Images go through
-Pillow, camera files through :func:`scanalign.camera.read_camera_file`.
+Pillow, camera files through :func:`scanalign.camera.read_camera_file` (scanalign's flat keys, a ROS
+``camera_info`` YAML or an OpenCV calibration YAML; distortion included).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tupl
 import numpy as np
 from PIL import Image
 
-from .camera import INTRINSICS_PRESETS, Frame, Intrinsics, read_camera_file
+from .camera import INTRINSICS_PRESETS, Frame, Intrinsics, camera_from_dict, read_camera_file
 from .trajectory import (Trajectory, TumFormatError, associate_timestamps, read_tum_rows, time_order,
                          write_tum_trajectory)
 
@@ -141,9 +142,9 @@ def _read_camera(path: PathLike) -> Tuple[Intrinsics, Optional[float]]:
         raise TumFormatError(f"cannot read camera file ({e})", path) from e
     except ValueError as e:
         raise TumFormatError(f"malformed camera file ({e})", path) from e
-    try:
-        intrinsics = Intrinsics.from_dict(d)
-        return intrinsics, None if d.get("depth_scale") is None else _depth_scale(d["depth_scale"])
+    try:  # scanalign's flat keys, a ROS camera_info or an OpenCV calibration file
+        intrinsics, scale = camera_from_dict(d)
+        return intrinsics, None if scale is None else _depth_scale(scale)
     except (ValueError, TypeError) as e:
         raise TumFormatError(f"camera file: {e}", path) from e
 

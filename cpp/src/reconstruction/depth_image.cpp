@@ -44,6 +44,62 @@ void PinholeIntrinsics::validate() const {
                                 "above 1e6)");
 }
 
+void LensDistortion::validate() const {
+  if (!(std::isfinite(k1) && std::isfinite(k2) && std::isfinite(p1) && std::isfinite(p2) && std::isfinite(k3)))
+    throw std::invalid_argument("lens distortion: k1, k2, p1, p2, k3 must be finite");
+}
+
+std::vector<double> undistortedRays(const PinholeIntrinsics& K, const LensDistortion& d, int max_iterations,
+                                    double max_reprojection_error, int num_threads) {
+  K.validate();
+  d.validate();
+  if (max_iterations < 1) throw std::invalid_argument("undistorted rays: max_iterations must be >= 1");
+  if (!(max_reprojection_error > 0.0))
+    throw std::invalid_argument("undistorted rays: max_reprojection_error must be > 0 pixels");
+  std::vector<double> rays(2 * static_cast<std::size_t>(K.width) * K.height);
+  // OpenCV's cvUndistortPointsInternal, term for term (its rational and thin-prism terms
+  // are zero here and add exact zeros there), so the rays equal undistortPointsIter's.
+  const double ifx = 1.0 / K.fx, ify = 1.0 / K.fy;
+  const double k1 = d.k1, k2 = d.k2, p1 = d.p1, p2 = d.p2, k3 = d.k3;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const int threads = resolveThreads(num_threads);
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (int v = 0; v < K.height; ++v) {
+    double* row = rays.data() + 2 * static_cast<std::size_t>(v) * K.width;
+    for (int u = 0; u < K.width; ++u) {
+      const double x0 = (u - K.cx) * ifx, y0 = (v - K.cy) * ify;
+      double x = x0, y = y0;
+      bool ok = true;
+      for (int j = 0; j < max_iterations; ++j) {
+        const double r2 = x * x + y * y;
+        const double icdist = 1.0 / (1.0 + ((k3 * r2 + k2) * r2 + k1) * r2);
+        if (!(icdist >= 0.0)) {  // OpenCV gives up here (and returns the pinhole ray)
+          ok = false;
+          break;
+        }
+        const double delta_x = 2 * p1 * x * y + p2 * (r2 + 2 * x * x);
+        const double delta_y = p1 * (r2 + 2 * y * y) + 2 * p2 * x * y;
+        const double nx = (x0 - delta_x) * icdist, ny = (y0 - delta_y) * icdist;
+        const bool same = nx == x && ny == y;
+        x = nx;
+        y = ny;
+        if (same) break;  // a fixed point: further steps change nothing
+      }
+      if (ok) {  // the ray must land back on its pixel
+        const double r2 = x * x + y * y, radial = 1.0 + ((k3 * r2 + k2) * r2 + k1) * r2;
+        const double xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x);
+        const double yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y;
+        const double ex = (xd - x0) * K.fx, ey = (yd - y0) * K.fy;
+        ok = radial > 0.0 && std::isfinite(x) && std::isfinite(y) &&
+             ex * ex + ey * ey <= max_reprojection_error * max_reprojection_error;
+      }
+      row[2 * u] = ok ? x : nan;
+      row[2 * u + 1] = ok ? y : nan;
+    }
+  }
+  return rays;
+}
+
 namespace {
 
 void validate(const DepthToCloudSettings& s) {
@@ -56,7 +112,7 @@ void validate(const DepthToCloudSettings& s) {
 
 template <typename DepthT>
 DepthCloud backProject(const DepthT* depth, const PinholeIntrinsics& K, const DepthToCloudSettings& s,
-                       const std::uint8_t* rgb) {
+                       const std::uint8_t* rgb, const double* rays) {
   K.validate();
   validate(s);
   if (depth == nullptr) throw std::invalid_argument("depth to cloud: null depth image");
@@ -80,8 +136,15 @@ DepthCloud backProject(const DepthT* depth, const PinholeIntrinsics& K, const De
         if (!std::isfinite(z)) continue;
       }
       if (!(z >= s.min_depth && z <= s.max_depth) || z <= 0.0) continue;
-      const float p[3] = {static_cast<float>(z * (u - K.cx) * inv_fx), static_cast<float>(z * ry),
-                          static_cast<float>(z)};
+      float p[3];
+      if (rays) {  // a distorted camera: the pixel's undistorted ray (NaN: none, an invalid pixel)
+        p[0] = static_cast<float>(z * rays[2 * pixel]);
+        p[1] = static_cast<float>(z * rays[2 * pixel + 1]);
+      } else {
+        p[0] = static_cast<float>(z * (u - K.cx) * inv_fx);
+        p[1] = static_cast<float>(z * ry);
+      }
+      p[2] = static_cast<float>(z);
       // A depth beyond float range once multiplied by the ray (1e38 m with max_depth = inf)
       // is not a measurement: invalid, as a NaN pixel (never a non-finite point).
       if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) continue;
@@ -96,13 +159,13 @@ DepthCloud backProject(const DepthT* depth, const PinholeIntrinsics& K, const De
 }  // namespace
 
 DepthCloud depthToCloud(const std::uint16_t* depth, const PinholeIntrinsics& intrinsics,
-                        const DepthToCloudSettings& settings, const std::uint8_t* rgb) {
-  return backProject(depth, intrinsics, settings, rgb);
+                        const DepthToCloudSettings& settings, const std::uint8_t* rgb, const double* rays) {
+  return backProject(depth, intrinsics, settings, rgb, rays);
 }
 
 DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics, const DepthToCloudSettings& settings,
-                        const std::uint8_t* rgb) {
-  return backProject(depth, intrinsics, settings, rgb);
+                        const std::uint8_t* rgb, const double* rays) {
+  return backProject(depth, intrinsics, settings, rgb, rays);
 }
 
 namespace {

@@ -39,6 +39,40 @@ struct PinholeIntrinsics {
   void validate() const;
 };
 
+/// Brown–Conrady lens distortion (OpenCV's and ROS's "plumb_bob" model, coefficients in
+/// OpenCV's order k1 k2 p1 p2 k3) of normalised image coordinates (x, y) = (X/Z, Y/Z):
+/// with r^2 = x^2 + y^2, the distorted point is
+///   x_d = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2),
+///   y_d = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y,
+/// and the pixel is u = fx x_d + cx, v = fy y_d + cy. All zero: a pinhole camera.
+struct LensDistortion {
+  double k1 = 0.0;
+  double k2 = 0.0;
+  double p1 = 0.0;
+  double p2 = 0.0;
+  double k3 = 0.0;
+
+  bool isZero() const { return k1 == 0.0 && k2 == 0.0 && p1 == 0.0 && p2 == 0.0 && k3 == 0.0; }
+  /// Throws std::invalid_argument unless all five coefficients are finite.
+  void validate() const;
+};
+
+/// The undistorted normalised coordinates (x, y) = (X/Z, Y/Z) of the ray through every
+/// pixel centre (u, v): 2 doubles a pixel, row-major (index 2 (v width + u)), the table
+/// that depthToCloud takes as `rays`. Each pixel is undistorted as OpenCV's undistortPoints
+/// does it (the same fixed-point iteration x <- (x0 - delta(x)) / radial(x), from the
+/// pinhole coordinates x0 = (u - cx) / fx), for up to `max_iterations` steps or until a
+/// step changes nothing (so the result equals OpenCV's undistortPointsIter with that many
+/// COUNT iterations). A pixel whose ray does not re-project onto the pixel within
+/// `max_reprojection_error` pixels (the iteration diverged or the model folds over there:
+/// radial factor <= 0, beyond the calibrated field of view) gets NaN and back-projects to
+/// no point. Zero distortion gives the pinhole rays ((u - cx) / fx, (v - cy) / fy).
+/// Throws std::invalid_argument on bad intrinsics or coefficients, max_iterations < 1 or
+/// a max_reprojection_error that is not positive.
+std::vector<double> undistortedRays(const PinholeIntrinsics& intrinsics, const LensDistortion& distortion,
+                                    int max_iterations = 100, double max_reprojection_error = 1e-3,
+                                    int num_threads = 0);
+
 struct DepthToCloudSettings {
   /// Metres per unit of an integer (uint16) depth image, in (0, 1]: 1e-3 for millimetres,
   /// 1/5000 for the TUM RGB-D benchmark (1: whole metres, the coarsest a sensor could
@@ -68,10 +102,15 @@ struct DepthCloud {
 /// 3 uint8 per pixel, row-major, registered to the depth image. Throws
 /// std::invalid_argument on bad intrinsics (see PinholeIntrinsics::validate) or settings
 /// (depth_scale outside (0, 1] m, min_depth < 0, max_depth <= min_depth, stride < 1).
+/// With a lens-distorted camera, `rays` is its undistortedRays table (2 doubles a pixel)
+/// and p = (z x, z y, z) with the pixel's (x, y) from it (a NaN ray: an invalid pixel);
+/// null (the default): the pinhole formula above, unchanged.
 DepthCloud depthToCloud(const std::uint16_t* depth, const PinholeIntrinsics& intrinsics,
-                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr);
+                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr,
+                        const double* rays = nullptr);
 DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics,
-                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr);
+                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr,
+                        const double* rays = nullptr);
 
 /// Edge-preserving smoothing of a depth image before back-projection (as KinectFusion does
 /// before computing normals). Why: axial sensor noise (about 1 mm at 0.4 m for an SR300)
