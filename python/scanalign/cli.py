@@ -105,24 +105,29 @@ def register(args: argparse.Namespace) -> int:
 
 def _load_source(source: str, args: argparse.Namespace) -> tuple:
     """Frames and, for synthetic scans, the scan (for its mesh) from a SOURCE argument."""
-    from . import tum
+    from . import sources, tum
 
     if source == "builtin":
         scan = _builtin_config(args).build()
         return scan.frames, scan, "built-in synthetic scan" + _robot_note(scan)
     path = Path(source)
-    if path.is_dir():
-        if not tum.is_tum_folder(path):
-            raise ValueError(f"{path}: not a TUM RGB-D folder (no depth.txt)")
-        seq = tum.TumSequence(path, intrinsics=args.intrinsics, depth_scale=args.depth_scale, start=args.start,
-                              stride=args.frame_stride, limit=args.limit)
-        return seq, None, f"TUM RGB-D folder {path}"
+    recording = tum.is_tum_folder(path) or sources.is_bag(path) or sources.is_image_folder(path)
+    if path.is_dir() and not recording:
+        raise ValueError(f"{path}: not a TUM RGB-D folder (no depth.txt), a ROS 2 bag folder (no metadata.yaml) "
+                         "or an image folder (no depth/*.png)")
+    if recording:  # a TUM folder, a ROS 1/2 bag (.bag, .mcap, .db3, bag folder), PNGs + camera YAML
+        seq = sources.open_source(path, intrinsics=args.intrinsics, depth_scale=args.depth_scale, start=args.start,
+                                  stride=args.frame_stride, limit=args.limit)
+        what = ("TUM RGB-D folder" if isinstance(seq, tum.TumSequence) else
+                "ROS bag" if isinstance(seq, sources.BagSequence) else "image folder")
+        return seq, None, f"{what} {path}"
     if path.suffix.lower() in (".json", ".yaml", ".yml"):
         scan = _config_file(path, args, n_frames=args.frames, noise=args.noise, seed=args.seed).build()
         return scan.frames, scan, f"synthetic scan from {path}" + _robot_note(scan)
     if not path.exists():
         raise FileNotFoundError(f"{source}: no such folder or file")
-    raise ValueError(f"{source}: expected a TUM RGB-D folder, a synthetic config (.json/.yaml) or 'builtin'")
+    raise ValueError(f"{source}: expected a TUM RGB-D folder, a ROS bag (.bag, .mcap, .db3 or a ROS 2 bag folder), "
+                     "a folder of depth/*.png with a camera file, a synthetic config (.json/.yaml) or 'builtin'")
 
 
 def _config_file(path: Path, args: argparse.Namespace, **given):
