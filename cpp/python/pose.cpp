@@ -302,6 +302,10 @@ void bindAlignment(py::module_& m) {
       .def_readwrite("ransac", &CbdAlignmentSettings::ransac, "CorrespondenceRansacSettings (10000 hypotheses)")
       .def_readwrite("matches_per_keypoint", &CbdAlignmentSettings::matches_per_keypoint,
                      "k nearest target descriptors per source keypoint")
+      .def_readwrite("hypotheses", &CbdAlignmentSettings::hypotheses,
+                     "sequential RANSAC: up to this many hypotheses (each on the pairs the earlier ones left), the "
+                     "one whose whole source cloud fits the target best wins (a half-turn look-alike's flipped pose "
+                     "can have the largest consensus); 1: classic RANSAC")
       .def_readwrite("target_thresholds_from_source", &CbdAlignmentSettings::target_thresholds_from_source,
                      "derive the deltas from the source's automatic keypoints and apply them to the target");
   py::class_<CbdAlignmentResult>(m, "CbdAlignmentResult", "Outcome of align_cbd")
@@ -963,7 +967,7 @@ void picklePoseResults(py::module_& m) {
                field("iterations", &CR::iterations), field("message", &CR::message));
   using AS = CbdAlignmentSettings;
   pickleFields(m, "CbdAlignmentSettings", field("cbd", &AS::cbd), field("ransac", &AS::ransac),
-               field("matches_per_keypoint", &AS::matches_per_keypoint),
+               field("matches_per_keypoint", &AS::matches_per_keypoint), field("hypotheses", &AS::hypotheses),
                field("target_thresholds_from_source", &AS::target_thresholds_from_source));
   using AR = CbdAlignmentResult;
   pickleFields(m, "CbdAlignmentResult", field("T_target_source", &AR::T_target_source), field("found", &AR::found),

@@ -150,20 +150,22 @@ def _cbd_alignment_settings(cbd_settings: Optional[_cbd.CbdSettings], cbd_overri
 
 
 def align_cbd(source: np.ndarray, target: np.ndarray, settings: Optional[_cbd.CbdSettings] = None, *,
-              ransac: Optional[Dict[str, Any]] = None, matches_per_keypoint: int = 1,
+              ransac: Optional[Dict[str, Any]] = None, matches_per_keypoint: int = 1, hypotheses: int = 3,
               **cbd_overrides: object) -> CbdAlignmentResult:
     """Coarse alignment of ``source`` (e.g. a model view) onto ``target`` (e.g. a scene object),
     (N, 3) metres, with the curvature-based descriptor (paper 5): CBD on both clouds
     (:class:`scanalign.cbd.CbdSettings` or field overrides; thesis defaults), nearest-descriptor
     matches (``matches_per_keypoint``), RANSAC (``ransac``: :func:`ransac_rigid_motion`
-    keywords; 10000 iterations) and a motor refit. ``found`` is False with a message when
-    there are too few keypoints or no consensus."""
+    keywords; 10000 iterations) and a motor refit, repeated on the pairs left for up to
+    ``hypotheses`` poses, the best fit of the whole source cloud winning (1: classic RANSAC).
+    ``found`` is False with a message when there are too few keypoints or no consensus."""
     s = as_points(source, "source")
     t = as_points(target, "target", s.dtype)
     if len(s) == 0 or len(t) == 0:
         raise ValueError("align_cbd: source and target must not be empty")
     st = _cbd_alignment_settings(settings, cbd_overrides, ransac)
     st.matches_per_keypoint = int(matches_per_keypoint)
+    st.hypotheses = hypotheses
     return _P.align_cbd(s, t, st)
 
 

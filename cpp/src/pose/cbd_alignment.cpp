@@ -54,6 +54,8 @@ template <typename Scalar>
 CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CbdFeatures& fs, const CloudView<Scalar>& target,
                             const CbdFeatures& ft, const CbdAlignmentSettings& s) {
   if (s.matches_per_keypoint < 1) throw std::invalid_argument("alignCbd: matches_per_keypoint must be >= 1");
+  if (s.hypotheses < 1 || s.hypotheses > 1000)
+    throw std::invalid_argument("alignCbd: hypotheses must be in [1, 1000], got " + std::to_string(s.hypotheses));
   const auto t0 = std::chrono::steady_clock::now();
   CbdAlignmentResult out;
   out.source_keypoints = fs.keypoints.size();
@@ -82,19 +84,36 @@ CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CbdFeatures& 
   const auto t2 = std::chrono::steady_clock::now();
   CorrespondenceRansacSettings rs = s.ransac;
   if (rs.num_threads == 0) rs.num_threads = s.cbd.num_threads;
-  const CorrespondenceRansacResult r =
-      ransacRigidMotion(CloudView<double>(xs.data(), fs.keypoints.size()), CloudView<double>(ys.data(), ft.keypoints.size()),
-                        pairs.data(), m.source.size(), rs);
-  out.ransac_seconds = since(t2);
-  out.found = r.found;
-  out.match_inliers = r.inliers.size();
-  out.message = r.message;
-  if (r.found) {
-    out.T_target_source = r.T_target_source;
+  const CloudView<double> xv(xs.data(), fs.keypoints.size()), yv(ys.data(), ft.keypoints.size());
+  // Sequential RANSAC: each hypothesis's inlier pairs leave the pool before the next run; the
+  // hypotheses are compared on the whole source cloud, not on their consensus size.
+  for (int h = 0; h < s.hypotheses && (h == 0 || pairs.size() >= 6); ++h) {
+    const CorrespondenceRansacResult r = ransacRigidMotion(xv, yv, pairs.data(), pairs.size() / 2, rs);
+    if (!r.found) {
+      if (h == 0) out.message = r.message;
+      break;
+    }
     const auto f = alignmentFitness(source, target, r.T_target_source, rs.inlier_threshold, s.cbd.num_threads);
-    out.fitness = f.first;
-    out.inlier_rmse = f.second;
+    if (!out.found || f.first > out.fitness || (f.first == out.fitness && f.second < out.inlier_rmse)) {
+      out.found = true;
+      out.T_target_source = r.T_target_source;
+      out.match_inliers = r.inliers.size();
+      out.fitness = f.first;
+      out.inlier_rmse = f.second;
+      out.message.clear();
+    }
+    std::vector<bool> used(pairs.size() / 2, false);
+    for (const std::uint32_t i : r.inliers) used[i] = true;
+    std::size_t kept = 0;
+    for (std::size_t k = 0; k < used.size(); ++k)
+      if (!used[k]) {
+        pairs[2 * kept] = pairs[2 * k];
+        pairs[2 * kept + 1] = pairs[2 * k + 1];
+        ++kept;
+      }
+    pairs.resize(2 * kept);
   }
+  out.ransac_seconds = since(t2);
   out.seconds = since(t0);
   return out;
 }

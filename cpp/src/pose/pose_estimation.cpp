@@ -84,11 +84,19 @@ Icp<double> sceneIcp(const PreparedScene& scene, const PoseSettings& s) {
 void score(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, PoseCandidate& c,
            const Eigen::Matrix4d& T);
 
-// ICP refinement of one view and its score 2 fitness coverage / (fitness + coverage).
+// ICP refinement of one view and its score 2 fitness coverage / (fitness + coverage). ICP only
+// polishes: when its answer scores below the coarse pose (it slid along a direction that the
+// point-to-plane cost does not see, e.g. along a prism), the coarse pose is kept.
 void refine(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, Icp<double>& icp,
             const Eigen::Matrix4d& init, PoseCandidate& c, Eigen::Matrix4d& T) {
   T = icp.align(view.cloud(), init).T_target_source;
   score(view, scene, s, c, T);
+  PoseCandidate coarse = c;
+  score(view, scene, s, coarse, init);
+  if (coarse.score > c.score) {
+    c = coarse;
+    T = init;
+  }
 }
 
 // Fitness, coverage, inlier RMSE and score 2 fitness coverage / (fitness + coverage) of a view at T.
@@ -401,8 +409,10 @@ void polish(const ModelView& view, const PreparedScene& scene, const FindPartsSe
   Icp<double> icp(is);
   const std::size_t n = scene.oriented_points.size() / 3;
   icp.setTarget(CloudView<double>(scene.oriented_points.data(), n), CloudView<double>(scene.oriented_normals.data(), n));
-  const Eigen::Matrix4d init = c.T_scene_model;
-  refine(view, scene, ps, icp, init, c, c.T_scene_model);
+  // Not refine(): the polish is kept even where noise scores it a hair below its start (the
+  // score saturates at the inlier threshold; the polish fixes what the score cannot see).
+  c.T_scene_model = icp.align(view.cloud(), c.T_scene_model).T_target_source;
+  score(view, scene, ps, c, c.T_scene_model);
 }
 
 /// A part's visible surface from every view, model frame: points and normals (a view's normals

@@ -25,6 +25,12 @@ struct CbdAlignmentSettings {
     return r;
   }();
   int matches_per_keypoint = 1;           ///< k nearest target descriptors per source keypoint
+  /// Sequential RANSAC: after each hypothesis its inlier pairs are removed and RANSAC runs again
+  /// on the rest, up to this many hypotheses; the one whose whole source cloud lies best on the
+  /// target (fitness, then RMSE) wins. On a part that looks alike after a half turn, the pairs
+  /// matched to the wrong twin can outnumber the right ones, so the largest consensus alone
+  /// picks the flipped pose; the right one is among the next hypotheses. 1: classic RANSAC.
+  int hypotheses = 3;
   /// Spec §7.2: derive δ's from the source's automatic keypoints and apply them to the target
   /// (capped by cbd.max_keypoints, if set). false: each cloud picks its own keypoints.
   bool target_thresholds_from_source = false;
