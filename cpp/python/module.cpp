@@ -4,6 +4,7 @@
 
 #include <chrono>
 
+#include "scanalign/common/build_info.hpp"
 #include "scanalign/common/interrupt.hpp"
 
 namespace py = pybind11;
@@ -67,6 +68,8 @@ bool pythonInterruptHook() {
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "scanalign compiled core (use the scanalign package API)";
+  m.attr("__version__") = scanalign::version();  // the package's version (one source: CMakeLists.txt)
+  m.attr("built_with_pcl") = scanalign::builtWithPcl();
   auto registration = m.def_submodule("registration", "ICP engine, k-d tree, PCL plug-ins and baselines");
   auto features = m.def_submodule("features", "normal estimation");
   auto reconstruction = m.def_submodule("reconstruction", "voxel grid");

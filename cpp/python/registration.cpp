@@ -474,6 +474,9 @@ void defineRegistration(py::module_& m) {
       .def_property_readonly(
           "T_target_source", [](const IcpResult& r) { return r.T_target_source; },
           "4x4 float64: p_target = T_target_source @ p_source")
+      .def_property_readonly(
+          "transformation", [](const IcpResult& r) { return r.T_target_source; },
+          "T_target_source under Open3D's name (RegistrationResult.transformation), for code written for Open3D")
       .def_readonly("converged", &IcpResult::converged, "a convergence criterion (transform or MSE change) was met")
       .def_property_readonly(
           "status", [](const IcpResult& r) { return std::string(toString(r.status)); },

@@ -7,6 +7,10 @@
   scanalign register-demo      one simulated frame registered by scanalign and stock PCL
   scanalign pick --demo        scan a built-in cell, find its parts, plan grasps and joint targets
   scanalign demo --pick        the same
+  scanalign ik                 all analytic IK solutions of a tool pose
+  scanalign pose SCAN          find a CAD part in a scan
+  scanalign batch MANIFEST     run many jobs on a process pool or a Ray cluster
+  scanalign dump-config CMD    every setting of a command with its default and unit (for --config)
 
 Units: metres, radians, seconds. Run ``scanalign COMMAND --help`` for every option.
 """
@@ -544,6 +548,13 @@ def batch_command(args: argparse.Namespace) -> int:
     return 0 if all(r["status"] == "ok" for r in result.records) else 1
 
 
+def _version_line() -> str:
+    from . import _core
+
+    pcl = "with the PCL baselines" if _core.built_with_pcl else "without PCL (SCANALIGN_WITH_PCL=OFF)"
+    return f"scanalign {_core.__version__} ({pcl})"
+
+
 def _record_config(sub, args: argparse.Namespace, rc: int) -> int:
     """Writes the settings a run used beside its outputs (``config.yaml`` in ``--out``;
     ``register``: ``NAME.config.yaml`` beside ``--out NAME.ply``, none without ``--out``);
@@ -561,7 +572,9 @@ def _record_config(sub, args: argparse.Namespace, rc: int) -> int:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="scanalign", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    sub = parser.add_subparsers(dest="command", required=True)
+    parser.add_argument("--version", action="version", version=_version_line(),
+                        help="print the version and whether the PCL baselines are built, then exit")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     p = sub.add_parser("demo", help="reconstruct a built-in synthetic eye-in-hand scan (no download needed)",
                        description="Renders a built-in synthetic scan (a camera on the hand of a UR5 circling a "
                                    "part on a table, SR300-like noise; the reference poses are the robot's forward "
@@ -583,12 +596,14 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "approach) or ranked by joint motion. Writes picks.json, joints.csv, scene.ply "
                                    "and pick.png. Exit status 1 when nothing can be picked.")
     _add_pick_options(p, demo=False)
-    p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder or a synthetic scan",
+    p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder, a ROS bag, a PNG folder or a synthetic scan",
                        description="Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper) of SOURCE: a folder in the "
                                    "TUM RGB-D layout (depth/, rgb/, depth.txt, rgb.txt, optional groundtruth.txt), "
-                                   "a synthetic-scan config (.json/.yaml), or 'builtin'. Writes the same outputs as "
+                                   "a ROS 1 .bag or ROS 2 bag (depth, colour, camera_info, /joint_states, /tf; "
+                                   "RealSense recordings too), a folder of PNG depth and colour images with a camera "
+                                   "YAML, a synthetic-scan config (.json/.yaml), or 'builtin'. Writes the same outputs as "
                                    "'scanalign demo'.")
-    p.add_argument("source", help="TUM RGB-D folder, synthetic config file, or 'builtin'")
+    p.add_argument("source", help="TUM RGB-D folder, ROS bag, PNG folder, synthetic config file, or 'builtin'")
     _add_reconstruct_options(p, "scanalign-out")
     p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder")
     p.add_argument("config", help="synthetic config file (.json/.yaml) or 'builtin'")

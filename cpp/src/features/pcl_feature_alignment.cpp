@@ -44,24 +44,6 @@
 
 namespace scanalign {
 
-const char* toString(PclDescriptor descriptor) {
-  switch (descriptor) {
-    case PclDescriptor::FPFH: return "fpfh";
-    case PclDescriptor::SHOT: return "shot";
-    case PclDescriptor::ShapeContext3D: return "3dsc";
-    case PclDescriptor::PPF: return "ppf";
-  }
-  return "unknown";
-}
-
-const char* toString(PclMatcher matcher) {
-  switch (matcher) {
-    case PclMatcher::Prerejective: return "prerejective";
-    case PclMatcher::SacIA: return "sac_ia";
-  }
-  return "unknown";
-}
-
 namespace {
 
 using Clock = std::chrono::steady_clock;

@@ -23,16 +23,6 @@
 
 namespace scanalign {
 
-const char* toString(PclIcpVariant variant) {
-  switch (variant) {
-    case PclIcpVariant::Svd: return "svd";
-    case PclIcpVariant::DualQuaternion: return "dual_quaternion";
-    case PclIcpVariant::PointToPlaneLLS: return "point_to_plane_lls";
-    case PclIcpVariant::ScanalignPointToPlaneLLS: return "scanalign_point_to_plane_lls";
-  }
-  return "unknown";
-}
-
 namespace {
 
 /// Gives read access to the iteration count PCL keeps protected.
