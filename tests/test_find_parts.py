@@ -93,6 +93,28 @@ def test_each_cluster_gets_its_part_and_pose_and_the_box_is_no_part():
     assert any(np.allclose(c.T_scene_model, d.pose.T_scene_model) for c in d.pose.candidates)
 
 
+def test_a_looser_fitting_runner_up_is_no_ambiguity():
+    """The bracket slid 8 mm along its plates is a distinct, wrong ICP minimum that still scores
+    within the ambiguity margin (the score saturates at the 5 mm inlier threshold); its inlier
+    RMSE is three times the true pose's, which is what ambiguity_rmse_ratio reads."""
+    cloud, truth = _scene()
+    syms = [parts.BUILTIN_PARTS[n] for n in NAMES]
+
+    def bracket(**kw):
+        out = pose.find_parts(_models(), cloud, symmetries=syms, **KW, **kw)
+        return next(d for d in out.detections if np.linalg.norm(cloud[d.indices].mean(0)[:2] - truth["bracket"][:2, 3]) < 0.05)
+
+    loose = bracket(ambiguity_rmse_ratio=0)
+    assert loose.status == pose.DetectionStatus.ambiguous and loose.runner_up_part == NAMES.index("bracket")
+    assert loose.runner_up_distance > 0.005 and loose.runner_up_score >= 0.98 * loose.score
+    d = bracket()
+    assert d.status == pose.DetectionStatus.found, d.message
+    deg, mm = _symmetric_error(d.pose.T_scene_model, truth["bracket"], parts.BUILTIN_PARTS["bracket"])
+    assert deg < 0.5 and mm < 1.0, (deg, mm)
+    with pytest.raises(ValueError, match="ambiguity_rmse_ratio"):
+        pose.find_parts(_models(), cloud, ambiguity_rmse_ratio=0.5, **KW)
+
+
 def test_two_copies_of_a_model_are_ambiguous_and_the_standoff_symmetry_is_not():
     cloud, truth = _scene(False)
     block, _, standoff = _models()

@@ -3,6 +3,7 @@ the sensor models' own constants, and determinism."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -193,6 +194,9 @@ def test_render_depth_rejects_bad_input():
         rendering.render_depth(v, f.astype(float), K_SR300, np.eye(4))
     with pytest.raises(TypeError):
         rendering.render_depth(v, f, (640, 480, 500, 500, 320, 240), np.eye(4))
+    distorted = dataclasses.replace(K_SR300, distortion=(0.1, 0, 0, 0, 0))
+    with pytest.raises(ValueError, match="pinhole"):
+        rendering.render_depth(v, f, distorted, np.eye(4))
     with pytest.raises(ValueError, match="faces"):
         rendering.render_depth(v, f + 2, K_SR300, np.eye(4))
     with pytest.raises(ValueError, match="faces"):

@@ -547,6 +547,9 @@ void bindFindParts(py::module_& m) {
       .def_readwrite("pose", &FindPartsSettings::pose, "PoseSettings per cluster and part")
       .def_readwrite("ambiguity_margin", &FindPartsSettings::ambiguity_margin,
                      "a runner-up scoring at least (1 - margin) x the best score makes the detection ambiguous (0.02)")
+      .def_readwrite("ambiguity_rmse_ratio", &FindPartsSettings::ambiguity_rmse_ratio,
+                     "a runner-up fits alike only if its inlier RMSE is at most this times the best's (1.5; 0: no "
+                     "RMSE test): the score saturates at the inlier threshold, the RMSE does not")
       .def_readwrite("score_tie", &FindPartsSettings::score_tie,
                      "candidates of the best part within this of its best score are ties: the smallest inlier RMSE "
                      "wins (0.01)")
@@ -1020,6 +1023,7 @@ void picklePoseResults(py::module_& m) {
   using FP = FindPartsSettings;
   pickleFields(m, "FindPartsSettings", field("table", &FP::table), field("max_objects", &FP::max_objects),
                field("pose", &FP::pose), field("ambiguity_margin", &FP::ambiguity_margin),
+               field("ambiguity_rmse_ratio", &FP::ambiguity_rmse_ratio),
                field("score_tie", &FP::score_tie), field("polish_distance", &FP::polish_distance),
                field("same_pose_angle", &FP::same_pose_angle), field("same_pose_distance", &FP::same_pose_distance),
                field("max_size_ratio", &FP::max_size_ratio), field("min_size_ratio", &FP::min_size_ratio),

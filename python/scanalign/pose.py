@@ -361,7 +361,8 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
                cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
                viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
                progress: bool = False, resolution: int = 100, views: Optional[Sequence[int]] = None,
-               num_threads: int = 0, ambiguity_margin: float = 0.02, same_pose_angle: float = math.radians(5),
+               num_threads: int = 0, ambiguity_margin: float = 0.02, ambiguity_rmse_ratio: float = 1.5,
+               same_pose_angle: float = math.radians(5),
                same_pose_distance: float = 0.005, max_size_ratio: float = 1.5, min_size_ratio: float = 0.5,
                voxel_size: float = 0.0, score_tie: float = 0.01, polish_distance: float = 0.003,
                max_table_penetration: float = 0.005, surface_polish: bool = True, cbd_radius_fraction: float = 0.0,
@@ -373,7 +374,8 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
     by score, and a :class:`DetectionStatus`: ``found``, ``not_found`` (no part passes
     ``min_fitness`` / ``min_coverage``) or ``ambiguous`` (a runner-up -- another part, or a
     pose of the same part that its symmetry does not make equivalent -- scores at least
-    ``(1 - ambiguity_margin)`` x the best).
+    ``(1 - ambiguity_margin)`` x the best with an inlier RMSE at most ``ambiguity_rmse_ratio``
+    x the best's).
 
     Args:
         models: one model per part, each as :func:`estimate_pose` takes it (a mesh, its
@@ -417,7 +419,8 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
     s, pcl = find_parts_settings(
         method=method, max_objects=max_objects, table_threshold=table_threshold, cluster_tolerance=cluster_tolerance,
         min_cluster_size=min_cluster_size, viewpoint=viewpoint, up=up, num_threads=num_threads,
-        ambiguity_margin=ambiguity_margin, same_pose_angle=same_pose_angle, same_pose_distance=same_pose_distance,
+        ambiguity_margin=ambiguity_margin, ambiguity_rmse_ratio=ambiguity_rmse_ratio, same_pose_angle=same_pose_angle,
+        same_pose_distance=same_pose_distance,
         max_size_ratio=max_size_ratio, min_size_ratio=min_size_ratio, voxel_size=voxel_size, score_tie=score_tie,
         polish_distance=polish_distance, max_table_penetration=max_table_penetration, surface_polish=surface_polish,
         cbd_radius_fraction=cbd_radius_fraction, min_surface_coverage=min_surface_coverage, **pose_kwargs)
@@ -437,7 +440,7 @@ def find_parts_settings(*, method: Method = "cbd", max_objects: int = 5, table_t
     """``(FindPartsSettings, PCL settings or None)`` that :func:`find_parts` builds from these
     keywords (its own, same defaults): e.g. to describe part views once with
     ``_core.pose.part_pose_settings`` (see :mod:`scanalign.part_library`)."""
-    names = ("ambiguity_margin", "same_pose_angle", "same_pose_distance", "max_size_ratio", "min_size_ratio",
+    names = ("ambiguity_margin", "ambiguity_rmse_ratio", "same_pose_angle", "same_pose_distance", "max_size_ratio", "min_size_ratio",
              "voxel_size", "score_tie", "polish_distance", "max_table_penetration", "surface_polish",
              "cbd_radius_fraction", "min_surface_coverage")
     fields = {k: keywords.pop(k) for k in names if k in keywords}

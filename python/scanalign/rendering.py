@@ -47,6 +47,11 @@ def as_intrinsics(intrinsics: object) -> Intrinsics:
     """``intrinsics`` itself, or the preset of that name; TypeError for anything else."""
     if isinstance(intrinsics, str):
         return Intrinsics.preset(intrinsics)
+    if isinstance(intrinsics, Intrinsics) and intrinsics.has_distortion:
+        # The renderer is a pinhole camera: a distorted camera would get pinhole images that the
+        # back-projection then "undistorts" into a bent scene.
+        raise ValueError("intrinsics: the renderer draws pinhole images; give intrinsics without distortion "
+                         f"(got distortion={intrinsics.distortion})")
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError(
             f"intrinsics: expected scanalign.camera.Intrinsics or a preset name, got {type(intrinsics)!r}")

@@ -84,19 +84,11 @@ Icp<double> sceneIcp(const PreparedScene& scene, const PoseSettings& s) {
 void score(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, PoseCandidate& c,
            const Eigen::Matrix4d& T);
 
-// ICP refinement of one view and its score 2 fitness coverage / (fitness + coverage). ICP only
-// polishes: when its answer scores below the coarse pose (it slid along a direction that the
-// point-to-plane cost does not see, e.g. along a prism), the coarse pose is kept.
+// ICP refinement of one view and its score 2 fitness coverage / (fitness + coverage).
 void refine(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, Icp<double>& icp,
             const Eigen::Matrix4d& init, PoseCandidate& c, Eigen::Matrix4d& T) {
   T = icp.align(view.cloud(), init).T_target_source;
   score(view, scene, s, c, T);
-  PoseCandidate coarse = c;
-  score(view, scene, s, coarse, init);
-  if (coarse.score > c.score) {
-    c = coarse;
-    T = init;
-  }
 }
 
 // Fitness, coverage, inlier RMSE and score 2 fitness coverage / (fitness + coverage) of a view at T.
@@ -305,6 +297,9 @@ const char* toString(DetectionStatus status) {
 void validate(const FindPartsSettings& s) {
   if (s.max_objects < 1) throw std::invalid_argument("max_objects must be >= 1");
   validate(s.pose);
+  if (!(std::isfinite(s.ambiguity_rmse_ratio) && (s.ambiguity_rmse_ratio == 0 || s.ambiguity_rmse_ratio >= 1)))
+    throw std::invalid_argument("ambiguity_rmse_ratio must be 0 (no RMSE test) or a finite ratio >= 1, got " +
+                                std::to_string(s.ambiguity_rmse_ratio));
   if (!(s.ambiguity_margin >= 0 && s.ambiguity_margin < 1))
     throw std::invalid_argument("ambiguity_margin must be in [0, 1), got " + std::to_string(s.ambiguity_margin));
   if (!(std::isfinite(s.same_pose_angle) && s.same_pose_angle >= 0 && s.same_pose_angle <= M_PI))
@@ -409,10 +404,8 @@ void polish(const ModelView& view, const PreparedScene& scene, const FindPartsSe
   Icp<double> icp(is);
   const std::size_t n = scene.oriented_points.size() / 3;
   icp.setTarget(CloudView<double>(scene.oriented_points.data(), n), CloudView<double>(scene.oriented_normals.data(), n));
-  // Not refine(): the polish is kept even where noise scores it a hair below its start (the
-  // score saturates at the inlier threshold; the polish fixes what the score cannot see).
-  c.T_scene_model = icp.align(view.cloud(), c.T_scene_model).T_target_source;
-  score(view, scene, ps, c, c.T_scene_model);
+  const Eigen::Matrix4d init = c.T_scene_model;
+  refine(view, scene, ps, icp, init, c, c.T_scene_model);
 }
 
 /// A part's visible surface from every view, model frame: points and normals (a view's normals
@@ -582,6 +575,7 @@ void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<P
         err = symmetricPoseError(T_best, Eigen::Isometry3d(c.T_scene_model), S);
         if (same() || c.score <= d.runner_up_score) continue;
       }
+      if (s.ambiguity_rmse_ratio > 0 && c.inlier_rmse > s.ambiguity_rmse_ratio * d.pose.inlier_rmse) continue;
       d.runner_up_part = static_cast<int>(p);
       d.runner_up_score = c.score;
       d.runner_up_angle = err.first;

@@ -11,7 +11,7 @@ Kinds:
 
 * ``reconstruct``: frame-to-model reconstruction (:func:`scanalign.pipeline.reconstruct`) of
   a synthetic scan (:class:`scanalign.synthetic.SyntheticConfig`: ``frames``, ``noise``,
-  ``seed``, ``robot``) or a TUM RGB-D folder; ATE/RPE against the reference poses, and the
+  ``seed``, ``robot``) or a recording (TUM RGB-D folder, ROS bag, PNG folder); ATE/RPE against the reference poses, and the
   model's distance to the true surface for synthetic scans.
 * ``pose``: parts in a scan (:func:`scanalign.pose.find_parts` with the library's described
   views): a cloud file (PLY/PCD, base frame) or the built-in pick cell seen from ``frames``
@@ -90,7 +90,8 @@ class Job:
     Attributes:
         id: unique name in the batch (the resume key).
         kind: ``"reconstruct"``, ``"pose"`` or ``"pick"``.
-        source: ``"synthetic"`` or a path: a TUM RGB-D folder (reconstruct, pick), a PLY or
+        source: ``"synthetic"`` or a path: a recording (TUM RGB-D folder, ROS bag or PNG folder:
+            reconstruct; TUM folder: pick), a PLY or
             PCD cloud in the robot's base frame, metres (pose).
         robot, noise, seed: the synthetic scan: robot name, sensor noise preset, noise seed.
         frames: synthetic views (0: 36 for reconstruct, 4 for pose, 24 for pick).
@@ -176,11 +177,9 @@ def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
         scan = SyntheticConfig(n_frames=job.n_frames, noise=job.noise, seed=job.seed, robot=job.robot).build()
         frames: Any = scan.frames
     else:
-        from ..tum import TumSequence, is_tum_folder
+        from ..sources import open_source
 
-        if not is_tum_folder(job.source):
-            raise ValueError(f"{job.source}: not a TUM RGB-D folder (no depth.txt)")
-        frames = TumSequence(job.source)
+        frames = open_source(job.source)  # a TUM folder, a ROS bag or a folder of PNGs + camera file
     settings = {**(SYNTHETIC_RECONSTRUCTION if job.synthetic else {}), **job.settings}
     result = reconstruct(frames, progress=False, **settings)
     s = result.summary()

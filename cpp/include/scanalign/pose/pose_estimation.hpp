@@ -158,6 +158,12 @@ struct FindPartsSettings {
   /// not more: at inlier_threshold 5 mm the score saturates, and a bracket slid 8 mm along
   /// its plates (a distinct, wrong ICP minimum) still scored 0.977 against 0.999.
   double ambiguity_margin = 0.02;
+  /// A runner-up fits alike only if its inlier RMSE is at most this times the best's (0: no
+  /// RMSE test). The score saturates at inlier_threshold, the RMSE does not: the bracket slid
+  /// 8 mm along its plates scored 0.987 against 0.999 (inside the margin) at 3 times the
+  /// best's RMSE. Two copies of one model, or a symmetric part given without its symmetry, fit
+  /// equally tightly and stay ambiguous.
+  double ambiguity_rmse_ratio = 1.5;
   /// Candidates of the best part scoring within score_tie of its best score are ties: the one
   /// with the smallest inlier RMSE is reported (with sensor noise far below
   /// inlier_threshold, fitness and coverage saturate at 1 for poses a degree apart).
