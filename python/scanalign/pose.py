@@ -252,6 +252,7 @@ def _pose_settings(method: str, inlier_threshold: float, icp_distance: float, no
                    cbd_settings: Optional[_cbd.CbdSettings], ransac: Optional[Dict[str, Any]], num_threads: int,
                    cbd_overrides: Dict[str, object]) -> Any:
     limits = {k: cbd_overrides.pop(k) for k in ("min_fitness", "min_coverage") if k in cbd_overrides}
+    hypotheses = cbd_overrides.pop("hypotheses", None)
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     cbd_overrides.setdefault("min_neighbors", 0)  # automatic: scan density varies
@@ -259,6 +260,10 @@ def _pose_settings(method: str, inlier_threshold: float, icp_distance: float, no
                                            inlier_threshold=inlier_threshold, icp_distance=icp_distance,
                                            normal_radius=normal_radius, num_threads=num_threads, **limits), "pose")
     s.cbd = _cbd_alignment_settings(cbd_settings, cbd_overrides, ransac, s.cbd)
+    if hypotheses is not None:
+        c = s.cbd
+        c.hypotheses = hypotheses
+        s.cbd = c
     return s
 
 
@@ -284,7 +289,8 @@ def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", v
         icp_distance: ICP max correspondence distance, metres.
         normal_radius: scene normal radius for point-to-plane ICP and flags, metres.
         cbd_settings / **cbd_overrides: CBD settings (``min_neighbors`` defaults to 0 here:
-            automatic, since scan density varies); also ``min_fitness`` / ``min_coverage`` (0.5).
+            automatic, since scan density varies); also ``min_fitness`` / ``min_coverage`` (0.5)
+            and ``hypotheses`` (3: RANSAC poses per view, see :func:`align_cbd`).
         ransac: RANSAC keywords for CBD; ``pcl_settings``: PCL baseline overrides.
         progress: print a progress bar over the views on stderr.
 
@@ -384,6 +390,9 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
         scene: (N, 3) scan, metres (camera or base frame; ``T_scene_model`` is in that frame).
         symmetries: one ``PartSymmetry`` (``axis``, ``point`` m, ``order``; e.g. from
             :data:`scanalign.parts.BUILTIN_PARTS`) or None per part; default none symmetric.
+        ambiguity_margin / ambiguity_rmse_ratio: a runner-up makes the detection ambiguous if it
+            scores at least ``(1 - ambiguity_margin)`` x the best and its inlier RMSE is at most
+            ``ambiguity_rmse_ratio`` x the best's (0: no RMSE test).
         same_pose_angle / same_pose_distance: rad / m; two poses of one part closer than both
             (over its symmetry) are the same pose, never a runner-up.
         max_size_ratio / min_size_ratio: skip a part, before any alignment, for a cluster
@@ -444,6 +453,7 @@ def find_parts_settings(*, method: Method = "cbd", max_objects: int = 5, table_t
              "voxel_size", "score_tie", "polish_distance", "max_table_penetration", "surface_polish",
              "cbd_radius_fraction", "min_surface_coverage")
     fields = {k: keywords.pop(k) for k in names if k in keywords}
+    keywords.setdefault("hypotheses", 1)  # as FindPartsSettings.pose: one RANSAC pose per view
     s = _P.FindPartsSettings()
     pcl = _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
                           num_threads, keywords)
