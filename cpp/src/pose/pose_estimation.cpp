@@ -91,20 +91,6 @@ void refine(const ModelView& view, const PreparedScene& scene, const PoseSetting
   score(view, scene, s, c, T);
 }
 
-// refine() from a coarse pose, which ICP only polishes: when ICP's answer scores below the
-// coarse pose (it slid along a direction that the point-to-plane cost does not see, e.g. along
-// a prism), the coarse pose is kept.
-void refineCoarse(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, Icp<double>& icp,
-                  const Eigen::Matrix4d& coarse, PoseCandidate& c, Eigen::Matrix4d& T) {
-  refine(view, scene, s, icp, coarse, c, T);
-  PoseCandidate start = c;
-  score(view, scene, s, start, coarse);
-  if (start.score > c.score) {
-    c = start;
-    T = coarse;
-  }
-}
-
 // Fitness, coverage, inlier RMSE and score 2 fitness coverage / (fitness + coverage) of a view at T.
 void score(const ModelView& view, const PreparedScene& scene, const PoseSettings& s, PoseCandidate& c,
            const Eigen::Matrix4d& T) {
@@ -239,7 +225,7 @@ PoseResult poseInPrepared(const std::vector<ModelView>& views, const std::vector
       if (cr.found) {
         c.coarse_fitness = alignmentFitness(view.cloud(), prepared.cloud(), cr.T_scene_model, s.inlier_threshold,
                                             s.num_threads).first;
-        refineCoarse(view, prepared, s, icp, cr.T_scene_model, c, c.T_scene_model);
+        refine(view, prepared, s, icp, cr.T_scene_model, c, c.T_scene_model);
         if (c.score > best_score) {
           best_score = c.score;
           best.T_scene_model = c.T_scene_model;
