@@ -51,8 +51,7 @@ def test_icp_takes_foreign_clouds(surface):
     model, normals, source = surface
     expected = registration.icp(source, model, normals, max_correspondence_distance=0.02)
     assert expected.converged
-    if hasattr(expected, "transformation"):  # Open3D's name for the same matrix (the C++ binding's alias)
-        np.testing.assert_array_equal(expected.transformation, expected.T_target_source)
+    np.testing.assert_array_equal(expected.transformation, expected.T_target_source)  # Open3D's name
     src, tgt = _foreign_clouds(source), _foreign_clouds(model, normals)
     for kind in src:
         got = registration.icp(src[kind], tgt[kind], normals, max_correspondence_distance=0.02)
@@ -140,6 +139,10 @@ def test_pose_takes_foreign_clouds():
     assert expected.found
     got = pose.estimate_pose(interop.to_open3d(model), interop.to_trimesh(scene))
     np.testing.assert_array_equal(got.T_scene_model, expected.T_scene_model)
+    np.testing.assert_array_equal(got.transformation, got.T_scene_model)  # Open3D's name: model onto scene
+    assert np.abs(got.transformation[:3, 3] - [0.002, 0.001, 0.0]).max() < 1e-3
+    coarse = pose.align_cbd(model, scene, min_neighbors=0)
+    np.testing.assert_array_equal(coarse.transformation, coarse.T_target_source)
 
 
 def test_pick_scene_takes_a_foreign_cloud(surface):

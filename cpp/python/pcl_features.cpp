@@ -51,6 +51,9 @@ void definePclFeatures(py::module_& m) {
   using R = PclFeatureAlignmentResult;
   py::class_<R>(m, "PclFeatureAlignmentResult", "Outcome of a PCL baseline")
       .def_readonly("T_target_source", &R::T_target_source, "(4, 4) maps source into target")
+      .def_property_readonly(
+          "transformation", [](const R& r) { return r.T_target_source; },
+          "T_target_source under Open3D's name (RegistrationResult.transformation)")
       .def_readonly("converged", &R::converged, "PCL's hasConverged(): a hypothesis was accepted")
       .def_property_readonly("found", [](const R& r) { return r.converged; }, "same as converged")
       .def_readonly("fitness", &R::fitness, "downsampled source points within inlier_threshold of the target")

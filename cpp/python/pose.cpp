@@ -310,6 +310,9 @@ void bindAlignment(py::module_& m) {
                      "derive the deltas from the source's automatic keypoints and apply them to the target");
   py::class_<CbdAlignmentResult>(m, "CbdAlignmentResult", "Outcome of align_cbd")
       .def_readonly("T_target_source", &CbdAlignmentResult::T_target_source, "(4, 4) maps source into target")
+      .def_property_readonly(
+          "transformation", [](const CbdAlignmentResult& r) { return r.T_target_source; },
+          "T_target_source under Open3D's name (RegistrationResult.transformation)")
       .def_readonly("found", &CbdAlignmentResult::found, "RANSAC found a consistent set of matches")
       .def_readonly("fitness", &CbdAlignmentResult::fitness, "source points within the inlier threshold of the target")
       .def_readonly("inlier_rmse", &CbdAlignmentResult::inlier_rmse, "m, over those points")
@@ -682,6 +685,9 @@ void bindPipeline(py::module_& m) {
   py::class_<PoseResult>(m, "PoseResult", "Pose of a model in an object cloud")
       .def(py::init<>())
       .def_readwrite("T_scene_model", &PoseResult::T_scene_model, "(4, 4) maps model (CAD) coordinates into the scene")
+      .def_property_readonly(
+          "transformation", [](const PoseResult& r) { return r.T_scene_model; },
+          "T_scene_model under Open3D's name: the model (source) registered onto the scene (target)")
       .def_readwrite("found", &PoseResult::found, "a coarse alignment succeeded and ICP refined it")
       .def_readwrite("fitness", &PoseResult::fitness, "fraction of the view's points within inlier_threshold of the object")
       .def_readwrite("coverage", &PoseResult::coverage, "fraction of the object's points within inlier_threshold of the model")
