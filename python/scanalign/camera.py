@@ -23,7 +23,7 @@ import yaml
 from . import _core
 
 __all__ = ["Intrinsics", "Frame", "INTRINSICS_PRESETS", "read_camera_file", "read_camera", "camera_from_dict",
-           "NO_DISTORTION"]
+           "NO_DISTORTION", "sequence_index"]
 
 #: The distortion of a pinhole camera (rectified images): k1 k2 p1 p2 k3 all zero.
 NO_DISTORTION: Tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
@@ -344,3 +344,13 @@ class Frame:
         out[~(out > 0)] = np.nan  # 0 (also NaN, negative) = no measurement
         return out
 
+
+def sequence_index(i: Any, n: int, what: str) -> int:
+    """Frame ``i`` of a sequence of ``n`` frames (negative counts from the end) as a
+    non-negative index; TypeError naming ``what`` for a non-integer, IndexError out of range."""
+    if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
+        raise TypeError(f"{what} indices must be integers, got {type(i).__name__}")
+    k = int(i) + n if i < 0 else int(i)
+    if not 0 <= k < n:
+        raise IndexError(f"frame index {i} out of range for a sequence of {n} frames")
+    return k

@@ -250,13 +250,15 @@ class _Progress:
 
 def _pose_settings(method: str, inlier_threshold: float, icp_distance: float, normal_radius: float,
                    cbd_settings: Optional[_cbd.CbdSettings], ransac: Optional[Dict[str, Any]], num_threads: int,
-                   cbd_overrides: Dict[str, object]) -> Any:
+                   cbd_overrides: Dict[str, object], base: Any = None) -> Any:
+    """PoseSettings from these values over ``base`` (the defaults of the C++ struct that holds
+    them, e.g. ``FindPartsSettings.pose``; a fresh ``PoseSettings`` when None)."""
     limits = {k: cbd_overrides.pop(k) for k in ("min_fitness", "min_coverage") if k in cbd_overrides}
     hypotheses = cbd_overrides.pop("hypotheses", None)
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     cbd_overrides.setdefault("min_neighbors", 0)  # automatic: scan density varies
-    s = set_fields(_P.PoseSettings(), dict(method=method if method in ("cbd", "flags") else "external",
+    s = set_fields(_P.PoseSettings() if base is None else base, dict(method=method if method in ("cbd", "flags") else "external",
                                            inlier_threshold=inlier_threshold, icp_distance=icp_distance,
                                            normal_radius=normal_radius, num_threads=num_threads, **limits), "pose")
     s.cbd = _cbd_alignment_settings(cbd_settings, cbd_overrides, ransac, s.cbd)
@@ -318,7 +320,7 @@ def _table_settings(s: Any, method: str, max_objects: int, table_threshold: floa
     s.max_objects = int(max_objects)
     s.pose = _pose_settings(method, pose_kwargs.pop("inlier_threshold", 0.005), pose_kwargs.pop("icp_distance", 0.01),
                             pose_kwargs.pop("normal_radius", 0.005), pose_kwargs.pop("cbd_settings", None),
-                            pose_kwargs.pop("ransac", None), num_threads, pose_kwargs)
+                            pose_kwargs.pop("ransac", None), num_threads, pose_kwargs, s.pose)
     pcl = _pcl_settings(method, pose_kwargs.pop("pcl_settings", None) or {}) if method in _PCL_METHODS else None
     t = s.table
     t.plane.threshold, t.cluster_tolerance, t.min_cluster_size = float(table_threshold), float(cluster_tolerance), int(
@@ -453,7 +455,6 @@ def find_parts_settings(*, method: Method = "cbd", max_objects: int = 5, table_t
              "voxel_size", "score_tie", "polish_distance", "max_table_penetration", "surface_polish",
              "cbd_radius_fraction", "min_surface_coverage")
     fields = {k: keywords.pop(k) for k in names if k in keywords}
-    keywords.setdefault("hypotheses", 1)  # as FindPartsSettings.pose: one RANSAC pose per view
     s = _P.FindPartsSettings()
     pcl = _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
                           num_threads, keywords)

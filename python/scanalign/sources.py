@@ -41,7 +41,7 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from .camera import INTRINSICS_PRESETS, Frame, Intrinsics, read_camera
+from .camera import INTRINSICS_PRESETS, Frame, Intrinsics, read_camera, sequence_index
 from .trajectory import Trajectory, associate_timestamps, matrix_from_quaternion
 
 __all__ = ["open_source", "BagSequence", "ImageFolderSequence", "is_bag", "is_image_folder", "DEPTH_ENCODINGS",
@@ -622,12 +622,7 @@ class BagSequence:
         return len(self._frames)
 
     def __getitem__(self, i: int) -> Frame:
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise TypeError(f"BagSequence indices must be integers, got {type(i).__name__}")
-        n = len(self)
-        k = int(i) + n if i < 0 else int(i)
-        if not 0 <= k < n:
-            raise IndexError(f"frame index {i} out of range for a sequence of {n} frames")
+        k = sequence_index(i, len(self), "BagSequence")
         if self._reader is None:
             raise ValueError(f"{self.path}: the bag is closed")
         d, c = self._frames[k]
@@ -777,12 +772,7 @@ class ImageFolderSequence:
     def __getitem__(self, i: int) -> Frame:
         from .tum import _load_image
 
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise TypeError(f"ImageFolderSequence indices must be integers, got {type(i).__name__}")
-        n = len(self)
-        k = int(i) + n if i < 0 else int(i)
-        if not 0 <= k < n:
-            raise IndexError(f"frame index {i} out of range for a sequence of {n} frames")
+        k = sequence_index(i, len(self), "ImageFolderSequence")
 
         def check(path: Path):
             def f(im: Any) -> None:

@@ -39,7 +39,7 @@ from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tupl
 import numpy as np
 from PIL import Image
 
-from .camera import INTRINSICS_PRESETS, Frame, Intrinsics, camera_from_dict, read_camera_file
+from .camera import INTRINSICS_PRESETS, Frame, Intrinsics, camera_from_dict, read_camera_file, sequence_index
 from .trajectory import (Trajectory, TumFormatError, associate_timestamps, read_tum_rows, time_order,
                          write_tum_trajectory)
 
@@ -336,12 +336,7 @@ class TumSequence:
         ``meta`` holds ``depth_file``, ``rgb_file``, ``rgb_timestamp``, ``source_index``
         (position among all associated frames, before start/stride/limit), ``sequence``.
         """
-        if isinstance(i, bool) or not isinstance(i, (int, np.integer)):
-            raise TypeError(f"TumSequence indices must be integers, got {type(i).__name__}")
-        n = len(self)
-        k = int(i) + n if i < 0 else int(i)
-        if not 0 <= k < n:
-            raise IndexError(f"frame index {i} out of range for a sequence of {n} frames")
+        k = sequence_index(i, len(self), "TumSequence")
         meta: Dict[str, Any] = {"depth_file": str(self.depth_files[k]), "source_index": int(self._source_index[k]),
                                 "sequence": self.name, "rgb_file": None, "rgb_timestamp": None}
         depth = self._load(self.depth_files[k], "depth")
