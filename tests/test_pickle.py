@@ -245,7 +245,7 @@ def _results():
     scene = np.vstack([table, box, box + [0.15, 0.1, 0.0]])
     out["segmentation.PlaneResult"] = _core.segmentation.ransac_plane(scene, 0.002, num_threads=THREADS)
     out["segmentation.SphereResult"] = _core.segmentation.ransac_sphere(sphere, 0.001, num_threads=THREADS)
-    out["segmentation.TableSegmentation"] = _core.segmentation.segment_table_full(
+    out["segmentation.TableSegmentationResult"] = _core.segmentation.segment_table_full(
         scene, threshold=0.002, up=(0, 0, 1), cluster_tolerance=0.01, min_cluster_size=50, num_threads=THREADS)
 
     poses = [robot.fk(q) for q in rng.uniform(-1, 1, (6, 6))]
@@ -484,7 +484,7 @@ def _corrupt(obj, mutate):
 
 @pytest.mark.parametrize("key", ["registration.IcpSettings", "registration.IcpResult", "pose.ModelView",
                                  "pose.CbdFeatures", "grasp.GraspPlan", "kinematics.IKSolution",
-                                 "segmentation.TableSegmentation", "registration.Icp", "registration.BucketKdTree64",
+                                 "segmentation.TableSegmentationResult", "registration.Icp", "registration.BucketKdTree64",
                                  "kinematics.Robot"])
 def test_corrupt_state_is_a_clear_error(instances, key):
     obj = instances[key][-1]

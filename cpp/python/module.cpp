@@ -10,6 +10,7 @@
 namespace py = pybind11;
 
 namespace scanalign::python {
+void defineCommon(py::module_& m);
 void defineRegistration(py::module_& m);
 void defineFeatures(py::module_& m);
 void defineReconstruction(py::module_& m);
@@ -70,6 +71,8 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "scanalign compiled core (use the scanalign package API)";
   m.attr("__version__") = scanalign::version();  // the package's version (one source: CMakeLists.txt)
   m.attr("built_with_pcl") = scanalign::builtWithPcl();
+  auto common = m.def_submodule("common", "rigid transforms, camera placement");
+  scanalign::python::defineCommon(common);
   auto registration = m.def_submodule("registration", "ICP engine, k-d tree, PCL plug-ins and baselines");
   auto features = m.def_submodule("features", "normal estimation");
   auto reconstruction = m.def_submodule("reconstruction", "voxel grid");

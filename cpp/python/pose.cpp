@@ -11,7 +11,7 @@
 #include "pickle.hpp"
 #include "scanalign/pose/cbd.hpp"
 #include "scanalign/pose/model_views.hpp"
-#include "scanalign/pose/pcl_coarse_aligner.hpp"
+#include "scanalign/pose/pcl/coarse_aligner.hpp"
 #include "scanalign/pose/pose_estimation.hpp"
 #include "scanalign/pose/cbd_alignment.hpp"
 #include "scanalign/pose/correspondence_ransac.hpp"
@@ -339,15 +339,6 @@ void bindAlignment(py::module_& m) {
         return alignCbd(a, b, s);
       },
       py::arg("source"), py::arg("target"), py::arg("settings"));
-  m.def(
-      "alignment_fitness",
-      [](const py::array& s, const py::array& t, const Eigen::Matrix4d& T, double thr, int threads) {
-        const auto f = alignmentFitness(cloudView<double>(s, "source"), cloudView<double>(t, "target"), T, thr, threads);
-        return py::make_tuple(f.first, f.second);
-      },
-      py::arg("source"), py::arg("target"), py::arg("T_target_source"), py::arg("threshold"), py::arg("num_threads") = 0,
-      "(fitness, inlier_rmse): finite source points whose nearest target point is within threshold (m) after "
-      "T_target_source, and their RMS distance (m)");
 
   py::class_<NormalLineFlag>(m, "NormalLineFlag", "A cloud's flag (paper 4): centroid and average normal line")
       .def_readonly("centroid", &NormalLineFlag::centroid, "(3,) m")
@@ -410,8 +401,6 @@ void bindViews(py::module_& m) {
       "10 4^level + 2 vertices, 20 4^level faces");
   m.def("view_intrinsics", &viewIntrinsics, py::arg("resolution"), py::arg("view_angle") = kDefaultViewAngle,
         "square pinhole camera with field of view view_angle (rad) across resolution pixels");
-  m.def("look_at", &lookAt, py::arg("eye"), py::arg("target"), py::arg("up") = Eigen::Vector3d::UnitZ(),
-        "T_model_camera of a camera at eye (m) whose optical axis (z) points at target, image up (-y) near up");
   m.attr("DEFAULT_VIEW_ANGLE") = kDefaultViewAngle;
   py::class_<ModelViewSettings>(m, "ModelViewSettings", "How a CAD model is rendered into partial views")
       .def(py::init<>())
@@ -613,7 +602,7 @@ void bindFindParts(py::module_& m) {
       .def_readonly("detections", &PartDetections::detections, "PartDetection per object cluster, largest first")
       .def_property_readonly(
           "plane", [](const PartDetections& o) { return o.table.plane; }, "the table plane (PlaneResult)")
-      .def_readonly("table", &PartDetections::table, "the whole TableSegmentation")
+      .def_readonly("table", &PartDetections::table, "the whole TableSegmentationResult")
       .def_readonly("seconds", &PartDetections::seconds, "wall time");
   m.def(
       "find_parts",
@@ -741,7 +730,7 @@ void bindPipeline(py::module_& m) {
           "the clusters as int64 index arrays into the scene")
       .def_property_readonly(
           "plane", [](const ObjectPoses& o) { return o.table.plane; }, "the table plane (PlaneResult)")
-      .def_readonly("table", &ObjectPoses::table, "the whole TableSegmentation")
+      .def_readonly("table", &ObjectPoses::table, "the whole TableSegmentationResult")
       .def_readonly("seconds", &ObjectPoses::seconds, "wall time");
   m.def(
       "estimate_pose",

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "arrays.hpp"
+#include "fields.hpp"
 #include "pickle.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/reconstruction/depth_image.hpp"
@@ -274,13 +275,6 @@ void pickleReconstruction(py::module_& m) {
   pickleFields(m, "DepthToCloudSettings", field("depth_scale", &D::depth_scale), field("min_depth", &D::min_depth),
                field("max_depth", &D::max_depth), field("stride", &D::stride));
   using S = FrameToModelSettings;
-  pickleFields(m, "FrameToModelSettings", field("normal_radius", &S::normal_radius),
-               field("model_voxel_size", &S::model_voxel_size), field("frame_voxel_size", &S::frame_voxel_size),
-               field("crop_box", &S::crop_box), field("min_frame_points", &S::min_frame_points),
-               field("min_fitness", &S::min_fitness), field("require_convergence", &S::require_convergence),
-               field("max_translation_change", &S::max_translation_change),
-               field("max_rotation_change", &S::max_rotation_change), namedEnum("motion_model", &S::motion_model, 2),
-               field("num_threads", &S::num_threads), field("icp", &S::icp));
   using R = FrameReport;
   pickleFields(m, "FrameReport", field("index", &R::index), field("timestamp", &R::timestamp),
                field("input_points", &R::input_points), namedEnum("status", &R::status, 8),
@@ -379,24 +373,19 @@ void defineReconstruction(py::module_& m) {
       "Brown-Conrady camera (distortion k1 k2 p1 p2 k3, OpenCV's order), by OpenCV undistortPoints' fixed-point "
       "iteration; NaN where the ray does not re-project onto its pixel within max_reprojection_error pixels");
 
-  // Field order is the report's order (scanalign.pipeline.settings_to_dict).
-  py::class_<FrameToModelSettings>(m, "FrameToModelSettings",
-                                   "Settings of the frame-to-model pipeline (eye-in-hand paper (Comput. Electron. "
-                                   "Agric. 180 (2021) 105929), §3). FrameToModelSettings(other) copies; validate() "
-                                   "raises ValueError naming a bad field.")
-      .def(py::init<>())
-      .def(py::init<const FrameToModelSettings&>(), py::arg("other"))
-      .def("__copy__", [](const FrameToModelSettings& s) { return s; })
-      .def_readwrite("normal_radius", &FrameToModelSettings::normal_radius,
-                     "PCA normal radius, m (eye-in-hand paper §3.5: 0.005)")
-      .def_readwrite("model_voxel_size", &FrameToModelSettings::model_voxel_size,
-                     "voxel edge of the grid applied to the model after every merge, m (eye-in-hand paper §3.6: 0.001)")
-      .def_readwrite("frame_voxel_size", &FrameToModelSettings::frame_voxel_size,
-                     "voxel edge applied to each frame before normals and registration, m; 0 keeps full resolution "
-                     "(default 0.001)")
-      .def_property(
-          "crop_box", [](const FrameToModelSettings& s) { return s.crop_box; },
-          [](FrameToModelSettings& s, const py::object& v) {
+  using FS = FrameToModelSettings;
+  fieldsOf(py::class_<FrameToModelSettings>(m, "FrameToModelSettings",
+                                            "Settings of the frame-to-model pipeline (eye-in-hand paper (Comput. "
+                                            "Electron. Agric. 180 (2021) 105929), §3). validate() raises ValueError "
+                                            "naming a bad field."))
+      .field("normal_radius", &FS::normal_radius, "m", "PCA normal radius (eye-in-hand paper §3.5: 0.005)")
+      .field("model_voxel_size", &FS::model_voxel_size, "m",
+             "voxel edge of the grid applied to the model after every merge (eye-in-hand paper §3.6: 0.001)")
+      .field("frame_voxel_size", &FS::frame_voxel_size, "m",
+             "voxel edge applied to each frame before normals and registration; 0 keeps full resolution")
+      .field(
+          "crop_box", [](const FS& s) { return s.crop_box; },
+          [](FS& s, py::handle v) {
             if (v.is_none())
               s.crop_box = std::nullopt;
             else if (py::isinstance<Box>(v))  // Box(a Box) is no constructor: take it as it is
@@ -404,38 +393,28 @@ void defineReconstruction(py::module_& m) {
             else
               s.crop_box = py::type::of<Box>()(v).cast<Box>();
           },
-          "optional Box (or 6 numbers, m) in the frame's camera coordinates; points outside are dropped before "
+          "m",
+          "optional Box (or 6 numbers) in the frame's camera coordinates; points outside are dropped before "
           "anything, so they are neither registered nor merged (bounds the model to the workspace)")
-      .def_readwrite("min_frame_points", &FrameToModelSettings::min_frame_points,
-                     "frames with fewer points after crop and downsampling are skipped (default 200)")
-      .def_readwrite("min_fitness", &FrameToModelSettings::min_fitness,
-                     "registrations whose inlier fraction is below this are rejected (default 0.3)")
-      .def_readwrite("require_convergence", &FrameToModelSettings::require_convergence,
-                     "reject registrations that hit the iteration cap (default True; False for fixed iteration "
-                     "budgets as in eye-in-hand paper Figs. 6 and 9)")
-      .def_readwrite("max_translation_change", &FrameToModelSettings::max_translation_change,
-                     "largest accepted distance of the result from the initial guess, m (0.10; inf = off)")
-      .def_readwrite("max_rotation_change", &FrameToModelSettings::max_rotation_change,
-                     "largest accepted rotation of the result from the initial guess, rad (0.5; inf = off)")
-      .def_property(
-          "motion_model", [](const FrameToModelSettings& s) { return std::string(toString(s.motion_model)); },
-          [](FrameToModelSettings& s, const std::string& v) {
-            if (v == toString(MotionModel::Previous))
-              s.motion_model = MotionModel::Previous;
-            else if (v == toString(MotionModel::ConstantVelocity))
-              s.motion_model = MotionModel::ConstantVelocity;
-            else
-              throw py::value_error("motion_model must be 'previous' or 'constant_velocity', got '" + v + "'");
-          },
-          "initial guess of a frame integrated without one: 'previous' (eye-in-hand paper §3.2: the previous "
-          "registration; default) or 'constant_velocity' (the motion between the last two merged frames applied "
-          "once more; fewer ICP iterations on a smooth scan path)")
-      .def_readwrite("num_threads", &FrameToModelSettings::num_threads,
-                     "OpenMP threads for normals and ICP (overrides icp.num_threads when > 0), 0 = all cores")
-      .def_readwrite("icp", &FrameToModelSettings::icp,
-                     "IcpSettings of the registration (eye-in-hand paper §3.3 convergence defaults; "
-                     "max_correspondence_distance 0.02 m here, as consecutive eye-in-hand frames move little; "
-                     "optional box rejector in the frame's camera coordinates, §3.4)")
+      .field("min_frame_points", &FS::min_frame_points, "", "frames with fewer points after crop and downsampling are skipped")
+      .field("min_fitness", &FS::min_fitness, "", "registrations whose inlier fraction is below this are rejected")
+      .field("require_convergence", &FS::require_convergence, "",
+             "reject registrations that hit the iteration cap (False for fixed iteration budgets as in eye-in-hand "
+             "paper Figs. 6 and 9)")
+      .field("max_translation_change", &FS::max_translation_change, "m",
+             "largest accepted distance of the result from the initial guess (inf = off)")
+      .field("max_rotation_change", &FS::max_rotation_change, "rad",
+             "largest accepted rotation of the result from the initial guess (inf = off)")
+      .name("motion_model", &FS::motion_model, 2, "",
+            "initial guess of a frame integrated without one: 'previous' (eye-in-hand paper §3.2: the previous "
+            "registration) or 'constant_velocity' (the motion between the last two merged frames applied once more; "
+            "fewer ICP iterations on a smooth scan path)")
+      .field("num_threads", &FS::num_threads, "", "OpenMP threads for normals and ICP (overrides icp.num_threads when > 0), 0 = all cores")
+      .field("icp", &FS::icp, "",
+             "IcpSettings of the registration (eye-in-hand paper §3.3 convergence defaults; "
+             "max_correspondence_distance 0.02 m here, as consecutive eye-in-hand frames move little; optional box "
+             "rejector in the frame's camera coordinates, §3.4)")
+      .settings()
       .def("validate", [](const FrameToModelSettings& s) { validate(s); });
 
   py::class_<FrameReport>(m, "FrameReport", "What the reconstruction did with one frame")

@@ -11,8 +11,10 @@
 #include <vector>
 
 #include "arrays.hpp"
+#include "fields.hpp"
 #include "pickle.hpp"
 #include "scanalign/common/rigid.hpp"
+#include "scanalign/registration/alignment_fitness.hpp"
 #include "scanalign/registration/icp.hpp"
 #include "scanalign/registration/pcl/baselines.hpp"
 
@@ -375,7 +377,7 @@ std::string describe(const IcpResult& r) {
 }  // namespace
 
 void defineRegistration(py::module_& m) {
-  py::class_<Box>(m, "Box",
+  fieldsOf(py::class_<Box>(m, "Box",
                   "Axis-aligned box (x_min, x_max, y_min, y_max, z_min, z_max) in metres, in the source camera frame "
                   "(x right, y down, z towards the object); eye-in-hand paper (Comput. Electron. Agric. 180 (2021) "
                   "105929), §3.4. A correspondence is kept only when its source point lies inside (bounds inclusive); "
@@ -385,8 +387,6 @@ void defineRegistration(py::module_& m) {
            py::arg("y_min"), py::arg("y_max"), py::arg("z_min"), py::arg("z_max"))
       .def(py::init([](const py::sequence& bounds) { return *boxFrom(bounds, "Box"); }), py::arg("bounds"),
            "From 6 numbers (x_min, x_max, y_min, y_max, z_min, z_max), m")
-      .def_property_readonly("min", [](const Box& b) { return Eigen::Vector3d(b.min); }, "(x_min, y_min, z_min), m")
-      .def_property_readonly("max", [](const Box& b) { return Eigen::Vector3d(b.max); }, "(x_max, y_max, z_max), m")
       .def("as_tuple",
            [](const Box& b) {
              return py::make_tuple(b.min.x(), b.max.x(), b.min.y(), b.max.y(), b.min.z(), b.max.z());
@@ -399,140 +399,103 @@ void defineRegistration(py::module_& m) {
         os << "Box(x=[" << b.min.x() << ", " << b.max.x() << "], y=[" << b.min.y() << ", " << b.max.y() << "], z=["
            << b.min.z() << ", " << b.max.z() << "])";
         return os.str();
-      });
+      }))
+      .output("min", &Box::min, "m", "(x_min, y_min, z_min)")
+      .output("max", &Box::max, "m", "(x_max, y_max, z_max)")
+      .result();
 
-  // Field order is the report's order (scanalign.pipeline.settings_to_dict).
-  py::class_<IcpSettings>(m, "IcpSettings",
-                          "ICP settings, PCL semantics; defaults are the eye-in-hand paper's (§3.3) where it gives one. "
-                          "IcpSettings(other) copies; validate() raises ValueError naming a bad field.")
-      .def(py::init<>())
-      .def(py::init<const IcpSettings&>(), py::arg("other"))
-      .def("__copy__", [](const IcpSettings& s) { return s; })
-      .def_property(
-          "estimator", [](const IcpSettings& s) { return std::string(toString(s.estimator)); },
-          [](IcpSettings& s, const std::string& v) { s.estimator = estimatorFromString(v); },
-          "'point_to_plane' (Low 2004 LLS, eye-in-hand paper §3.2, default; needs target normals) or "
-          "'point_to_point' (closed form, Horn / Umeyama)")
-      .def_readwrite("max_correspondence_distance", &IcpSettings::max_correspondence_distance,
-                     "pairs farther apart are rejected, m (default 0.05)")
-      .def_property(
-          "max_iterations", [](const IcpSettings& s) { return s.max_iterations; },
-          [](IcpSettings& s, const py::object& v) { s.max_iterations = boundedInt(v, "max_iterations", 0); },
-          "iteration cap (default 50), in [0, 2^31 - 1]; reaching it gives status 'max_iterations', converged "
-          "False. Ctrl-C stops a long run between iterations (KeyboardInterrupt)")
-      .def_readwrite("transformation_epsilon", &IcpSettings::transformation_epsilon,
-                     "converged when the last increment's squared translation is <= this (m^2) and its rotation has "
-                     "cos(angle) >= 1 - this (default 1e-8)")
-      .def_readwrite("transformation_rotation_epsilon", &IcpSettings::transformation_rotation_epsilon,
-                     "if > 0, the rotation test is cos(angle) >= this cosine instead (PCL's "
-                     "setTransformationRotationEpsilon; default 0)")
-      .def_readwrite("fitness_epsilon", &IcpSettings::fitness_epsilon,
-                     "converged when the relative change of the correspondence MSE is below this (PCL's Euclidean "
-                     "fitness epsilon; default 1e-8)")
-      .def_readwrite("absolute_mse_epsilon", &IcpSettings::absolute_mse_epsilon,
-                     "converged when the MSE changes by less than this, m^2 (default 1e-12)")
-      .def_property(
-          "robust_kernel", [](const IcpSettings& s) { return std::string(toString(s.robust_kernel)); },
-          [](IcpSettings& s, const std::string& v) { s.robust_kernel = kernelFromString(v); },
-          "'none' (default: Low's plain least squares, as the eye-in-hand paper), 'huber' or 'cauchy': an "
-          "M-estimator on the point-to-plane residual solved by IRLS (point-to-plane only). For large "
-          "correspondence distances: on the small_gicp LiDAR pair (0.25 m voxels, 1 m distance) Huber at 0.1 m "
-          "lands 6 mm from the reference instead of 27 mm")
-      .def_readwrite("robust_scale", &IcpSettings::robust_scale,
-                     "the kernel's scale, m (default 0.01): residuals up to about this count fully; set it near the "
-                     "residual noise after convergence")
-      .def_property(
-          "box", [](const IcpSettings& s) { return s.box; },
-          [](IcpSettings& s, const py::object& v) { s.box = boxFrom(v, "box"); },
-          "optional Box (or 6 numbers) in the source camera frame, m (eye-in-hand paper §3.4); None = off")
-      .def_property(
-          "search", [](const IcpSettings& s) { return std::string(toString(s.search)); },
-          [](IcpSettings& s, const std::string& v) { s.search = searchFromString(v); },
-          "'bucket_kdtree' (default: 32-point leaves, tight node boxes, fastest on CPU cores, exact) or "
-          "'left_balanced_kdtree' (eye-in-hand paper §3.1: one point per node, fixed search stack, the layout of "
-          "its GPU path)")
-      .def_readwrite("search_stack_depth", &IcpSettings::search_stack_depth,
-                     "fixed search stack of the left-balanced tree (eye-in-hand paper §3.1: 20); exact for targets of "
-                     "up to 2**21 - 1 points, IcpResult.exact_search reports otherwise")
-      .def_readwrite("warm_start", &IcpSettings::warm_start,
-                     "seed each search with the last iteration's neighbour (exact speed-up; default True)")
-      .def_readwrite("min_correspondences", &IcpSettings::min_correspondences,
-                     "stop with 'not_enough_correspondences' below this (default 6; at least 3 enforced for "
-                     "point-to-point)")
-      .def_readwrite("degeneracy_threshold", &IcpSettings::degeneracy_threshold,
-                     "eigenvalue ratio below which a motion direction counts as unconstrained and is not updated "
-                     "(default 1e-10: only numerical rank loss, since a small object on a large table gives ratios "
-                     "near 1e-7 that must still be solved)")
-      .def_readwrite("coarse_stride", &IcpSettings::coarse_stride,
-                     "coarse-to-fine when > 1: iterate on every coarse_stride-th source point (an even spatial subset) "
-                     "until that converges, then on all points; the same full-resolution fixed point in fewer full "
-                     "iterations (default 1 = off, as the eye-in-hand paper; skipped below 500 subset points)")
-      .def_readwrite("num_threads", &IcpSettings::num_threads, "OpenMP threads, 0 = all cores")
+  using IS = IcpSettings;
+  fieldsOf(py::class_<IcpSettings>(m, "IcpSettings",
+                                   "ICP settings, PCL semantics; defaults are the eye-in-hand paper's (§3.3) where it "
+                                   "gives one. validate() raises ValueError naming a bad field."))
+      .name("estimator", &IS::estimator, 2, "",
+            "'point_to_plane' (Low 2004 LLS, eye-in-hand paper §3.2; needs target normals) or 'point_to_point' "
+            "(closed form, Horn / Umeyama)")
+      .field("max_correspondence_distance", &IS::max_correspondence_distance, "m", "pairs farther apart are rejected")
+      .field("max_iterations", &IS::max_iterations, "",
+             "iteration cap; reaching it gives status 'max_iterations', converged False. Ctrl-C stops a long run "
+             "between iterations (KeyboardInterrupt)")
+      .field("transformation_epsilon", &IS::transformation_epsilon, "m^2",
+             "converged when the last increment's squared translation is <= this and its rotation has cos(angle) >= "
+             "1 - this")
+      .field("transformation_rotation_epsilon", &IS::transformation_rotation_epsilon, "",
+             "if > 0, the rotation test is cos(angle) >= this cosine instead (PCL's "
+             "setTransformationRotationEpsilon)")
+      .field("fitness_epsilon", &IS::fitness_epsilon, "",
+             "converged when the relative change of the correspondence MSE is below this (PCL's Euclidean fitness "
+             "epsilon)")
+      .field("absolute_mse_epsilon", &IS::absolute_mse_epsilon, "m^2", "converged when the MSE changes by less than this")
+      .name("robust_kernel", &IS::robust_kernel, 3, "",
+            "'none' (Low's plain least squares, as the eye-in-hand paper), 'huber' or 'cauchy': an M-estimator on "
+            "the point-to-plane residual solved by IRLS (point-to-plane only). For large correspondence distances: on "
+            "the small_gicp LiDAR pair (0.25 m voxels, 1 m distance) Huber at 0.1 m lands 6 mm from the reference "
+            "instead of 27 mm")
+      .field("robust_scale", &IS::robust_scale, "m",
+             "the kernel's scale: residuals up to about this count fully; set it near the residual noise after "
+             "convergence")
+      .field(
+          "box", [](const IS& s) { return s.box; },
+          [](IS& s, py::handle v) { s.box = boxFrom(py::reinterpret_borrow<py::object>(v), "IcpSettings.box"); }, "m",
+          "optional Box (or 6 numbers) in the source camera frame (eye-in-hand paper §3.4); None = off")
+      .name("search", &IS::search, 2, "",
+            "'bucket_kdtree' (32-point leaves, tight node boxes, fastest on CPU cores, exact) or "
+            "'left_balanced_kdtree' (eye-in-hand paper §3.1: one point per node, fixed search stack, the layout of "
+            "its GPU path)")
+      .field("search_stack_depth", &IS::search_stack_depth, "",
+             "fixed search stack of the left-balanced tree (eye-in-hand paper §3.1: 20); exact for targets of up to "
+             "2**21 - 1 points, IcpResult.exact_search reports otherwise")
+      .field("warm_start", &IS::warm_start, "", "seed each search with the last iteration's neighbour (exact speed-up)")
+      .field("min_correspondences", &IS::min_correspondences, "",
+             "stop with 'not_enough_correspondences' below this (at least 3 enforced for point-to-point)")
+      .field("degeneracy_threshold", &IS::degeneracy_threshold, "",
+             "eigenvalue ratio below which a motion direction counts as unconstrained and is not updated (only "
+             "numerical rank loss: a small object on a large table gives ratios near 1e-7 that must still be solved)")
+      .field("coarse_stride", &IS::coarse_stride, "",
+             "coarse-to-fine when > 1: iterate on every coarse_stride-th source point (an even spatial subset) until "
+             "that converges, then on all points; the same full-resolution fixed point in fewer full iterations (1 = "
+             "off, as the eye-in-hand paper; skipped below 500 subset points)")
+      .field("num_threads", &IS::num_threads, "", "OpenMP threads, 0 = all cores")
+      .settings()
       .def("validate", [](const IcpSettings& s) { validate(s); });
 
-  py::class_<IcpResult>(m, "IcpResult", "Outcome of an ICP run; quality figures are measured at the final transform.")
-      .def_property_readonly(
-          "T_target_source", [](const IcpResult& r) { return r.T_target_source; },
-          "4x4 float64: p_target = T_target_source @ p_source")
-      .def_property_readonly(
-          "transformation", [](const IcpResult& r) { return r.T_target_source; },
-          "T_target_source under Open3D's name (RegistrationResult.transformation), for code written for Open3D")
-      .def_readonly("converged", &IcpResult::converged, "a convergence criterion (transform or MSE change) was met")
-      .def_property_readonly(
-          "status", [](const IcpResult& r) { return std::string(toString(r.status)); },
-          "'converged_transform', 'converged_absolute_mse', 'converged_relative_mse', 'max_iterations', "
-          "'not_enough_correspondences' or 'degenerate' (point-to-point: the source points, or the target points "
-          "they matched, coincide or are collinear, so the rotation is undetermined); for the last two the transform "
-          "is the last good estimate and converged is False")
-      .def_readonly("iterations", &IcpResult::iterations, "full-resolution iterations run")
-      .def_readonly("coarse_iterations", &IcpResult::coarse_iterations,
-                    "iterations of the coarse phase (coarse_stride > 1), each on a subset of the source")
-      .def_readonly("fitness", &IcpResult::fitness, "inliers / usable source points (finite, inside the box)")
-      .def_readonly("inlier_rmse", &IcpResult::inlier_rmse, "RMS point-to-point distance of the inliers, m")
-      .def_readonly("correspondence_count", &IcpResult::correspondence_count, "inliers at the final transform")
-      .def_readonly("source_points_used", &IcpResult::source_points_used, "finite source points inside the box")
-      .def_readonly("mse", &IcpResult::mse, "mean squared correspondence distance of the last iteration, m^2")
-      .def_readonly("degenerate", &IcpResult::degenerate, "some iteration could not constrain all 6 motions")
-      .def_readonly("min_rank", &IcpResult::min_rank, "smallest rank of the normal equations over the iterations")
-      .def_readonly("exact_search", &IcpResult::exact_search, "every nearest-neighbour search was exact")
-      .def_readonly("seconds", &IcpResult::seconds, "wall time of the alignment, s (target tree build excluded)")
-      .def("__repr__", &describe);
-
-  pickleFields(m, "Box", field("min", &Box::min), field("max", &Box::max));
-  pickleFields(m, "IcpSettings", namedEnum("estimator", &IcpSettings::estimator, 2),
-               field("max_correspondence_distance", &IcpSettings::max_correspondence_distance),
-               field("max_iterations", &IcpSettings::max_iterations),
-               field("transformation_epsilon", &IcpSettings::transformation_epsilon),
-               field("transformation_rotation_epsilon", &IcpSettings::transformation_rotation_epsilon),
-               field("fitness_epsilon", &IcpSettings::fitness_epsilon),
-               field("absolute_mse_epsilon", &IcpSettings::absolute_mse_epsilon),
-               namedEnum("robust_kernel", &IcpSettings::robust_kernel, 3),
-               field("robust_scale", &IcpSettings::robust_scale), field("box", &IcpSettings::box),
-               namedEnum("search", &IcpSettings::search, 2),
-               field("search_stack_depth", &IcpSettings::search_stack_depth),
-               field("warm_start", &IcpSettings::warm_start),
-               field("min_correspondences", &IcpSettings::min_correspondences),
-               field("degeneracy_threshold", &IcpSettings::degeneracy_threshold),
-               field("coarse_stride", &IcpSettings::coarse_stride), field("num_threads", &IcpSettings::num_threads));
-  pickleFields(m, "IcpResult", field("T_target_source", &IcpResult::T_target_source),
-               field("converged", &IcpResult::converged), namedEnum("status", &IcpResult::status, 6),
-               field("iterations", &IcpResult::iterations), field("coarse_iterations", &IcpResult::coarse_iterations),
-               field("fitness", &IcpResult::fitness), field("inlier_rmse", &IcpResult::inlier_rmse),
-               field("correspondence_count", &IcpResult::correspondence_count),
-               field("source_points_used", &IcpResult::source_points_used), field("mse", &IcpResult::mse),
-               field("degenerate", &IcpResult::degenerate), field("min_rank", &IcpResult::min_rank),
-               field("exact_search", &IcpResult::exact_search), field("seconds", &IcpResult::seconds));
+  using IR = IcpResult;
+  fieldsOf(py::class_<IcpResult>(m, "IcpResult",
+                                 "Outcome of an ICP run; quality figures are measured at the final transform.")
+               .def("__repr__", &describe))
+      .output("T_target_source", &IR::T_target_source, "m", "4x4 float64: p_target = T_target_source @ p_source")
+      .derived("transformation", [](const IR& r) { return r.T_target_source; }, "m",
+               "T_target_source under Open3D's name (RegistrationResult.transformation), for code written for Open3D")
+      .output("converged", &IR::converged, "", "a convergence criterion (transform or MSE change) was met")
+      .name("status", &IR::status, 6, "",
+            "'converged_transform', 'converged_absolute_mse', 'converged_relative_mse', 'max_iterations', "
+            "'not_enough_correspondences' or 'degenerate' (point-to-point: the source points, or the target points "
+            "they matched, coincide or are collinear, so the rotation is undetermined); for the last two the "
+            "transform is the last good estimate and converged is False",
+            false)
+      .output("iterations", &IR::iterations, "", "full-resolution iterations run")
+      .output("coarse_iterations", &IR::coarse_iterations, "",
+              "iterations of the coarse phase (coarse_stride > 1), each on a subset of the source")
+      .output("fitness", &IR::fitness, "", "inliers / usable source points (finite, inside the box)")
+      .output("inlier_rmse", &IR::inlier_rmse, "m", "RMS point-to-point distance of the inliers")
+      .output("correspondence_count", &IR::correspondence_count, "", "inliers at the final transform")
+      .output("source_points_used", &IR::source_points_used, "", "finite source points inside the box")
+      .output("mse", &IR::mse, "m^2", "mean squared correspondence distance of the last iteration")
+      .output("degenerate", &IR::degenerate, "", "some iteration could not constrain all 6 motions")
+      .output("min_rank", &IR::min_rank, "", "smallest rank of the normal equations over the iterations")
+      .output("exact_search", &IR::exact_search, "", "every nearest-neighbour search was exact")
+      .output("seconds", &IR::seconds, "s", "wall time of the alignment (target tree build excluded)")
+      .result();
   defineIcp(m);
   defineKdTree(m);
-  m.attr("RIGID_TOLERANCE") = kRigidTolerance;
-  m.attr("RIGID_ROW_TOLERANCE") = kRigidRowTolerance;
   m.def(
-      "rigid_problem",
-      [](const Eigen::Matrix4d& T) -> py::object {
-        const char* problem = rigidProblem(T);
-        return problem ? py::object(py::str(problem)) : py::object(py::none());
+      "alignment_fitness",
+      [](const py::array& s, const py::array& t, const Eigen::Matrix4d& T, double thr, int threads) {
+        const auto f = alignmentFitness(cloudView<double>(s, "source"), cloudView<double>(t, "target"), T, thr, threads);
+        return py::make_tuple(f.first, f.second);
       },
-      py::arg("T"), "Why a 4x4 matrix is not a rigid transform (common/rigid.hpp), or None when it is.");
+      py::arg("source"), py::arg("target"), py::arg("T_target_source"), py::arg("threshold"), py::arg("num_threads") = 0,
+      "(fitness, inlier_rmse): finite source points whose nearest target point is within threshold (m) after "
+      "T_target_source, and their RMS distance (m)");
   m.def(
       "fit_similarity",
       [](const py::array& source, const py::array& target, bool with_scale) {

@@ -10,7 +10,7 @@
 
 #include "arrays.hpp"
 #include "pickle.hpp"
-#include "scanalign/fitting/ransac.hpp"
+#include "scanalign/segmentation/table_segmentation.hpp"
 
 namespace scanalign::python {
 
@@ -111,8 +111,8 @@ void pickleRansacResult(py::module_& m, const char* name) {
 void pickleSegmentation(py::module_& m) {
   pickleRansacResult<PlaneModel>(m, "PlaneResult");
   pickleRansacResult<SphereModel>(m, "SphereResult");
-  using T = TableSegmentation;
-  pickleFields(m, "TableSegmentation", namedEnum("status", &T::status, 3), field("plane", &T::plane),
+  using T = TableSegmentationResult;
+  pickleFields(m, "TableSegmentationResult", namedEnum("status", &T::status, 3), field("plane", &T::plane),
                field<T>(
                    "objects",
                    [](const T& t) {
@@ -124,7 +124,7 @@ void pickleSegmentation(py::module_& m) {
                      t.objects.clear();
                      for (py::handle c : l)
                        t.objects.push_back(
-                           pickling::arrayToVector<std::vector<std::uint32_t>>(c, "TableSegmentation: pickled state 'objects'"));
+                           pickling::arrayToVector<std::vector<std::uint32_t>>(c, "TableSegmentationResult: pickled state 'objects'"));
                    }),
                field("cropped_points", &T::cropped_points), field("above_points", &T::above_points));
   pickleFields(m, "RansacSettings", field("threshold", &RansacSettings::threshold),
@@ -188,25 +188,25 @@ void defineSegmentation(py::module_& m) {
                std::to_string(r.model.center.z()) + "), radius=" + std::to_string(r.model.radius) +
                ", inliers=" + std::to_string(r.inliers.size()) + ")";
       });
-  py::class_<TableSegmentation>(m, "TableSegmentation", "Result of segment_table (paper 3 §3.1.2-3.1.3)")
-      .def_readonly("plane", &TableSegmentation::plane,
+  py::class_<TableSegmentationResult>(m, "TableSegmentationResult", "Result of segment_table (paper 3 §3.1.2-3.1.3)")
+      .def_readonly("plane", &TableSegmentationResult::plane,
                     "the table (PlaneResult, normal oriented up / towards the camera; inliers index the input)")
       .def_property_readonly(
           "objects",
-          [](const TableSegmentation& t) {
+          [](const TableSegmentationResult& t) {
             py::list objects;
             for (const auto& c : t.objects) objects.append(indexArray(c));
             return objects;
           },
           "one int64 index array per object (ascending input rows), largest first")
-      .def_readonly("cropped_points", &TableSegmentation::cropped_points,
+      .def_readonly("cropped_points", &TableSegmentationResult::cropped_points,
                     "finite points inside the crop box (all finite points without crop)")
-      .def_readonly("above_points", &TableSegmentation::above_points,
+      .def_readonly("above_points", &TableSegmentationResult::above_points,
                     "points left above the table before clustering")
       .def_property_readonly(
-          "status", [](const TableSegmentation& t) { return std::string(toString(t.status)); },
+          "status", [](const TableSegmentationResult& t) { return std::string(toString(t.status)); },
           "the table plane RANSAC's status")
-      .def_property_readonly("success", &TableSegmentation::success, "the table plane was found");
+      .def_property_readonly("success", &TableSegmentationResult::success, "the table plane was found");
   py::class_<RansacSettings>(m, "RansacSettings", "RANSAC settings of a plane/sphere fit")
       .def(py::init<>())
       .def_readwrite("threshold", &RansacSettings::threshold, "inlier distance, m")
@@ -351,7 +351,7 @@ Args:
     max_iterations, confidence, seed, num_threads: the plane RANSAC, as ransac_plane.
 
 Returns:
-    TableSegmentation: the table plane (plane.success False if no plane could be built:
+    TableSegmentationResult: the table plane (plane.success False if no plane could be built:
     objects is then empty; after the crop too few points give status "too_few_points"),
     one int64 index array into points per object (largest first), and the point counts
     after the crop and after step (3).

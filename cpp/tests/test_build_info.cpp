@@ -5,7 +5,7 @@
 #include <vector>
 
 #include "scanalign/common/build_info.hpp"
-#include "scanalign/features/pcl/feature_alignment.hpp"
+#include "scanalign/pose/pcl/feature_alignment.hpp"
 #include "scanalign/registration/pcl/baselines.hpp"
 
 namespace {

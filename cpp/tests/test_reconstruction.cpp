@@ -16,7 +16,7 @@
 #include <Eigen/Geometry>
 
 #include "scanalign/reconstruction/depth_image.hpp"
-#include "scanalign/pose/model_views.hpp"  // lookAt
+#include "scanalign/common/look_at.hpp"
 #include "scanalign/reconstruction/frame_to_model.hpp"
 #include "test_support.hpp"
 

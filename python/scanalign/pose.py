@@ -135,7 +135,7 @@ def alignment_fitness(source: np.ndarray, target: np.ndarray, T_target_source: n
     """``(fitness, inlier_rmse)``: the fraction of finite source points whose nearest target
     point lies within ``threshold`` metres after ``T_target_source``, and their RMS distance (m)."""
     s, t = _pairs(source, target)
-    return _P.alignment_fitness(s, t, as_transform(T_target_source, "T_target_source"), float(threshold),
+    return _core.registration.alignment_fitness(s, t, as_transform(T_target_source, "T_target_source"), float(threshold),
                                 int(num_threads))
 
 

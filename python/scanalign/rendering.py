@@ -109,4 +109,4 @@ def render_depth(
 #: ``look_at(eye, target, up=(0, 0, 1))``: the camera pose ``T_world_camera`` (4x4, metres) at
 #: ``eye`` whose optical axis (camera z) points at ``target``, image up (camera -y) as close as
 #: possible to ``up``; ValueError for non-finite input, eye == target or a view along ``up``.
-look_at = _core.pose.look_at
+look_at = _core.common.look_at

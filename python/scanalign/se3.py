@@ -22,9 +22,9 @@ __all__ = ["ROTATION_TOLERANCE", "ROW_TOLERANCE", "rotation_about", "rigid", "in
            "pose_error", "rigid_problem", "require_rigid"]
 
 #: Largest |R^T R - I| entry accepted as a rotation (C++ ``kRigidTolerance``: 1e-5).
-ROTATION_TOLERANCE: float = _core.registration.RIGID_TOLERANCE
+ROTATION_TOLERANCE: float = _core.common.RIGID_TOLERANCE
 #: Largest |entry - target| accepted in the last row (0, 0, 0, 1) (C++ ``kRigidRowTolerance``: 1e-9).
-ROW_TOLERANCE: float = _core.registration.RIGID_ROW_TOLERANCE
+ROW_TOLERANCE: float = _core.common.RIGID_ROW_TOLERANCE
 
 
 def _real(x: object, name: str, *tail: int) -> np.ndarray:
@@ -93,7 +93,7 @@ def rigid_problem(m: np.ndarray) -> Optional[str]:
     determinant +1. The check is the C++ core's (``rigidProblem``), called directly."""
     if (a := _real(m, "m", 4, 4)).ndim != 2:
         raise ValueError(f"m: expected a 4x4 matrix, got shape {a.shape}")
-    return _core.registration.rigid_problem(a)
+    return _core.common.rigid_problem(a)
 
 
 def require_rigid(T: object, name: str) -> np.ndarray:

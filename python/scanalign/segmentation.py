@@ -39,12 +39,12 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["PlaneResult", "SphereResult", "TableSegmentation", "RansacSettings", "TableSegmentationSettings",
+__all__ = ["PlaneResult", "SphereResult", "TableSegmentationResult", "RansacSettings", "TableSegmentationSettings",
            "ransac_plane", "ransac_sphere", "segment_table", "segment_table_full", "plane_from_points",
            "sphere_from_points"]
 
 _S = _core.segmentation
-PlaneResult, SphereResult, TableSegmentation = _S.PlaneResult, _S.SphereResult, _S.TableSegmentation
+PlaneResult, SphereResult, TableSegmentationResult = _S.PlaneResult, _S.SphereResult, _S.TableSegmentationResult
 RansacSettings, TableSegmentationSettings = _S.RansacSettings, _S.TableSegmentationSettings
 ransac_plane, ransac_sphere, segment_table_full = _S.ransac_plane, _S.ransac_sphere, _S.segment_table_full
 plane_from_points, sphere_from_points = _S.plane_from_points, _S.sphere_from_points

@@ -2,7 +2,7 @@
 // installed): the same functions, each refusing with NotBuiltError, so every API that names a
 // PCL baseline exists in both builds and says what to rebuild instead of failing to link.
 #include "scanalign/common/build_info.hpp"
-#include "scanalign/features/pcl/feature_alignment.hpp"
+#include "scanalign/pose/pcl/feature_alignment.hpp"
 #include "scanalign/registration/pcl/baselines.hpp"
 
 namespace scanalign {

@@ -1,5 +1,6 @@
 // CBD coarse alignment. See cbd_alignment.hpp.
 #include "scanalign/pose/cbd_alignment.hpp"
+#include "scanalign/registration/alignment_fitness.hpp"
 #include "scanalign/common/threads.hpp"
 
 #include <omp.h>
@@ -19,36 +20,6 @@ double since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 }  // namespace
-
-template <typename Scalar>
-std::pair<double, double> alignmentFitness(const CloudView<Scalar>& source, const CloudView<Scalar>& target,
-                                           const Eigen::Matrix4d& T, double threshold, int num_threads) {
-  if (!(threshold > 0) || !std::isfinite(threshold))
-    throw std::invalid_argument("alignmentFitness: threshold must be a finite positive distance in metres");
-  if (!T.allFinite()) throw std::invalid_argument("alignmentFitness: transform is not finite");
-  const LeftBalancedKdTree<Scalar> tree(target);
-  if (tree.empty()) return {0.0, 0.0};
-  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
-  const Eigen::Vector3d t = T.topRightCorner<3, 1>();
-  const Scalar thr2 = static_cast<Scalar>(threshold * threshold);
-  std::size_t finite = 0, inl = 0;
-  double acc = 0;
-#pragma omp parallel for reduction(+ : finite, inl, acc) schedule(static) \
-    num_threads(resolveThreads(num_threads))
-  for (std::ptrdiff_t ii = 0; ii < static_cast<std::ptrdiff_t>(source.size); ++ii) {
-    if (!source.isFinite(ii)) continue;
-    ++finite;
-    const Eigen::Vector3d y = R * source[ii].template cast<double>() + t;
-    const Scalar q[3] = {static_cast<Scalar>(y.x()), static_cast<Scalar>(y.y()), static_cast<Scalar>(y.z())};
-    const auto nn = tree.nearest(q, thr2, LeftBalancedKdTree<Scalar>::kMaxStack);
-    if (nn.found()) {
-      ++inl;
-      acc += double(nn.squared_distance);
-    }
-  }
-  if (finite == 0) return {0.0, 0.0};
-  return {double(inl) / double(finite), inl ? std::sqrt(acc / double(inl)) : 0.0};
-}
 
 template <typename Scalar>
 CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CbdFeatures& fs, const CloudView<Scalar>& target,
@@ -135,9 +106,7 @@ CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CloudView<Sca
 #define SCANALIGN_INSTANTIATE(S)                                                                              \
   template CbdAlignmentResult alignCbd<S>(const CloudView<S>&, const CloudView<S>&, const CbdAlignmentSettings&); \
   template CbdAlignmentResult alignCbd<S>(const CloudView<S>&, const CbdFeatures&, const CloudView<S>&,         \
-                                          const CbdFeatures&, const CbdAlignmentSettings&);                      \
-  template std::pair<double, double> alignmentFitness<S>(const CloudView<S>&, const CloudView<S>&,               \
-                                                         const Eigen::Matrix4d&, double, int);
+                                          const CbdFeatures&, const CbdAlignmentSettings&);
 SCANALIGN_INSTANTIATE(float)
 SCANALIGN_INSTANTIATE(double)
 #undef SCANALIGN_INSTANTIATE

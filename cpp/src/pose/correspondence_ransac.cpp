@@ -9,7 +9,7 @@
 
 #include <Eigen/Dense>
 
-#include "scanalign/fitting/ransac.hpp"
+#include "scanalign/segmentation/ransac.hpp"
 #include "scanalign/pose/motor_estimation.hpp"
 
 namespace scanalign {

@@ -17,6 +17,7 @@
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/features/normals.hpp"
 #include "scanalign/reconstruction/voxel_grid.hpp"
+#include "scanalign/registration/alignment_fitness.hpp"
 #include "scanalign/registration/icp.hpp"
 
 namespace scanalign {

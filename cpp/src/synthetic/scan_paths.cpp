@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "scanalign/pose/model_views.hpp"
+#include "scanalign/common/look_at.hpp"
 
 namespace scanalign {
 

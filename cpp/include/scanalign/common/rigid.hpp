@@ -12,6 +12,7 @@
 #include <string>
 
 #include <Eigen/Core>
+#include <Eigen/LU>  // determinant()
 #include <Eigen/SVD>
 
 #include "scanalign/common/cloud_view.hpp"

@@ -62,11 +62,4 @@ CbdAlignmentResult alignCbd(const CloudView<Scalar>& source, const CbdFeatures& 
                             const CloudView<Scalar>& target, const CbdFeatures& target_features,
                             const CbdAlignmentSettings& settings);
 
-/// Fraction of finite source points whose nearest target point, after T_target_source, is
-/// closer than `threshold` (m), and the RMS distance of those points (m).
-template <typename Scalar>
-std::pair<double, double> alignmentFitness(const CloudView<Scalar>& source, const CloudView<Scalar>& target,
-                                           const Eigen::Matrix4d& T_target_source, double threshold,
-                                           int num_threads = 0);
-
 }  // namespace scanalign

@@ -17,6 +17,7 @@
 #include <Eigen/Core>
 
 #include "scanalign/common/cloud_view.hpp"
+#include "scanalign/common/look_at.hpp"
 #include "scanalign/pose/cbd.hpp"
 #include "scanalign/reconstruction/depth_image.hpp"
 
@@ -39,12 +40,6 @@ constexpr double kDefaultViewAngle = 57.0 * 3.14159265358979323846 / 180.0;
 /// @throws std::invalid_argument unless resolution in [2, 8192] and 0 < view_angle < pi.
 PinholeIntrinsics viewIntrinsics(int resolution, double view_angle = kDefaultViewAngle);
 
-/// Camera pose looking from `eye` at `target` (model frame, m): the camera's z axis points
-/// at the target, its y axis down (against `up`). Returns T_model_camera.
-/// @throws std::invalid_argument for non-finite input, eye == target, or `up` parallel to the
-///         view direction.
-Eigen::Matrix4d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target,
-                       const Eigen::Vector3d& up = Eigen::Vector3d::UnitZ());
 
 struct ModelViewSettings {
   int resolution = 150;                  ///< image width and height, pixels (the thesis uses 90 to 400)

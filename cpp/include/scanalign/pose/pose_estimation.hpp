@@ -20,7 +20,7 @@
 
 #include "scanalign/common/cloud_view.hpp"
 #include "scanalign/pose/cbd.hpp"
-#include "scanalign/fitting/ransac.hpp"
+#include "scanalign/segmentation/table_segmentation.hpp"
 #include "scanalign/pose/model_views.hpp"
 #include "scanalign/pose/cbd_alignment.hpp"
 #include "scanalign/pose/flag_alignment.hpp"
@@ -130,7 +130,7 @@ struct FindObjectsSettings {
 
 struct ObjectPoses {
   std::vector<PoseResult> poses;     ///< one per object cluster, largest first
-  TableSegmentation table;           ///< plane, clusters (indices into the scene) and counts
+  TableSegmentationResult table;           ///< plane, clusters (indices into the scene) and counts
   double seconds = 0;                ///< wall time
 };
 
@@ -264,7 +264,7 @@ struct PartDetection {
 
 struct PartDetections {
   std::vector<PartDetection> detections;  ///< one per object cluster, largest first
-  TableSegmentation table;                ///< plane, clusters and counts
+  TableSegmentationResult table;                ///< plane, clusters and counts
   double seconds = 0;                     ///< wall time
 };
 

@@ -1,5 +1,5 @@
 // PCL baselines as a coarse aligner. See pcl_coarse_aligner.hpp.
-#include "scanalign/pose/pcl_coarse_aligner.hpp"
+#include "scanalign/pose/pcl/coarse_aligner.hpp"
 
 #include <vector>
 

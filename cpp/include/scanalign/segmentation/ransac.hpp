@@ -1,5 +1,6 @@
-// RANSAC (thesis §5.2) with conformal (CGA) plane and sphere models, and the table
-// segmentation pipeline of paper 3 (§3.1.2-3.1.3).
+// RANSAC (thesis §5.2) with conformal (CGA) plane and sphere models. Euclidean clustering
+// and the table segmentation of paper 3 build on it (euclidean_clusters.hpp,
+// table_segmentation.hpp).
 //
 // Generic RANSAC, thesis (5.2): for k = 1..n draw a minimal sample xi_k, build the model
 // M_k(xi_k), count the points with error f(M_k, x_i) < E_T, keep the best. The four
@@ -193,61 +194,6 @@ struct SphereLimits {
 template <typename Scalar>
 RansacResult<SphereModel> ransacSphere(const CloudView<Scalar>& points, const RansacSettings& settings,
                                        const SphereLimits& limits = {});
-
-// ---------------------------------------------------------------------------
-// Table segmentation (Paper 3 §3.1.2-3.1.3, thesis §5.2)
-// ---------------------------------------------------------------------------
-
-struct TableSegmentationSettings {
-  /// (1) pass-through crop: keep points with crop_min <= p <= crop_max (metres) if crop.
-  bool crop = false;
-  Eigen::Vector3d crop_min = Eigen::Vector3d::Constant(-std::numeric_limits<double>::infinity());
-  Eigen::Vector3d crop_max = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity());
-  /// (2) the table plane: RANSAC settings (threshold = Delta, metres).
-  RansacSettings plane;
-  /// (3) orientation of the table normal: towards `up` when it is non-zero, else towards
-  /// the `viewpoint` (the camera centre; the origin for a cloud in its camera frame).
-  /// Plane inliers and every point with signed distance < threshold are removed.
-  Eigen::Vector3d viewpoint = Eigen::Vector3d::Zero();
-  Eigen::Vector3d up = Eigen::Vector3d::Zero();
-  /// (4) Euclidean clustering: points closer than cluster_tolerance (metres) are linked.
-  double cluster_tolerance = 0.02;
-  /// (5) clusters with fewer than min / more than max points are dropped.
-  std::size_t min_cluster_size = 100;
-  std::size_t max_cluster_size = std::numeric_limits<std::size_t>::max();
-};
-
-/// Throws std::invalid_argument naming the field: the plane's RansacSettings, a crop box with
-/// NaN bounds (infinite ones are open sides), a non-finite viewpoint or up, a cluster_tolerance
-/// that is not finite and > 0, or not 1 <= min_cluster_size <= max_cluster_size.
-void validate(const TableSegmentationSettings& settings);
-
-struct TableSegmentation {
-  RansacStatus status = RansacStatus::kTooFewPoints;  ///< of the plane RANSAC
-  RansacResult<PlaneModel> plane;  ///< normal oriented up / towards the viewpoint; inliers index the input
-  /// One cluster per object: ascending input indices; clusters by decreasing size.
-  std::vector<std::vector<std::uint32_t>> objects;
-  std::size_t cropped_points = 0;  ///< finite points inside the crop box
-  std::size_t above_points = 0;    ///< points left after step (3)
-  bool success() const { return status == RansacStatus::kSuccess; }
-};
-
-/// Euclidean clustering of points[indices]: the connected components of the graph linking
-/// points with |p - q| <= tolerance (the clusters of PCL's region growing), by union-find
-/// over cells of edge just under tolerance / sqrt(3) (ransac.cpp): O(N log N) whatever
-/// the tolerance. Non-finite points and repeated indices are ignored. Returns clusters of
-/// input indices (ascending), ordered by decreasing size (ties: smallest first index),
-/// sizes within [min, max]. Throws std::invalid_argument for a tolerance that is not
-/// finite and > 0 or an index out of range, and Interrupted (common/interrupt.hpp) when the
-/// interrupt hook asks to stop.
-template <typename Scalar>
-std::vector<std::vector<std::uint32_t>> euclideanClusters(const CloudView<Scalar>& points,
-                                                          const std::vector<std::uint32_t>& indices,
-                                                          double tolerance, std::size_t min_size,
-                                                          std::size_t max_size);
-
-template <typename Scalar>
-TableSegmentation segmentTable(const CloudView<Scalar>& points, const TableSegmentationSettings& settings);
 
 // ---------------------------------------------------------------------------
 // ransacLoop implementation

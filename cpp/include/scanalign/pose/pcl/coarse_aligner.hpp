@@ -3,7 +3,7 @@
 // Part of scanalign::pcl (needs PCL at link time; this header is PCL-free).
 #pragma once
 
-#include "scanalign/features/pcl/feature_alignment.hpp"
+#include "scanalign/pose/pcl/feature_alignment.hpp"
 #include "scanalign/pose/pose_estimation.hpp"
 
 namespace scanalign {

@@ -1,6 +1,6 @@
 // Names of the stock PCL baselines. PCL-free: the names are part of the API (settings, reports,
 // pickles) in every build, with or without PCL.
-#include "scanalign/features/pcl/feature_alignment.hpp"
+#include "scanalign/pose/pcl/feature_alignment.hpp"
 #include "scanalign/registration/pcl/baselines.hpp"
 
 namespace scanalign {

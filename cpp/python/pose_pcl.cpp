@@ -7,8 +7,8 @@
 
 #include "arrays.hpp"
 #include "pickle.hpp"
-#include "scanalign/features/pcl/feature_alignment.hpp"
-#include "scanalign/pose/pcl_coarse_aligner.hpp"
+#include "scanalign/pose/pcl/feature_alignment.hpp"
+#include "scanalign/pose/pcl/coarse_aligner.hpp"
 
 namespace scanalign::python {
 

@@ -2,7 +2,7 @@
 // (Kleppe, PhD thesis, NTNU 2018, Paper 5 §IV-A): local descriptors (FPFH, SHOT, 3D shape context)
 // matched by SampleConsensusPrerejective or SAC-IA, and point-pair features (PPF) with
 // PCL's hash-map voting. The declarations are PCL-free; the PCL templates are compiled in
-// cpp/src/features/pcl_feature_alignment.cpp only.
+// cpp/src/pose/pcl/feature_alignment.cpp only.
 //
 // Units are metres. The result's transform maps source coordinates into the target frame
 // (T_target_source: p_target = R p_source + t), as every registration in scanalign.

@@ -14,7 +14,9 @@
 
 #include <Eigen/Geometry>
 
-#include "scanalign/fitting/ransac.hpp"
+#include "scanalign/segmentation/euclidean_clusters.hpp"
+#include "scanalign/segmentation/ransac.hpp"
+#include "scanalign/segmentation/table_segmentation.hpp"
 
 namespace scanalign {
 namespace {

@@ -10,7 +10,7 @@
 // clamped to the number of target descriptors, the PPF angle step is snapped to a value for
 // which PCL's accumulator indexing stays in bounds, and PPF models too large for PCL's
 // hash map are refused with a message.
-#include "scanalign/features/pcl/feature_alignment.hpp"
+#include "scanalign/pose/pcl/feature_alignment.hpp"
 #include "scanalign/common/threads.hpp"
 
 #include <algorithm>

@@ -1,0 +1,73 @@
+// The table segmentation pipeline of paper 3. See table_segmentation.hpp.
+#include "scanalign/segmentation/table_segmentation.hpp"
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+#include "scanalign/segmentation/euclidean_clusters.hpp"
+
+namespace scanalign {
+
+void validate(const TableSegmentationSettings& s) {
+  validate(s.plane);
+  auto fail = [](const std::string& what) { throw std::invalid_argument("table segmentation settings: " + what); };
+  if (s.crop_min.hasNaN() || s.crop_max.hasNaN()) fail("crop_min and crop_max must not be NaN");
+  if (!s.viewpoint.allFinite()) fail("viewpoint must be 3 finite coordinates");
+  if (!s.up.allFinite()) fail("up must be 3 finite coordinates");
+  if (!(s.cluster_tolerance > 0) || !std::isfinite(s.cluster_tolerance))
+    fail("cluster_tolerance must be a finite positive distance in metres");
+  if (s.min_cluster_size < 1 || s.max_cluster_size < s.min_cluster_size)
+    fail("need 1 <= min_cluster_size <= max_cluster_size");
+}
+
+template <typename Scalar>
+TableSegmentationResult segmentTable(const CloudView<Scalar>& points, const TableSegmentationSettings& s) {
+  validate(s);
+  TableSegmentationResult out;
+  // (1) pass-through crop.
+  std::vector<std::uint32_t> kept;
+  std::vector<Scalar> packed;
+  for (std::size_t i = 0; i < points.size; ++i) {
+    if (!points.isFinite(i)) continue;
+    const Eigen::Vector3d p = points[i].template cast<double>();
+    if (s.crop && ((p.array() < s.crop_min.array()).any() || (p.array() > s.crop_max.array()).any())) continue;
+    kept.push_back(static_cast<std::uint32_t>(i));
+    packed.insert(packed.end(), {points.ptr(i)[0], points.ptr(i)[1], points.ptr(i)[2]});
+  }
+  out.cropped_points = kept.size();
+  const CloudView<Scalar> view(packed.empty() ? nullptr : packed.data(), kept.size(), 3);
+  // (2) dominant plane.
+  out.plane = ransacPlane(view, s.plane);
+  out.status = out.plane.status;
+  if (!out.success()) return out;
+  PlaneModel& pl = out.plane.model;
+  // Orient the normal up, or towards the viewpoint (P3: "orient v toward the camera").
+  const bool flip = s.up.squaredNorm() > 0 ? pl.normal.dot(s.up) < 0 : pl.signedDistance(s.viewpoint) < 0;
+  if (flip) {
+    pl.normal = -pl.normal;
+    pl.distance = -pl.distance;
+    out.plane.hypothesis.normal = -out.plane.hypothesis.normal;
+    out.plane.hypothesis.distance = -out.plane.hypothesis.distance;
+  }
+  // (3) remove the inliers and everything below: keep signed distance >= threshold.
+  std::vector<std::uint32_t> above;
+  for (std::size_t i = 0; i < kept.size(); ++i)
+    if (pl.signedDistance(view[i].template cast<double>()) >= s.plane.threshold)
+      above.push_back(static_cast<std::uint32_t>(i));
+  out.above_points = above.size();
+  // (4)-(5) Euclidean clustering, small/large clusters dropped.
+  out.objects = euclideanClusters(view, above, s.cluster_tolerance, s.min_cluster_size, s.max_cluster_size);
+  for (auto& c : out.objects)
+    for (auto& i : c) i = kept[i];  // back to input indices (kept is ascending: order preserved)
+  for (auto& i : out.plane.inliers) i = kept[i];
+  return out;
+}
+
+#define SCANALIGN_INSTANTIATE(S) \
+  template TableSegmentationResult segmentTable<S>(const CloudView<S>&, const TableSegmentationSettings&);
+SCANALIGN_INSTANTIATE(float)
+SCANALIGN_INSTANTIATE(double)
+#undef SCANALIGN_INSTANTIATE
+
+}  // namespace scanalign
