@@ -356,7 +356,7 @@ def test_number_of_distinct_solutions(name, band, reference):
         assert set(np.unique(n)) <= {4, 8}                        # otherwise 4
     else:
         assert set(np.unique(n)) <= {2, 4, 6, 8} and len(set(np.unique(n))) >= 3
-    # IKSolutions.distinct agrees
+    # IKResult.distinct agrees
     for i in range(0, 1000, 97):
         sol = res.solutions(i)
         assert len(sol.distinct()) == n[i] == len(sol)
@@ -803,7 +803,7 @@ def test_configuration_labels_are_geometric(name):
 def test_solution_indexing():
     for k in range(8):
         s, e, w = (int(v) for v in kin.CONFIGS[k])
-        assert kin.IKSolutions.index(s, e, w) == k == kin.config_index(s, e, w)
+        assert kin.IKResult.index(s, e, w) == k == kin.config_index(s, e, w)
     with pytest.raises(ValueError):
         kin.config_index(1, 0, 1)
     robot = kin.kuka_kr6_r900_sixx()
@@ -852,7 +852,7 @@ def test_ik_closest_matches_brute_force(name):
         unweighted = robot.ik_closest(T, qc)
         differs += not np.allclose(unweighted.q, got.q)
         cfg = got.config
-        assert kin.IKSolutions.index(*(int(v) for v in cfg)) in np.nonzero(robot.ik(T).ok)[0]
+        assert kin.IKResult.index(*(int(v) for v in cfg)) in np.nonzero(robot.ik(T).ok)[0]
     assert differs > 0                                                  # weights matter
 
 

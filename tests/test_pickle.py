@@ -226,10 +226,10 @@ def _results():
     robot = kinematics.ur5()
     T = robot.fk([0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
     out["kinematics.Robot"] = robot
-    out["kinematics.IKSolutions"] = robot.ik(T)
+    out["kinematics.IKResult"] = robot.ik(T)
     out["kinematics.IKSolution"] = robot.ik_closest(T, [0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
-    out["kinematics.IKBatch"] = robot.ik_batch(np.stack([T, T]), num_threads=THREADS)
-    out["kinematics.JointTrajectory"] = robot.ik_trajectory(np.stack([T, T]), [0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
+    out["kinematics.IKBatchResult"] = robot.ik_batch(np.stack([T, T]), num_threads=THREADS)
+    out["kinematics.JointTrajectoryResult"] = robot.ik_trajectory(np.stack([T, T]), [0.3, -1.2, 1.4, -0.5, 1.1, 0.2])
     out["kinematics.IKConstruction"] = robot.ik_construction(T, 1, 1, 1)
 
     rng = np.random.default_rng(1)
@@ -263,7 +263,7 @@ def _results():
     plan = G.plan_grasp(cell_robot, T_base_model, [G.Grasp("top", top)], symmetry=G.PartSymmetry(order=2),
                         q_current=[0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0])
     assert plan.candidates
-    out["grasp.GraspPlan"] = plan
+    out["grasp.GraspPlanResult"] = plan
     out["grasp.GraspCandidate"] = list(plan.candidates[:3])
 
     f2m_settings = _core.reconstruction.FrameToModelSettings()
@@ -483,7 +483,7 @@ def _corrupt(obj, mutate):
 
 
 @pytest.mark.parametrize("key", ["registration.IcpSettings", "registration.IcpResult", "pose.ModelView",
-                                 "pose.CbdFeatures", "grasp.GraspPlan", "kinematics.IKSolution",
+                                 "pose.CbdFeatures", "grasp.GraspPlanResult", "kinematics.IKSolution",
                                  "segmentation.TableSegmentationResult", "registration.Icp", "registration.BucketKdTree64",
                                  "kinematics.Robot"])
 def test_corrupt_state_is_a_clear_error(instances, key):
@@ -524,9 +524,9 @@ def test_corrupt_arrays_are_refused_not_read_out_of_bounds(instances):
     with pytest.raises(ValueError, match="past the view"):
         _corrupt(view, lambda s: s.__setitem__("cbd/keypoints", s["cbd/keypoints"] + np.uint32(10**6)))
     with pytest.raises(ValueError, match="chosen"):
-        _corrupt(instances["grasp.GraspPlan"][0], lambda s: s.__setitem__("chosen", 10**6))
+        _corrupt(instances["grasp.GraspPlanResult"][0], lambda s: s.__setitem__("chosen", 10**6))
     with pytest.raises(ValueError, match="shape"):
-        _corrupt(instances["kinematics.IKBatch"][0], lambda s: s.__setitem__("status", s["status"][:, :3]))
+        _corrupt(instances["kinematics.IKBatchResult"][0], lambda s: s.__setitem__("status", s["status"][:, :3]))
     with pytest.raises(ValueError, match="dropout"):  # validated after loading, as the constructor does
         _corrupt(_sensor_noise(), lambda s: s.__setitem__("dropout", 2.0))
     with pytest.raises(ValueError, match="unknown value 'sideways'"):
@@ -538,7 +538,7 @@ def test_python_records_holding_core_objects_pickle(instances):
     from scanalign import pick, pipeline, reconstruction
 
     mesh = parts.builtin_mesh(name="bracket")
-    plan = instances["grasp.GraspPlan"][0]
+    plan = instances["grasp.GraspPlanResult"][0]
     trajectory = Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4), ROT]))
     grasps = G.PartGrasps(name="bracket", mesh=mesh, grasps=[G.Grasp("top", ROT)], symmetry=G.PartSymmetry(order=3))
     part_pick = pick.PartPick(part="bracket", status="picked", T_base_model=ROT, plan=plan)

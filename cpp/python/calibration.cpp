@@ -1,5 +1,5 @@
 // Bindings of scanalign/calibration: hand-eye calibration (AX = ZB). The C++ settings and
-// result structs are bound directly; their doc strings are the C++ field comments. Pose
+// result structs are bound through their field tables (fields.hpp). Pose
 // arrays are checked here (shape, rigidity naming the index) and raise ValueError / TypeError;
 // python/scanalign/calibration.py re-exports these and picks the camera-pose source.
 #include <pybind11/eigen.h>
@@ -9,7 +9,8 @@
 #include <string>
 #include <vector>
 
-#include "pickle.hpp"
+#include "field_access.hpp"
+#include "fields.hpp"
 #include "scanalign/calibration/hand_eye.hpp"
 #include "scanalign/common/rigid.hpp"
 
@@ -49,19 +50,6 @@ std::vector<Eigen::Matrix4d> poses(py::handle x, const std::string& name) {
   return out;
 }
 
-py::array_t<double> matrix(const Eigen::Matrix4d& T) {
-  py::array_t<double> a({4, 4});
-  Eigen::Map<RowMatrix4d>(a.mutable_data()) = T;
-  py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
-  return a;
-}
-
-py::array_t<double> vector(const Eigen::VectorXd& v) {
-  py::array_t<double> a(v.size(), v.data());
-  py::detail::array_proxy(a.ptr())->flags &= ~py::detail::npy_api::NPY_ARRAY_WRITEABLE_;
-  return a;
-}
-
 void checkCount(const std::vector<Eigen::Matrix4d>& A, const std::vector<Eigen::Matrix4d>& B, const char* name) {
   if (A.size() != B.size())
     throw py::value_error(std::string("T_base_flange and ") + name + " must hold as many poses, got " +
@@ -70,84 +58,74 @@ void checkCount(const std::vector<Eigen::Matrix4d>& A, const std::vector<Eigen::
 
 void bindSettings(py::module_& m) {
   using S = HandEyeSettings;
-  py::class_<S>(m, "HandEyeSettings", "Settings of calibrate_hand_eye (units beside each field)")
-      .def(py::init<>())
-      .def_readwrite("min_relative_rotation", &S::min_relative_rotation,
-                     "rad (default 5 deg): relative motions rotating less do not count for the degeneracy check; "
-                     "fewer than 2 above it: 'degenerate_motion'")
-      .def_readwrite("min_axis_angle", &S::min_axis_angle,
-                     "rad (default 2 deg): least spread of the relative rotation axes (the largest angle between "
-                     "the axis of the largest relative rotation and any other counted one, axes as lines); below "
-                     "it: 'degenerate_motion'")
-      .def_readwrite("refine", &S::refine, "Levenberg-Marquardt refinement of the closed form (default True)")
-      .def_readwrite("rotation_weight", &S::rotation_weight,
-                     "m/rad (default 0.3): a rotation error of 1 rad costs as much as this many metres; the "
-                     "maximum-likelihood choice is sigma_translation / sigma_rotation of the camera poses")
-      .def_readwrite("huber_delta", &S::huber_delta,
-                     "m (default 0: least squares): Huber threshold on the weighted 6-vector residual of a pose")
-      .def_readwrite("max_rms_translation", &S::max_rms_translation,
-                     "m (default 0.02): largest RMS translation residual of an answer; above it: "
-                     "'inconsistent_poses'")
-      .def_readwrite("max_rms_rotation", &S::max_rms_rotation,
-                     "rad (default 5 deg): largest RMS rotation residual of an answer; above it: 'inconsistent_poses'")
-      .def_readwrite("max_iterations", &S::max_iterations, "Levenberg-Marquardt iterations, >= 1 (default 50)")
-      .def_readwrite("step_tolerance", &S::step_tolerance,
-                     "m and rad (default 1e-12): stop when the step's largest component is below this")
-      .def("__repr__", [](const S& s) {
-        return "HandEyeSettings(min_relative_rotation=" + std::to_string(s.min_relative_rotation) +
-               ", min_axis_angle=" + std::to_string(s.min_axis_angle) + ", refine=" + (s.refine ? "True" : "False") +
-               ", rotation_weight=" + std::to_string(s.rotation_weight) + ", huber_delta=" +
-               std::to_string(s.huber_delta) + ", max_iterations=" + std::to_string(s.max_iterations) + ")";
-      });
+  fieldsOf(py::class_<S>(m, "HandEyeSettings", "Settings of calibrate_hand_eye (units beside each field)"))
+      .field("min_relative_rotation", &S::min_relative_rotation, "rad",
+             "relative motions rotating less do not count for the degeneracy check; fewer than 2 above it: "
+             "'degenerate_motion'")
+      .field("min_axis_angle", &S::min_axis_angle, "rad",
+             "least spread of the relative rotation axes (the largest angle between the axis of the largest relative "
+             "rotation and any other counted one, axes as lines); below it: 'degenerate_motion'")
+      .field("refine", &S::refine, "", "Levenberg-Marquardt refinement of the closed form")
+      .field("rotation_weight", &S::rotation_weight, "m/rad",
+             "a rotation error of 1 rad costs as much as this many metres; the maximum-likelihood choice is "
+             "sigma_translation / sigma_rotation of the camera poses")
+      .field("huber_delta", &S::huber_delta, "m",
+             "Huber threshold on the weighted 6-vector residual of a pose (0: least squares)")
+      .field("max_rms_translation", &S::max_rms_translation, "m",
+             "largest RMS translation residual of an answer; above it: 'inconsistent_poses'")
+      .field("max_rms_rotation", &S::max_rms_rotation, "rad",
+             "largest RMS rotation residual of an answer; above it: 'inconsistent_poses'")
+      .field("max_iterations", &S::max_iterations, "", "Levenberg-Marquardt iterations, >= 1")
+      .field("step_tolerance", &S::step_tolerance, "m, rad", "stop when the step's largest component is below this")
+      .settings()
+      .def("validate", [](const S& s) { validate(s); }, "ValueError naming a bad field");
 }
 
 void bindResult(py::module_& m) {
   using R = HandEyeResult;
-  py::class_<R>(m, "HandEyeResult",
-                "Outcome of calibrate_hand_eye: T_base_flange[i] @ T_flange_camera = T_base_world @ "
-                "T_world_camera[i]. Transforms are 4x4 read-only arrays, metres. Falsy unless status is 'ok'.")
-      .def_property_readonly(
-          "status", [](const R& r) { return toString(r.status); },
-          "'ok', 'too_few_poses' (< 3), 'invalid_input', 'degenerate_motion' (rotations too small, or all "
-          "relative rotation axes nearly parallel) or 'inconsistent_poses' (RMS residual above max_rms_*: the "
-          "transforms are filled in, to look at)")
-      .def_readonly("message", &R::message, "empty when ok, else why")
-      .def_property_readonly("ok", &R::ok, "status == 'ok'")
-      .def_property_readonly(
-          "T_flange_camera", [](const R& r) { return matrix(r.T_flange_camera); },
-          "(4, 4) camera -> flange: refined, or the closed form when settings.refine is False")
-      .def_property_readonly(
-          "T_base_world", [](const R& r) { return matrix(r.T_base_world); },
-          "(4, 4) world -> robot base: the target's pose (T_base_target) or the scan's model frame in the base")
-      .def_property_readonly(
-          "T_flange_camera_closed_form", [](const R& r) { return matrix(r.T_flange_camera_closed_form); },
-          "(4, 4) the dual-quaternion closed form (Daniilidis 1999)")
-      .def_property_readonly(
-          "T_base_world_closed_form", [](const R& r) { return matrix(r.T_base_world_closed_form); },
-          "(4, 4) chordal mean of T_base_flange[i] @ X @ inv(T_world_camera[i]) at the closed-form X")
-      .def_property_readonly(
-          "residual_rotation", [](const R& r) { return vector(r.residual_rotation); },
-          "(N,) per pose: rotation angle of inv(T_base_world @ T_world_camera[i]) @ T_base_flange[i] @ "
-          "T_flange_camera, rad")
-      .def_property_readonly(
-          "residual_translation", [](const R& r) { return vector(r.residual_translation); },
-          "(N,) per pose: the camera's position error between the two sides, m")
-      .def_readonly("rms_rotation", &R::rms_rotation, "rad, RMS over poses at the answer")
-      .def_readonly("rms_translation", &R::rms_translation, "m, RMS over poses at the answer")
-      .def_readonly("rms_rotation_closed_form", &R::rms_rotation_closed_form, "rad, at the closed form")
-      .def_readonly("rms_translation_closed_form", &R::rms_translation_closed_form, "m, at the closed form")
-      .def_readonly("iterations", &R::iterations, "Levenberg-Marquardt iterations (0: no refinement)")
-      .def_readonly("converged", &R::converged, "the refinement met step_tolerance (True without refinement)")
-      .def_readonly("pairs", &R::pairs, "relative motions (pose pairs i < j) in the closed form")
-      .def_readonly("axis_spread", &R::axis_spread, "rad: see HandEyeSettings.min_axis_angle")
-      .def_readonly("max_relative_rotation", &R::max_relative_rotation, "rad: largest relative rotation of the flange")
-      .def("__bool__", &R::ok)
-      .def("__repr__", [](const R& r) {
-        return std::string("HandEyeResult(status='") + toString(r.status) + "', rms_rotation=" +
-               std::to_string(r.rms_rotation) + " rad, rms_translation=" + std::to_string(r.rms_translation) +
-               " m, iterations=" + std::to_string(r.iterations) + (r.message.empty() ? "" : ", message=" + r.message) +
-               ")";
-      });
+  fieldsOf(py::class_<R>(m, "HandEyeResult",
+                         "Outcome of calibrate_hand_eye: T_base_flange[i] @ T_flange_camera = T_base_world @ "
+                         "T_world_camera[i]. Transforms are 4x4 read-only arrays, metres. Falsy unless status is 'ok'.")
+               .def("__bool__", &R::ok)
+               .def("__repr__", [](const R& r) {
+                 return std::string("HandEyeResult(status='") + toString(r.status) + "', rms_rotation=" +
+                        std::to_string(r.rms_rotation) + " rad, rms_translation=" + std::to_string(r.rms_translation) +
+                        " m, iterations=" + std::to_string(r.iterations) +
+                        (r.message.empty() ? "" : ", message=" + r.message) + ")";
+               }))
+      .name("status", &R::status, kHandEyeStatusCount, "",
+            "'ok', 'too_few_poses' (< 3), 'invalid_input', 'degenerate_motion' (rotations too small, or all relative "
+            "rotation axes nearly parallel) or 'inconsistent_poses' (RMS residual above max_rms_*: the transforms are "
+            "filled in, to look at)",
+            false)
+      .output("message", &R::message, "", "empty when ok, else why")
+      .field("T_flange_camera", frozen(&R::T_flange_camera), thawed(&R::T_flange_camera), "m",
+             "(4, 4) camera -> flange: refined, or the closed form when settings.refine is False", false)
+      .field("T_base_world", frozen(&R::T_base_world), thawed(&R::T_base_world), "m",
+             "(4, 4) world -> robot base: the target's pose (T_base_target) or the scan's model frame in the base",
+             false)
+      .field("T_flange_camera_closed_form", frozen(&R::T_flange_camera_closed_form),
+             thawed(&R::T_flange_camera_closed_form), "m", "(4, 4) the dual-quaternion closed form (Daniilidis 1999)",
+             false)
+      .field("T_base_world_closed_form", frozen(&R::T_base_world_closed_form), thawed(&R::T_base_world_closed_form),
+             "m", "(4, 4) chordal mean of T_base_flange[i] @ X @ inv(T_world_camera[i]) at the closed-form X", false)
+      .field("residual_rotation", frozen(&R::residual_rotation), thawed(&R::residual_rotation), "rad",
+             "(N,) per pose: rotation angle of inv(T_base_world @ T_world_camera[i]) @ T_base_flange[i] @ "
+             "T_flange_camera",
+             false)
+      .field("residual_translation", frozen(&R::residual_translation), thawed(&R::residual_translation), "m",
+             "(N,) per pose: the camera's position error between the two sides", false)
+      .output("rms_rotation", &R::rms_rotation, "rad", "RMS over poses at the answer")
+      .output("rms_translation", &R::rms_translation, "m", "RMS over poses at the answer")
+      .output("rms_rotation_closed_form", &R::rms_rotation_closed_form, "rad", "RMS at the closed form")
+      .output("rms_translation_closed_form", &R::rms_translation_closed_form, "m", "RMS at the closed form")
+      .output("iterations", &R::iterations, "", "Levenberg-Marquardt iterations (0: no refinement)")
+      .output("converged", &R::converged, "", "the refinement met step_tolerance (True without refinement)")
+      .output("pairs", &R::pairs, "", "relative motions (pose pairs i < j) in the closed form")
+      .output("axis_spread", &R::axis_spread, "rad", "see HandEyeSettings.min_axis_angle")
+      .output("max_relative_rotation", &R::max_relative_rotation, "rad", "largest relative rotation of the flange")
+      .derived("ok", [](const R& r) { return r.ok(); }, "", "status == 'ok'")
+      .result();
 }
 }  // namespace
 
@@ -155,24 +133,6 @@ void defineCalibration(py::module_& m) {
   m.doc() = "Hand-eye calibration of an eye-in-hand camera (AX = ZB)";
   bindSettings(m);
   bindResult(m);
-  using S = HandEyeSettings;
-  pickleFields(m, "HandEyeSettings", field("min_relative_rotation", &S::min_relative_rotation),
-               field("min_axis_angle", &S::min_axis_angle), field("refine", &S::refine),
-               field("rotation_weight", &S::rotation_weight), field("huber_delta", &S::huber_delta),
-               field("max_rms_translation", &S::max_rms_translation), field("max_rms_rotation", &S::max_rms_rotation),
-               field("max_iterations", &S::max_iterations), field("step_tolerance", &S::step_tolerance));
-  using R = HandEyeResult;
-  pickleFields(m, "HandEyeResult", namedEnum("status", &R::status, kHandEyeStatusCount), field("message", &R::message),
-               field("T_flange_camera", &R::T_flange_camera), field("T_base_world", &R::T_base_world),
-               field("T_flange_camera_closed_form", &R::T_flange_camera_closed_form),
-               field("T_base_world_closed_form", &R::T_base_world_closed_form),
-               field("residual_rotation", &R::residual_rotation),
-               field("residual_translation", &R::residual_translation), field("rms_rotation", &R::rms_rotation),
-               field("rms_translation", &R::rms_translation),
-               field("rms_rotation_closed_form", &R::rms_rotation_closed_form),
-               field("rms_translation_closed_form", &R::rms_translation_closed_form),
-               field("iterations", &R::iterations), field("converged", &R::converged), field("pairs", &R::pairs),
-               field("axis_spread", &R::axis_spread), field("max_relative_rotation", &R::max_relative_rotation));
   m.def(
       "calibrate_hand_eye",
       [](const py::object& T_base_flange, const py::object& T_world_camera, const HandEyeSettings& settings) {

@@ -13,7 +13,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
-#include "pickle.hpp"
+#include "fields.hpp"
 #include "scanalign/cga/multivector.hpp"
 #include "scanalign/cga/objects.hpp"
 
@@ -367,7 +367,7 @@ void defineCga(py::module_& m) {
   "(Multivector.orthonormal_coefficients() layout)");
 
   // ----- typed objects -----
-  py::class_<cga::Sphere>(m, "Sphere", R"(Dual (IPNS) sphere S* = up(c) - 1/2 r^2 einf (4.59).
+  fieldsOf(py::class_<cga::Sphere>(m, "Sphere", R"(Dual (IPNS) sphere S* = up(c) - 1/2 r^2 einf (4.59).
 
 center: metres, in the caller's frame; radius: metres (radius2 < 0: imaginary sphere,
 S*^2 < 0 (4.61)). from_dual / from_direct accept any scale (r^2 = S*^2/(einf.S*)^2);
@@ -381,16 +381,17 @@ coefficient 0 is a plane and raises ValueError.)")
       .def_static("from_direct", chk(&cga::Sphere::fromDirect), py::arg("S"))
       .def_static("through_points", chk(&cga::Sphere::throughPoints, {"a", "b", "c", "d"}), py::arg("a"),
                   py::arg("b"), py::arg("c"), py::arg("d"))
-      .def_readonly("center", &cga::Sphere::center)
-      .def_readonly("radius2", &cga::Sphere::radius2)
-      .def_property_readonly("radius", &cga::Sphere::radius)
-      .def_property_readonly("is_real", &cga::Sphere::isReal)
       .def("dual", chk(&cga::Sphere::dual))
       .def("__repr__", [](const cga::Sphere& s) {
         return "Sphere(center=" + fmt(s.center) +
                (s.isReal() ? ", radius=" + fmt(s.radius()) : ", radius2=" + fmt(s.radius2) + " (imaginary)") + ")";
-      });
-  py::class_<cga::Plane>(m, "Plane", R"(Dual plane Pi* = n + delta einf (4.65), |n| = 1.
+      }))
+      .output("center", &cga::Sphere::center, "m", "(3,) centre")
+      .output("radius2", &cga::Sphere::radius2, "m^2", "squared radius; < 0 for an imaginary sphere (S*^2 < 0, (4.61))")
+      .derived("radius", [](const cga::Sphere& s) { return s.radius(); }, "m", "radius; ValueError for an imaginary sphere")
+      .derived("is_real", [](const cga::Sphere& s) { return s.isReal(); }, "", "radius2 >= 0")
+      .result();
+  fieldsOf(py::class_<cga::Plane>(m, "Plane", R"(Dual plane Pi* = n + delta einf (4.65), |n| = 1.
 
 normal: unit vector (normalised on construction; zero raises ValueError); distance: signed
 distance of the plane from the origin along the normal, metres. point_plane_distance(x, p) =
@@ -404,28 +405,30 @@ the direct plane PA^PB^PC^einf (4.64), whose orientation follows the dual conven
                   py::arg("c"))
       .def_static("from_dual", chk(&cga::Plane::fromDual), py::arg("P"))
       .def_static("from_direct", chk(&cga::Plane::fromDirect), py::arg("P"))
-      .def_readonly("normal", &cga::Plane::normal)
-      .def_readonly("distance", &cga::Plane::distance)
       .def("dual", chk(&cga::Plane::dual))
       .def("direct", chk(&cga::Plane::direct))
       .def("__repr__", [](const cga::Plane& p) {
         return "Plane(normal=" + fmt(p.normal) + ", distance=" + fmt(p.distance) + ")";
-      });
-  py::class_<cga::Line>(m, "Line", R"(Line through `point` (the closest point to the origin, metres) along the unit
+      }))
+      .output("normal", &cga::Plane::normal, "", "(3,) unit normal")
+      .output("distance", &cga::Plane::distance, "m", "signed distance of the plane from the origin along the normal")
+      .result();
+  fieldsOf(py::class_<cga::Line>(m, "Line", R"(Line through `point` (the closest point to the origin, metres) along the unit
 `direction`. direct() = (p + e0)^d^einf = PA^PB^einf (4.68); dual() = A + b einf.)")
       .def(py::init(chk(&make<cga::Line, const Eigen::Vector3d&, const Eigen::Vector3d&>, {"point", "direction"})), py::arg("point"),
            py::arg("direction"))
       .def_static("through_points", chk(&cga::Line::throughPoints, {"a", "b"}), py::arg("a"), py::arg("b"))
       .def_static("from_direct", chk(&cga::Line::fromDirect), py::arg("L"))
       .def_static("from_dual", chk(&cga::Line::fromDual), py::arg("L_dual"))
-      .def_readonly("point", &cga::Line::point)
-      .def_readonly("direction", &cga::Line::direction)
       .def("direct", chk(&cga::Line::direct))
       .def("dual", chk(&cga::Line::dual))
       .def("__repr__", [](const cga::Line& l) {
         return "Line(point=" + fmt(l.point) + ", direction=" + fmt(l.direction) + ")";
-      });
-  py::class_<cga::Motor>(m, "Motor", R"(Rigid motion M = T R (thesis Paper 4 §3.5): T = 1 - 1/2 t einf, R = w - (x e23 + y e31 + z e12)
+      }))
+      .output("point", &cga::Line::point, "m", "(3,) the line's closest point to the origin")
+      .output("direction", &cga::Line::direction, "", "(3,) unit direction")
+      .result();
+  fieldsOf(py::class_<cga::Motor>(m, "Motor", R"(Rigid motion M = T R (thesis Paper 4 §3.5): T = 1 - 1/2 t einf, R = w - (x e23 + y e31 + z e12)
 for the unit quaternion (w, x, y, z). Acts by X -> M X ~M; on a point it gives R x + t
 (metres), so from_matrix(T_a_b) maps frame-b coordinates into frame a. a * b applies b
 first. interpolate(a, b, s) slerps the rotation and lerps the translation (not a screw
@@ -449,7 +452,6 @@ motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
                   py::arg("tol") = 1e-8)
       .def_static("interpolate", chk(&cga::Motor::interpolate, {"a", "b", "s"}), py::arg("a"), py::arg("b"),
                   py::arg("s"))
-      .def_property_readonly("multivector", &cga::Motor::multivector)
       .def("rotor", &cga::Motor::rotor)
       .def("quaternion",
            [](const cga::Motor& M) {
@@ -484,7 +486,13 @@ motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
         const auto q = M.quaternion();
         return "Motor(quaternion_wxyz=[" + fmt(q.w()) + ", " + fmt(q.x()) + ", " + fmt(q.y()) + ", " + fmt(q.z()) +
                "], translation=" + fmt(M.translation()) + ")";
-      });
+      }))
+      // set (unpickling) through from_multivector, which re-checks M~M = 1
+      .field(
+          "multivector", [](const cga::Motor& M) { return M.multivector(); },
+          [](cga::Motor& M, const Multivector& X) { M = cga::Motor::fromMultivector(X); }, "", "M = T R, a Multivector",
+          false)
+      .result();
 
   py::enum_<cga::Reality>(m, "Reality")
       .value("real", cga::Reality::Real)
@@ -492,7 +500,7 @@ motion). from_multivector checks the motor space and M~M = 1 (P5 (34)-(35)).)")
       .value("imaginary", cga::Reality::Imaginary);
   m.def("point_pair_reality", chk(&cga::pointPairReality, {"Q", "tol"}), py::arg("Q"), py::arg("tol") = 1e-10);
 
-  py::class_<cga::PointPair>(m, "PointPair", R"(Point pair, held as the direct 2-blade Q = PA^PB (4.62).
+  fieldsOf(py::class_<cga::PointPair>(m, "PointPair", R"(Point pair, held as the direct 2-blade Q = PA^PB (4.62).
 
 Build with from_points(a, b) (metres), from_direct(Q) or from_dual(Q*) (a meet result such as
 meet_plane_circle). reality() is the sign of Q^2 (thesis (4.70)-(4.73)); points() gives (P-, P+) of (4.63),
@@ -500,7 +508,6 @@ i.e. (a, b) for from_points(a, b), and raises ValueError for an imaginary pair.)
       .def_static("from_points", chk(&cga::PointPair::fromPoints, {"a", "b"}), py::arg("a"), py::arg("b"))
       .def_static("from_direct", chk(&cga::PointPair::fromDirect), py::arg("Q"))
       .def_static("from_dual", chk(&cga::PointPair::fromDual), py::arg("Q_dual"))
-      .def_readonly("direct", &cga::PointPair::direct)
       .def("dual", chk(&cga::PointPair::dual))
       .def("square", chk(&cga::PointPair::square))
       .def("reality", chk(&cga::PointPair::reality, {"tol"}), py::arg("tol") = 1e-10)
@@ -515,21 +522,22 @@ i.e. (a, b) for from_points(a, b), and raises ValueError for an imaginary pair.)
           s += ", Q^2=" + fmt(q.square());
         }
         return s + ")";
-      });
-  py::class_<cga::FlatPoint>(m, "FlatPoint", R"(Flat point P^einf (4.69), e.g. the line-plane meet (4.73); location() in metres.)")
+      }))
+      .output("direct", &cga::PointPair::direct, "", "Q = PA ^ PB, a grade-2 blade (4.62)")
+      .result();
+  fieldsOf(py::class_<cga::FlatPoint>(m, "FlatPoint", R"(Flat point P^einf (4.69), e.g. the line-plane meet (4.73); location() in metres.)")
       .def_static("at", chk(&cga::FlatPoint::at, {"p"}), py::arg("p"))
       .def_static("from_multivector", chk(&cga::FlatPoint::fromMultivector), py::arg("F"))
-      .def_readonly("direct", &cga::FlatPoint::direct)
       .def("location", chk(&cga::FlatPoint::location))
-      .def("__repr__", [](const cga::FlatPoint& f) { return "FlatPoint(" + fmt(f.location()) + ")"; });
-  py::class_<cga::Point>(m, "Point", R"(A Euclidean point (metres) as a conformal point up(x) (4.54).
+      .def("__repr__", [](const cga::FlatPoint& f) { return "FlatPoint(" + fmt(f.location()) + ")"; }))
+      .output("direct", &cga::FlatPoint::direct, "", "up(p) ^ einf (4.69), any non-zero scale")
+      .result();
+  fieldsOf(py::class_<cga::Point>(m, "Point", R"(A Euclidean point (metres) as a conformal point up(x) (4.54).
 
 Point(x).mv is the normalised conformal point; the operators *, ^, | and ~ act on it and
 return Multivector. A Point is accepted wherever a Multivector is.)")
       .def(py::init(chk(&make<cga::Point, const Eigen::Vector3d&>, {"x"})), py::arg("x"))
       .def_static("from_multivector", chk(&cga::Point::fromMultivector), py::arg("P"))
-      .def_readonly("position", &cga::Point::position, "(3,) m")
-      .def_property_readonly("mv", &cga::Point::multivector, "up(position)")
       .def("__mul__", [](const cga::Point& a, const Multivector& b) { return checked(a.multivector() * b); },
            py::is_operator())
       .def("__xor__", [](const cga::Point& a, const Multivector& b) { return checked(a.multivector().outer(b)); },
@@ -537,10 +545,14 @@ return Multivector. A Point is accepted wherever a Multivector is.)")
       .def("__or__", [](const cga::Point& a, const Multivector& b) { return checked(a.multivector().inner(b)); },
            py::is_operator())
       .def("__invert__", [](const cga::Point& a) { return a.multivector().reverse(); })
-      .def("__repr__", [](const cga::Point& p) { return "Point(" + fmt(p.position) + ")"; });
+      .def("__repr__", [](const cga::Point& p) { return "Point(" + fmt(p.position) + ")"; }))
+      .output("position", &cga::Point::position, "m", "(3,) the point")
+      .derived(
+          "mv", [](const cga::Point& p) { return p.multivector(); }, "", "up(position), the normalised conformal point")
+      .result();
   mv.def(py::init([](const cga::Point& p) { return p.multivector(); }), py::arg("point"));
   py::implicitly_convertible<cga::Point, Multivector>();
-  py::class_<cga::Circle>(m, "Circle", R"(A circle: center (metres), unit normal of its carrier plane, radius (metres).
+  fieldsOf(py::class_<cga::Circle>(m, "Circle", R"(A circle: center (metres), unit normal of its carrier plane, radius (metres).
 
 direct() is up(a) ^ up(b) ^ up(c) for three points on it (4.57); from_direct reads any direct
 circle (centre C einf C, radius from <C C^> / <(einf _| C)^2>, normal from the plane C ^ einf
@@ -553,14 +565,15 @@ circle through infinity), a zero normal or a negative radius.)")
                   py::arg("c"))
       .def_static("from_direct", chk(&cga::Circle::fromDirect), py::arg("C"))
       .def_static("from_dual", chk(&cga::Circle::fromDual), py::arg("C_dual"))
-      .def_readonly("center", &cga::Circle::center, "(3,) m")
-      .def_readonly("normal", &cga::Circle::normal, "(3,) unit normal of the carrier plane")
-      .def_readonly("radius", &cga::Circle::radius, "m")
       .def("direct", chk(&cga::Circle::direct))
       .def("dual", chk(&cga::Circle::dual))
       .def("__repr__", [](const cga::Circle& c) {
         return "Circle(center=" + fmt(c.center) + ", normal=" + fmt(c.normal) + ", radius=" + fmt(c.radius) + ")";
-      });
+      }))
+      .output("center", &cga::Circle::center, "m", "(3,) centre")
+      .output("normal", &cga::Circle::normal, "", "(3,) unit normal of the carrier plane")
+      .output("radius", &cga::Circle::radius, "m", "radius")
+      .result();
 
   m.def("point_pair", chk(&cga::pointPair, {"a", "b"}), py::arg("a"), py::arg("b"), "direct point pair up(a) ^ up(b) (4.62), metres");
   m.def("point_pair_points", chk(&cga::pointPairPoints, {"Q"}), py::arg("Q"),
@@ -628,25 +641,13 @@ circle through infinity), a zero normal or a negative radius.)")
   m.def("rotation_plane_parallel_to_plane",
         py::overload_cast<const Multivector&>(&cga::rotationPlaneParallelToPlane), py::arg("plane"));
 
-  // std::invalid_argument and std::domain_error reach Python as ValueError (pybind11 defaults).
-  // Pickled as their defining members; a multivector as its 32 orthonormal coefficients
-  // (exact, the storage), a motor through from_multivector, which re-checks M~M = 1.
-  pickleFields(m, "Multivector",
-               field<Multivector>(
-                   "coefficients", [](const Multivector& a) { return Coeffs(a.orthonormal()); },
-                   [](Multivector& a, const Coeffs& c) { a = Multivector::fromOrthonormal(c); }));
-  pickleFields(m, "Motor",
-               field<cga::Motor>(
-                   "multivector", [](const cga::Motor& M) { return Coeffs(M.multivector().orthonormal()); },
-                   [](cga::Motor& M, const Coeffs& c) { M = cga::Motor::fromMultivector(Multivector::fromOrthonormal(c)); }));
-  pickleFields(m, "Sphere", field("center", &cga::Sphere::center), field("radius2", &cga::Sphere::radius2));
-  pickleFields(m, "Plane", field("normal", &cga::Plane::normal), field("distance", &cga::Plane::distance));
-  pickleFields(m, "Line", field("point", &cga::Line::point), field("direction", &cga::Line::direction));
-  pickleFields(m, "PointPair", field("direct", &cga::PointPair::direct));
-  pickleFields(m, "FlatPoint", field("direct", &cga::FlatPoint::direct));
-  pickleFields(m, "Point", field("position", &cga::Point::position));
-  pickleFields(m, "Circle", field("center", &cga::Circle::center), field("normal", &cga::Circle::normal),
-               field("radius", &cga::Circle::radius));
+  // A multivector's state is its 32 orthonormal coefficients (exact, the storage).
+  fieldsOf<Multivector>(m, "Multivector")
+      .field(
+          "coefficients", [](const Multivector& a) { return Coeffs(a.orthonormal()); },
+          [](Multivector& a, const Coeffs& c) { a = Multivector::fromOrthonormal(c); }, "",
+          "(32,) coefficients on the orthonormal basis (the storage; orthonormal_coefficients() as a property)", false)
+      .result();
 }
 
 }  // namespace scanalign::python

@@ -1,5 +1,6 @@
 // _core.evaluation: the exact point-to-mesh distance index (evaluation/mesh_distance.hpp),
-// bound directly with its Python docs; python/scanalign/evaluation.py re-exports it.
+// bound directly with its Python docs, and the error summaries through their field tables
+// (fields.hpp); python/scanalign/evaluation.py re-exports them.
 // Inputs are checked here (TypeError for dtypes, ValueError for shapes and values).
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -14,7 +15,8 @@
 #include <Eigen/LU>  // Matrix3d::determinant
 
 #include "arrays.hpp"
-#include "pickle.hpp"
+#include "fields.hpp"
+#include "pickle.hpp"  // refusePickle
 #include "scanalign/common/rigid.hpp"  // kRigidTolerance
 #include "scanalign/evaluation/associate.hpp"
 #include "scanalign/evaluation/associate_nearest.hpp"
@@ -182,8 +184,17 @@ py::array_t<std::int64_t> pairArray(const std::vector<std::pair<std::int64_t, st
 
 std::vector<double> values(const Stack& a) { return std::vector<double>(a.data(), a.data() + a.size()); }
 
+/// The stored fields (their pickled state) as plain Python values, for JSON.
+py::dict fieldsDict(const py::object& self) {
+  py::dict d = self.attr("__getstate__")();
+  for (const auto& item : d)
+    if (py::isinstance<py::array>(item.second)) d[item.first] = item.second.attr("tolist")();
+  return d;
+}
+
 void defineStats(py::module_& m) {
-  py::class_<ErrorStats>(m, "ErrorStats", R"doc(
+  using E = ErrorStats;
+  fieldsOf(py::class_<E>(m, "ErrorStats", R"doc(
 Summary of per-pose (or per-pair) errors, as the TUM benchmark tools and ``evo`` report them.
 
 Units are those of ``errors`` (metres for translations, degrees for rotations). ``std`` is
@@ -191,77 +202,58 @@ the population standard deviation (ddof = 0, like ``numpy.std``, ``evo`` and the
 scripts); ``sse`` the sum of squares; ``rmse = sqrt(sse / count)``; ``median`` as
 ``numpy.median``.
 )doc")
-      .def_static(
-          "from_errors",
-          [](const py::array_t<double, py::array::c_style | py::array::forcecast>& errors) {
-            return summarizeErrors(std::vector<double>(errors.data(), errors.data() + errors.size()));
-          },
-          py::arg("errors"), "The statistics of an array of errors (flattened); ValueError when it is empty.")
-      .def_readonly("rmse", &ErrorStats::rmse, "root mean square error")
-      .def_readonly("mean", &ErrorStats::mean, "mean error")
-      .def_readonly("median", &ErrorStats::median, "median error")
-      .def_readonly("std", &ErrorStats::std, "population standard deviation (ddof = 0)")
-      .def_readonly("min", &ErrorStats::min, "smallest error")
-      .def_readonly("max", &ErrorStats::max, "largest error")
-      .def_readonly("sse", &ErrorStats::sse, "sum of squared errors")
-      .def_readonly("count", &ErrorStats::count, "number of errors")
-      .def_property_readonly(
-          "errors", [](const ErrorStats& s) { return py::array_t<double>(s.errors.size(), s.errors.data()); },
-          "(count,) float64 copy of the errors")
+               .def_static(
+                   "from_errors",
+                   [](const py::array_t<double, py::array::c_style | py::array::forcecast>& errors) {
+                     return summarizeErrors(std::vector<double>(errors.data(), errors.data() + errors.size()));
+                   },
+                   py::arg("errors"), "The statistics of an array of errors (flattened); ValueError when it is empty.")
+               .def("__repr__", [](const E& s) {
+                 return "ErrorStats(rmse=" + std::to_string(s.rmse) + ", mean=" + std::to_string(s.mean) +
+                        ", max=" + std::to_string(s.max) + ", count=" + std::to_string(s.count) + ")";
+               }))
+      .output("rmse", &E::rmse, "", "root mean square error")
+      .output("mean", &E::mean, "", "mean error")
+      .output("median", &E::median, "", "median error")
+      .output("std", &E::std, "", "population standard deviation (ddof = 0)")
+      .output("min", &E::min, "", "smallest error")
+      .output("max", &E::max, "", "largest error")
+      .output("sse", &E::sse, "", "sum of squared errors")
+      .output("count", &E::count, "", "number of errors")
+      .output("errors", &E::errors, "", "(count,) float64 copy of the errors")
+      .result()
       .def(
           "as_dict",
-          [](const ErrorStats& s, bool include_errors) {
-            py::dict d("rmse"_a = s.rmse, "mean"_a = s.mean, "median"_a = s.median, "std"_a = s.std, "min"_a = s.min,
-                       "max"_a = s.max, "sse"_a = s.sse, "count"_a = s.count);
-            if (include_errors) {
-              py::list errors;
-              for (double e : s.errors) errors.append(e);
-              d["errors"] = errors;
-            }
+          [](const py::object& self, bool include_errors) {
+            py::dict d = fieldsDict(self);
+            if (!include_errors) PyDict_DelItemString(d.ptr(), "errors");
             return d;
           },
-          py::arg("include_errors") = false, "Plain floats (JSON-serialisable); the per-pose errors only on request.")
-      .def("__repr__", [](const ErrorStats& s) {
-        return "ErrorStats(rmse=" + std::to_string(s.rmse) + ", mean=" + std::to_string(s.mean) +
-               ", max=" + std::to_string(s.max) + ", count=" + std::to_string(s.count) + ")";
-      });
+          py::arg("include_errors") = false, "Plain floats (JSON-serialisable); the per-pose errors only on request.");
 
-  py::class_<MeshDistanceStats>(m, "MeshDistanceStats",
-                                "Cloud-to-mesh distance summary (m) over the finite points; ``count`` points were "
-                                "measured, ``dropped`` rows had NaN/Inf coordinates and were left out.")
-      .def_readonly("mean", &MeshDistanceStats::mean, "mean distance (m)")
-      .def_readonly("median", &MeshDistanceStats::median, "median distance (m)")
-      .def_readonly("p95", &MeshDistanceStats::p95,
-                    "95th percentile (m), linear interpolation as numpy.percentile")
-      .def_readonly("max", &MeshDistanceStats::max, "largest distance (m)")
-      .def_readonly("rmse", &MeshDistanceStats::rmse, "root mean square distance (m)")
-      .def_readonly("count", &MeshDistanceStats::count, "points measured")
-      .def_readonly("dropped", &MeshDistanceStats::dropped, "rows left out for NaN/Inf coordinates")
-      .def(
-          "as_dict",
-          [](const MeshDistanceStats& s) {
-            return py::dict("mean"_a = s.mean, "median"_a = s.median, "p95"_a = s.p95, "max"_a = s.max,
-                            "rmse"_a = s.rmse, "count"_a = s.count, "dropped"_a = s.dropped);
-          },
-          "The fields as a JSON-serialisable dict")
-      .def("__repr__", [](const MeshDistanceStats& s) {
-        return "MeshDistanceStats(mean=" + std::to_string(s.mean) + ", p95=" + std::to_string(s.p95) +
-               ", max=" + std::to_string(s.max) + ", count=" + std::to_string(s.count) + ")";
-      });
+  using D = MeshDistanceStats;
+  fieldsOf(py::class_<D>(m, "MeshDistanceStats",
+                         "Cloud-to-mesh distance summary (m) over the finite points; ``count`` points were measured, "
+                         "``dropped`` rows had NaN/Inf coordinates and were left out.")
+               .def("__repr__", [](const D& s) {
+                 return "MeshDistanceStats(mean=" + std::to_string(s.mean) + ", p95=" + std::to_string(s.p95) +
+                        ", max=" + std::to_string(s.max) + ", count=" + std::to_string(s.count) + ")";
+               }))
+      .output("mean", &D::mean, "m", "mean distance")
+      .output("median", &D::median, "m", "median distance")
+      .output("p95", &D::p95, "m", "95th percentile, linear interpolation as numpy.percentile")
+      .output("max", &D::max, "m", "largest distance")
+      .output("rmse", &D::rmse, "m", "root mean square distance")
+      .output("count", &D::count, "", "points measured")
+      .output("dropped", &D::dropped, "", "rows left out for NaN/Inf coordinates")
+      .result()
+      .def("as_dict", &fieldsDict, "The fields as a JSON-serialisable dict");
 }
 
 }  // namespace
 
 void defineEvaluation(py::module_& m) {
   defineStats(m);
-  using E = ErrorStats;
-  pickleFields(m, "ErrorStats", field("rmse", &E::rmse), field("mean", &E::mean), field("median", &E::median),
-               field("std", &E::std), field("min", &E::min), field("max", &E::max), field("sse", &E::sse),
-               field("count", &E::count), field("errors", &E::errors));
-  using D = MeshDistanceStats;
-  pickleFields(m, "MeshDistanceStats", field("mean", &D::mean), field("median", &D::median), field("p95", &D::p95),
-               field("max", &D::max), field("rmse", &D::rmse), field("count", &D::count),
-               field("dropped", &D::dropped));
   py::class_<MeshDistanceIndex>(m, "MeshDistanceIndex", R"doc(
 Exact point-to-triangle-mesh distance queries; build once, query many times.
 

@@ -12,7 +12,8 @@
 #include <string>
 #include <string_view>
 
-#include "pickle.hpp"
+#include "field_access.hpp"  // Conv for Python objects (the dtype)
+#include "fields.hpp"
 #include "scanalign/io/lzf.hpp"
 #include "scanalign/io/mesh_text.hpp"
 #include "scanalign/io/pcd.hpp"
@@ -45,15 +46,6 @@ py::array columnArray(const PcdColumn& c, std::int64_t points) {
   return a;
 }
 
-const char* dataName(PcdData d) {
-  switch (d) {
-    case PcdData::Ascii: return "ascii";
-    case PcdData::Binary: return "binary";
-    case PcdData::BinaryCompressed: return "binary_compressed";
-  }
-  return "";
-}
-
 using Indices = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>;
 
 template <typename T>
@@ -66,39 +58,32 @@ py::array_t<T> rows3(std::vector<T> values) {
 }  // namespace
 
 void defineIo(py::module_& m) {
-  py::class_<PcdField>(m, "PcdField", "one FIELDS entry of a PCD header")
-      .def_readonly("name", &PcdField::name, "field name, e.g. \"x\", \"normal_x\", \"rgb\"")
-      .def_property_readonly(
-          "type", [](const PcdField& f) { return std::string(1, f.type); },
-          "\"F\" float, \"I\" signed or \"U\" unsigned integer")
-      .def_readonly("size", &PcdField::size, "bytes per element")
-      .def_readonly("count", &PcdField::count, "elements per point")
-      .def_property_readonly("dtype", &fieldDtype, "the NumPy dtype of one element (little-endian)");
-
-  py::class_<PcdHeader>(m, "PcdHeader", "the header of a PCD file")
-      .def_readonly("version", &PcdHeader::version, "VERSION as written, empty when absent")
-      .def_readonly("fields", &PcdHeader::fields, "list of PcdField, in file order")
-      .def_readonly("width", &PcdHeader::width, "points per row")
-      .def_readonly("height", &PcdHeader::height, "rows (> 1 for an organised cloud)")
-      .def_readonly("points", &PcdHeader::points, "number of points, width * height")
-      .def_readonly("viewpoint", &PcdHeader::viewpoint,
-                    "acquisition viewpoint (tx, ty, tz, qw, qx, qy, qz): translation in the file's unit, "
-                    "unit quaternion")
-      .def_property_readonly(
-          "data", [](const PcdHeader& h) { return std::string(dataName(h.data)); },
-          "\"ascii\", \"binary\" or \"binary_compressed\"");
-  pickleFields(m, "PcdField", field("name", &PcdField::name), field("type", &PcdField::type),
-               field("size", &PcdField::size), field("count", &PcdField::count));
-  pickleFields(m, "PcdHeader", field("version", &PcdHeader::version), field("fields", &PcdHeader::fields),
-               field("width", &PcdHeader::width), field("height", &PcdHeader::height),
-               field("points", &PcdHeader::points), field("viewpoint", &PcdHeader::viewpoint),
-               field<PcdHeader>(
-                   "data", [](const PcdHeader& h) { return static_cast<int>(h.data); },
-                   [](PcdHeader& h, int v) {
-                     if (v < 0 || v > 2) throw py::value_error("PcdHeader: pickled state 'data' out of range");
-                     h.data = static_cast<PcdData>(v);
-                   }),
-               field("payload_offset", &PcdHeader::payload_offset));
+  using F = PcdField;
+  fieldsOf(py::class_<F>(m, "PcdField", "one FIELDS entry of a PCD header"))
+      .output("name", &F::name, "", "field name, e.g. \"x\", \"normal_x\", \"rgb\"")
+      .field(
+          "type", [](const F& f) { return std::string(1, f.type); },
+          [](F& f, const std::string& t) {
+            if (t != "F" && t != "I" && t != "U") throw py::value_error("PcdField.type: expected 'F', 'I' or 'U'");
+            f.type = t[0];
+          },
+          "", "\"F\" float, \"I\" signed or \"U\" unsigned integer", false)
+      .output("size", &F::size, "", "bytes per element")
+      .output("count", &F::count, "", "elements per point")
+      .derived("dtype", &fieldDtype, "", "the NumPy dtype of one element (little-endian)")
+      .result();
+  using H = PcdHeader;
+  fieldsOf(py::class_<H>(m, "PcdHeader", "the header of a PCD file"))
+      .output("version", &H::version, "", "VERSION as written, empty when absent")
+      .output("fields", &H::fields, "", "list of PcdField, in file order")
+      .output("width", &H::width, "", "points per row")
+      .output("height", &H::height, "", "rows (> 1 for an organised cloud)")
+      .output("points", &H::points, "", "number of points, width * height")
+      .output("viewpoint", &H::viewpoint, "",
+              "acquisition viewpoint (tx, ty, tz, qw, qx, qy, qz): translation in the file's unit, unit quaternion")
+      .name("data", &H::data, 3, "", "\"ascii\", \"binary\" or \"binary_compressed\"", false)
+      .output("payload_offset", &H::payload_offset, "", "byte offset of the payload, just after the DATA line")
+      .result();
 
   m.def(
       "parse_pcd",

@@ -21,6 +21,7 @@ void defineCga(py::module_& m);
 void defineKinematics(py::module_& m);
 void definePose(py::module_& m);
 void definePclFeatures(py::module_& m);
+void definePoseSymmetry(py::module_& m);
 void defineEvaluation(py::module_& m);
 void defineIo(py::module_& m);
 void defineCalibration(py::module_& m);
@@ -91,13 +92,14 @@ PYBIND11_MODULE(_core, m) {
   auto pose = m.def_submodule("pose", "CBD descriptor, motor estimation, correspondence RANSAC, flag alignment");
   scanalign::python::definePose(pose);
   scanalign::python::definePclFeatures(pose);
+  scanalign::python::definePoseSymmetry(pose);
   auto io = m.def_submodule("io", "PCD reading, LZF decompression");
   scanalign::python::defineIo(io);
   auto evaluation = m.def_submodule("evaluation", "exact point-to-mesh distance");
   scanalign::python::defineEvaluation(evaluation);
   auto calibration = m.def_submodule("calibration", "hand-eye calibration (AX = XB)");
   scanalign::python::defineCalibration(calibration);
-  auto grasp = m.def_submodule("grasp", "grasps, part symmetry, gripper, grasp planning with IK");
+  auto grasp = m.def_submodule("grasp", "grasps, gripper, grasp planning with IK");
   scanalign::python::defineGrasp(grasp);
   // Ctrl-C stops long loops: scanalign::Interrupted (common/interrupt.hpp) becomes the
   // exception the signal handler raised, KeyboardInterrupt by default. Registered last so

@@ -61,7 +61,7 @@ std::vector<Cell> cells() {
 
 /// Every Ok candidate's joint targets reach the commanded flange poses to 1e-9, and the TCP
 /// there is T_base_model T_model_grasp' composed independently here.
-void expectExactTargets(const Robot& robot, const Gripper& gripper, const GraspPlan& plan,
+void expectExactTargets(const Robot& robot, const Gripper& gripper, const GraspPlanResult& plan,
                         const Eigen::Isometry3d& T_base_model, const std::vector<Grasp>& grasps,
                         const PartSymmetry& sym) {
   const auto S = sym.transforms();
@@ -84,7 +84,7 @@ TEST(GraspPlanner, TopGraspFoundWithExactJointTargetsOnEveryCell) {
   for (const Cell& cell : cells()) {
     SCOPED_TRACE(cell.robot.name);
     const std::vector<Grasp> grasps{topGrasp()};
-    const GraspPlan plan = planGrasp(cell.robot, cell.T_base_model, grasps, {}, gripper, kTable, cell.q_current);
+    const GraspPlanResult plan = planGrasp(cell.robot, cell.T_base_model, grasps, {}, gripper, kTable, cell.q_current);
     ASSERT_TRUE(plan.found) << plan.message;
     ASSERT_EQ(plan.candidates.size(), 8u);
     expectExactTargets(cell.robot, gripper, plan, cell.T_base_model, grasps, {});
@@ -109,7 +109,7 @@ TEST(GraspPlanner, TopGraspFoundWithExactJointTargetsOnEveryCell) {
 
 TEST(GraspPlanner, FarOutOfReachEveryCandidateUnreachable) {
   for (const Cell& cell : cells()) {
-    const GraspPlan plan = planGrasp(cell.robot, pose({5, 0, 0}), {topGrasp()}, {}, Gripper::parallelJaw(), kTable,
+    const GraspPlanResult plan = planGrasp(cell.robot, pose({5, 0, 0}), {topGrasp()}, {}, Gripper::parallelJaw(), kTable,
                                      cell.q_current);
     EXPECT_FALSE(plan.found);
     EXPECT_EQ(plan.chosen, -1);
@@ -126,7 +126,7 @@ TEST(GraspPlanner, GraspFromBelowTheTableIsBelowTable) {
     no_limits.respect_limits = false;
     // A hanging arm cannot reach 0.9 m down and more: there the table and the part are 0.4 m higher.
     const double h = cell.robot.T_base_dh0(2, 2) < 0 ? 0.4 : 0.0;
-    const GraspPlan plan = planGrasp(cell.robot, pose({0, 0, h}) * cell.T_base_model, {g}, {}, Gripper::parallelJaw(),
+    const GraspPlanResult plan = planGrasp(cell.robot, pose({0, 0, h}) * cell.T_base_model, {g}, {}, Gripper::parallelJaw(),
                                      Eigen::Vector4d(0, 0, 1, -h), cell.q_current, no_limits);
     EXPECT_FALSE(plan.found);
     int below = 0;
@@ -151,7 +151,7 @@ TEST(GraspPlanner, WristSingularPoseIsNearSingularityForItsBranches) {
     g.pre_grasp_distance = 0;
     g.T_model_grasp = robot.forwardFlange(q) * gripper.T_flange_tcp;
     const Eigen::Vector4d far_table(0, 0, 1, 10);  // 10 m below: only the singularity applies
-    const GraspPlan plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, gripper, far_table, q);
+    const GraspPlanResult plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, gripper, far_table, q);
     const IKResult r = ik(robot, robot.forwardFlange(q));
     int affected = 0;
     for (const GraspCandidate& c : plan.candidates) {
@@ -182,7 +182,7 @@ TEST(GraspPlanner, ElbowAndShoulderMarginsMeasureTheArmGeometry) {
     Grasp g;
     g.pre_grasp_distance = 0;
     g.T_model_grasp = robot.forwardFlange(q);
-    const GraspPlan plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, flange_only, far_table, q);
+    const GraspPlanResult plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, flange_only, far_table, q);
     const IKSolution mine = ikClosest(robot, g.T_model_grasp, q);
     const GraspCandidate& c = plan.candidates[static_cast<std::size_t>(configIndex(mine.config))];
     EXPECT_EQ(c.reason, GraspReason::NearSingularity);
@@ -194,7 +194,7 @@ TEST(GraspPlanner, ElbowAndShoulderMarginsMeasureTheArmGeometry) {
     g.pre_grasp_distance = 0;
     g.T_model_grasp = pose({0.01 * std::cos(0.4), 0.01 * std::sin(0.4), 0.7}, rotX(M_PI));
     const Vector6d q0 = (Vector6d() << 0, -M_PI / 2, M_PI / 2, 0, M_PI / 2, 0).finished();
-    const GraspPlan plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, flange_only, far_table, q0);
+    const GraspPlanResult plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, flange_only, far_table, q0);
     int shoulder = 0;
     for (const GraspCandidate& c : plan.candidates) {
       if (c.reason == GraspReason::Unreachable || c.reason == GraspReason::OutsideLimits) continue;
@@ -212,13 +212,13 @@ TEST(GraspPlanner, ElbowAndShoulderMarginsMeasureTheArmGeometry) {
 TEST(GraspPlanner, JointLimitsGiveOutsideLimits) {
   for (Cell cell : cells()) {
     SCOPED_TRACE(cell.robot.name);
-    const GraspPlan free = planGrasp(cell.robot, cell.T_base_model, {topGrasp()}, {}, Gripper::parallelJaw(), kTable,
+    const GraspPlanResult free = planGrasp(cell.robot, cell.T_base_model, {topGrasp()}, {}, Gripper::parallelJaw(), kTable,
                                      cell.q_current);
     ASSERT_TRUE(free.found);
     // Joint 6 may not turn: no grasp orientation about the tool axis fits (a 0.001 rad window).
     const double q6 = free.candidates[static_cast<std::size_t>(free.chosen)].q_pregrasp[5];
     cell.robot.joints[5].q_min = q6 + 0.5, cell.robot.joints[5].q_max = q6 + 0.501;
-    const GraspPlan plan = planGrasp(cell.robot, cell.T_base_model, {topGrasp()}, {}, Gripper::parallelJaw(), kTable,
+    const GraspPlanResult plan = planGrasp(cell.robot, cell.T_base_model, {topGrasp()}, {}, Gripper::parallelJaw(), kTable,
                                      cell.q_current);
     EXPECT_FALSE(plan.found);
     int outside = 0;
@@ -244,7 +244,7 @@ TEST(GraspPlanner, SymmetryMultipliesCandidatesAndTheLeastMotionIsChosen) {
   for (const Cell& cell : cells()) {
     SCOPED_TRACE(cell.robot.name);
     const Gripper gripper = Gripper::parallelJaw();
-    const GraspPlan plan = planGrasp(cell.robot, cell.T_base_model, grasps, sym, gripper, kTable, cell.q_current);
+    const GraspPlanResult plan = planGrasp(cell.robot, cell.T_base_model, grasps, sym, gripper, kTable, cell.q_current);
     ASSERT_EQ(plan.candidates.size(), 2u * 4u * 8u);
     ASSERT_TRUE(plan.found);
     expectExactTargets(cell.robot, gripper, plan, cell.T_base_model, grasps, sym);
@@ -286,7 +286,7 @@ TEST(GraspPlanner, ApproachThroughTheShoulderSingularityIsABranchChange) {
     g.T_model_grasp = pose({0.05, y, 0.75}, rotX(M_PI));
     g.approach = Eigen::Vector3d::UnitX();  // the TCP's x is the base x
     g.pre_grasp_distance = 0.1;
-    const GraspPlan plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, gripper, far_table, q0);
+    const GraspPlanResult plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, gripper, far_table, q0);
     if (y == 0.1) {  // the control: the same line 10 cm aside is followed
       EXPECT_TRUE(plan.found) << plan.message;
       continue;
@@ -313,7 +313,7 @@ TEST(GraspPlanner, ApproachBeyondReachIsUnreachableAlongTheApproach) {
   const Vector6d q0 = (Vector6d() << 0, -M_PI / 2, M_PI / 2, -M_PI / 2, -M_PI / 2, 0).finished();
   GraspPlannerSettings s;  // the joints speed up towards the stretched elbow: only the reach is tested
   s.max_joint_step = 3;
-  const GraspPlan plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, Gripper::parallelJaw(),
+  const GraspPlanResult plan = planGrasp(robot, Eigen::Isometry3d::Identity(), {g}, {}, Gripper::parallelJaw(),
                                    Eigen::Vector4d(0, 0, 1, 10), q0, s);
   EXPECT_FALSE(plan.found);
   int along = 0;

@@ -8,7 +8,8 @@ x symmetry copy x IK configuration; each :class:`GraspCandidate` has a ``reason`
 ``"unreachable"``, ``"outside_limits"``, ``"near_singularity"``, ``"below_table"`` or
 ``"approach_branch_change"``, and a ``detail``. Grasp files (JSON or YAML):
 :func:`read_part_grasps`, :func:`write_part_grasps`; schema in docs/api/grasp.md.
-The classes are the C++ structs (``scanalign._core.grasp``).
+The classes are the C++ structs (``scanalign._core.grasp``; :class:`PartSymmetry` and
+:func:`symmetric_pose_error` from ``scanalign._core.pose``).
 """
 
 from __future__ import annotations
@@ -23,21 +24,24 @@ import numpy as np
 from . import _core
 from ._arrays import set_fields
 
-__all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCandidate", "GraspPlan", "PartGrasps",
-           "plan_grasp", "read_part_grasps", "write_part_grasps"]
+__all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCandidate", "GraspPlanResult",
+           "PartGrasps", "plan_grasp", "read_part_grasps", "write_part_grasps", "symmetric_pose_error"]
 
 _G = _core.grasp
 Grasp = _G.Grasp
 Gripper = _G.Gripper
-PartSymmetry = _G.PartSymmetry
+PartSymmetry = _core.pose.PartSymmetry
 GraspPlannerSettings = _G.GraspPlannerSettings
 GraspCandidate = _G.GraspCandidate
-GraspPlan = _G.GraspPlan
+GraspPlanResult = _G.GraspPlanResult
+#: ``symmetric_pose_error(T_a, T_b, symmetry)`` -> (rad, m): the pose error of a part up to its
+#: symmetry, translation measured at the symmetry point.
+symmetric_pose_error = _core.pose.symmetric_pose_error
 
 
 def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmetry: Optional[PartSymmetry] = None,
                gripper: Optional[Gripper] = None, table_plane: Sequence[float] = (0.0, 0.0, 1.0, 0.0),
-               q_current: Optional[Sequence[float]] = None, **settings: Any) -> GraspPlan:
+               q_current: Optional[Sequence[float]] = None, **settings: Any) -> GraspPlanResult:
     """Joint targets to pick a part at ``T_base_model`` (4x4, m, base frame).
 
     ``robot``: a :class:`scanalign.kinematics.Robot` (its ``T_base_dh0`` places it in the

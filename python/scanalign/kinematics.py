@@ -20,7 +20,7 @@ planes (point pairs); an imaginary point pair (Q^2 < 0) reports the configuratio
 ``"unreachable"`` instead of returning wrong angles.
 
 Every pose has up to 8 solutions, stored at a fixed index
-``4*(shoulder<0) + 2*(elbow<0) + (wrist<0)`` (:meth:`IKSolutions.index`). The labels are
+``4*(shoulder<0) + 2*(elbow<0) + (wrist<0)`` (:meth:`IKResult.index`). The labels are
 geometric:
 
 - ``shoulder`` +1 ("front"): the wrist centre (KUKA ``P_w``; UR ``P_c``, the projection of
@@ -39,7 +39,7 @@ Singular poses are solved with a documented free angle (``q_free``): KUKA should
 which the elbow still reaches (q6 moves the UR wrist points). At the elbow singularity (arm
 stretched or folded) the two elbow labels give the same angles; at the UR shoulder
 singularity (``P_c`` on the first axis) the solutions with shoulder and elbow labels both
-flipped coincide. :attr:`IKSolutions.singular` names which applied, per solution (a pose
+flipped coincide. :attr:`IKResult.singular` names which applied, per solution (a pose
 singular for one configuration is usually regular for the others).
 
 Statuses: ``"ok"`` (reaches the pose, inside the limits), ``"outside_limits"`` (reaches the
@@ -61,24 +61,25 @@ import numpy as np
 from . import _core
 
 __all__ = [
-    "Robot", "IKSolutions", "IKSolution", "IKBatch", "JointTrajectory", "IKConstruction", "STATUS_NAMES",
+    "Robot", "IKResult", "IKSolution", "IKBatchResult", "JointTrajectoryResult", "IKConstruction", "STATUS_NAMES",
     "SINGULAR_NAMES", "STEP_NAMES", "CONFIGS", "BUILTIN_ROBOTS", "config_index",
     "kuka_kr6_r900_sixx", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis", "robot_from_urdf"]
 
 _K = _core.kinematics
 
 Robot = _K.Robot
-IKSolutions = _K.IKSolutions
+IKResult = _K.IKResult
 IKSolution = _K.IKSolution
-IKBatch = _K.IKBatch
-JointTrajectory = _K.JointTrajectory
+IKBatchResult = _K.IKBatchResult
+JointTrajectoryResult = _K.JointTrajectoryResult
 IKConstruction = _K.IKConstruction
 config_index = _K.config_index
 
 from .urdf import robot_from_urdf  # noqa: E402  (imports yourdfpy only when called)
 
-# Robot is the bound C++ class; the URDF front end is Python (it needs a URDF parser), attached
-# here so that it reads like the other constructors: Robot.from_urdf(path, base_link, tip_link).
+# Robot is the bound C++ class; the URDF reader is Python (it needs a URDF parser; the geometry is
+# Robot.from_joint_chain), attached here so that it reads like the other constructors:
+# Robot.from_urdf(path, base_link, tip_link).
 Robot.from_urdf = staticmethod(robot_from_urdf)
 
 #: Status names by code (C++ ``IKStatus``): 0 ok, 1 outside_limits, 2 unreachable, 3 invalid_input.

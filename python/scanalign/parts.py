@@ -124,7 +124,7 @@ def normalize_mesh(mesh: io.Mesh, size: float) -> io.Mesh:
 
 
 class _Symmetry(NamedTuple):
-    """A part's rotational symmetry (the fields of ``_core.grasp.PartSymmetry``), used while
+    """A part's rotational symmetry (the fields of ``_core.pose.PartSymmetry``), used while
     that class is not bound."""
     axis: np.ndarray
     point: np.ndarray
@@ -133,7 +133,7 @@ class _Symmetry(NamedTuple):
 
 def _symmetry(name: str) -> Any:
     axis, point, order = _core.synthetic.builtin_part_symmetry(name)
-    cls = getattr(getattr(_core, "grasp", None), "PartSymmetry", None)
+    cls = getattr(getattr(_core, "pose", None), "PartSymmetry", None)
     if cls is None:
         return _Symmetry(axis, point, order)
     s = cls()

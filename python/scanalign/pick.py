@@ -95,7 +95,7 @@ class PartPick:
         T_base_model: (4, 4) the part's pose (model -> base), or None.
         fitness, coverage: the pose's scores (fraction of model points on the object and of
             object points explained).
-        plan: the :class:`scanalign.grasp.GraspPlan` (every candidate with its reason).
+        plan: the :class:`scanalign.grasp.GraspPlanResult` (every candidate with its reason).
     """
 
     part: str

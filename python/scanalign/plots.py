@@ -301,8 +301,8 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
     """Draws arm configurations (e.g. all IK solutions of one pose) as stick figures.
 
     Args:
-        robot: a :class:`scanalign.kinematics.Robot` (its ``joint_frames(q)`` gives the DH
-            frames 0..6 in DH frame 0; they are drawn in the robot base frame).
+        robot: a :class:`scanalign.kinematics.Robot` (its ``joint_positions(q, tcp=True)``
+            gives the origins of DH frames 0..6 and the TCP in the robot base frame).
         q: (K, 6) joint values, radians; rows with NaN are skipped.
         path: output PNG.
         labels: one caption per row (e.g. "shoulder +1 elbow +1 wrist -1").
@@ -322,12 +322,7 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
     cols = min(n, 4)
     nrows = (n + cols - 1) // cols
     fig = _figure((3.2 * cols, 3.2 * nrows))
-    T_base_dh0 = np.asarray(robot.T_base_dh0, dtype=np.float64)
-    chains = []
-    for k in rows:
-        F = T_base_dh0 @ np.asarray(robot.joint_frames(q[k]))
-        tool = robot.fk(q[k])
-        chains.append((k, np.vstack([F[:, :3, 3], tool[None, :3, 3]])))
+    chains = [(k, np.asarray(robot.joint_positions(q[k], tcp=True))) for k in rows]
     pts = np.vstack([c for _, c in chains] + ([np.asarray(T_base_tool)[None, :3, 3]] if T_base_tool is not None else [])
                     ) if chains else np.zeros((1, 3))
     centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
@@ -431,8 +426,7 @@ def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
         if p.status != "picked":
             continue
         c, colour = p.chosen, f"C{k % 10}"
-        chain = np.vstack([(T_dh0 @ np.asarray(robot.joint_frames(c.q_grasp)))[:, :3, 3],
-                           robot.fk(c.q_grasp)[None, :3, 3]])
+        chain = np.asarray(robot.joint_positions(c.q_grasp, tcp=True))
         chains.append(chain)
         approach = np.array([np.asarray(c.T_base_tcp_pregrasp)[:3, 3], np.asarray(c.T_base_tcp_grasp)[:3, 3]])
         for ax, dims in ((ax3, 3), (ax2, 2)):

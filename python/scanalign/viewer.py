@@ -43,16 +43,16 @@ def _rerun() -> Any:
 
 
 def arm_points(robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = None) -> np.ndarray:
-    """(8, 3) points of the arm in its base frame, metres: the origins of DH frames 0..6
-    (``Robot.joint_frames``) placed by ``T_base_dh0``, then the tool centre point. With
-    ``T_base_flange`` (e.g. logged by the robot) the chain is re-anchored so that its flange
-    lies there (a robot mounted elsewhere than its name's default)."""
+    """(8, 3) points of the arm in its base frame, metres: the origins of DH frames 0..6, then
+    the tool centre point (``Robot.joint_positions(q, tcp=True)``). With ``T_base_flange``
+    (e.g. logged by the robot) the chain is re-anchored so that its flange lies there (a robot
+    mounted elsewhere than its name's default)."""
     q = np.asarray(q, dtype=np.float64).reshape(6)
-    F = np.asarray(robot.T_base_dh0) @ np.asarray(robot.joint_frames(q))
+    points = np.asarray(robot.joint_positions(q, tcp=True))
     if T_base_flange is not None:
-        F = np.asarray(T_base_flange, dtype=np.float64) @ np.linalg.inv(F[-1]) @ F
-    tcp = F[-1] @ np.asarray(robot.T_flange_tool)
-    return np.vstack([F[:, :3, 3], tcp[:3, 3]])
+        M = np.asarray(T_base_flange, dtype=np.float64) @ np.linalg.inv(np.asarray(robot.fk_flange(q)))
+        points = points @ M[:3, :3].T + M[:3, 3]
+    return points
 
 
 def _colors(c: Optional[np.ndarray]) -> Optional[np.ndarray]:

@@ -43,7 +43,7 @@ def _flag(result, name: str):
 
 def check_result(result) -> None:
     """A result flagged as a success holds only finite numbers in its answer fields
-    (for per-row flags such as IKSolutions.ok, the rows flagged)."""
+    (for per-row flags such as IKResult.ok, the rows flagged)."""
     for flag_name in SUCCESS_FLAGS:
         flag = _flag(result, flag_name)
         if flag is None or not flag.any():

@@ -345,7 +345,7 @@ void checkCandidate(const Cell& c, const Grasp& g, const IKSolution& sol, GraspC
   reject(cand, GraspReason::Ok, "");
 }
 
-std::string summary(const GraspPlan& plan, const std::vector<Grasp>& grasps) {
+std::string summary(const GraspPlanResult& plan, const std::vector<Grasp>& grasps) {
   std::array<int, 6> count{};
   for (const GraspCandidate& cand : plan.candidates) ++count[static_cast<std::size_t>(cand.reason)];
   const int total = static_cast<int>(plan.candidates.size());
@@ -394,9 +394,10 @@ Cell makeCell(const Robot& robot, const Gripper& gripper, const Eigen::Vector4d&
 
 }  // namespace
 
-GraspPlan planGrasp(const Robot& robot, const Eigen::Isometry3d& T_base_model, const std::vector<Grasp>& grasps,
-                    const PartSymmetry& symmetry, const Gripper& gripper, const Eigen::Vector4d& table_plane,
-                    const Vector6d& q_current, const GraspPlannerSettings& settings) {
+GraspPlanResult planGrasp(const Robot& robot, const Eigen::Isometry3d& T_base_model,
+                          const std::vector<Grasp>& grasps, const PartSymmetry& symmetry, const Gripper& gripper,
+                          const Eigen::Vector4d& table_plane, const Vector6d& q_current,
+                          const GraspPlannerSettings& settings) {
   const Cell c = makeCell(robot, gripper, table_plane, q_current, settings);
   requireRigid(T_base_model.matrix(), "T_base_model");
   if (grasps.empty()) throw std::invalid_argument("grasps: the grasp list is empty");
@@ -415,7 +416,7 @@ GraspPlan planGrasp(const Robot& robot, const Eigen::Isometry3d& T_base_model, c
                                 std::to_string(copies_per_grasp) + " symmetry copies exceeds " +
                                 std::to_string(kMaxGraspCopies) + " (8 IK candidates each)");
   const Eigen::Isometry3d T_tcp_flange = gripper.T_flange_tcp.inverse();
-  GraspPlan plan;
+  GraspPlanResult plan;
   std::vector<Vector6d> path;
   for (std::size_t gi = 0; gi < grasps.size(); ++gi) {
     const std::vector<Grasp> copies = equivalentGrasps(grasps[gi], symmetry, settings.continuous_symmetry_steps);

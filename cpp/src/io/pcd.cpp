@@ -254,6 +254,14 @@ std::vector<PcdColumn> readCompressed(const PcdHeader& h, std::string_view paylo
 
 }  // namespace
 
+const char* toString(PcdData d) {
+  switch (d) {
+    case PcdData::Binary: return "binary";
+    case PcdData::BinaryCompressed: return "binary_compressed";
+    default: return "ascii";
+  }
+}
+
 std::size_t PcdHeader::bytesPerPoint() const {
   std::size_t total = 0;
   for (const auto& f : fields) total += f.bytesPerPoint();

@@ -701,6 +701,15 @@ const char* toString(IKStatus s) {
   }
 }
 
+const char* toString(IKStep s) {
+  switch (s) {
+    case IKStep::Shoulder: return "shoulder";
+    case IKStep::Elbow: return "elbow";
+    case IKStep::FkCheck: return "fk_check";
+    default: return "";
+  }
+}
+
 IKResult ik(const Robot& robot, const Eigen::Isometry3d& T_base_tool, const IKSettings& options) {
   return solve(robot, T_base_tool, options, nullptr);
 }

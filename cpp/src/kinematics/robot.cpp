@@ -2,6 +2,7 @@
 #include "scanalign/kinematics/robot.hpp"
 #include "scanalign/common/threads.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
@@ -51,6 +52,12 @@ const char* toString(ArmGeometry g) {
     case ArmGeometry::UniversalRobots: return "universal_robots";
     default: return "unsupported";
   }
+}
+
+const char* analyticLayoutsText() {
+  return "'spherical_wrist' (KUKA type: alpha = (-pi/2, 0, -pi/2, pi/2, -pi/2, 0), d2 = d3 = d5 = 0, a4 = a5 = a6 = 0, "
+         "a2 > 0, d4 > 0) and 'universal_robots' (alpha = (pi/2, 0, 0, pi/2, -pi/2, 0), a1 = a4 = a5 = a6 = 0, "
+         "d2 = d3 = 0, a2, a3 != 0, d4, d5 > 0)";
 }
 
 ArmGeometry Robot::geometry() const {
@@ -105,6 +112,37 @@ std::array<Eigen::Isometry3d, 7> Robot::jointFrames(const Vector6d& q) const {
   F[0] = Eigen::Isometry3d::Identity();
   for (int i = 1; i <= 6; ++i) F[static_cast<std::size_t>(i)] = F[static_cast<std::size_t>(i - 1)] * link(i, q[i - 1]);
   return F;
+}
+
+std::array<Eigen::Vector3d, 7> Robot::jointPositions(const Vector6d& q) const {
+  // As forwardFlange, keeping the translation after each link.
+  std::array<Eigen::Vector3d, 7> P;
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity(), Ri;
+  Eigen::Vector3d t = Eigen::Vector3d::Zero(), ti;
+  P[0] = T_base_dh0 * t;
+  for (int i = 0; i < 6; ++i) {
+    dhTransform(joints[static_cast<std::size_t>(i)], q[i], Ri, ti);
+    t += R * ti;
+    R = R * Ri;
+    P[static_cast<std::size_t>(i + 1)] = T_base_dh0 * t;
+  }
+  return P;
+}
+
+void Robot::jointPositionsBatch(const double* q, std::size_t n, double* out, bool tcp, int num_threads) const {
+  const long long N = static_cast<long long>(n);
+  const int rows = tcp ? 8 : 7;
+#pragma omp parallel for schedule(static) num_threads(resolveThreads(num_threads)) if (num_threads != 1 && N > 256)
+  for (long long i = 0; i < N; ++i) {
+    const Eigen::Map<const Vector6d> qi(q + 6 * i);
+    const std::array<Eigen::Vector3d, 7> P = jointPositions(qi);
+    double* o = out + 3 * rows * i;
+    for (const Eigen::Vector3d& p : P) o = std::copy(p.data(), p.data() + 3, o);
+    if (tcp) {
+      const Eigen::Vector3d p = forward(qi).translation();
+      std::copy(p.data(), p.data() + 3, o);
+    }
+  }
 }
 
 void Robot::forwardBatch(const double* q, std::size_t n, double* out, int num_threads) const {

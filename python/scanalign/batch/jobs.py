@@ -214,7 +214,8 @@ def _upper_views() -> List[int]:
 
 def _pose(job: Job, library: Any) -> Dict[str, Any]:
     from .. import io, pose, reconstruction
-    from ..synthetic.cell import _symmetric_error, pick_cell
+    from ..grasp import symmetric_pose_error
+    from ..synthetic.cell import pick_cell
 
     names = job.part_names
     parts, models, symmetries = _models(names, library)
@@ -235,8 +236,8 @@ def _pose(job: Job, library: Any) -> Dict[str, Any]:
         name = names[d.part]
         detail[name] = {"status": "found"}
         if name in truth:
-            e = _symmetric_error(np.asarray(d.pose.T_scene_model), truth[name], parts[d.part].symmetry)
-            detail[name].update(pose_m=e[0], pose_deg=e[1])
+            rot, dist = symmetric_pose_error(np.asarray(d.pose.T_scene_model), truth[name], parts[d.part].symmetry)
+            detail[name].update(pose_m=dist, pose_deg=math.degrees(rot))
     errors = [v for v in detail.values() if "pose_m" in v]
     out: Dict[str, Any] = {"parts": len(names), "found": len({d.part for d in found}), "detail": json.dumps(detail),
                            "fitness_min": min((d.pose.fitness for d in found), default=math.nan)}

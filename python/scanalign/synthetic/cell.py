@@ -30,6 +30,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 import numpy as np
 
 from .. import se3
+from ..grasp import symmetric_pose_error
 from .mount import robot_mount
 from .scan import SyntheticScan, render_scan
 from .scene import Scene
@@ -98,13 +99,6 @@ def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_fram
     return PickCell(scan, parts, truth, scan.robot, scene)
 
 
-def _symmetric_error(T_est: np.ndarray, T_true: np.ndarray, symmetry: Any) -> Tuple[float, float]:
-    """(metres, degrees) between two poses of a part, the smallest over its symmetry."""
-    errs = [se3.pose_error(T_est, T_true @ np.asarray(S)) for S in symmetry.transforms()]
-    rot, dist = min(errs, key=lambda e: (e[0], e[1]))
-    return float(dist), math.degrees(float(rot))
-
-
 def score_picks(result: Any, truth: Dict[str, np.ndarray]) -> Dict[str, Dict[str, float]]:
     """Errors of a :class:`scanalign.pick.PickResult` against the cell's truth, per picked part:
     ``tcp_m`` / ``tcp_deg``, the TCP pose at the chosen grasp against the same grasp on the
@@ -119,7 +113,7 @@ def score_picks(result: Any, truth: Dict[str, np.ndarray]) -> Dict[str, Dict[str
         G = np.asarray(part.grasps[c.grasp_index].T_model_grasp)
         tcp = min((se3.pose_error(np.asarray(c.T_base_tcp_grasp), truth[p.part] @ np.asarray(S) @ G)
                    for S in part.symmetry.transforms()), key=lambda e: (e[0], e[1]))
-        pose_m, pose_deg = _symmetric_error(p.T_base_model, truth[p.part], part.symmetry)
-        out[p.part] = {"tcp_m": float(tcp[1]), "tcp_deg": math.degrees(float(tcp[0])), "pose_m": pose_m,
-                       "pose_deg": pose_deg}
+        rot, dist = symmetric_pose_error(p.T_base_model, truth[p.part], part.symmetry)
+        out[p.part] = {"tcp_m": float(tcp[1]), "tcp_deg": math.degrees(float(tcp[0])), "pose_m": dist,
+                       "pose_deg": math.degrees(rot)}
     return out

@@ -103,7 +103,7 @@ struct GraspCandidate {
   double cost = std::numeric_limits<double>::infinity();  ///< rad (weighted), finite for Ok only
 };
 
-struct GraspPlan {
+struct GraspPlanResult {
   bool found = false;
   std::string message;  ///< the choice, or why nothing was found (the reasons summarised)
   int chosen = -1;      ///< index into candidates, -1 when none
@@ -119,8 +119,9 @@ struct GraspPlan {
 /// empty grasp list or a bad grasp (Grasp::validate), a bad symmetry, gripper or setting, a
 /// non-finite or non-unit table normal, non-finite q_current, a robot the analytic IK does not
 /// cover, an approach of more than 100000 samples, or more than 10000 grasps x symmetry copies.
-GraspPlan planGrasp(const Robot& robot, const Eigen::Isometry3d& T_base_model, const std::vector<Grasp>& grasps,
-                    const PartSymmetry& symmetry, const Gripper& gripper, const Eigen::Vector4d& table_plane,
-                    const Vector6d& q_current, const GraspPlannerSettings& settings = {});
+GraspPlanResult planGrasp(const Robot& robot, const Eigen::Isometry3d& T_base_model,
+                          const std::vector<Grasp>& grasps, const PartSymmetry& symmetry, const Gripper& gripper,
+                          const Eigen::Vector4d& table_plane, const Vector6d& q_current,
+                          const GraspPlannerSettings& settings = {});
 
 }  // namespace scanalign

@@ -28,6 +28,8 @@ struct PcdField {
 };
 
 enum class PcdData { Ascii, Binary, BinaryCompressed };
+/// "ascii", "binary", "binary_compressed" (the DATA line's words).
+const char* toString(PcdData d);
 
 struct PcdHeader {
   std::string version;  ///< as written ("0.7", ".7", ...), empty when absent

@@ -91,6 +91,8 @@ enum class IKStep : std::uint8_t {
   /// absorb): reported as Unreachable rather than as a wrong answer.
   FkCheck = 3,
 };
+/// "" (None), "shoulder", "elbow", "fk_check".
+const char* toString(IKStep s);
 
 /// Every solution reported Ok or OutsideLimits satisfies |FK(q) - T| <= these, on top of the
 /// target's own departure from a rotation (e = max |R^T R - I|, at most kRigidTolerance): position

@@ -12,6 +12,7 @@
 //        T_base_tool = T_base_dh0 * T_{0,1} ... T_{5,6} * T_flange_tool        (P1 (3)).
 //
 // This header is PCL-free and allocation-free; a robot controller can use it without Python.
+// A robot from a serial chain of joint axes (a URDF's joints): kinematics/joint_chain.hpp.
 #pragma once
 
 #include <array>
@@ -24,6 +25,9 @@
 namespace scanalign {
 
 using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+struct JointChain;          // kinematics/joint_chain.hpp
+struct JointChainSettings;  // kinematics/joint_chain.hpp
 
 /// One revolute joint in standard DH form.
 struct DHJoint {
@@ -51,6 +55,9 @@ enum class ArmGeometry {
 };
 
 const char* toString(ArmGeometry g);
+/// The two analytic layouts in words ("'spherical_wrist' (KUKA type: alpha = ...) and
+/// 'universal_robots' (...)"), for messages about a DH table that is neither.
+const char* analyticLayoutsText();
 
 /// A serial 6R arm: DH table, joint limits, base and tool transforms. A value type.
 struct Robot {
@@ -73,6 +80,14 @@ struct Robot {
   Eigen::Isometry3d forwardFlange(const Vector6d& q) const;
   /// T_dh0_i for i = 0..6 (frames[0] = identity, frames[6] = flange), in DH frame 0.
   std::array<Eigen::Isometry3d, 7> jointFrames(const Vector6d& q) const;
+  /// The joint points of the arm: the origins of DH frames 0..6 in the robot base frame
+  /// (T_base_dh0 applied), base to flange, m: the arm's stick figure (P1 (3) truncated after
+  /// each link).
+  std::array<Eigen::Vector3d, 7> jointPositions(const Vector6d& q) const;
+  /// jointPositions for n configurations: q is n x 6 row-major (rad), out receives n x 7 x 3
+  /// values (m), or n x 8 x 3 with tcp, the tool centre point (the origin of forward(q))
+  /// appended to each. Parallel over configurations as forwardBatch.
+  void jointPositionsBatch(const double* q, std::size_t n, double* out, bool tcp = false, int num_threads = 0) const;
   /// Forward kinematics for n configurations: q is n x 6 row-major (rad), out is n 4x4
   /// row-major T_base_tool matrices (metres). Parallel over configurations (OpenMP) when
   /// num_threads != 1 (0 = all cores).
@@ -100,6 +115,13 @@ struct Robot {
   /// By name: "kr6_r900_sixx" (alias "agilus"), "ur3", "ur5", "ur10", "ur3e", "ur5e",
   /// "ur10e", "ur5_thesis". Throws std::invalid_argument for an unknown name.
   static Robot byName(const std::string& name);
+
+  /// The robot of a serial chain of 6 revolute joints given by their axes (a URDF's joints,
+  /// kinematics/joint_chain.hpp): the DH table, T_base_dh0, T_flange_tool and limits whose
+  /// forward kinematics equals the chain's, in one of the analytic layouts where possible.
+  /// Throws std::invalid_argument (a bad chain or setting, or a chain no analytic layout fits
+  /// unless settings.fk_only) and std::runtime_error (the DH model departs from the chain).
+  static Robot fromJointChain(const JointChain& chain, const JointChainSettings& settings);
 };
 
 }  // namespace scanalign
