@@ -23,8 +23,9 @@
 //    0); the flange, frame 6, lies on axis 6 at the foot of the tip's origin with x_6 = x_5;
 //  - DH values within `tolerance` of what the layouts test exactly (alpha a multiple of pi/2,
 //    a and d zero) are set to them when that makes the table analytic: URDFs write pi/2 with
-//    10-12 digits (1.57079632679 is 4.9e-12 short of it), which the layout test (1e-12)
-//    refuses; forward kinematics then departs from the chain by about tolerance x reach.
+//    10-12 digits (1.57079632679 is 4.9e-12 short of it), and an axis turned by such an angle
+//    misses the layout's twist by as much, which the layout test (1e-12) refuses; forward
+//    kinematics then departs from the chain by about tolerance x reach.
 //  - the DH z axes follow the chain's axes, so q maps 1:1 onto the chain's joints unless
 //    joint_signs reverses some (limits mirrored): a chain whose axes point against the layouts
 //    (KUKA's own descriptions turn A1, A4, A6 about -z / -x) is analytic only so.
