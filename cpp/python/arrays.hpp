@@ -144,7 +144,8 @@ inline std::vector<std::int64_t> indexRows(const py::object& o, const char* what
                           std::string(py::str(a.attr("shape"))));
   if (a.dtype().kind() == 'u' && a.itemsize() == 8) {  // uint64 beyond int64 must not wrap
     const auto u = py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>::ensure(a);
-    if (u.size() && *std::max_element(u.data(), u.data() + u.size()) > std::uint64_t(std::numeric_limits<std::int64_t>::max()))
+    constexpr auto top = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
+    if (u.size() && *std::max_element(u.data(), u.data() + u.size()) > top)
       throw py::value_error(std::string(what) + ": index beyond int64");
   }
   const auto f = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(a);

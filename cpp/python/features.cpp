@@ -47,9 +47,7 @@ void defineFeatures(py::module_& m) {
              "Only the speed depends on it")
       .settings()
       .def("validate", [](const N& s) { validate(s); });
-  m.def("estimate_normals", &estimate, py::arg("points"), py::arg("settings"),
-        "(normals (N, 3), curvature (N,)) in the points' dtype, by NormalEstimationSettings; ValueError names a bad "
-        "field");
+  // The field-by-field overload first: a bad argument is named after its signature.
   m.def(
       "estimate_normals",
       [](const py::array& points, double radius, const F64& viewpoint, int min_neighbors, int num_threads) {
@@ -62,7 +60,10 @@ void defineFeatures(py::module_& m) {
         return estimate(points, s);
       },
       py::arg("points"), py::arg("radius"), py::arg("viewpoint"), py::arg("min_neighbors"), py::arg("num_threads"),
-      "The same with the settings' radius (m), viewpoint (m), min_neighbors and num_threads given one by one");
+      "(normals (N, 3), curvature (N,)) in the points' dtype: NormalEstimationSettings' radius (m), viewpoint (m), "
+      "min_neighbors and num_threads given one by one; ValueError names a bad one");
+  m.def("estimate_normals", &estimate, py::arg("points"), py::arg("settings"),
+        "The same with a NormalEstimationSettings; ValueError names a bad field");
   m.def(
       "shape_factors",
       [](const F64& ev) {

@@ -148,7 +148,8 @@ py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, const
 /// An image size: a Python or NumPy integer, or a float holding one (640.0); ValueError naming
 /// `where` otherwise.
 int sizeArg(py::handle v, const char* where) {
-  if (fields::isInteger(v)) return static_cast<int>(intArg(py::reinterpret_borrow<py::object>(v), where, -(1LL << 31), (1LL << 31) - 1));
+  if (fields::isInteger(v))
+    return static_cast<int>(intArg(py::reinterpret_borrow<py::object>(v), where, -(1LL << 31), (1LL << 31) - 1));
   if (fields::isReal(v)) {
     const double d = PyFloat_AsDouble(v.ptr());
     if (std::isfinite(d) && d == std::floor(d) && std::abs(d) < 2147483648.0) return static_cast<int>(d);
@@ -272,7 +273,8 @@ void defineReconstructionDepth(py::module_& m) {
       .field("depth_scale", &D::depth_scale, "m",
              "metres per unit of an integer image, in (0, 1] (1e-3: millimetres; TUM: 1/5000); float images are "
              "metres")
-      .field("min_depth", &D::min_depth, "m", "nearer pixels are dropped (along z): sensors report garbage below their range")
+      .field("min_depth", &D::min_depth, "m",
+             "nearer pixels are dropped (along z): sensors report garbage below their range")
       .field("max_depth", &D::max_depth, "m", "farther pixels are dropped")
       .field("stride", &D::stride, "", "use every stride-th pixel in both directions (1 = full resolution)")
       .settings();
@@ -300,19 +302,13 @@ void defineReconstructionDepth(py::module_& m) {
       .settings();
 
   const BilateralFilterSettings db;
-  m.def(
-      "bilateral_filter_depth",
-      [](const py::array& depth, const BilateralFilterSettings& settings, double depth_scale,
-         const py::object& num_threads) { return bilateralFilterPy(depth, settings, depth_scale, num_threads); },
-      py::arg("depth"), py::arg("settings"), py::arg("depth_scale") = 0.001, py::arg("num_threads") = 0,
-      "(H, W) float32 metres (NaN = invalid) of a uint16 (units of depth_scale m, 0 = invalid) or float (m) image, "
-      "filtered with a BilateralFilterSettings; an empty image gives an empty one, a pixel whose mean overflows "
-      "float32 NaN. ValueError for an image beyond kMaxImagePixels (2^27) pixels, checked before allocating, bad "
-      "settings (named) or depth_scale outside (0, 1] m per unit");
+  // The field-by-field overload first: a bad argument is named after its signature.
   m.def(
       "bilateral_filter_depth",
       [](const py::array& depth, const py::object& radius, double sigma_space, double sigma_depth, double depth_scale,
          const py::object& num_threads) {
+        if (py::isinstance<BilateralFilterSettings>(radius))  // the settings overload, given positionally
+          return bilateralFilterPy(depth, radius.cast<BilateralFilterSettings>(), depth_scale, num_threads);
         BilateralFilterSettings s;
         s.radius = static_cast<int>(intArg(radius, "radius", 0, 32));
         s.sigma_space = sigma_space;
@@ -321,8 +317,17 @@ void defineReconstructionDepth(py::module_& m) {
       },
       py::arg("depth"), py::arg("radius") = db.radius, py::arg("sigma_space") = db.sigma_space,
       py::arg("sigma_depth") = db.sigma_depth, py::arg("depth_scale") = 0.001, py::arg("num_threads") = 0,
-      "The same with the BilateralFilterSettings fields given one by one (radius in pixels, sigma_space in pixels, "
-      "sigma_depth in m)");
+      "(H, W) float32 metres (NaN = invalid) of a uint16 (units of depth_scale m, 0 = invalid) or float (m) image, "
+      "bilateral-filtered with the BilateralFilterSettings fields given one by one (radius and sigma_space in pixels, "
+      "sigma_depth in m); an empty image gives an empty one, a pixel whose mean overflows float32 NaN. ValueError for "
+      "an image beyond kMaxImagePixels (2^27) pixels, checked before allocating, bad settings (named) or depth_scale "
+      "outside (0, 1] m per unit");
+  m.def(
+      "bilateral_filter_depth",
+      [](const py::array& depth, const BilateralFilterSettings& settings, double depth_scale,
+         const py::object& num_threads) { return bilateralFilterPy(depth, settings, depth_scale, num_threads); },
+      py::arg("depth"), py::arg("settings"), py::arg("depth_scale") = 0.001, py::arg("num_threads") = 0,
+      "The same with a BilateralFilterSettings");
   m.def("depth_to_cloud", &depthToCloudPy, py::arg("depth"), py::arg("intrinsics"), py::arg("settings"),
         py::arg("rgb") = py::none(),
         "(points (N, 3) float32 m, colors (N, 3) uint8 or None, pixels (N,) int32 row * W + column). A distorted "

@@ -334,7 +334,8 @@ void defineReconstructionFrameToModel(py::module_& m) {
                           "Settings of the reconstruction job (depth images of an RGB-D sequence to a model, frame to "
                           "model: the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), §3, Algorithm 1). "
                           "validate() raises ValueError naming a bad field."))
-      .field("min_depth", &RS::min_depth, "m", "nearer pixels are dropped (along z): sensors report garbage below their range")
+      .field("min_depth", &RS::min_depth, "m",
+             "nearer pixels are dropped (along z): sensors report garbage below their range")
       .field("max_depth", &RS::max_depth, "m", "farther pixels are dropped")
       .field("pixel_stride", &RS::pixel_stride, "", "use every pixel_stride-th pixel in both directions (1 = all)")
       .field("filter_depth", &RS::filter_depth, "",

@@ -71,7 +71,8 @@ std::vector<std::uint32_t> narrowIndices(const py::handle& h, const std::string&
   std::vector<std::uint32_t> out;
   out.reserve(v.size());
   for (const std::int64_t i : v) {
-    if (i < 0 || i > std::int64_t{0xFFFFFFFF}) throw py::value_error(where + ": index " + std::to_string(i) + " out of range");
+    if (i < 0 || i > std::int64_t{0xFFFFFFFF})
+      throw py::value_error(where + ": index " + std::to_string(i) + " out of range");
     out.push_back(static_cast<std::uint32_t>(i));
   }
   return out;
@@ -179,11 +180,13 @@ void defineSegmentation(py::module_& m) {
             t.objects = std::move(objects);
           },
           "", "one int64 index array per object (ascending input rows), largest first", false)
-      .output("cropped_points", &T::cropped_points, "", "finite points inside the crop box (all finite points without crop)")
+      .output("cropped_points", &T::cropped_points, "",
+              "finite points inside the crop box (all finite points without crop)")
       .output("above_points", &T::above_points, "", "points left above the table before clustering")
       .result();
   using RS = RansacSettings;
-  fieldsOf(py::class_<RS>(m, "RansacSettings", "RANSAC settings of a plane/sphere fit. validate() raises ValueError naming a bad field."))
+  fieldsOf(py::class_<RS>(m, "RansacSettings",
+                          "RANSAC settings of a plane/sphere fit. validate() raises ValueError naming a bad field."))
       .field("threshold", &RS::threshold, "m", "inlier distance E_T: a point is an inlier if its error is below it")
       .field("max_iterations", &RS::max_iterations, "", "most hypotheses drawn, in [1, 2^31 - 1]")
       .field("confidence", &RS::confidence, "", "adaptive stop, in [0, 1]; 0 or 1 disables it")

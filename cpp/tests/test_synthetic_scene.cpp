@@ -86,7 +86,8 @@ TEST(SceneComposition, ObjectsAndTableBecomeOneMeshThatMapsBackToItsSources) {
     const Mesh& m = k == 0 ? block : tet;
     const std::size_t n = m.faces.size() / 3;
     std::vector<double> centroids;
-    const std::vector<double> moved = transformPoints(k == 0 ? T0 : T1, CloudView<double>(m.vertices.data(), m.vertices.size() / 3));
+    const CloudView<double> own(m.vertices.data(), m.vertices.size() / 3);
+    const std::vector<double> moved = transformPoints(k == 0 ? T0 : T1, own);
     for (std::size_t f = 0; f < n; ++f)
       for (int r = 0; r < 3; ++r) {
         double sum = 0.0;
