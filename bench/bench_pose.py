@@ -43,7 +43,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from scanalign import cad, cbd, datasets, features, pose, registration, rendering, synthetic
-from scanalign.camera import Intrinsics
+from scanalign.camera import intrinsics_preset
 
 
 def _pose(rng: np.random.Generator) -> np.ndarray:
@@ -130,7 +130,7 @@ def experiment2(clouds, args, rng):
 
 def zivid_scans(parts, args, rng):
     rows = []
-    K = Intrinsics.preset("sr300")
+    K = intrinsics_preset("sr300")
     for name in parts:
         v, f = _part(name)
         dirs, _ = cad.tessellated_sphere(1)

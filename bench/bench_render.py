@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from scanalign import datasets, parts, rendering, se3, synthetic
-from scanalign.camera import Intrinsics
+from scanalign.camera import intrinsics_preset
 
 
 def meshes():
@@ -57,7 +57,7 @@ def main() -> int:
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args()
 
-    K = Intrinsics.preset("sr300")
+    K = intrinsics_preset("sr300")
     traj = synthetic.loop_trajectory(args.frames, center=(0.0, 0.0, 0.0), height=0.40, radius=0.20)
     T_base_camera = traj.T_base_camera
     T_camera_base = se3.inverse(T_base_camera)

@@ -10,7 +10,7 @@ import pytest
 
 from scanalign import _core, cad, io, parts, pose
 from scanalign import synthetic as syn
-from scanalign.camera import Intrinsics
+from scanalign.camera import intrinsics_preset
 from scanalign.reconstruction import depth_to_cloud
 
 NAMES = ("block", "bracket", "standoff")
@@ -37,7 +37,7 @@ def _scene(distractor: bool = True):
              for n in NAMES}
     if distractor:
         scene.add_object(_ball(0.025), position=(0.60, -0.12))
-    K = Intrinsics.preset("sr300")
+    K = intrinsics_preset("sr300")
     target = np.array([0.5, 0.0, 0.0])
     eye = target + 0.45 * np.array([math.cos(0.3) * math.cos(1.0), math.sin(0.3) * math.cos(1.0), math.sin(1.0)])
     T = syn.look_at(eye, target)

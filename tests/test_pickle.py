@@ -113,7 +113,8 @@ def _round_trip(obj):
 ROT = np.array([[0.0, -1.0, 0.0, 0.1], [1.0, 0.0, 0.0, 0.2], [0.0, 0.0, 1.0, 0.3], [0.0, 0.0, 0.0, 1.0]])
 OTHER = {
     "estimator": "point_to_point", "robust_kernel": "huber", "search": "left_balanced_kdtree",
-    "motion_model": "constant_velocity", "shape": "capsule", "name": "changed", "method": "flags",
+    "motion_model": "reference", "shape": "capsule", "name": "changed", "method": "flags",
+    "model_frame": "camera", "registration": "pcl_svd",
     "box": _core.registration.Box(-0.1, 0.1, -0.2, 0.2, 0.0, 1.0), "crop_box": _core.registration.Box(-1, 1, -1, 1, 0, 2),
     "center": np.array([0.01, 0.02, 0.03]), "T_model_grasp": ROT, "T_flange_tcp": ROT, "T_scene_model": ROT,
     "approach": np.array([1.0, 0.0, 0.0]), "axis": np.array([0.0, 1.0, 0.0]), "view": 3,
@@ -236,7 +237,7 @@ def _results():
     d = rng.normal(size=(60, 3))
     sphere = 0.05 * d / np.linalg.norm(d, axis=1, keepdims=True) + [0.1, 0.2, 0.3]
     out["fitting.SphereFitResult"] = _core.fitting.fit_sphere(sphere, None)
-    out["fitting.SphereFitBatch"] = _core.fitting.fit_spheres(sphere, np.array([0, 30, 60]), num_threads=THREADS)
+    out["fitting.SphereFitBatchResult"] = _core.fitting.fit_spheres(sphere, np.array([0, 30, 60]), num_threads=THREADS)
     t = np.linspace(0, 6, 20)
     out["fitting.CircleFitResult"] = _core.fitting.fit_circle_2d(np.c_[0.1 + 0.2 * np.cos(t), 0.2 * np.sin(t)])
 
@@ -272,7 +273,7 @@ def _results():
     frame = target.astype(np.float32)
     reports = [f2m.integrate(frame, None, None, "scanalign"), f2m.integrate(frame + np.float32(0.001), None, None,
                                                                             "scanalign")]
-    out["reconstruction.FrameReport"] = reports
+    out["reconstruction.FrameResult"] = reports
     out["reconstruction.PreparedFrame"] = f2m.prepare(frame, None)
     out["reconstruction.FrameToModel"] = f2m
 
@@ -543,7 +544,7 @@ def test_python_records_holding_core_objects_pickle(instances):
     grasps = G.PartGrasps(name="bracket", mesh=mesh, grasps=[G.Grasp("top", ROT)], symmetry=G.PartSymmetry(order=3))
     part_pick = pick.PartPick(part="bracket", status="picked", T_base_model=ROT, plan=plan)
     model = reconstruction.Model(mesh.vertices, mesh.vertices * 0, None)
-    run = pipeline.ReconstructionResult(model=model, records=instances["reconstruction.FrameReport"],
+    run = pipeline.ReconstructionResult(model=model, records=instances["reconstruction.FrameResult"],
                                         estimate=trajectory, reference=None, T_model_camera0=ROT,
                                         settings=_changed(_core.reconstruction.FrameToModelSettings()),
                                         registration="scanalign", seconds=1.5)

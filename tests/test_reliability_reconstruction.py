@@ -260,7 +260,8 @@ def test_the_renderer_refuses_huge_and_empty_images_before_allocating():
     F = np.array([[0, 1, 2]])
     for w, h in ((32768, 32768), (20000, 20000), (0, 10), (10, -1)):
         with pytest.raises(ValueError, match="width, height"):
-            _core.synthetic.render_depth(V, F, w, h, 100.0, 100.0, 5.0, 5.0, np.eye(4), 0.01, math.inf, False, 0)
+            _core.reconstruction.render_depth(V, F, _core.reconstruction.PinholeIntrinsics(w, h, 100.0, 100.0, 5.0, 5.0),
+                                              np.eye(4), _core.reconstruction.DepthRenderSettings())
     with pytest.raises(ValueError):
         render_depth(V, F, Intrinsics(16384, 16384, 100.0, 100.0, 5.0, 5.0), np.eye(4))
     with pytest.raises(ValueError, match="134217728 pixels"):

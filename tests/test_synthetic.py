@@ -3,7 +3,6 @@ the sensor models' own constants, and determinism."""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 
@@ -14,10 +13,10 @@ from helpers import rigid
 from scanalign import io as sio
 from scanalign import parts, rendering
 from scanalign import synthetic as syn
-from scanalign.camera import Frame, Intrinsics
+from scanalign.camera import Frame, Intrinsics, intrinsics_preset, read_camera
 from scanalign.trajectory import Trajectory
 
-K_SR300 = Intrinsics.preset("sr300")
+K_SR300 = intrinsics_preset("sr300")
 
 
 # --------------------------------------------------------------------------- helpers
@@ -194,7 +193,7 @@ def test_render_depth_rejects_bad_input():
         rendering.render_depth(v, f.astype(float), K_SR300, np.eye(4))
     with pytest.raises(TypeError):
         rendering.render_depth(v, f, (640, 480, 500, 500, 320, 240), np.eye(4))
-    distorted = dataclasses.replace(K_SR300, distortion=(0.1, 0, 0, 0, 0))
+    distorted = Intrinsics(**{**K_SR300.to_dict(), "distortion": (0.1, 0, 0, 0, 0)})
     with pytest.raises(ValueError, match="pinhole"):
         rendering.render_depth(v, f, distorted, np.eye(4))
     with pytest.raises(ValueError, match="faces"):
@@ -223,11 +222,11 @@ def test_render_depth_rejects_bad_input():
     from scanalign import _core
 
     with pytest.raises(ValueError):
-        _core.synthetic.render_depth(v, f.astype(np.int32) + 5, 64, 48, 50.0, 50.0, 32.0, 24.0, np.eye(4), 0.01,
-                                     np.inf, False, 0)
+        _core.reconstruction.render_depth(v, f.astype(np.int32) + 5, Intrinsics(64, 48, 50.0, 50.0, 32.0, 24.0),
+                                          np.eye(4), _core.reconstruction.DepthRenderSettings())
     with pytest.raises(ValueError):
-        _core.synthetic.render_depth(v, f.astype(np.int32), 64, 48, -50.0, 50.0, 32.0, 24.0, np.eye(4), 0.01,
-                                     np.inf, False, 0)
+        _core.reconstruction.render_depth(v, f.astype(np.int32), Intrinsics(64, 48, -50.0, 50.0, 32.0, 24.0),
+                                          np.eye(4), _core.reconstruction.DepthRenderSettings())
     # An empty mesh is fine: nothing is hit.
     r = rendering.render_depth(v, np.zeros((0, 3), np.int32), K_SR300, np.eye(4))
     assert not r.hit.any() and np.isnan(r.depth).all()
@@ -668,10 +667,10 @@ def test_camera_files_json_and_yaml(tmp_path):
     d = read_camera_file(tmp_path / "cv.yaml")
     assert d == {"width": 640, "height": 480, "fx": 525.0, "fy": 525, "cx": 319.5, "cy": 239.5,
                  "depth_scale": 1e-3, "name": "sr300"}
-    assert Intrinsics.from_file(tmp_path / "cv.yaml") == Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
+    assert read_camera(tmp_path / "cv.yaml")[0] == Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5)
     (tmp_path / "cam.json").write_text(json.dumps({"width": 64, "height": 48, "fx": 50, "fy": 50, "cx": 31.5,
                                                    "cy": 23.5}))
-    assert Intrinsics.from_file(tmp_path / "cam.json").shape == (48, 64)
+    assert read_camera(tmp_path / "cam.json")[0].shape == (48, 64)
     for name, text in (("list.yaml", "- 1\n- 2\n"), ("bad.yaml", "a: [1\n"), ("bad.json", "{\"a\": 1,}")):
         (tmp_path / name).write_text(text)
         with pytest.raises(ValueError, match=name):

@@ -3,8 +3,13 @@
 // these checks are the last line of defence and raise TypeError / ValueError.
 #pragma once
 
+#include <algorithm>
+#include <cstdint>
 #include <limits>
 #include <string>
+#include <vector>
+
+#include <Eigen/Core>
 
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -87,9 +92,64 @@ inline long long intArg(const py::object& o, const char* what, long long lo, lon
   return v;
 }
 
+/// A random seed: a Python or NumPy integer in [0, 2^64); TypeError or ValueError naming
+/// `what` otherwise (NumPy's default_rng refuses negative seeds too).
+inline std::uint64_t seedArg(const py::object& o, const char* what) {
+  if (py::isinstance<py::bool_>(o) || !py::hasattr(o, "__index__"))
+    throw py::type_error(std::string(what) + ": expected a non-negative integer, got " + std::string(py::repr(o)));
+  const py::int_ i(o);
+  const unsigned long long v = PyLong_AsUnsignedLongLong(i.ptr());
+  if (v == static_cast<unsigned long long>(-1) && PyErr_Occurred()) {
+    PyErr_Clear();
+    throw py::value_error(std::string(what) + " must be an integer in [0, 2^64), got " + std::string(py::repr(o)));
+  }
+  return v;
+}
+
 /// intArg for a C++ int in [lo, 2^31 - 1].
 inline int boundedInt(const py::object& v, const char* what, int lo) {
   return static_cast<int>(intArg(v, what, lo, std::numeric_limits<int>::max()));
+}
+
+
+/// A vector of numbers as an (N,) array, or as an (N / cols, cols) array.
+template <typename T>
+py::array_t<T> vectorArray(const std::vector<T>& v, py::ssize_t cols = 0) {
+  py::array_t<T> a = cols > 0 ? py::array_t<T>({static_cast<py::ssize_t>(v.size()) / cols, cols})
+                              : py::array_t<T>(static_cast<py::ssize_t>(v.size()));
+  std::copy(v.begin(), v.end(), a.mutable_data());
+  return a;
+}
+
+/// Fixed-size vectors (Eigen::Vector3d, ...) as an (N, rows) array.
+template <typename S, int R>
+py::array_t<S> rowsArray(const std::vector<Eigen::Matrix<S, R, 1>>& v) {
+  py::array_t<S> a({static_cast<py::ssize_t>(v.size()), static_cast<py::ssize_t>(R)});
+  S* out = a.mutable_data();
+  for (const auto& x : v)
+    for (int r = 0; r < R; ++r) *out++ = x[r];
+  return a;
+}
+
+/// An (M, cols) array of integers of any integer dtype (an empty array of any shape with
+/// at most 2 dimensions: no rows) as int64, row-major; TypeError or ValueError naming `what`.
+inline std::vector<std::int64_t> indexRows(const py::object& o, const char* what, py::ssize_t cols) {
+  const py::array a = py::array::ensure(o);
+  if (!a) throw py::type_error(std::string(what) + ": expected an integer array");
+  if (a.size() == 0 && a.ndim() <= 2) return {};
+  if (a.dtype().kind() != 'i' && a.dtype().kind() != 'u')
+    throw py::type_error(std::string(what) + ": expected an integer array, got dtype " + std::string(py::str(a.dtype())));
+  if (a.ndim() != 2 || a.shape(1) != cols)
+    throw py::value_error(std::string(what) + ": expected shape (M, " + std::to_string(cols) + "), got " +
+                          std::string(py::str(a.attr("shape"))));
+  if (a.dtype().kind() == 'u' && a.itemsize() == 8) {  // uint64 beyond int64 must not wrap
+    const auto u = py::array_t<std::uint64_t, py::array::c_style | py::array::forcecast>::ensure(a);
+    constexpr auto top = static_cast<std::uint64_t>(std::numeric_limits<std::int64_t>::max());
+    if (u.size() && *std::max_element(u.data(), u.data() + u.size()) > top)
+      throw py::value_error(std::string(what) + ": index beyond int64");
+  }
+  const auto f = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(a);
+  return std::vector<std::int64_t>(f.data(), f.data() + f.size());
 }
 
 }  // namespace scanalign::python

@@ -1,8 +1,11 @@
+// _core.features: normal estimation (the eye-in-hand paper (Comput. Electron. Agric. 180
+// (2021) 105929), §3.5) and PCA shape factors (Kleppe, PhD thesis, NTNU 2018, (6.1)-(6.3)).
 #include <pybind11/eigen.h>
 
 #include <cmath>
 
 #include "arrays.hpp"
+#include "fields.hpp"
 #include "scanalign/features/normals.hpp"
 #include "scanalign/features/shape_factors.hpp"
 
@@ -21,9 +24,30 @@ py::tuple normals(const CloudView<Scalar>& view, const NormalEstimationSettings&
   }
   return py::make_tuple(out, curvature);
 }
+
+py::tuple estimate(const py::array& points, const NormalEstimationSettings& s) {
+  if (holds<float>(points)) return normals(cloudView<float>(points, "points"), s);
+  return normals(cloudView<double>(points, "points"), s);
+}
 }  // namespace
 
 void defineFeatures(py::module_& m) {
+  using N = NormalEstimationSettings;
+  fieldsOf(py::class_<N>(m, "NormalEstimationSettings",
+                         "PCA normals over a radius neighbourhood, oriented towards a viewpoint (the eye-in-hand "
+                         "paper, §3.5, after Rusu 2009). validate() raises ValueError naming a bad field."))
+      .field("radius", &N::radius, "m", "neighbourhood radius (eye-in-hand paper §3.5: 5 mm)")
+      .field("viewpoint", &N::viewpoint, "m",
+             "(3,) normals are flipped to point towards it, in the cloud's frame (the camera centre for a "
+             "camera-frame cloud), as pcl::flipNormalTowardsViewpoint")
+      .field("min_neighbors", &N::min_neighbors, "", "fewer neighbours (the point included) give a NaN normal; >= 3")
+      .field("num_threads", &N::num_threads, "", "OpenMP threads, 0 = all cores")
+      .field("grid_subdivisions", &N::grid_subdivisions, "",
+             "cells per radius of the grid neighbourhood search, in [1, 16]; 0 = chosen from the cloud's density. "
+             "Only the speed depends on it")
+      .settings()
+      .def("validate", [](const N& s) { validate(s); });
+  // The field-by-field overload first: a bad argument is named after its signature.
   m.def(
       "estimate_normals",
       [](const py::array& points, double radius, const F64& viewpoint, int min_neighbors, int num_threads) {
@@ -33,12 +57,13 @@ void defineFeatures(py::module_& m) {
         s.viewpoint = Eigen::Vector3d(viewpoint.data()[0], viewpoint.data()[1], viewpoint.data()[2]);
         s.min_neighbors = min_neighbors;
         s.num_threads = num_threads;
-        if (holds<float>(points)) return normals(cloudView<float>(points, "points"), s);
-        return normals(cloudView<double>(points, "points"), s);
+        return estimate(points, s);
       },
       py::arg("points"), py::arg("radius"), py::arg("viewpoint"), py::arg("min_neighbors"), py::arg("num_threads"),
-      "(normals (N, 3), curvature (N,)) in the points' dtype; ValueError names a bad radius, viewpoint or "
-      "min_neighbors");
+      "(normals (N, 3), curvature (N,)) in the points' dtype: NormalEstimationSettings' radius (m), viewpoint (m), "
+      "min_neighbors and num_threads given one by one; ValueError names a bad one");
+  m.def("estimate_normals", &estimate, py::arg("points"), py::arg("settings"),
+        "The same with a NormalEstimationSettings; ValueError names a bad field");
   m.def(
       "shape_factors",
       [](const F64& ev) {

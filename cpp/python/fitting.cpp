@@ -5,9 +5,10 @@
 
 #include <cmath>
 #include <string>
+#include <type_traits>
 
 #include "arrays.hpp"
-#include "pickle.hpp"
+#include "fields.hpp"
 #include "scanalign/fitting/sphere_fit.hpp"
 
 namespace scanalign::python {
@@ -27,23 +28,19 @@ py::array_t<Scalar, py::array::c_style | py::array::forcecast> numeric(const py:
   return py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
 }
 
-/// fitSpheres' per-group results, bound as SphereFitBatch (one row per group).
-struct SphereFitBatch {
-  std::vector<SphereFit> fits;
-};
-
-/// One column of a batch: (G,) or (G, k) of `get(fit)`.
+/// One column of a batch: (G,) or (G, K) of `get(fit)`, as an Eigen array (the field table
+/// shows it as a NumPy array of T).
 template <typename T, int K = 1, typename Get>
-py::array_t<T> column(const SphereFitBatch& b, Get get) {
-  const auto g = static_cast<py::ssize_t>(b.fits.size());
-  py::array_t<T> out = K == 1 ? py::array_t<T>(g) : py::array_t<T>({g, py::ssize_t{K}});
-  T* d = out.mutable_data();
-  for (const SphereFit& f : b.fits) {
+auto column(const SphereFitBatchResult& b, Get get) {
+  using Out = std::conditional_t<K == 1, Eigen::Matrix<T, Eigen::Dynamic, 1>,
+                                 Eigen::Matrix<T, Eigen::Dynamic, K, Eigen::RowMajor>>;
+  Out out(static_cast<Eigen::Index>(b.fits.size()), K);
+  for (std::size_t g = 0; g < b.fits.size(); ++g) {
     if constexpr (K == 1) {
-      *d++ = static_cast<T>(get(f));
+      out(static_cast<Eigen::Index>(g)) = static_cast<T>(get(b.fits[g]));
     } else {
-      const auto v = get(f);
-      for (int k = 0; k < K; ++k) *d++ = v(k);
+      const auto v = get(b.fits[g]);
+      for (int k = 0; k < K; ++k) out(static_cast<Eigen::Index>(g), k) = v(k);
     }
   }
   return out;
@@ -53,102 +50,83 @@ py::array_t<T> column(const SphereFitBatch& b, Get get) {
 
 void defineFitting(py::module_& m) {
   // Results are read-only; array fields come back as new numpy arrays.
-  py::class_<SphereFit>(m, "SphereFitResult",
-                        "Result of fit_sphere: a sphere, or the plane normal . p = distance when the data is "
-                        "(nearly) flat (thesis 5.26-5.34). Metres.")
-      .def_property_readonly(
-          "center", [](const SphereFit& f) { return Eigen::Vector3d(f.center); }, "(3,) sphere centre, m (NaN for a plane)")
-      .def_readonly("radius", &SphereFit::radius, "sphere radius, m (NaN for a plane; |r| when imaginary)")
-      .def_readonly("is_plane", &SphereFit::is_plane,
-                    "the fitted e0 coefficient vanished relative to scale: the data is flat and the result is "
-                    "the plane normal . p = distance")
-      .def_property_readonly(
-          "normal", [](const SphereFit& f) { return Eigen::Vector3d(f.normal); },
-          "(3,) unit plane normal (NaN for a sphere), oriented so that distance >= 0")
-      .def_readonly("distance", &SphereFit::distance, "plane offset from the origin along normal, m (NaN for a sphere)")
-      .def_readonly("imaginary", &SphereFit::imaginary, "the fitted sphere has r^2 < 0 (not expected for real data)")
-      .def_readonly("rms", &SphereFit::rms,
-                    "(weighted) RMS geometric residual, m: | |p - c| - r | for a sphere, |normal . p - distance| "
-                    "for a plane")
-      .def_readonly("objective", &SphereFit::objective,
-                    "the weighted mean of (S.P)^2 / S^2 at the optimum (thesis 5.27), the chosen eigenvalue "
-                    "(5.31), m^2")
-      .def_readonly("count", &SphereFit::count, "points used (those with positive weight)")
-      .def_property_readonly(
-          "dual", [](const SphereFit& f) { return Eigen::Matrix<double, 5, 1>(f.dual); },
-          "(5,) the dual sphere [c, (|c|^2 - r^2)/2, 1] (4.60) or plane [n, distance, 0] (4.66) on "
-          "(e1, e2, e3, e_inf, e0)")
-      .def("__repr__", [](const SphereFit& f) {
-        return f.is_plane ? "SphereFitResult(plane, normal=(" + std::to_string(f.normal.x()) + ", " +
-                                std::to_string(f.normal.y()) + ", " + std::to_string(f.normal.z()) +
-                                "), distance=" + std::to_string(f.distance) + ", rms=" + std::to_string(f.rms) + ")"
-                          : "SphereFitResult(center=(" + std::to_string(f.center.x()) + ", " +
-                                std::to_string(f.center.y()) + ", " + std::to_string(f.center.z()) +
-                                "), radius=" + std::to_string(f.radius) + ", rms=" + std::to_string(f.rms) + ")";
-      });
-  py::class_<CircleFit>(m, "CircleFitResult", "Result of fit_circle_2d (Pratt 1987; thesis 5.21-5.25). Metres.")
-      .def_property_readonly(
-          "center", [](const CircleFit& f) { return Eigen::Vector2d(f.center); }, "(2,) circle centre, m")
-      .def_readonly("radius", &CircleFit::radius, "circle radius, m")
-      .def_readonly("rms", &CircleFit::rms, "RMS geometric residual | |p - c| - r |, m")
-      .def_property_readonly(
-          "coefficients", [](const CircleFit& f) { return Eigen::Vector4d(f.coefficients); },
-          "(4,) (a, d, e, f) of a(x^2 + y^2) + d x + e y + f = 0 with Pratt's normalization "
-          "d^2 + e^2 - 4 a f = 1 (thesis 5.21)")
-      .def_readonly("count", &CircleFit::count, "number of points")
-      .def("__repr__", [](const CircleFit& f) {
-        return "CircleFitResult(center=(" + std::to_string(f.center.x()) + ", " + std::to_string(f.center.y()) +
-               "), radius=" + std::to_string(f.radius) + ", rms=" + std::to_string(f.rms) + ")";
-      });
-  py::class_<SphereFitBatch>(m, "SphereFitBatch",
-                             "Result of fit_spheres: the fields of SphereFitResult as arrays with one row per "
-                             "group; a group that cannot be fitted has count 0 and NaN values. Metres.")
-      .def_property_readonly(
-          "center", [](const SphereFitBatch& b) { return column<double, 3>(b, [](auto& f) { return f.center; }); },
-          "(G, 3) sphere centres, m (NaN rows for planes)")
-      .def_property_readonly(
-          "radius", [](const SphereFitBatch& b) { return column<double>(b, [](auto& f) { return f.radius; }); },
-          "(G,) radii, m")
-      .def_property_readonly(
-          "is_plane", [](const SphereFitBatch& b) { return column<bool>(b, [](auto& f) { return f.is_plane; }); },
-          "(G,) the group is flat: normal . p = distance")
-      .def_property_readonly(
-          "normal", [](const SphereFitBatch& b) { return column<double, 3>(b, [](auto& f) { return f.normal; }); },
-          "(G, 3) unit plane normals (NaN rows for spheres)")
-      .def_property_readonly(
-          "distance", [](const SphereFitBatch& b) { return column<double>(b, [](auto& f) { return f.distance; }); },
-          "(G,) plane offsets along normal, m")
-      .def_property_readonly(
-          "imaginary", [](const SphereFitBatch& b) { return column<bool>(b, [](auto& f) { return f.imaginary; }); },
-          "(G,) r^2 < 0")
-      .def_property_readonly(
-          "rms", [](const SphereFitBatch& b) { return column<double>(b, [](auto& f) { return f.rms; }); },
-          "(G,) RMS geometric residuals, m")
-      .def_property_readonly(
-          "count", [](const SphereFitBatch& b) { return column<std::int64_t>(b, [](auto& f) { return f.count; }); },
-          "(G,) points used (0: the group could not be fitted)")
-      .def_property_readonly(
-          "dual", [](const SphereFitBatch& b) { return column<double, 5>(b, [](auto& f) { return f.dual; }); },
-          "(G, 5) dual spheres / planes on (e1, e2, e3, e_inf, e0), as SphereFitResult.dual")
-      .def("__len__", [](const SphereFitBatch& b) { return b.fits.size(); })
-      .def(
-          "__getitem__",
-          [](const SphereFitBatch& b, py::ssize_t g) {
-            const auto n = static_cast<py::ssize_t>(b.fits.size());
-            if (g < -n || g >= n) throw py::index_error("group " + std::to_string(g) + " out of range");
-            return b.fits[static_cast<std::size_t>(g < 0 ? g + n : g)];
-          },
-          py::arg("group"), "the SphereFitResult of one group");
-
-  pickleFields(m, "SphereFitResult", field("dual", &SphereFit::dual), field("is_plane", &SphereFit::is_plane),
-               field("center", &SphereFit::center), field("radius", &SphereFit::radius),
-               field("imaginary", &SphereFit::imaginary), field("normal", &SphereFit::normal),
-               field("distance", &SphereFit::distance), field("rms", &SphereFit::rms),
-               field("objective", &SphereFit::objective), field("count", &SphereFit::count));
-  pickleFields(m, "CircleFitResult", field("center", &CircleFit::center), field("radius", &CircleFit::radius),
-               field("rms", &CircleFit::rms), field("coefficients", &CircleFit::coefficients),
-               field("count", &CircleFit::count));
-  pickleFields(m, "SphereFitBatch", field("fits", &SphereFitBatch::fits));
+  using S = SphereFitResult;
+  fieldsOf(py::class_<S>(m, "SphereFitResult",
+                         "Result of fit_sphere: a sphere, or the plane normal . p = distance when the data is "
+                         "(nearly) flat (thesis 5.26-5.34). Metres.")
+               .def("__repr__", [](const S& f) {
+                 return f.is_plane ? "SphereFitResult(plane, normal=(" + std::to_string(f.normal.x()) + ", " +
+                                         std::to_string(f.normal.y()) + ", " + std::to_string(f.normal.z()) +
+                                         "), distance=" + std::to_string(f.distance) + ", rms=" + std::to_string(f.rms) +
+                                         ")"
+                                   : "SphereFitResult(center=(" + std::to_string(f.center.x()) + ", " +
+                                         std::to_string(f.center.y()) + ", " + std::to_string(f.center.z()) +
+                                         "), radius=" + std::to_string(f.radius) + ", rms=" + std::to_string(f.rms) + ")";
+               }))
+      .output("center", &S::center, "m", "(3,) sphere centre (NaN for a plane)")
+      .output("radius", &S::radius, "m", "sphere radius (NaN for a plane; |r| when imaginary)")
+      .output("is_plane", &S::is_plane, "",
+              "the fitted e0 coefficient vanished relative to scale: the data is flat and the result is the plane "
+              "normal . p = distance")
+      .output("normal", &S::normal, "", "(3,) unit plane normal (NaN for a sphere), oriented so that distance >= 0")
+      .output("distance", &S::distance, "m", "plane offset from the origin along normal (NaN for a sphere)")
+      .output("imaginary", &S::imaginary, "", "the fitted sphere has r^2 < 0 (not expected for real data)")
+      .output("rms", &S::rms, "m",
+              "(weighted) RMS geometric residual: | |p - c| - r | for a sphere, |normal . p - distance| for a plane")
+      .output("objective", &S::objective, "m^2",
+              "the weighted mean of (S.P)^2 / S^2 at the optimum (thesis 5.27), the chosen eigenvalue (5.31)")
+      .output("count", &S::count, "", "points used (those with positive weight)")
+      .output("dual", &S::dual, "",
+              "(5,) the dual sphere [c, (|c|^2 - r^2)/2, 1] (4.60) or plane [n, distance, 0] (4.66) on "
+              "(e1, e2, e3, e_inf, e0)")
+      .result();
+  using C = CircleFitResult;
+  fieldsOf(py::class_<C>(m, "CircleFitResult", "Result of fit_circle_2d (Pratt 1987; thesis 5.21-5.25). Metres.")
+               .def("__repr__", [](const C& f) {
+                 return "CircleFitResult(center=(" + std::to_string(f.center.x()) + ", " + std::to_string(f.center.y()) +
+                        "), radius=" + std::to_string(f.radius) + ", rms=" + std::to_string(f.rms) + ")";
+               }))
+      .output("center", &C::center, "m", "(2,) circle centre")
+      .output("radius", &C::radius, "m", "circle radius")
+      .output("rms", &C::rms, "m", "RMS geometric residual | |p - c| - r |")
+      .output("coefficients", &C::coefficients, "",
+              "(4,) (a, d, e, f) of a(x^2 + y^2) + d x + e y + f = 0 with Pratt's normalization d^2 + e^2 - 4 a f = 1 "
+              "(thesis 5.21)")
+      .output("count", &C::count, "", "number of points")
+      .result();
+  using B = SphereFitBatchResult;
+  fieldsOf(py::class_<B>(m, "SphereFitBatchResult",
+                         "Result of fit_spheres: the fields of SphereFitResult as arrays with one row per group; a "
+                         "group that cannot be fitted has count 0 and NaN values. Metres.")
+               .def("__len__", &B::size)
+               .def(
+                   "__getitem__",
+                   [](const B& b, py::ssize_t g) {
+                     const auto n = static_cast<py::ssize_t>(b.fits.size());
+                     if (g < -n || g >= n) throw py::index_error("group " + std::to_string(g) + " out of range");
+                     return b.fits[static_cast<std::size_t>(g < 0 ? g + n : g)];
+                   },
+                   py::arg("group"), "the SphereFitResult of one group"))
+      .output("fits", &B::fits, "", "the SphereFitResult of every group, in order")
+      .derived("center", [](const B& b) { return column<double, 3>(b, [](auto& f) { return f.center; }); }, "m",
+               "(G, 3) sphere centres (NaN rows for planes)")
+      .derived("radius", [](const B& b) { return column<double>(b, [](auto& f) { return f.radius; }); }, "m",
+               "(G,) radii")
+      .derived("is_plane", [](const B& b) { return column<bool>(b, [](auto& f) { return f.is_plane; }); }, "",
+               "(G,) the group is flat: normal . p = distance")
+      .derived("normal", [](const B& b) { return column<double, 3>(b, [](auto& f) { return f.normal; }); }, "",
+               "(G, 3) unit plane normals (NaN rows for spheres)")
+      .derived("distance", [](const B& b) { return column<double>(b, [](auto& f) { return f.distance; }); }, "m",
+               "(G,) plane offsets along normal")
+      .derived("imaginary", [](const B& b) { return column<bool>(b, [](auto& f) { return f.imaginary; }); }, "",
+               "(G,) r^2 < 0")
+      .derived("rms", [](const B& b) { return column<double>(b, [](auto& f) { return f.rms; }); }, "m",
+               "(G,) RMS geometric residuals")
+      .derived("count", [](const B& b) { return column<std::int64_t>(b, [](auto& f) { return f.count; }); }, "",
+               "(G,) points used (0: the group could not be fitted)")
+      .derived("dual", [](const B& b) { return column<double, 5>(b, [](auto& f) { return f.dual; }); }, "",
+               "(G, 5) dual spheres / planes on (e1, e2, e3, e_inf, e0), as SphereFitResult.dual")
+      .result();
 
   m.attr("MIN_SPHERE_POINTS") = kMinSpherePoints;
   // std::invalid_argument reaches Python as ValueError (pybind11 default).
@@ -205,10 +183,8 @@ Raises:
         return withCloud(points, "points", [&](auto view) {
           SphereFitOptions opt;
           opt.plane_tolerance = plane_tolerance;
-          SphereFitBatch b;
           py::gil_scoped_release release;
-          b.fits = fitSpheres(view, o.data(), static_cast<std::size_t>(o.shape(0) - 1), opt, num_threads);
-          return b;
+          return fitSpheres(view, o.data(), static_cast<std::size_t>(o.shape(0) - 1), opt, num_threads);
         });
       },
       py::arg("points"), py::arg("offsets"), py::kw_only(), py::arg("plane_tolerance") = 1e-6,
@@ -222,7 +198,7 @@ Args:
     num_threads: OpenMP threads, 0 = all cores.
 
 Returns:
-    SphereFitBatch; groups that cannot be fitted get count == 0 and NaNs.
+    SphereFitBatchResult; groups that cannot be fitted get count == 0 and NaNs.
 
 Raises:
     TypeError: points not float, offsets not integer. ValueError: shapes, offsets out of order

@@ -16,7 +16,7 @@ void defineFeatures(py::module_& m);
 void defineReconstruction(py::module_& m);
 void defineSegmentation(py::module_& m);
 void defineFitting(py::module_& m);
-void bindSynthetic(py::module_& m);  // adds the submodule `synthetic`
+void defineSynthetic(py::module_& m);
 void defineCga(py::module_& m);
 void defineKinematics(py::module_& m);
 void definePose(py::module_& m);
@@ -72,11 +72,12 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "scanalign compiled core (use the scanalign package API)";
   m.attr("__version__") = scanalign::version();  // the package's version (one source: CMakeLists.txt)
   m.attr("built_with_pcl") = scanalign::builtWithPcl();
-  auto common = m.def_submodule("common", "rigid transforms, camera placement");
+  auto common = m.def_submodule("common", "rigid transforms, camera placement, mesh sampling");
   scanalign::python::defineCommon(common);
   auto registration = m.def_submodule("registration", "ICP engine, k-d tree, PCL plug-ins and baselines");
   auto features = m.def_submodule("features", "normal estimation");
-  auto reconstruction = m.def_submodule("reconstruction", "voxel grid");
+  auto reconstruction = m.def_submodule(
+      "reconstruction", "intrinsics, depth images, depth renderer, frame-to-model reconstruction, voxel grid");
   scanalign::python::defineRegistration(registration);
   scanalign::python::defineFeatures(features);
   scanalign::python::defineReconstruction(reconstruction);
@@ -84,7 +85,8 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineSegmentation(segmentation);
   auto fitting = m.def_submodule("fitting", "CGA sphere fit, Pratt circle fit");
   scanalign::python::defineFitting(fitting);
-  scanalign::python::bindSynthetic(m);
+  auto synthetic = m.def_submodule("synthetic", "built-in parts, the simulator's scene and camera paths, sensor noise");
+  scanalign::python::defineSynthetic(synthetic);
   auto cga = m.def_submodule("cga", "conformal geometric algebra G(4,1)");
   scanalign::python::defineCga(cga);
   auto kinematics = m.def_submodule("kinematics", "DH robots, forward kinematics, CGA inverse kinematics");

@@ -9,7 +9,7 @@
 #include <string>
 
 #include "arrays.hpp"
-#include "pickle.hpp"
+#include "fields.hpp"
 #include "scanalign/segmentation/table_segmentation.hpp"
 
 namespace scanalign::python {
@@ -27,12 +27,6 @@ void requireFinitePoints(const CloudView<Scalar>& points, std::size_t minimum, c
   if (n < minimum)
     throw py::value_error(std::string(fn) + " needs at least " + std::to_string(minimum) + " finite points, got " +
                           std::to_string(n));
-}
-
-py::array_t<std::int64_t> indexArray(const std::vector<std::uint32_t>& v) {
-  py::array_t<std::int64_t> a(static_cast<py::ssize_t>(v.size()));
-  std::copy(v.begin(), v.end(), a.mutable_data());
-  return a;
 }
 
 /// Any Python int as a 64-bit seed (taken modulo 2^64, so negative seeds are accepted).
@@ -58,23 +52,6 @@ Eigen::Vector3d vec3(const py::handle& o, const char* what) {
   return {a.at(0), a.at(1), a.at(2)};
 }
 
-/// The fields every RANSAC result shares.
-template <typename Model>
-void bindCommon(py::class_<RansacResult<Model>>& c) {
-  using R = RansacResult<Model>;
-  c.def_property_readonly(
-       "status", [](const R& r) { return std::string(toString(r.status)); },
-       "\"success\", \"degenerate\" (no non-degenerate sample was drawn) or \"too_few_points\"")
-      .def_property_readonly("success", &R::success, "status == \"success\"")
-      .def_property_readonly(
-          "inliers", [](const R& r) { return indexArray(r.inliers); },
-          "(K,) int64 input row indices (ascending) within threshold of the returned model")
-      .def_readonly("iterations", &R::iterations, "hypotheses drawn (degenerate samples included)")
-      .def_readonly("degenerate_samples", &R::degenerate_samples, "samples rejected as degenerate")
-      .def_readonly("refined", &R::refined, "the least-squares refit was applied")
-      .def_readonly("hypothesis_inliers", &R::hypothesis_inliers, "inlier count of the winning minimal-sample hypothesis");
-}
-
 /// normal . p - distance for one point (3,) or points (N, 3) (4.67), metres.
 py::object signedDistance(const PlaneResult& r, const py::array_t<double, py::array::c_style | py::array::forcecast>& p) {
   if (p.ndim() == 1 && p.shape(0) == 3)
@@ -87,56 +64,39 @@ py::object signedDistance(const PlaneResult& r, const py::array_t<double, py::ar
   return std::move(out);
 }
 
-/// A RANSAC model as 4 numbers: a plane (normal, distance), a sphere (center, radius); m.
-Eigen::Vector4d packModel(const PlaneModel& p) { return {p.normal.x(), p.normal.y(), p.normal.z(), p.distance}; }
-Eigen::Vector4d packModel(const SphereModel& s) { return {s.center.x(), s.center.y(), s.center.z(), s.radius}; }
-void unpackModel(const Eigen::Vector4d& v, PlaneModel& p) { p.normal = v.head<3>(), p.distance = v[3]; }
-void unpackModel(const Eigen::Vector4d& v, SphereModel& s) { s.center = v.head<3>(), s.radius = v[3]; }
-
-template <typename Model>
-void pickleRansacResult(py::module_& m, const char* name) {
-  using R = RansacResult<Model>;
-  pickleFields(m, name, namedEnum("status", &R::status, 3),
-               field<R>(
-                   "model", [](const R& r) { return packModel(r.model); },
-                   [](R& r, const Eigen::Vector4d& v) { unpackModel(v, r.model); }),
-               field<R>(
-                   "hypothesis", [](const R& r) { return packModel(r.hypothesis); },
-                   [](R& r, const Eigen::Vector4d& v) { unpackModel(v, r.hypothesis); }),
-               field("inliers", &R::inliers), field("hypothesis_inliers", &R::hypothesis_inliers),
-               field("iterations", &R::iterations), field("degenerate_samples", &R::degenerate_samples),
-               field("refined", &R::refined));
+/// Int64 indices of uint32 ones (NumPy code indexes with int64), and back (checked).
+std::vector<std::int64_t> wideIndices(const std::vector<std::uint32_t>& v) { return {v.begin(), v.end()}; }
+std::vector<std::uint32_t> narrowIndices(const py::handle& h, const std::string& where) {
+  const std::vector<std::int64_t> v = fields::Conv<std::vector<std::int64_t>>::set(h, where);
+  std::vector<std::uint32_t> out;
+  out.reserve(v.size());
+  for (const std::int64_t i : v) {
+    if (i < 0 || i > std::int64_t{0xFFFFFFFF})
+      throw py::value_error(where + ": index " + std::to_string(i) + " out of range");
+    out.push_back(static_cast<std::uint32_t>(i));
+  }
+  return out;
 }
 
-void pickleSegmentation(py::module_& m) {
-  pickleRansacResult<PlaneModel>(m, "PlaneResult");
-  pickleRansacResult<SphereModel>(m, "SphereResult");
-  using T = TableSegmentationResult;
-  pickleFields(m, "TableSegmentationResult", namedEnum("status", &T::status, 3), field("plane", &T::plane),
-               field<T>(
-                   "objects",
-                   [](const T& t) {
-                     py::list l;  // one uint32 index array per cluster
-                     for (const auto& c : t.objects) l.append(pickling::vectorToArray(c));
-                     return l;
-                   },
-                   [](T& t, const py::list& l) {
-                     t.objects.clear();
-                     for (py::handle c : l)
-                       t.objects.push_back(
-                           pickling::arrayToVector<std::vector<std::uint32_t>>(c, "TableSegmentationResult: pickled state 'objects'"));
-                   }),
-               field("cropped_points", &T::cropped_points), field("above_points", &T::above_points));
-  pickleFields(m, "RansacSettings", field("threshold", &RansacSettings::threshold),
-               field("max_iterations", &RansacSettings::max_iterations),
-               field("confidence", &RansacSettings::confidence), field("seed", &RansacSettings::seed),
-               field("num_threads", &RansacSettings::num_threads), field("refine", &RansacSettings::refine),
-               field("msac", &RansacSettings::msac));
-  using S = TableSegmentationSettings;
-  pickleFields(m, "TableSegmentationSettings", field("crop", &S::crop), field("crop_min", &S::crop_min),
-               field("crop_max", &S::crop_max), field("plane", &S::plane), field("viewpoint", &S::viewpoint),
-               field("up", &S::up), field("cluster_tolerance", &S::cluster_tolerance),
-               field("min_cluster_size", &S::min_cluster_size), field("max_cluster_size", &S::max_cluster_size));
+/// The field table of a RANSAC result: the fields every one shares, then the model's own
+/// (`model_fields` adds them), then the table is finished.
+template <typename Model, typename ModelFields>
+void bindRansacResult(py::class_<RansacResult<Model>> cls, ModelFields model_fields) {
+  using R = RansacResult<Model>;
+  auto table = fieldsOf(cls);
+  table.name("status", &R::status, 3, "",
+             "'success', 'degenerate' (no non-degenerate sample was drawn) or 'too_few_points'", false)
+      .derived("success", [](const R& r) { return r.success(); }, "", "status == 'success'")
+      .field(
+          "inliers", [](const R& r) { return wideIndices(r.inliers); },
+          [](R& r, py::handle h) { r.inliers = narrowIndices(h, "inliers"); }, "",
+          "(K,) int64 input row indices (ascending) within threshold of the returned model", false)
+      .output("iterations", &R::iterations, "", "hypotheses drawn (degenerate samples included)")
+      .output("degenerate_samples", &R::degenerate_samples, "", "samples rejected as degenerate")
+      .output("refined", &R::refined, "", "the least-squares refit was applied")
+      .output("hypothesis_inliers", &R::hypothesis_inliers, "", "inlier count of the winning minimal-sample hypothesis");
+  model_fields(table);
+  table.result();
 }
 
 }  // namespace
@@ -145,20 +105,7 @@ void defineSegmentation(py::module_& m) {
   py::class_<PlaneResult> plane_result(m, "PlaneResult",
                                        "A RANSAC plane normal . p = distance (metres), |normal| = 1, with the CGA "
                                        "plane model (thesis 5.35-5.36)");
-  bindCommon(plane_result);
   plane_result
-      .def_property_readonly(
-          "normal", [](const PlaneResult& r) { return Eigen::Vector3d(r.model.normal); },
-          "(3,) unit normal (the dual plane Pi* = n + distance e_inf)")
-      .def_property_readonly(
-          "distance", [](const PlaneResult& r) { return r.model.distance; },
-          "signed distance of the plane from the origin along normal, m")
-      .def_property_readonly(
-          "hypothesis_normal", [](const PlaneResult& r) { return Eigen::Vector3d(r.hypothesis.normal); },
-          "(3,) the winning minimal-sample plane's normal")
-      .def_property_readonly(
-          "hypothesis_distance", [](const PlaneResult& r) { return r.hypothesis.distance; },
-          "the winning minimal-sample plane's distance, m")
       .def("signed_distance", &signedDistance, py::arg("points"),
            "normal . p - distance for one point (3,) or points (N, 3) (4.67), m")
       .def("__repr__", [](const PlaneResult& r) {
@@ -167,74 +114,104 @@ void defineSegmentation(py::module_& m) {
                std::to_string(r.model.normal.z()) + "), distance=" + std::to_string(r.model.distance) +
                ", inliers=" + std::to_string(r.inliers.size()) + ")";
       });
+  bindRansacResult(plane_result, [](auto& t) {
+    using R = PlaneResult;
+    t.field(
+         "normal", [](const R& r) { return r.model.normal; }, [](R& r, const Eigen::Vector3d& v) { r.model.normal = v; },
+         "", "(3,) unit normal (the dual plane Pi* = n + distance e_inf)", false)
+        .field(
+            "distance", [](const R& r) { return r.model.distance; }, [](R& r, double v) { r.model.distance = v; },
+            "m", "signed distance of the plane from the origin along normal", false)
+        .field(
+            "hypothesis_normal", [](const R& r) { return r.hypothesis.normal; },
+            [](R& r, const Eigen::Vector3d& v) { r.hypothesis.normal = v; }, "",
+            "(3,) the winning minimal-sample plane's normal", false)
+        .field(
+            "hypothesis_distance", [](const R& r) { return r.hypothesis.distance; },
+            [](R& r, double v) { r.hypothesis.distance = v; }, "m", "the winning minimal-sample plane's distance",
+            false);
+  });
   py::class_<SphereResult> sphere_result(m, "SphereResult",
                                          "A RANSAC sphere |p - center| = radius (metres), the CGA sphere through "
                                          "four points (thesis 4.58-4.60)");
-  bindCommon(sphere_result);
-  sphere_result
-      .def_property_readonly(
-          "center", [](const SphereResult& r) { return Eigen::Vector3d(r.model.center); }, "(3,) centre, m")
-      .def_property_readonly(
-          "radius", [](const SphereResult& r) { return r.model.radius; }, "radius, m")
-      .def_property_readonly(
-          "hypothesis_center", [](const SphereResult& r) { return Eigen::Vector3d(r.hypothesis.center); },
-          "(3,) the winning minimal-sample sphere's centre, m")
-      .def_property_readonly(
-          "hypothesis_radius", [](const SphereResult& r) { return r.hypothesis.radius; },
-          "the winning minimal-sample sphere's radius, m")
-      .def("__repr__", [](const SphereResult& r) {
-        return "SphereResult(status=" + std::string(toString(r.status)) + ", center=(" +
-               std::to_string(r.model.center.x()) + ", " + std::to_string(r.model.center.y()) + ", " +
-               std::to_string(r.model.center.z()) + "), radius=" + std::to_string(r.model.radius) +
-               ", inliers=" + std::to_string(r.inliers.size()) + ")";
-      });
-  py::class_<TableSegmentationResult>(m, "TableSegmentationResult", "Result of segment_table (paper 3 §3.1.2-3.1.3)")
-      .def_readonly("plane", &TableSegmentationResult::plane,
-                    "the table (PlaneResult, normal oriented up / towards the camera; inliers index the input)")
-      .def_property_readonly(
+  sphere_result.def("__repr__", [](const SphereResult& r) {
+    return "SphereResult(status=" + std::string(toString(r.status)) + ", center=(" +
+           std::to_string(r.model.center.x()) + ", " + std::to_string(r.model.center.y()) + ", " +
+           std::to_string(r.model.center.z()) + "), radius=" + std::to_string(r.model.radius) +
+           ", inliers=" + std::to_string(r.inliers.size()) + ")";
+  });
+  bindRansacResult(sphere_result, [](auto& t) {
+    using R = SphereResult;
+    t.field(
+         "center", [](const R& r) { return r.model.center; }, [](R& r, const Eigen::Vector3d& v) { r.model.center = v; },
+         "m", "(3,) centre", false)
+        .field(
+            "radius", [](const R& r) { return r.model.radius; }, [](R& r, double v) { r.model.radius = v; }, "m",
+            "radius", false)
+        .field(
+            "hypothesis_center", [](const R& r) { return r.hypothesis.center; },
+            [](R& r, const Eigen::Vector3d& v) { r.hypothesis.center = v; }, "m",
+            "(3,) the winning minimal-sample sphere's centre", false)
+        .field(
+            "hypothesis_radius", [](const R& r) { return r.hypothesis.radius; },
+            [](R& r, double v) { r.hypothesis.radius = v; }, "m", "the winning minimal-sample sphere's radius", false);
+  });
+  using T = TableSegmentationResult;
+  fieldsOf(py::class_<T>(m, "TableSegmentationResult", "Result of segment_table (paper 3 §3.1.2-3.1.3)"))
+      .name("status", &T::status, 3, "", "the table plane RANSAC's status", false)
+      .derived("success", [](const T& t) { return t.success(); }, "", "the table plane was found")
+      .output("plane", &T::plane, "",
+              "the table (PlaneResult, normal oriented up / towards the camera; inliers index the input)")
+      .field(
           "objects",
-          [](const TableSegmentationResult& t) {
-            py::list objects;
-            for (const auto& c : t.objects) objects.append(indexArray(c));
+          [](const T& t) {
+            std::vector<Eigen::Matrix<std::int64_t, Eigen::Dynamic, 1>> objects;  // shown as int64 arrays
+            for (const auto& c : t.objects) {
+              objects.emplace_back(static_cast<Eigen::Index>(c.size()));
+              std::copy(c.begin(), c.end(), objects.back().data());
+            }
             return objects;
           },
-          "one int64 index array per object (ascending input rows), largest first")
-      .def_readonly("cropped_points", &TableSegmentationResult::cropped_points,
-                    "finite points inside the crop box (all finite points without crop)")
-      .def_readonly("above_points", &TableSegmentationResult::above_points,
-                    "points left above the table before clustering")
-      .def_property_readonly(
-          "status", [](const TableSegmentationResult& t) { return std::string(toString(t.status)); },
-          "the table plane RANSAC's status")
-      .def_property_readonly("success", &TableSegmentationResult::success, "the table plane was found");
-  py::class_<RansacSettings>(m, "RansacSettings", "RANSAC settings of a plane/sphere fit")
-      .def(py::init<>())
-      .def_readwrite("threshold", &RansacSettings::threshold, "inlier distance, m")
-      .def_property(
-          "max_iterations", [](const RansacSettings& s) { return s.max_iterations; },
-          [](RansacSettings& s, const py::object& v) { s.max_iterations = boundedInt(v, "max_iterations", 1); },
-          "most hypotheses drawn, in [1, 2^31 - 1]")
-      .def_readwrite("confidence", &RansacSettings::confidence, "adaptive stop, in [0, 1]; 0 or 1 disables it")
-      .def_readwrite("seed", &RansacSettings::seed, "sample k is drawn from a generator seeded by (seed, k)")
-      .def_readwrite("num_threads", &RansacSettings::num_threads, "0 = all cores; never changes the result")
-      .def_readwrite("refine", &RansacSettings::refine, "least-squares refit of the winner over its inliers")
-      .def_readwrite("msac", &RansacSettings::msac,
-                     "rank hypotheses by the MSAC cost sum min(e^2, threshold^2) (Torr and Zisserman 2000) instead "
-                     "of the inlier count")
-      .def("validate", [](const RansacSettings& s) { validate(s); }, "ValueError naming an invalid field");
-  py::class_<TableSegmentationSettings>(m, "TableSegmentationSettings", "Table plane and object clusters (metres)")
-      .def(py::init<>())
-      .def_readwrite("crop", &TableSegmentationSettings::crop, "apply the pass-through box crop_min..crop_max")
-      .def_readwrite("crop_min", &TableSegmentationSettings::crop_min, "(3,) m")
-      .def_readwrite("crop_max", &TableSegmentationSettings::crop_max, "(3,) m")
-      .def_readwrite("plane", &TableSegmentationSettings::plane, "RansacSettings of the table plane")
-      .def_readwrite("viewpoint", &TableSegmentationSettings::viewpoint, "(3,) camera centre the normal faces, m")
-      .def_readwrite("up", &TableSegmentationSettings::up, "(3,) up direction (zero: use viewpoint)")
-      .def_readwrite("cluster_tolerance", &TableSegmentationSettings::cluster_tolerance, "m; linked points")
-      .def_readwrite("min_cluster_size", &TableSegmentationSettings::min_cluster_size, "points")
-      .def_readwrite("max_cluster_size", &TableSegmentationSettings::max_cluster_size, "points")
-      .def("validate", [](const TableSegmentationSettings& s) { validate(s); }, "ValueError naming an invalid field");
-  pickleSegmentation(m);
+          [](T& t, py::handle h) {
+            if (!py::isinstance<py::list>(h) && !py::isinstance<py::tuple>(h))
+              fields::wrongType("TableSegmentationResult.objects", "a list of index arrays", h);
+            std::vector<std::vector<std::uint32_t>> objects;
+            for (py::handle c : h) objects.push_back(narrowIndices(c, "TableSegmentationResult.objects"));
+            t.objects = std::move(objects);
+          },
+          "", "one int64 index array per object (ascending input rows), largest first", false)
+      .output("cropped_points", &T::cropped_points, "",
+              "finite points inside the crop box (all finite points without crop)")
+      .output("above_points", &T::above_points, "", "points left above the table before clustering")
+      .result();
+  using RS = RansacSettings;
+  fieldsOf(py::class_<RS>(m, "RansacSettings",
+                          "RANSAC settings of a plane/sphere fit. validate() raises ValueError naming a bad field."))
+      .field("threshold", &RS::threshold, "m", "inlier distance E_T: a point is an inlier if its error is below it")
+      .field("max_iterations", &RS::max_iterations, "", "most hypotheses drawn, in [1, 2^31 - 1]")
+      .field("confidence", &RS::confidence, "", "adaptive stop, in [0, 1]; 0 or 1 disables it")
+      .field("seed", &RS::seed, "", "sample k is drawn from a generator seeded by (seed, k)")
+      .field("num_threads", &RS::num_threads, "", "0 = all cores; never changes the result")
+      .field("refine", &RS::refine, "", "least-squares refit of the winner over its inliers")
+      .field("msac", &RS::msac, "",
+             "rank hypotheses by the MSAC cost sum min(e^2, threshold^2) (Torr and Zisserman 2000) instead of the "
+             "inlier count")
+      .settings()
+      .def("validate", [](const RS& s) { validate(s); }, "ValueError naming an invalid field");
+  using TS = TableSegmentationSettings;
+  fieldsOf(py::class_<TS>(m, "TableSegmentationSettings",
+                          "Table plane and object clusters (metres). validate() raises ValueError naming a bad field."))
+      .field("crop", &TS::crop, "", "apply the pass-through box crop_min..crop_max")
+      .field("crop_min", &TS::crop_min, "m", "(3,) lower corner of the crop box (-inf: open side)")
+      .field("crop_max", &TS::crop_max, "m", "(3,) upper corner of the crop box (inf: open side)")
+      .field("plane", &TS::plane, "", "RansacSettings of the table plane (threshold = Delta)")
+      .field("viewpoint", &TS::viewpoint, "m", "(3,) camera centre the table normal faces")
+      .field("up", &TS::up, "", "(3,) up direction the table normal faces (zero: use viewpoint)")
+      .field("cluster_tolerance", &TS::cluster_tolerance, "m", "points this close are linked into one object")
+      .field("min_cluster_size", &TS::min_cluster_size, "", "objects with fewer points are dropped")
+      .field("max_cluster_size", &TS::max_cluster_size, "", "objects with more points are dropped")
+      .settings()
+      .def("validate", [](const TS& s) { validate(s); }, "ValueError naming an invalid field");
   const RansacSettings dr;
   m.def(
       "ransac_plane",

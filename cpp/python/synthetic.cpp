@@ -1,5 +1,6 @@
-// _core.synthetic: the z-buffer depth renderer, the built-in part's mesh and the Morton
-// order behind scanalign.rendering, scanalign.parts and the simulator's scene.
+// _core.synthetic: the built-in parts (mesh, symmetry, surface samples), the simulator's scene
+// (compositing and shading), camera paths, the sensor noise model and the Morton order behind
+// scanalign.parts and scanalign.synthetic.
 #include <cmath>
 #include <limits>
 #include <string>
@@ -8,70 +9,17 @@
 #include <pybind11/stl.h>
 
 #include "arrays.hpp"
-#include "pickle.hpp"
-#include "scanalign/reconstruction/depth_renderer.hpp"
-#include "scanalign/synthetic/builtin_part.hpp"
+#include "fields.hpp"
 #include "scanalign/common/morton_order.hpp"
+#include "scanalign/reconstruction/depth_image.hpp"
+#include "scanalign/synthetic/builtin_part.hpp"
 #include "scanalign/synthetic/scan_paths.hpp"
+#include "scanalign/synthetic/scene.hpp"
 #include "scanalign/synthetic/sensor_noise.hpp"
 
 namespace scanalign::python {
 
 namespace {
-
-/// (M, 3) faces of any integer dtype as int32, every index checked against [0, n_vertices)
-/// before the cast (an int64 index must not wrap into range).
-std::vector<std::int32_t> facesArg(const py::array& faces, py::ssize_t n_vertices) {
-  if (faces.size() == 0 && faces.ndim() <= 2) return {};
-  const char kind = faces.dtype().kind();
-  if (kind != 'i' && kind != 'u')
-    throw py::type_error("faces: expected an integer array, got dtype " + std::string(py::str(faces.dtype())));
-  if (faces.ndim() != 2 || faces.shape(1) != 3)
-    throw py::value_error("faces: expected shape (M, 3), got " + std::string(py::str(faces.attr("shape"))));
-  const auto f = py::array_t<std::int64_t, py::array::c_style | py::array::forcecast>::ensure(faces);
-  const std::int64_t* p = f.data();
-  const auto [lo, hi] = std::minmax_element(p, p + f.size());
-  if (*lo < 0 || *hi >= n_vertices)
-    throw py::value_error("faces: vertex indices must lie in [0, " + std::to_string(n_vertices) + "), got [" +
-                          std::to_string(*lo) + ", " + std::to_string(*hi) + "]");
-  return std::vector<std::int32_t>(p, p + f.size());
-}
-
-py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, int width, int height, double fx, double fy,
-                        double cx, double cy, const Eigen::Matrix4d& T_camera_world, double near_clip, double far_clip,
-                        bool cull_backfaces, int num_threads) {
-  if (width < 1 || height < 1 || width > 32768 || height > 32768)
-    throw py::value_error("width, height: image size must be in [1, 32768] pixels, got " + std::to_string(width) +
-                          " x " + std::to_string(height));
-  checkImageSize(width, height, "width, height");  // before allocating the three images
-  const bool f32 = holds<float>(vertices);
-  CloudView<float> vf;
-  CloudView<double> vd;
-  if (f32)
-    vf = cloudView<float>(vertices, "vertices");
-  else
-    vd = cloudView<double>(vertices, "vertices");  // raises TypeError for other dtypes
-  const std::vector<std::int32_t> f = facesArg(faces, vertices.shape(0));
-  const PinholeCamera camera{width, height, fx, fy, cx, cy};
-  DepthRenderSettings settings;
-  settings.near_clip = near_clip;
-  settings.far_clip = far_clip;
-  settings.cull_backfaces = cull_backfaces;
-  settings.num_threads = num_threads;
-  const py::ssize_t h = height, w = width;
-  py::array_t<float> depth({h, w});
-  py::array_t<std::int32_t> face_id({h, w});
-  py::array_t<float> cosine({h, w});
-  const DepthRenderOutput out{depth.mutable_data(), face_id.mutable_data(), cosine.mutable_data()};
-  {
-    py::gil_scoped_release release;
-    if (f32)
-      renderDepth(vf, f.data(), f.size() / 3, camera, T_camera_world, settings, out);
-    else
-      renderDepth(vd, f.data(), f.size() / 3, camera, T_camera_world, settings, out);
-  }
-  return py::make_tuple(depth, face_id, cosine);
-}
 
 /// A count argument (n_frames): a Python or NumPy integer, or a float holding an integer
 /// (2.0), as an int; a TypeError or ValueError naming `what` otherwise, instead of pybind11's
@@ -138,52 +86,44 @@ py::array_t<float> applySensorNoisePy(const SensorNoise& noise, const py::array&
 
 void bindSensorNoise(py::module_& s) {
   const double inf = std::numeric_limits<double>::infinity();
-  py::class_<SensorNoise>(s, "SensorNoise",
-                          "A depth sensor's error model, applied to noise-free depth (see apply_sensor_noise): "
-                          "dropouts at grazing incidence, on both sides of depth edges and at random, axial Gaussian "
-                          "noise sigma(z) = axial_sigma_ref (z / z_ref)^2 (the depth error of a triangulation sensor "
-                          "grows with the square of the distance), the range [min_range, max_range] and rounding to "
-                          "depth_unit. Read-only (the presets are shared); invalid fields raise ValueError naming "
-                          "them.")
-      .def(py::init([](std::string name, double axial_sigma_ref, double z_ref, double depth_unit, double min_range,
-                       double max_range, double grazing_cos, double edge_threshold, int edge_width, double dropout) {
-             SensorNoise n{std::move(name), axial_sigma_ref, z_ref,          depth_unit, min_range,
-                           max_range,       grazing_cos,     edge_threshold, edge_width, dropout};
-             n.validate();
-             return n;
-           }),
-           py::kw_only(), py::arg("name") = "custom", py::arg("axial_sigma_ref") = 0.0, py::arg("z_ref") = 1.0,
-           py::arg("depth_unit") = 0.0, py::arg("min_range") = 0.0, py::arg("max_range") = inf,
-           py::arg("grazing_cos") = 0.0, py::arg("edge_threshold") = 0.0, py::arg("edge_width") = 0,
-           py::arg("dropout") = 0.0)
-      .def_readonly("name", &SensorNoise::name, "label")
-      .def_readonly("axial_sigma_ref", &SensorNoise::axial_sigma_ref, "standard deviation of the depth error at z_ref (m)")
-      .def_readonly("z_ref", &SensorNoise::z_ref, "reference depth of axial_sigma_ref (m)")
-      .def_readonly("depth_unit", &SensorNoise::depth_unit, "quantisation step of the reported depth (m); 0 for none")
-      .def_readonly("min_range", &SensorNoise::min_range, "nearest measurable depth (m)")
-      .def_readonly("max_range", &SensorNoise::max_range, "farthest measurable depth (m)")
-      .def_readonly("grazing_cos", &SensorNoise::grazing_cos, "minimum |cosine of incidence| for a measurement")
-      .def_readonly("edge_threshold", &SensorNoise::edge_threshold,
-                    "relative depth jump marking a discontinuity; 0 disables edge dropout")
-      .def_readonly("edge_width", &SensorNoise::edge_width, "pixels dropped on each side of a discontinuity")
-      .def_readonly("dropout", &SensorNoise::dropout, "probability that any other pixel is missing")
-      .def(
-          "sigma",
-          [](const SensorNoise& n, const py::array_t<double>& z) {
-            return py::vectorize([&n](double v) { return n.sigma(v); })(z);
-          },
-          py::arg("z"),
-           "Axial standard deviation (m) at depth z (m), element-wise for arrays.")
-      .def("__repr__", [](const SensorNoise& n) {
-        return "SensorNoise(name='" + n.name + "', axial_sigma_ref=" + std::to_string(n.axial_sigma_ref) +
-               ", z_ref=" + std::to_string(n.z_ref) + ", depth_unit=" + std::to_string(n.depth_unit) + ", ...)";
-      });
   using N = SensorNoise;
-  pickleFields(s, "SensorNoise", field("name", &N::name), field("axial_sigma_ref", &N::axial_sigma_ref),
-               field("z_ref", &N::z_ref), field("depth_unit", &N::depth_unit), field("min_range", &N::min_range),
-               field("max_range", &N::max_range), field("grazing_cos", &N::grazing_cos),
-               field("edge_threshold", &N::edge_threshold), field("edge_width", &N::edge_width),
-               field("dropout", &N::dropout));
+  fieldsOf(py::class_<N>(s, "SensorNoise",
+                         "A depth sensor's error model, applied to noise-free depth (see apply_sensor_noise): "
+                         "dropouts at grazing incidence, on both sides of depth edges and at random, axial Gaussian "
+                         "noise sigma(z) = axial_sigma_ref (z / z_ref)^2 (the depth error of a triangulation sensor "
+                         "grows with the square of the distance), the range [min_range, max_range] and rounding to "
+                         "depth_unit. Read-only (the presets are shared); invalid fields raise ValueError naming "
+                         "them.")
+               .def(py::init([](std::string name, double axial_sigma_ref, double z_ref, double depth_unit,
+                                double min_range, double max_range, double grazing_cos, double edge_threshold,
+                                int edge_width, double dropout) {
+                      N n{std::move(name), axial_sigma_ref, z_ref,          depth_unit, min_range,
+                          max_range,       grazing_cos,     edge_threshold, edge_width, dropout};
+                      n.validate();
+                      return n;
+                    }),
+                    py::kw_only(), py::arg("name") = "custom", py::arg("axial_sigma_ref") = 0.0,
+                    py::arg("z_ref") = 1.0, py::arg("depth_unit") = 0.0, py::arg("min_range") = 0.0,
+                    py::arg("max_range") = inf, py::arg("grazing_cos") = 0.0, py::arg("edge_threshold") = 0.0,
+                    py::arg("edge_width") = 0, py::arg("dropout") = 0.0)
+               .def(
+                   "sigma",
+                   [](const N& n, const py::array_t<double>& z) {
+                     return py::vectorize([&n](double v) { return n.sigma(v); })(z);
+                   },
+                   py::arg("z"), "Axial standard deviation (m) at depth z (m), element-wise for arrays."))
+      .output("name", &N::name, "", "label")
+      .output("axial_sigma_ref", &N::axial_sigma_ref, "m", "standard deviation of the depth error at z_ref")
+      .output("z_ref", &N::z_ref, "m", "reference depth of axial_sigma_ref")
+      .output("depth_unit", &N::depth_unit, "m", "quantisation step of the reported depth; 0 for none")
+      .output("min_range", &N::min_range, "m", "nearest measurable depth")
+      .output("max_range", &N::max_range, "m", "farthest measurable depth")
+      .output("grazing_cos", &N::grazing_cos, "", "minimum |cosine of incidence| for a measurement")
+      .output("edge_threshold", &N::edge_threshold, "",
+              "relative depth jump marking a discontinuity; 0 disables edge dropout")
+      .output("edge_width", &N::edge_width, "px", "pixels dropped on each side of a discontinuity")
+      .output("dropout", &N::dropout, "", "probability that any other pixel is missing")
+      .result();
   s.def("apply_sensor_noise", &applySensorNoisePy, py::arg("noise"), py::arg("depth"), py::arg("cos_incidence"),
         py::arg("seed"),
         "Noisy (H, W) float32 depth in metres (NaN = missing) from noise-free `depth` (m, NaN = nothing hit) and the "
@@ -192,17 +132,169 @@ void bindSensorNoise(py::module_& s) {
         "allocating.");
 }
 
+/// A 3-vector or 2-vector of finite reals; ValueError naming `what` otherwise.
+template <int N>
+Eigen::Matrix<double, N, 1> fixedArg(const py::handle& o, const char* what) {
+  const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(o);
+  if (!a || a.ndim() != 1 || a.shape(0) != N)
+    throw py::value_error(std::string(what) + ": expected " + std::to_string(N) + " numbers");
+  return Eigen::Map<const Eigen::Matrix<double, N, 1>>(a.data());
+}
+
+/// The per-face colour tables as (F + 1, 3) uint8 arrays, and back.
+py::array_t<std::uint8_t> colorTable(const std::vector<std::uint8_t>& c) { return vectorArray(c, 3); }
+std::vector<std::uint8_t> colorTableArg(const py::object& o, const char* what) {
+  const auto a = py::array_t<std::uint8_t, py::array::c_style>::ensure(o);
+  if (!a || !holds<std::uint8_t>(py::array(a)) || a.ndim() != 2 || a.shape(1) != 3 || a.shape(0) < 1)
+    throw py::value_error(std::string(what) + ": expected an (F + 1, 3) uint8 colour table");
+  return std::vector<std::uint8_t>(a.data(), a.data() + a.size());
+}
+
+void bindScene(py::module_& s) {
+  s.def(
+      "compose_scene",
+      [](const py::list& objects, const py::object& table_size, const py::object& table_center, double table_height,
+         const py::object& table_albedo) {
+        std::vector<py::array_t<double, py::array::c_style | py::array::forcecast>> keep_vertices;
+        std::vector<std::vector<std::int64_t>> keep_faces;
+        std::vector<SceneObjectMesh> in;
+        for (const py::handle item : objects) {
+          if (!py::isinstance<py::tuple>(item) || py::len(item) != 4)
+            throw py::value_error("objects: expected (vertices, faces, T_base_object, albedo) tuples");
+          const auto t = py::reinterpret_borrow<py::tuple>(item);
+          keep_vertices.push_back(py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(t[0]));
+          const auto& v = keep_vertices.back();
+          if (!v || v.ndim() != 2 || v.shape(1) != 3) throw py::value_error("objects: vertices must be (V, 3) reals");
+          keep_faces.push_back(indexRows(t[1], "objects: faces", 3));
+          SceneObjectMesh o;
+          o.vertices = CloudView<double>(v.data(), static_cast<std::size_t>(v.shape(0)));
+          o.faces = keep_faces.back().data();
+          o.n_faces = keep_faces.back().size() / 3;
+          o.T_base_object = t[2].cast<Eigen::Matrix4d>();
+          o.albedo = fixedArg<3>(t[3], "objects: albedo");
+          in.push_back(o);
+        }
+        SceneTable table;
+        const bool has_table = !table_size.is_none();
+        if (has_table) {
+          table.size = fixedArg<2>(table_size, "table_size");
+          table.center = fixedArg<2>(table_center, "table_center");
+          table.height = table_height;
+          table.checker_colors[0] = fixedArg<3>(table_albedo, "table_albedo");
+        }
+        SceneMesh mesh;
+        {
+          py::gil_scoped_release release;
+          mesh = composeScene(in, has_table ? &table : nullptr);
+        }
+        py::dict d;
+        d["vertices"] = rowsArray(mesh.vertices);
+        d["faces"] = vectorArray(mesh.faces, 3);
+        d["owner"] = vectorArray(mesh.face_object);
+        d["source"] = vectorArray(mesh.face_source);
+        d["albedo"] = rowsArray(mesh.albedo);
+        d["normals"] = rowsArray(mesh.normals);
+        d["n_object_faces"] = mesh.object_faces;
+        return d;
+      },
+      py::arg("objects"), py::arg("table_size"), py::arg("table_center"), py::arg("table_height"),
+      py::arg("table_albedo"),
+      "The scene as one mesh in the base frame (synthetic/scene.hpp): objects [(vertices (V, 3) m, faces (F, 3), "
+      "T_base_object 4x4, albedo (3,))] moved into the base frame, each one's faces in Morton order of their "
+      "centroids and its used vertices in order of first use, then the table (table_size (x, y) m, or None for none; "
+      "two triangles, normal +z, albedo table_albedo). A dict: vertices (V, 3) float64, faces (F, 3) int32, owner "
+      "(F,) int32 (object index, -1 the table), source (F,) int64 (row in the object's mesh), albedo (F, 3), "
+      "normals (F, 3) unit (0 for zero-area faces), n_object_faces.");
+  s.def(
+      "scene_colors",
+      [](const py::object& normals, const py::object& albedo, const py::object& owner, std::size_t n_object_faces,
+         const Eigen::Vector3d& light_direction, double ambient, const py::object& table_alternate) {
+        SceneMesh mesh;
+        const auto n = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(normals);
+        const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(albedo);
+        const auto o = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>::ensure(owner);
+        if (!n || !a || !o || n.ndim() != 2 || n.shape(1) != 3 || a.ndim() != 2 || a.shape(1) != 3 ||
+            a.shape(0) != n.shape(0) || o.ndim() != 1 || o.shape(0) != n.shape(0))
+          throw py::value_error("normals, albedo: expected (F, 3) arrays and owner an (F,) array");
+        const auto faces = static_cast<std::size_t>(n.shape(0));
+        if (n_object_faces > faces) throw py::value_error("n_object_faces: more than the faces");
+        mesh.normals.resize(faces);
+        mesh.albedo.resize(faces);
+        for (std::size_t f = 0; f < faces; ++f) {
+          mesh.normals[f] = Eigen::Map<const Eigen::Vector3d>(n.data() + 3 * f);
+          mesh.albedo[f] = Eigen::Map<const Eigen::Vector3d>(a.data() + 3 * f);
+        }
+        mesh.face_object.assign(o.data(), o.data() + faces);
+        mesh.object_faces = n_object_faces;
+        SceneTable table;
+        table.checker_colors[1] = fixedArg<3>(table_alternate, "table_alternate");
+        const SceneColors c = sceneColors(mesh, table, light_direction, ambient);
+        return py::make_tuple(colorTable(c.albedo), colorTable(c.alternate));
+      },
+      py::arg("normals"), py::arg("albedo"), py::arg("owner"), py::arg("n_object_faces"), py::arg("light_direction"),
+      py::arg("ambient"), py::arg("table_alternate"),
+      "(colors, alternate): (F + 1, 3) uint8 colours of the faces under a distant light, two-sided Lambert plus "
+      "ambient, round(255 albedo (ambient + (1 - ambient) |n . light_direction|)); alternate with the table's faces "
+      "(owner < 0) in table_alternate, its second checker colour; the last row black (the background). "
+      "light_direction: unit, towards the light.");
+  s.def(
+      "shade_scene",
+      [](const py::object& colors, const py::object& alternate, std::size_t n_object_faces, const py::array& face_id,
+         const py::array& depth, const PinholeIntrinsics& intrinsics, const Eigen::Matrix4d& T_base_camera,
+         const Eigen::Vector2d& table_center, double checker_size) {
+        SceneColors c;
+        c.albedo = colorTableArg(colors, "colors");
+        c.alternate = colorTableArg(alternate, "alternate");
+        c.object_faces = n_object_faces;
+        const py::ssize_t h = intrinsics.height, w = intrinsics.width;
+        const auto fid = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>::ensure(face_id);
+        const auto z = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(depth);
+        if (!fid || fid.ndim() != 2 || fid.shape(0) != h || fid.shape(1) != w || !z || z.ndim() != 2 ||
+            z.shape(0) != h || z.shape(1) != w)
+          throw py::value_error("face_id, depth: expected (" + std::to_string(h) + ", " + std::to_string(w) +
+                                ") images matching the intrinsics");
+        SceneTable table;
+        table.center = table_center;
+        table.checker_size = checker_size;
+        py::array_t<std::uint8_t> rgb({h, w, py::ssize_t{3}});
+        std::uint8_t* out = rgb.mutable_data();
+        {
+          py::gil_scoped_release release;
+          shadeScene(c, table, intrinsics, T_base_camera, z.data(), fid.data(), out);
+        }
+        return rgb;
+      },
+      py::arg("colors"), py::arg("alternate"), py::arg("n_object_faces"), py::arg("face_id"), py::arg("depth"),
+      py::arg("intrinsics"), py::arg("T_base_camera"), py::arg("table_center"), py::arg("checker_size"),
+      "(H, W, 3) uint8 colour image of a rendering (face_id, depth): colors of the face seen; on the table (faces "
+      "from n_object_faces on) alternate where the checker square (checker_size m, from table_center (x, y) m) of "
+      "the base-frame point hit (depth back-projected as depth_to_cloud does, moved by T_base_camera) has odd "
+      "parity; black where nothing is hit. ValueError for distorted intrinsics (pinhole renderings only).");
+  s.def(
+      "sample_builtin_block",
+      [](const py::object& n_points, const py::object& seed, int segments) {
+        const auto n = static_cast<std::size_t>(intArg(n_points, "n_points", 0, std::int64_t{1} << 40));
+        const std::uint64_t seed_value = seedArg(seed, "seed");
+        MeshSamples r;
+        {
+          py::gil_scoped_release release;
+          r = sampleBuiltinBlock(n, seed_value, segments);
+        }
+        return py::make_tuple(rowsArray(r.points), rowsArray(r.normals), vectorArray(r.faces));
+      },
+      py::arg("n_points"), py::arg("seed") = 0, py::arg("segments") = 96,
+      "(points (n, 3), normals (n, 3), faces (n,) int64) on the built-in block's exposed surface, uniform per unit "
+      "area, with exact normals: mesh samples (sample_mesh) of builtin_part_mesh(segments, 'block') with the boss's "
+      "and the cap's points moved onto the exact cylinder and sphere and the top face's points inside their true "
+      "circles dropped (builtin_part.hpp). The random numbers are numpy.random.default_rng(seed)'s (seed in "
+      "[0, 2^64)), drawn as sample_mesh draws them.");
+}
+
 }  // namespace
 
-void bindSynthetic(py::module_& m) {
-  auto s = m.def_submodule("synthetic", "z-buffer depth renderer, the built-in part's mesh, Morton order");
+void defineSynthetic(py::module_& s) {
   bindSensorNoise(s);
-  s.def("render_depth", &renderDepthPy, py::arg("vertices"), py::arg("faces"), py::arg("width"), py::arg("height"),
-        py::arg("fx"), py::arg("fy"), py::arg("cx"), py::arg("cy"), py::arg("T_camera_world"), py::arg("near_clip"),
-        py::arg("far_clip"), py::arg("cull_backfaces"), py::arg("num_threads"),
-        "Renders an (N,3) float32/float64 mesh with (M,3) integer faces (indices checked, naming faces); returns "
-        "(depth float32 m, NaN = no hit; face_id int32, -1 = no hit; cos_incidence float32). ValueError for a size "
-        "outside [1, 32768] or beyond 2^27 pixels in all, before allocating.");
+  bindScene(s);
   s.def(
       "loop_camera_poses",
       [](const py::object& n_frames, const Eigen::Vector3d& center, double height, double radius, double start_angle,

@@ -15,9 +15,12 @@
 
 #include <Eigen/Geometry>
 
-#include "scanalign/reconstruction/depth_image.hpp"
 #include "scanalign/common/look_at.hpp"
+#include "scanalign/reconstruction/bilateral_filter.hpp"
+#include "scanalign/reconstruction/depth_image.hpp"
+#include "scanalign/reconstruction/depth_renderer.hpp"
 #include "scanalign/reconstruction/frame_to_model.hpp"
+#include "scanalign/reconstruction/reconstruction_settings.hpp"
 #include "test_support.hpp"
 
 using namespace scanalign;
@@ -147,7 +150,7 @@ TEST(FrameToModel, TracksALoopAndKeepsTheModelBounded) {
   for (int i = 0; i < n; ++i) {
     const Eigen::Matrix4d T_true = loopPose(i, n);
     const DepthCloud c = cloudOf(rayCast(T_true, K, 0.0003, i), K);
-    const FrameReport r = f2m.integrate(CloudView<float>(c.points.data(), c.size()));
+    const FrameResult r = f2m.integrate(CloudView<float>(c.points.data(), c.size()));
     ASSERT_TRUE(r.merged()) << i << " " << toString(r.status);
     EXPECT_EQ(r.index, i);
     EXPECT_LT(translationError(r.T_model_camera, T_true), 0.002) << "frame " << i;
@@ -160,7 +163,7 @@ TEST(FrameToModel, TracksALoopAndKeepsTheModelBounded) {
   // Integrating the same view again does not grow the model much: the voxel grid merges it.
   const std::size_t before = f2m.model().size();
   const DepthCloud c = cloudOf(rayCast(loopPose(0, n), K), K);
-  const FrameReport again = f2m.integrate(CloudView<float>(c.points.data(), c.size()), nullptr);
+  const FrameResult again = f2m.integrate(CloudView<float>(c.points.data(), c.size()), nullptr);
   ASSERT_TRUE(again.merged());
   EXPECT_LT(f2m.model().size(), before + before / 20);
 }
@@ -188,7 +191,7 @@ TEST(FrameToModel, SkippedFramesLeaveTheModelUnchanged) {
   EXPECT_EQ(f2m.integrate(CloudView<float>()).status, FrameStatus::SkippedEmpty);
   EXPECT_EQ(f2m.integrate(CloudView<float>(nans.data(), 100)).status, FrameStatus::SkippedEmpty);
   EXPECT_EQ(f2m.integrate(CloudView<float>(few.data(), few.size() / 3)).status, FrameStatus::SkippedTooFewPoints);
-  const FrameReport r = f2m.integrate(CloudView<float>(far.data(), far.size() / 3));
+  const FrameResult r = f2m.integrate(CloudView<float>(far.data(), far.size() / 3));
   EXPECT_FALSE(r.merged());
   EXPECT_TRUE(r.status == FrameStatus::SkippedTooFewCorrespondences || r.status == FrameStatus::SkippedLowFitness)
       << toString(r.status);
@@ -299,7 +302,7 @@ TEST(FrameToModel, ConstantVelocityTracksALoopInFewerIterations) {
     for (int i = 0; i < n; ++i) {
       const Eigen::Matrix4d T_true = loopPose(i, n);
       const DepthCloud c = cloudOf(rayCast(T_true, K, 0.0003, i), K);
-      const FrameReport r = f2m.integrate(CloudView<float>(c.points.data(), c.size()));
+      const FrameResult r = f2m.integrate(CloudView<float>(c.points.data(), c.size()));
       ASSERT_TRUE(r.merged()) << toString(model) << " frame " << i << " " << toString(r.status);
       EXPECT_LT(translationError(r.T_model_camera, T_true), 0.002) << toString(model) << " frame " << i;
       iterations[model == MotionModel::ConstantVelocity] += r.icp.iterations;
@@ -422,7 +425,7 @@ TEST(FrameToModelFaults, AFailedAllocationAnywhereInAFrameLeavesTheModelUnchange
   t.f2m.settings().num_threads = 1;
   // The frame as it is merged without faults: the reference.
   FrameToModel clean = t.f2m;
-  const FrameReport expected = clean.integrate(t.view(), t.colors.data());
+  const FrameResult expected = clean.integrate(t.view(), t.colors.data());
   ASSERT_EQ(expected.status, FrameStatus::Registered);
   const long failures = sweepAllocationFailures(t.f2m, "allocation", [&] { t.f2m.integrate(t.view(), t.colors.data()); });
   if (HasFailure()) return;
@@ -526,8 +529,8 @@ TEST(FrameToModel, AFarPointIsDroppedAndCountedNotTheFrameRefused) {
   std::vector<float> with_far = c.points;
   with_far.insert(with_far.end(), {1e6f, 0.0f, 0.4f, 0.0f, -1e30f, 0.4f});
   FrameToModel a, b;
-  const FrameReport ra = a.integrate(CloudView<float>(with_far.data(), with_far.size() / 3));
-  const FrameReport rb = b.integrate(CloudView<float>(c.points.data(), c.size()));
+  const FrameResult ra = a.integrate(CloudView<float>(with_far.data(), with_far.size() / 3));
+  const FrameResult rb = b.integrate(CloudView<float>(c.points.data(), c.size()));
   ASSERT_EQ(ra.status, FrameStatus::Initialized);
   EXPECT_EQ(ra.far_points, 2u);
   EXPECT_EQ(rb.far_points, 0u);
@@ -540,4 +543,279 @@ TEST(FrameToModel, AFarPointIsDroppedAndCountedNotTheFrameRefused) {
   EXPECT_EQ(a.merge(p, rigid(0, 0, 0, 1500.0, 0, 0), &far), before.size());
   EXPECT_EQ(far, p.size());
   EXPECT_TRUE(sameBytes(a.model(), before));
+}
+
+// --- Lens distortion: the one intrinsics type -------------------------------------------------
+
+namespace {
+
+PinholeIntrinsics distortedCamera() {
+  PinholeIntrinsics K{320, 240, 260.5, 259.25, 161.3, 118.7};
+  K.distortion = LensDistortion{0.1, -0.05, 0.001, -0.002, 0.01};
+  return K;
+}
+
+/// The Brown-Conrady model written out (OpenCV's projectPoints; the header's formula), as the
+/// oracle: the pixel a normalised ray (x, y) projects to.
+Eigen::Vector2d distort(const PinholeIntrinsics& K, double x, double y) {
+  const LensDistortion& d = K.distortion;
+  const double r2 = x * x + y * y;
+  const double radial = 1.0 + d.k1 * r2 + d.k2 * r2 * r2 + d.k3 * r2 * r2 * r2;
+  const double xd = x * radial + 2.0 * d.p1 * x * y + d.p2 * (r2 + 2.0 * x * x);
+  const double yd = y * radial + d.p1 * (r2 + 2.0 * y * y) + 2.0 * d.p2 * x * y;
+  return {K.fx * xd + K.cx, K.fy * yd + K.cy};
+}
+
+}  // namespace
+
+TEST(LensDistortion, RaysReprojectOntoTheirPixels) {
+  const PinholeIntrinsics K = distortedCamera();
+  const std::vector<double> rays = undistortedRays(K);
+  ASSERT_EQ(rays.size(), 2u * 320 * 240);
+  double worst = 0.0;
+  for (int v = 0; v < K.height; ++v)
+    for (int u = 0; u < K.width; ++u) {
+      const std::size_t i = 2 * (static_cast<std::size_t>(v) * K.width + u);
+      ASSERT_TRUE(std::isfinite(rays[i]) && std::isfinite(rays[i + 1])) << u << " " << v;
+      const Eigen::Vector2d back = distort(K, rays[i], rays[i + 1]);
+      worst = std::max(worst, (back - Eigen::Vector2d(u, v)).norm());
+    }
+  EXPECT_LT(worst, 1e-8);
+  // Zero distortion: the pinhole rays, exactly as depthToCloud's pinhole formula computes them.
+  PinholeIntrinsics P = K;
+  P.distortion = {};
+  const std::vector<double> pinhole = undistortedRays(P);
+  for (int v = 0; v < P.height; v += 7)
+    for (int u = 0; u < P.width; u += 5) {
+      const std::size_t i = 2 * (static_cast<std::size_t>(v) * P.width + u);
+      EXPECT_EQ(pinhole[i], (u - P.cx) * (1.0 / P.fx));
+      EXPECT_EQ(pinhole[i + 1], (v - P.cy) * (1.0 / P.fy));
+    }
+}
+
+TEST(LensDistortion, DepthToCloudBackProjectsAlongTheUndistortedRays) {
+  const PinholeIntrinsics K = distortedCamera();
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> z(0.3f, 1.5f);
+  std::vector<float> depth(static_cast<std::size_t>(K.width) * K.height);
+  for (float& d : depth) d = z(rng);
+  depth[5 * 320 + 7] = 0.0f;  // invalid
+  const DepthCloud c = depthToCloud(depth.data(), K, DepthToCloudSettings{});
+  ASSERT_EQ(c.size(), depth.size() - 1);
+  const std::vector<double> rays = undistortedRays(K);
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    const auto pixel = static_cast<std::size_t>(c.pixels[k]);
+    const double d = depth[pixel];
+    // The point lies on its pixel's ray: it projects back onto the pixel.
+    ASSERT_EQ(c.points[3 * k], static_cast<float>(d * rays[2 * pixel]));
+    ASSERT_EQ(c.points[3 * k + 1], static_cast<float>(d * rays[2 * pixel + 1]));
+    ASSERT_EQ(c.points[3 * k + 2], static_cast<float>(d));
+  }
+  const Eigen::Vector2d back = distort(K, c.points[300] / c.points[302], c.points[301] / c.points[302]);
+  const auto pixel = c.pixels[100];
+  EXPECT_LT((back - Eigen::Vector2d(pixel % 320, pixel / 320)).norm(), 1e-3);  // float32 points
+  // Zero distortion is the pinhole formula, bit for bit.
+  PinholeIntrinsics P = K;
+  P.distortion = {};
+  const DepthCloud p = depthToCloud(depth.data(), P, DepthToCloudSettings{});
+  for (std::size_t k = 0; k < p.size(); k += 97) {
+    const int u = p.pixels[k] % 320, v = p.pixels[k] / 320;
+    const double d = depth[static_cast<std::size_t>(p.pixels[k])];
+    EXPECT_EQ(p.points[3 * k], static_cast<float>(d * (u - P.cx) * (1.0 / P.fx)));
+    EXPECT_EQ(p.points[3 * k + 1], static_cast<float>(d * ((v - P.cy) * (1.0 / P.fy))));
+  }
+}
+
+TEST(LensDistortion, RayTablesAreCachedPerIntrinsicsAndSharedAcrossThreads) {
+  const PinholeIntrinsics K = distortedCamera();
+  const auto a = cachedUndistortedRays(K);
+  EXPECT_EQ(cachedUndistortedRays(K), a);  // the same table, not a new one
+  EXPECT_EQ(*a, undistortedRays(K));
+  PinholeIntrinsics other = K;
+  other.distortion.k1 = 0.2;
+  EXPECT_NE(cachedUndistortedRays(other), a);
+  // Beyond kRayTableCacheSize other cameras, the first is dropped (and recomputed equal).
+  for (std::size_t i = 0; i < kRayTableCacheSize; ++i) {
+    PinholeIntrinsics k = K;
+    k.distortion.k2 = 0.001 * static_cast<double>(i + 1);
+    cachedUndistortedRays(k);
+  }
+  const auto again = cachedUndistortedRays(K);
+  EXPECT_NE(again, a);
+  EXPECT_EQ(*again, *a);
+  // Threads back-projecting with several cameras at once get the serial results.
+  std::vector<PinholeIntrinsics> cameras;
+  for (int i = 0; i < 12; ++i) {
+    PinholeIntrinsics k = K;
+    k.width = 64;
+    k.height = 48;
+    k.cx = 31.5;
+    k.cy = 23.5;
+    k.distortion.k1 = 0.01 * i;
+    cameras.push_back(k);
+  }
+  std::vector<float> depth(64 * 48, 0.8f);
+  std::vector<std::vector<float>> serial;
+  for (const auto& k : cameras) serial.push_back(depthToCloud(depth.data(), k, DepthToCloudSettings{}).points);
+  std::atomic<int> mismatches{0};
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t)
+    threads.emplace_back([&, t] {
+      for (int round = 0; round < 20; ++round) {
+        const std::size_t i = static_cast<std::size_t>((round * 5 + t * 3) % 12);
+        if (depthToCloud(depth.data(), cameras[i], DepthToCloudSettings{}).points != serial[i]) ++mismatches;
+      }
+    });
+  for (auto& t : threads) t.join();
+  EXPECT_EQ(mismatches.load(), 0);
+}
+
+TEST(LensDistortion, IntrinsicsValidateScaleAndCompare) {
+  PinholeIntrinsics K = distortedCamera();
+  EXPECT_NO_THROW(K.validate());
+  EXPECT_TRUE(K.hasDistortion());
+  EXPECT_FALSE(PinholeIntrinsics({64, 48, 50, 50, 31.5, 23.5}).hasDistortion());
+  K.distortion.p2 = std::nan("");
+  EXPECT_THROW(K.validate(), std::invalid_argument);
+  K.distortion.p2 = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(depthToCloud(std::vector<float>(320 * 240, 1.0f).data(), K, DepthToCloudSettings{}),
+               std::invalid_argument);
+  // scaled: size rounded half to even, focal lengths scaled, pixel centres mapped as
+  // (c + 0.5) s - 0.5, the distortion kept.
+  const PinholeIntrinsics D = distortedCamera();
+  const PinholeIntrinsics H = D.scaled(0.5);
+  EXPECT_EQ(H.width, 160);
+  EXPECT_EQ(H.height, 120);
+  EXPECT_EQ(H.fx, 130.25);
+  EXPECT_EQ(H.fy, 129.625);
+  EXPECT_DOUBLE_EQ(H.cx, (161.3 + 0.5) * 0.5 - 0.5);
+  EXPECT_DOUBLE_EQ(H.cy, (118.7 + 0.5) * 0.5 - 0.5);
+  EXPECT_TRUE(H.distortion == D.distortion);
+  EXPECT_EQ(PinholeIntrinsics({5, 3, 10, 10, 2, 1}).scaled(0.5).width, 2);  // 2.5 -> 2
+  EXPECT_EQ(PinholeIntrinsics({7, 3, 10, 10, 2, 1}).scaled(0.5).width, 4);  // 3.5 -> 4
+  EXPECT_THROW(D.scaled(0.0), std::invalid_argument);
+  EXPECT_THROW(D.scaled(std::nan("")), std::invalid_argument);
+  EXPECT_THROW(D.scaled(1e-9), std::invalid_argument);  // a 0 x 0 image
+  // The camera matrix and equality over every field.
+  Eigen::Matrix3d expected;
+  expected << 260.5, 0, 161.3, 0, 259.25, 118.7, 0, 0, 1;
+  EXPECT_EQ(D.K(), expected);
+  EXPECT_TRUE(D == distortedCamera());
+  PinholeIntrinsics E = D;
+  E.distortion.k3 = 0.0;
+  EXPECT_TRUE(D != E);
+}
+
+TEST(LensDistortion, TheRendererRefusesDistortedIntrinsics) {
+  const std::vector<double> v{-1, -1, 2, 1, -1, 2, 0, 1, 2};
+  const std::vector<std::int32_t> f{0, 1, 2};
+  PinholeIntrinsics K{64, 48, 50, 50, 31.5, 23.5};
+  EXPECT_NO_THROW(renderDepth(CloudView<double>(v.data(), 3), f, K, Eigen::Matrix4d::Identity()));
+  K.distortion.k1 = 0.1;
+  try {
+    renderDepth(CloudView<double>(v.data(), 3), f, K, Eigen::Matrix4d::Identity());
+    FAIL() << "a distorted camera was rendered";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("pinhole"), std::string::npos) << e.what();
+  }
+}
+
+// --- Settings of the reconstruction job ------------------------------------------------------
+
+TEST(BilateralFilterSettings, DefaultsValidationAndTheSettingsOverload) {
+  const BilateralFilterSettings s;
+  EXPECT_EQ(s.radius, 2);
+  EXPECT_EQ(s.sigma_space, 1.5);
+  EXPECT_EQ(s.sigma_depth, 0.003);
+  EXPECT_NO_THROW(s.validate());
+  const auto refused = [](BilateralFilterSettings b, const char* field) {
+    try {
+      b.validate();
+      ADD_FAILURE() << field << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  for (int r : {-1, 33}) refused(BilateralFilterSettings{r, 1.5, 0.003}, "radius");
+  for (double x : {1e-4, std::nan(""), std::numeric_limits<double>::infinity()})
+    refused(BilateralFilterSettings{2, x, 0.003}, "sigma_space");
+  for (double x : {1e-12, std::nan(""), std::numeric_limits<double>::infinity()})
+    refused(BilateralFilterSettings{2, 1.5, x}, "sigma_depth");
+  EXPECT_NO_THROW((BilateralFilterSettings{0, 1e-3, 1e-9}.validate()));
+  EXPECT_NO_THROW((BilateralFilterSettings{32, 1.5, 0.003}.validate()));
+  // The settings overload filters exactly as the explicit one.
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> z(0.4f, 0.6f);
+  std::vector<float> depth(40 * 30), a(depth.size()), b(depth.size());
+  for (float& d : depth) d = z(rng);
+  bilateralFilterDepth(depth.data(), 40, 30, a.data(), BilateralFilterSettings{3, 2.0, 0.01});
+  bilateralFilterDepth(depth.data(), 40, 30, b.data(), 3, 2.0, 0.01);
+  EXPECT_EQ(a, b);
+  EXPECT_THROW(bilateralFilterDepth(depth.data(), 40, 30, a.data(), BilateralFilterSettings{40, 2.0, 0.01}),
+               std::invalid_argument);
+}
+
+TEST(ReconstructionSettings, DefaultsAndValidation) {
+  const ReconstructionSettings s;
+  EXPECT_EQ(s.min_depth, 0.1);
+  EXPECT_EQ(s.max_depth, 2.0);
+  EXPECT_EQ(s.pixel_stride, 1);
+  EXPECT_FALSE(s.filter_depth);
+  EXPECT_EQ(s.depth_filter.radius, BilateralFilterSettings{}.radius);
+  EXPECT_EQ(s.frame_to_model.motion_model, MotionModel::ConstantVelocity);  // the reconstruct command's default
+  EXPECT_EQ(s.frame_to_model.normal_radius, FrameToModelSettings{}.normal_radius);
+  EXPECT_EQ(s.model_frame, ModelFrame::Auto);
+  EXPECT_EQ(s.registration, RegistrationMethod::Scanalign);
+  EXPECT_NO_THROW(validate(s));
+  EXPECT_STREQ(toString(ModelFrame::Base), "base");
+  EXPECT_STREQ(toString(RegistrationMethod::PclPointToPlaneLls), "pcl_point_to_plane_lls");
+  EXPECT_STREQ(toString(MotionModel::Reference), "reference");
+  const auto refused = [](const ReconstructionSettings& r, const char* field) {
+    try {
+      validate(r);
+      ADD_FAILURE() << field << " accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+    }
+  };
+  ReconstructionSettings r = s;
+  r.min_depth = -0.1;
+  refused(r, "min_depth");
+  r = s;
+  r.max_depth = 0.1;
+  refused(r, "max_depth");
+  r.max_depth = std::nan("");
+  refused(r, "max_depth");
+  r = s;
+  r.pixel_stride = 0;
+  refused(r, "pixel_stride");
+  r = s;
+  r.depth_filter.sigma_depth = 0.0;  // checked even while the filter is off
+  refused(r, "depth_filter");
+  r = s;
+  r.frame_to_model.normal_radius = -1.0;
+  refused(r, "frame_to_model");
+  r = s;
+  r.model_frame = static_cast<ModelFrame>(7);
+  refused(r, "model_frame");
+  r = s;
+  r.registration = static_cast<RegistrationMethod>(-1);
+  refused(r, "registration");
+}
+
+TEST(FrameToModel, ReferenceWithoutAGuessActsAsConstantVelocity) {
+  const PinholeIntrinsics K = smallCamera();
+  FrameToModelSettings s;
+  s.motion_model = MotionModel::Reference;
+  EXPECT_NO_THROW(validate(s));
+  FrameToModel f2m(s);
+  const Eigen::Matrix4d T0 = rigid(0.1, -0.2, 0.3, 0.5, 0.1, -0.2);
+  f2m.reset(T0);
+  const DepthCloud c = cloudOf(rayCast(loopPose(0, 24), K), K);
+  const PreparedFrame p = f2m.prepare(CloudView<float>(c.points.data(), c.size()));
+  f2m.merge(p, T0);
+  EXPECT_EQ(f2m.predictedPose(), T0);
+  const Eigen::Matrix4d M = rigid(0.004, -0.002, 0.003, 0.02, 0.01, -0.015);
+  f2m.merge(p, T0 * M);
+  EXPECT_LT((f2m.predictedPose() - T0 * M * M).cwiseAbs().maxCoeff(), 1e-12);
 }

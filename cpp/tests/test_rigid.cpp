@@ -2,6 +2,8 @@
 // against Eigen's own umeyama and known motions.
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -108,4 +110,59 @@ TEST(Rigid, FitSimilarityRejectsBadInput) {
   std::vector<double> nan = x;
   nan[4] = std::numeric_limits<double>::quiet_NaN();
   EXPECT_THROW(fitSimilarity(view(nan), view(x)), std::invalid_argument);
+}
+
+TEST(TransformPoints, AnalyticMotionsExactly) {
+  // A quarter turn about z and a translation by powers of two: every product and sum is exact.
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  T.topLeftCorner<3, 3>() << 0, -1, 0, 1, 0, 0, 0, 0, 1;
+  T.topRightCorner<3, 1>() << 0.5, -0.25, 2.0;
+  const std::vector<double> p{1, 2, 3, -0.5, 0.125, 7};
+  const std::vector<double> q = transformPoints(T, view(p));
+  EXPECT_EQ(q, (std::vector<double>{-2 + 0.5, 1 - 0.25, 3 + 2.0, -0.125 + 0.5, -0.5 - 0.25, 7 + 2.0}));
+  // A scale is applied as given (not required to be rigid).
+  const Eigen::Matrix4d S = Eigen::Vector4d(2, 3, 4, 1).asDiagonal();
+  EXPECT_EQ(transformPoints(S, view(p)), (std::vector<double>{2, 6, 12, -1, 0.375, 28}));
+}
+
+TEST(TransformPoints, AgreesWithEigenAffineProductsInBothPrecisions) {
+  const Eigen::Matrix4d T = rigid(0.3, -0.2, 0.5, 0.7, -1.1, 0.4);
+  const auto x = randomPoints(500, 5);
+  const std::vector<double> y = transformPoints(T, view(x));
+  std::vector<float> xf(x.begin(), x.end());
+  const std::vector<float> yf = transformPoints(T, CloudView<float>(xf.data(), 500));
+  const std::vector<double> xfd(xf.begin(), xf.end());
+  const std::vector<double> yfd = transformPoints(T, view(xfd));  // the float points in double
+  const Eigen::Affine3d A(T);
+  for (std::size_t i = 0; i < 500; ++i) {
+    const Eigen::Vector3d want = A * Eigen::Vector3d(x[3 * i], x[3 * i + 1], x[3 * i + 2]);
+    const Eigen::Vector3d wantf = A * Eigen::Vector3d(xf[3 * i], xf[3 * i + 1], xf[3 * i + 2]);
+    for (int k = 0; k < 3; ++k) {
+      EXPECT_NEAR(y[3 * i + k], want[k], 1e-14);
+      EXPECT_EQ(yf[3 * i + k], static_cast<float>(yfd[3 * i + k]));  // computed in double, rounded once
+      EXPECT_NEAR(yf[3 * i + k], wantf[k], 1e-6);
+    }
+  }
+}
+
+TEST(TransformPoints, StridedInputInPlaceAndBadTransforms) {
+  const Eigen::Matrix4d T = rigid(0.1, 0.2, 0.3, 1, 2, 3);
+  // Rows of 4 floats (a PCL PointXYZ layout) read through the stride.
+  std::vector<float> xyzw{1, 2, 3, 99, 4, 5, 6, 99};
+  const std::vector<float> strided = transformPoints(T, CloudView<float>(xyzw.data(), 2, 4));
+  std::vector<float> packed{1, 2, 3, 4, 5, 6};
+  EXPECT_EQ(strided, transformPoints(T, CloudView<float>(packed.data(), 2)));
+  transformPoints(T, CloudView<float>(packed.data(), 2), packed.data());  // in place
+  EXPECT_EQ(packed, strided);
+  // Non-finite points stay non-finite rows; nothing else is touched.
+  std::vector<double> nan{std::nan(""), 0, 0, 1, 1, 1};
+  const std::vector<double> out = transformPoints(T, view(nan));
+  EXPECT_TRUE(std::isnan(out[0]) && std::isfinite(out[3]));
+  Eigen::Matrix4d projective = T;
+  projective(3, 0) = 0.1;
+  EXPECT_THROW(transformPoints(projective, view(nan)), std::invalid_argument);
+  Eigen::Matrix4d infinite = T;
+  infinite(0, 3) = std::numeric_limits<double>::infinity();
+  EXPECT_THROW(transformPoints(infinite, view(nan)), std::invalid_argument);
+  EXPECT_TRUE(transformPoints(T, CloudView<double>()).empty());
 }

@@ -70,7 +70,7 @@ int main() {
   for (int i = 0; i < n; ++i) {
     const std::vector<float> depth = renderDepth(pose(i), K);
     const scanalign::DepthCloud cloud = scanalign::depthToCloud(depth.data(), K, depth_settings);
-    const scanalign::FrameReport r =
+    const scanalign::FrameResult r =
         reconstruction.integrate(scanalign::CloudView<float>(cloud.points.data(), cloud.size()));
     const double err = (r.T_model_camera.topRightCorner<3, 1>() - pose(i).topRightCorner<3, 1>()).norm();
     worst = std::max(worst, r.merged() ? err : 1.0);

@@ -13,7 +13,7 @@ import json
 import math
 import os
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Mapping, Optional, Tuple, Union
 
@@ -23,120 +23,44 @@ import yaml
 from . import _core
 
 __all__ = ["Intrinsics", "Frame", "INTRINSICS_PRESETS", "read_camera_file", "read_camera", "camera_from_dict",
-           "NO_DISTORTION", "sequence_index"]
+           "intrinsics_from_dict", "intrinsics_preset", "NO_DISTORTION", "sequence_index"]
 
 #: The distortion of a pinhole camera (rectified images): k1 k2 p1 p2 k3 all zero.
 NO_DISTORTION: Tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-@dataclass(frozen=True)
-class Intrinsics:
-    """Intrinsics of a depth image: a pinhole camera, optionally with lens distortion.
+#: Intrinsics of a depth image: the C++ ``PinholeIntrinsics``, the library's one intrinsics
+#: type, bound as it is. ``Intrinsics(width, height, fx, fy, cx, cy, distortion=(0,)*5)``
+#: validates (ValueError naming the field); fields ``width, height`` (pixels), ``fx, fy``
+#: (focal lengths, pixels), ``cx, cy`` (principal point, pixels), ``distortion`` (Brown-Conrady
+#: ``(k1, k2, p1, p2, k3)`` of normalised image coordinates, OpenCV's order, ROS "plumb_bob";
+#: zero for a pinhole camera or rectified images: back-projection
+#: (:func:`scanalign.reconstruction.depth_to_cloud`) undistorts every pixel's ray as OpenCV's
+#: ``undistortPoints`` does); ``K`` (3x3), ``shape`` ``(height, width)``, ``has_distortion``,
+#: ``scaled(factor)``, ``to_dict()`` (the keys :func:`intrinsics_from_dict` reads; distortion
+#: only when not zero). Immutable and hashable. Presets: :func:`intrinsics_preset`; camera
+#: files: :func:`read_camera`.
+Intrinsics = _core.reconstruction.PinholeIntrinsics
 
-    Attributes:
-        width, height: image size, pixels.
-        fx, fy: focal lengths along x and y, pixels.
-        cx, cy: principal point (column and row of the optical axis), pixels.
-        distortion: Brown-Conrady lens distortion ``(k1, k2, p1, p2, k3)`` of normalised
-            image coordinates, in OpenCV's order (ROS ``camera_info`` "plumb_bob"); all zero
-            (the default) for a pinhole camera / rectified images. Back-projection
-            (:func:`scanalign.reconstruction.depth_to_cloud`) undistorts every pixel's ray
-            as OpenCV's ``undistortPoints`` does.
-    """
 
-    width: int
-    height: int
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    distortion: Tuple[float, float, float, float, float] = NO_DISTORTION
+def intrinsics_from_dict(d: Mapping[str, Any]) -> Intrinsics:
+    """Intrinsics from a mapping with keys width, height, fx, fy, cx, cy and optional
+    distortion (k1, k2, p1, p2, k3); other keys are ignored. :func:`camera_from_dict` also
+    reads ROS ``camera_info`` and OpenCV calibration layouts."""
+    missing = [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]
+    if missing:
+        raise ValueError(f"intrinsics: missing keys {missing}")
+    dist = d.get("distortion")
+    return Intrinsics(int(d["width"]), int(d["height"]), float(d["fx"]), float(d["fy"]), float(d["cx"]),
+                      float(d["cy"]), NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
 
-    def __post_init__(self) -> None:
-        for name in ("width", "height", "fx", "fy", "cx", "cy"):
-            v = getattr(self, name)
-            if name in ("width", "height") and int(v) != v:
-                raise ValueError(f"Intrinsics.{name} must be a positive integer, got {v!r}")
-            object.__setattr__(self, name, int(v) if name in ("width", "height") else float(v))
-        # The C++ checks (positive size and focal lengths, finite values): ValueError naming them.
-        _core.reconstruction.PinholeIntrinsics(self.width, self.height, self.fx, self.fy, self.cx, self.cy)
-        d = self.distortion
-        try:
-            values = tuple(float(x) for x in np.asarray(d, dtype=np.float64).reshape(-1)) \
-                if not isinstance(d, (str, bytes)) else ()
-        except (TypeError, ValueError):
-            values = ()
-        if len(values) != 5 or not all(math.isfinite(x) for x in values):
-            raise ValueError(f"Intrinsics.distortion must be 5 finite numbers (k1, k2, p1, p2, k3), got {d!r}")
-        object.__setattr__(self, "distortion", values)
 
-    def __repr__(self) -> str:
-        extra = "" if not self.has_distortion else f", distortion={self.distortion}"
-        return (f"Intrinsics(width={self.width}, height={self.height}, fx={self.fx}, fy={self.fy}, cx={self.cx}, "
-                f"cy={self.cy}{extra})")
-
-    @property
-    def has_distortion(self) -> bool:
-        """True when any distortion coefficient is non-zero."""
-        return any(x != 0.0 for x in self.distortion)
-
-    @property
-    def K(self) -> np.ndarray:
-        """The 3x3 camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]."""
-        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
-
-    @property
-    def shape(self) -> tuple:
-        """(height, width): the shape a depth image for these intrinsics must have."""
-        return (self.height, self.width)
-
-    def scaled(self, factor: float) -> "Intrinsics":
-        """The intrinsics of the image resized by ``factor`` (e.g. 0.5 for half resolution)."""
-        if not (factor > 0 and math.isfinite(factor)):
-            raise ValueError("factor must be positive")
-        w, h = int(round(self.width * factor)), int(round(self.height * factor))
-        # Pixel centres sit at integer coordinates, so the principal point maps as
-        # (c + 0.5) * s - 0.5.
-        # Distortion acts on normalised coordinates: a resized image keeps its coefficients.
-        return Intrinsics(w, h, self.fx * factor, self.fy * factor, (self.cx + 0.5) * factor - 0.5,
-                          (self.cy + 0.5) * factor - 0.5, self.distortion)
-
-    def to_dict(self) -> Dict[str, Any]:
-        """The fields as a dict (the keys :meth:`from_dict` reads); ``distortion`` only when
-        it is not zero."""
-        d = asdict(self)
-        if self.has_distortion:
-            d["distortion"] = list(self.distortion)
-        else:
-            del d["distortion"]
-        return d
-
-    @classmethod
-    def from_dict(cls, d: Mapping[str, Any]) -> "Intrinsics":
-        """From a mapping with keys width, height, fx, fy, cx, cy and optional distortion
-        (k1, k2, p1, p2, k3); other keys are ignored. :func:`camera_from_dict` also reads
-        ROS ``camera_info`` and OpenCV calibration layouts."""
-        missing = [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]
-        if missing:
-            raise ValueError(f"intrinsics: missing keys {missing}")
-        dist = d.get("distortion")
-        return cls(int(d["width"]), int(d["height"]), float(d["fx"]), float(d["fy"]), float(d["cx"]),
-                   float(d["cy"]), NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
-
-    @classmethod
-    def preset(cls, name: str) -> "Intrinsics":
-        """A named preset from :data:`INTRINSICS_PRESETS` (e.g. ``"tum_fr1"``, ``"sr300"``)."""
-        try:
-            return INTRINSICS_PRESETS[name]
-        except KeyError:
-            raise ValueError(f"unknown intrinsics preset {name!r}; known: {sorted(INTRINSICS_PRESETS)}") from None
-
-    @classmethod
-    def from_file(cls, path: Union[str, os.PathLike]) -> "Intrinsics":
-        """Reads a camera file (:func:`read_camera`: scanalign's flat keys, a ROS
-        ``camera_info`` YAML or an OpenCV calibration YAML, with distortion). Other keys
-        (e.g. ``depth_scale``) are ignored here; :func:`read_camera` returns it too."""
-        return read_camera(path)[0]
+def intrinsics_preset(name: str) -> Intrinsics:
+    """A named preset from :data:`INTRINSICS_PRESETS` (e.g. ``"tum_fr1"``, ``"sr300"``)."""
+    try:
+        return INTRINSICS_PRESETS[name]
+    except KeyError:
+        raise ValueError(f"unknown intrinsics preset {name!r}; known: {sorted(INTRINSICS_PRESETS)}") from None
 
 
 class _CameraYamlLoader(yaml.SafeLoader):
@@ -269,7 +193,7 @@ def camera_from_dict(d: Mapping[str, Any]) -> Tuple[Intrinsics, Optional[float]]
     model = _first(d, "distortion_model", "distortionModel")
     dist = _first(d, "distortion", "distortion_coefficients", "distCoeffs", "dist_coeffs", "D", "d")
     if flat:
-        return Intrinsics.from_dict({**d, "distortion": dist, "distortion_model": model}), scale
+        return intrinsics_from_dict({**d, "distortion": dist, "distortion_model": model}), scale
     K = _numbers(K, 9, "camera_matrix")
     if K[1] != 0 or K[3] != 0 or K[6] != 0 or K[7] != 0 or K[8] != 1:
         raise ValueError(f"camera_matrix must be [[fx, 0, cx], [0, fy, cy], [0, 0, 1]] (no skew), got {K.tolist()}")

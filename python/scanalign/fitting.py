@@ -15,14 +15,14 @@ from __future__ import annotations
 
 from . import _core
 
-__all__ = ["SphereFitResult", "CircleFitResult", "SphereFitBatch", "fit_sphere", "fit_spheres", "fit_circle_2d",
+__all__ = ["SphereFitResult", "CircleFitResult", "SphereFitBatchResult", "fit_sphere", "fit_spheres", "fit_circle_2d",
            "MIN_SPHERE_POINTS"]
 
 _F = _core.fitting
 
 SphereFitResult = _F.SphereFitResult
 CircleFitResult = _F.CircleFitResult
-SphereFitBatch = _F.SphereFitBatch
+SphereFitBatchResult = _F.SphereFitBatchResult
 fit_sphere = _F.fit_sphere
 fit_spheres = _F.fit_spheres
 fit_circle_2d = _F.fit_circle_2d

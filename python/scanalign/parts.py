@@ -45,37 +45,13 @@ __all__ = ["builtin_mesh", "builtin_object", "sample_mesh", "normalize_mesh", "B
 
 MeshLike = Union[io.Mesh, Tuple[npt.ArrayLike, npt.ArrayLike]]
 
-_TOP = 0.015  # the box's top face
-_BOSS_CENTER = np.array([-0.015, 0.0])
-_BOSS_RADIUS = 0.012
-_CAP_CENTER = np.array([0.020, 0.006, _TOP - 0.009])
-_CAP_RADIUS = 0.015
-_CAP_BASE_RADIUS = math.sqrt(_CAP_RADIUS**2 - (_TOP - _CAP_CENTER[2]) ** 2)
-_PLANE, _BOSS, _CAP = 0, 1, 2  # the analytic surface each mesh face lies on (as in C++)
-
-
-def _sample_faces(mesh: io.Mesh, n_points: int, rng: np.random.Generator):
-    """Area-uniform points, unit face normals and face indices (zero-area faces never drawn)."""
-    corners = mesh.vertices[mesh.faces]  # (F, 3 corners, 3)
-    cross = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    double_area = np.linalg.norm(cross, axis=1)
-    if not np.any(double_area > 0):
-        raise ValueError("mesh has zero total area; cannot sample its surface")
-    face = rng.choice(len(double_area), size=n_points, p=double_area / double_area.sum())
-    s = np.sqrt(rng.random(n_points))[:, None]
-    t = rng.random(n_points)[:, None]
-    a, b, c = corners[face, 0], corners[face, 1], corners[face, 2]
-    # Relative to `a`, so points on axis-aligned faces keep the exact coordinate.
-    points = a + s * (1.0 - t) * (b - a) + s * t * (c - a)
-    return points, cross[face] / double_area[face, None], face
-
-
 def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
     """Samples points uniformly per unit area on a triangle mesh's surface.
 
     Triangles are drawn with probability proportional to their area, points uniformly
     inside them (``p = a + sqrt(u) (1 - v) (b - a) + sqrt(u) v (c - a)``, ``u, v`` uniform
-    in [0, 1)); zero-area triangles are never drawn.
+    in [0, 1)); zero-area triangles are never drawn. In C++ (``_core.common.sample_mesh``), with
+    the random numbers of ``numpy.random.default_rng(seed)`` drawn as NumPy draws them.
 
     Args:
         mesh_or_vertices_faces: a :class:`scanalign.io.Mesh`, ``(vertices (V, 3), faces (F, 3))`` or an
@@ -96,7 +72,7 @@ def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) 
     if n_points < 0:
         raise ValueError(f"n_points must be non-negative, got {n_points}")
     require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
-    points, normals, _ = _sample_faces(mesh, int(n_points), np.random.default_rng(seed))
+    points, normals, _ = _core.common.sample_mesh(mesh.vertices, mesh.faces, int(n_points), seed)
     return points, normals
 
 
@@ -148,7 +124,7 @@ BUILTIN_PARTS: Dict[str, Any] = {name: _symmetry(name) for name in _core.synthet
 
 @functools.lru_cache(maxsize=8)
 def _builtin(segments: int, name: str = "block") -> Tuple[io.Mesh, np.ndarray]:
-    """The part's mesh and, per face, the surface it lies on (_PLANE, _BOSS or _CAP)."""
+    """The part's mesh and, per face, the surface it lies on (0 plane, 1 cylinder, 2 sphere, as in C++)."""
     vertices, faces, surface = _core.synthetic.builtin_part_mesh(segments, name)
     return io.Mesh(vertices, faces), surface
 
@@ -196,24 +172,5 @@ def builtin_object(n_points: int = 20000, seed: int = 0) -> Tuple[np.ndarray, np
     if n_points < 0:
         raise ValueError(f"n_points must be non-negative, got {n_points}")
     require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
-    mesh, surface = _builtin(96)
-    rng = np.random.default_rng(seed)
-    points, normals = np.zeros((0, 3)), np.zeros((0, 3))
-    while len(points) < n_points:
-        missing = n_points - len(points)
-        p, n, face = _sample_faces(mesh, missing + missing // 100 + 16, rng)
-        boss, cap = surface[face] == _BOSS, surface[face] == _CAP
-        radial = p[boss, :2] - _BOSS_CENTER
-        radial /= np.linalg.norm(radial, axis=1, keepdims=True)
-        p[boss, :2] = _BOSS_CENTER + _BOSS_RADIUS * radial
-        n[boss] = np.column_stack([radial, np.zeros(len(radial))])
-        n[cap] = p[cap] - _CAP_CENTER
-        n[cap] /= np.linalg.norm(n[cap], axis=1, keepdims=True)
-        p[cap] = _CAP_CENTER + _CAP_RADIUS * n[cap]
-        # The top face's holes are inscribed polygons: drop the slivers between them and the
-        # true circles, which belong to the boss and the cap.
-        in_hole = ((np.linalg.norm(p[:, :2] - _BOSS_CENTER, axis=1) < _BOSS_RADIUS)
-                   | (np.linalg.norm(p[:, :2] - _CAP_CENTER[:2], axis=1) < _CAP_BASE_RADIUS))
-        keep = ~((surface[face] == _PLANE) & (p[:, 2] == _TOP) & in_hole)
-        points, normals = np.vstack([points, p[keep]]), np.vstack([normals, n[keep]])
-    return points[:n_points], normals[:n_points]
+    points, normals, _ = _core.synthetic.sample_builtin_block(int(n_points), seed, 96)
+    return points, normals

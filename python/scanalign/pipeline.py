@@ -23,7 +23,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from .camera import Frame
-from .reconstruction import DepthFilter, FrameReport, FrameToModelSettings, Model, Reconstructor
+from .reconstruction import DepthFilter, FrameResult, FrameToModelSettings, Model, Reconstructor
 from .io import atomic_open
 from .se3 import inverse
 from .trajectory import Trajectory
@@ -53,7 +53,7 @@ class ReconstructionResult:
 
     Attributes:
         model: the accumulated model (model frame).
-        records: one :class:`FrameReport` per input frame, skipped ones included.
+        records: one :class:`FrameResult` per input frame, skipped ones included.
         estimate: estimated ``T_model_camera`` of the merged frames.
         reference: reference ``T_base_camera`` of the merged frames that have one, or
             None when the frames carry no reference poses.
@@ -69,7 +69,7 @@ class ReconstructionResult:
     """
 
     model: Model
-    records: List[FrameReport]
+    records: List[FrameResult]
     estimate: Trajectory
     reference: Optional[Trajectory]
     T_model_camera0: np.ndarray
@@ -81,7 +81,7 @@ class ReconstructionResult:
     robot: Optional[str] = None
 
     @property
-    def skipped(self) -> List[FrameReport]:
+    def skipped(self) -> List[FrameResult]:
         return [r for r in self.records if not r.merged]
 
     def per_frame_seconds(self) -> np.ndarray:
@@ -121,7 +121,7 @@ class ReconstructionResult:
         if self.reference is not None:
             paths["reference"] = out / "reference.txt"
             self.reference.write_tum(paths["reference"], header="reference: T_base_camera (camera -> robot base frame)")
-        cols = [k for k in FrameReport().to_dict() if k != "T_model_camera"]
+        cols = [k for k in FrameResult().to_dict() if k != "T_model_camera"]
         with atomic_open(paths["frames"], "w", newline="", encoding="utf-8") as f:
             w = csv.writer(f)
             w.writerow(cols)
@@ -207,8 +207,8 @@ def _jsonable(v: Any) -> Any:
 def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings] = None, *,
                 registration: str = "scanalign", model_frame: str = "auto", initial_guess: str = "previous",
                 min_depth: float = 0.1, max_depth: float = 2.0, pixel_stride: int = 1, depth_filter: Optional[Any] = None,
-                progress: Union[bool, Callable[[FrameReport], None]] = True, evaluate: bool = True,
-                on_frame: Optional[Callable[[Frame, FrameReport, Reconstructor], None]] = None,
+                progress: Union[bool, Callable[[FrameResult], None]] = True, evaluate: bool = True,
+                on_frame: Optional[Callable[[Frame, FrameResult, Reconstructor], None]] = None,
                 **overrides: Any) -> ReconstructionResult:
     """Reconstructs a sequence of RGB-D frames frame-to-model (Algorithm 1 of the eye-in-hand paper).
 

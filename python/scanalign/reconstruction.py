@@ -22,7 +22,6 @@ Example::
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Any, Dict, List, Optional, Union
 
@@ -36,7 +35,7 @@ from .trajectory import Trajectory
 
 __all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "undistorted_rays", "frame_to_cloud", "DepthFilter",
            "bilateral_filter_depth",
-           "FrameToModelSettings", "make_reconstruction_settings", "FrameReport", "Model", "Reconstructor",
+           "FrameToModelSettings", "make_reconstruction_settings", "FrameResult", "Model", "Reconstructor",
            "REGISTRATION_METHODS"]
 
 
@@ -96,17 +95,6 @@ def voxel_grid(points: np.ndarray, leaf_size: float = 0.001, *, normals: Optiona
     return VoxelGridResult(centroids, out_normals, out_colors, counts)
 
 
-@functools.lru_cache(maxsize=8)
-def _ray_table(intrinsics: Intrinsics) -> np.ndarray:
-    """The read-only undistorted ray table of a distorted camera, computed once per
-    intrinsics (image size, K, coefficients) and kept for the next frames."""
-    K = _core.reconstruction.PinholeIntrinsics(intrinsics.width, intrinsics.height, intrinsics.fx, intrinsics.fy,
-                                               intrinsics.cx, intrinsics.cy)
-    rays = _core.reconstruction.undistorted_rays(K, list(intrinsics.distortion))
-    rays.flags.writeable = False
-    return rays
-
-
 def undistorted_rays(intrinsics: Intrinsics) -> np.ndarray:
     """(H, W, 2) float64: the normalised coordinates ``(x, y) = (X/Z, Y/Z)`` of the ray through
     every pixel centre ``(u, v)`` (``[v, u]``), as :func:`depth_to_cloud` uses them.
@@ -117,11 +105,12 @@ def undistorted_rays(intrinsics: Intrinsics) -> np.ndarray:
     steps): equal to ``cv2.undistortPointsIter`` with 100 COUNT iterations. A pixel whose ray
     does not re-project onto it within 1e-3 pixels (diverged, or beyond the field of view
     where the radial factor folds over) is NaN and gives no point. The table is computed once
-    per intrinsics (C++, all threads; under 0.1 s for 640x480) and cached (8 cameras)."""
+    per intrinsics (C++, all threads; under 0.1 s for 640x480) and cached in C++ (8 cameras),
+    the table :func:`depth_to_cloud` uses; a copy is returned."""
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.camera.Intrinsics")
     if intrinsics.has_distortion:
-        return _ray_table(intrinsics).copy()
+        return _core.reconstruction.undistorted_rays(intrinsics)
     u = (np.arange(intrinsics.width) - intrinsics.cx) / intrinsics.fx
     v = (np.arange(intrinsics.height) - intrinsics.cy) / intrinsics.fy
     return np.stack(np.broadcast_arrays(u[None, :], v[:, None]), axis=-1)
@@ -136,7 +125,7 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[n
     (column, row); invalid pixels (0, NaN, outside ``[min_depth, max_depth]``) are dropped.
     With lens distortion (``intrinsics.distortion`` not zero) ``p = (z x, z y, z)`` with the
     pixel's undistorted ray ``(x, y)`` from :func:`undistorted_rays` (computed once per
-    camera and cached, so a frame costs what a pinhole frame costs); a pixel without a valid
+    camera and cached in C++, so a frame costs what a pinhole frame costs); a pixel without a valid
     ray is dropped. Zero distortion takes the pinhole formula, bit for bit as before.
 
     Args:
@@ -159,12 +148,9 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[n
     """
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.camera.Intrinsics")
-    K = _core.reconstruction.PinholeIntrinsics(intrinsics.width, intrinsics.height, intrinsics.fx, intrinsics.fy,
-                                               intrinsics.cx, intrinsics.cy)
     s = set_fields(_core.reconstruction.DepthToCloudSettings(), dict(
         depth_scale=float(depth_scale), min_depth=float(min_depth), max_depth=float(max_depth), stride=stride), "depth")
-    rays = (_ray_table(intrinsics),) if intrinsics.has_distortion else ()  # pinhole: the call as before
-    points, colors, pixels = _core.reconstruction.depth_to_cloud(np.asarray(depth), K, s, rgb, *rays)
+    points, colors, pixels = _core.reconstruction.depth_to_cloud(np.asarray(depth), intrinsics, s, rgb)
     return (points, colors, pixels) if return_pixels else (points, colors)
 
 
@@ -247,10 +233,10 @@ def make_reconstruction_settings(settings: Optional[FrameToModelSettings] = None
     return s
 
 
-#: What the reconstruction did with one frame (the C++ report, bound directly): index,
+#: What the reconstruction did with one frame (the C++ result, bound directly): index,
 #: timestamp (s), status, merged, T_model_camera (camera -> model; for a skipped frame the guess
 #: it was tried from), the registration's figures and the wall times; ``to_dict()``.
-FrameReport = _core.reconstruction.FrameReport
+FrameResult = _core.reconstruction.FrameResult
 
 
 @dataclass
@@ -311,7 +297,7 @@ class Reconstructor:
             raise ValueError("pixel_stride must be a positive integer")
         self.min_depth, self.max_depth, self.pixel_stride = float(min_depth), float(max_depth), int(pixel_stride)
         self._core = _core.reconstruction.FrameToModel(self.settings)
-        self.records: List[FrameReport] = []
+        self.records: List[FrameResult] = []
         self.reset(T_model_camera0)
 
     def reset(self, T_model_camera0: Optional[np.ndarray] = None) -> None:
@@ -322,7 +308,7 @@ class Reconstructor:
         self.T_model_camera0 = T0
         self.records = []
 
-    def integrate(self, frame: Frame, guess: Optional[np.ndarray] = None) -> FrameReport:
+    def integrate(self, frame: Frame, guess: Optional[np.ndarray] = None) -> FrameResult:
         """Back-projects and integrates one RGB-D frame.
 
         Args:
@@ -346,7 +332,7 @@ class Reconstructor:
         return self.integrate_points(points, colors, guess=guess, timestamp=frame.timestamp)
 
     def integrate_points(self, points: np.ndarray, colors: Optional[np.ndarray] = None, *,
-                         guess: Optional[np.ndarray] = None, timestamp: Optional[float] = None) -> FrameReport:
+                         guess: Optional[np.ndarray] = None, timestamp: Optional[float] = None) -> FrameResult:
         """Integrates a cloud given in the camera frame ((N, 3) metres; optional (N, 3)
         colours, uint8 or float in [0, 1]). See :meth:`integrate`."""
         p = as_points(points, "points", np.dtype(np.float32))

@@ -15,7 +15,7 @@ import numpy as np
 
 from . import _core
 from ._arrays import as_points, as_transform
-from .camera import Intrinsics
+from .camera import Intrinsics, intrinsics_preset
 
 __all__ = ["RenderResult", "render_depth", "look_at", "as_intrinsics"]
 
@@ -46,7 +46,7 @@ class RenderResult:
 def as_intrinsics(intrinsics: object) -> Intrinsics:
     """``intrinsics`` itself, or the preset of that name; TypeError for anything else."""
     if isinstance(intrinsics, str):
-        return Intrinsics.preset(intrinsics)
+        return intrinsics_preset(intrinsics)
     if isinstance(intrinsics, Intrinsics) and intrinsics.has_distortion:
         # The renderer is a pinhole camera: a distorted camera would get pinhole images that the
         # back-projection then "undistorts" into a bent scene.
@@ -99,10 +99,11 @@ def render_depth(
     """
     K = as_intrinsics(intrinsics)
     T = as_transform(T_camera_world, "T_camera_world")  # rigidity: checked in C++, naming T_camera_world
+    settings = _core.reconstruction.DepthRenderSettings(near_clip=float(near), far_clip=float(far),
+                                                        cull_backfaces=bool(cull_backfaces), num_threads=num_threads)
     # Face dtype, shape and index range: checked in C++, naming faces.
-    depth, face_id, cos = _core.synthetic.render_depth(as_points(vertices, "vertices"), np.asarray(faces), K.width,
-                                                       K.height, K.fx, K.fy, K.cx, K.cy, T, float(near), float(far),
-                                                       bool(cull_backfaces), num_threads)
+    depth, face_id, cos = _core.reconstruction.render_depth(as_points(vertices, "vertices"), np.asarray(faces), K, T,
+                                                            settings)
     return RenderResult(depth, face_id, cos)
 
 

@@ -6,6 +6,8 @@
 #include <string>
 #include <utility>
 
+#include <Eigen/Geometry>  // cross()
+
 namespace scanalign {
 
 Eigen::Matrix4d lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, const Eigen::Vector3d& up) {

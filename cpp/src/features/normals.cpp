@@ -21,9 +21,7 @@
 
 namespace scanalign {
 
-namespace {
-
-void validateSettings(const NormalEstimationSettings& settings) {
+void validate(const NormalEstimationSettings& settings) {
   if (!(settings.radius > 0.0) || !std::isfinite(settings.radius))
     throw std::invalid_argument("normal estimation: radius must be a finite positive distance in metres");
   if (!settings.viewpoint.allFinite()) throw std::invalid_argument("normal estimation: viewpoint must be finite");
@@ -32,6 +30,10 @@ void validateSettings(const NormalEstimationSettings& settings) {
   if (settings.grid_subdivisions < 0 || settings.grid_subdivisions > 16)
     throw std::invalid_argument("normal estimation: grid_subdivisions must be in [0, 16] (0 = automatic)");
 }
+
+namespace {
+
+void validateSettings(const NormalEstimationSettings& settings) { validate(settings); }
 
 /// Normal (and curvature) of point q from the moments of its neighbours' offsets d = p - q:
 /// s1 = sum d, s2 = sum d d^T, k neighbours. Writes NaN when k < min_neighbors.

@@ -53,7 +53,7 @@ void checkWeight(double w, std::size_t i) {
 }  // namespace
 
 template <typename Scalar>
-SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, const SphereFitOptions& options) {
+SphereFitResult fitSphere(const CloudView<Scalar>& points, const double* weights, const SphereFitOptions& options) {
   if (!(options.plane_tolerance >= 0) || !std::isfinite(options.plane_tolerance))
     throw std::invalid_argument("fitSphere: plane_tolerance must be finite and >= 0");
   // Pass 1: validate, count, weighted centroid.
@@ -107,7 +107,7 @@ SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, cons
         "fitSphere: degenerate data (collinear or coincident points, or points on one circle): no unique sphere");
   const Vector5d s = M * sol.a;  // [S*] in normalized coordinates (5.31)
 
-  SphereFit out;
+  SphereFitResult out;
   out.count = count;
   out.objective = sol.lambda * nz.scale * nz.scale;  // λ scales with the square of the length unit
   const double e_norm = s.head<3>().norm();
@@ -152,13 +152,15 @@ SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights, cons
 }
 
 template <typename Scalar>
-std::vector<SphereFit> fitSpheres(const CloudView<Scalar>& points, const std::int64_t* offsets, std::size_t n_groups,
-                                  const SphereFitOptions& options, int num_threads) {
+SphereFitBatchResult fitSpheres(const CloudView<Scalar>& points, const std::int64_t* offsets, std::size_t n_groups,
+                                const SphereFitOptions& options, int num_threads) {
   if (n_groups > 0 && offsets == nullptr) throw std::invalid_argument("fitSpheres: null offsets");
   for (std::size_t g = 0; g < n_groups; ++g)
     if (offsets[g] < 0 || offsets[g + 1] < offsets[g] || static_cast<std::size_t>(offsets[g + 1]) > points.size)
       throw std::invalid_argument("fitSpheres: offsets must be non-decreasing, >= 0 and <= the number of points");
-  std::vector<SphereFit> out(n_groups);
+  SphereFitBatchResult batch;
+  std::vector<SphereFitResult>& out = batch.fits;
+  out.resize(n_groups);
   const long long n = static_cast<long long>(n_groups);
 #pragma omp parallel for schedule(dynamic, 64) num_threads(resolveThreads(num_threads))
   for (long long g = 0; g < n; ++g) {
@@ -168,14 +170,14 @@ std::vector<SphereFit> fitSpheres(const CloudView<Scalar>& points, const std::in
       const CloudView<Scalar> view(size ? points.ptr(begin) : nullptr, size, points.stride);
       out[static_cast<std::size_t>(g)] = fitSphere(view, nullptr, options);
     } catch (const std::invalid_argument&) {
-      out[static_cast<std::size_t>(g)] = SphereFit{};  // count = 0, NaN fields
+      out[static_cast<std::size_t>(g)] = SphereFitResult{};  // count = 0, NaN fields
       out[static_cast<std::size_t>(g)].dual.setConstant(std::numeric_limits<double>::quiet_NaN());
     }
   }
-  return out;
+  return batch;
 }
 
-CircleFit fitCirclePratt(const double* xy, std::size_t n) {
+CircleFitResult fitCirclePratt(const double* xy, std::size_t n) {
   if (n > 0 && xy == nullptr) throw std::invalid_argument("fitCirclePratt: null data");
   if (n < kMinCirclePoints)
     throw std::invalid_argument("fitCirclePratt: need at least 3 points, got " + std::to_string(n));
@@ -216,7 +218,7 @@ CircleFit fitCirclePratt(const double* xy, std::size_t n) {
     throw std::invalid_argument("fitCirclePratt: the points are collinear (the best fit is a line)");
   const Eigen::Vector2d cn(-d / (2 * a), -e / (2 * a));
   const double rn = 1.0 / (2 * std::abs(a));  // r² = (d² + e² − 4af)/(4a²) = 1/(4a²)
-  CircleFit out;
+  CircleFitResult out;
   out.count = n;
   out.center = m + scale * cn;
   out.radius = scale * rn;
@@ -238,11 +240,11 @@ CircleFit fitCirclePratt(const double* xy, std::size_t n) {
   return out;
 }
 
-template SphereFit fitSphere<float>(const CloudView<float>&, const double*, const SphereFitOptions&);
-template SphereFit fitSphere<double>(const CloudView<double>&, const double*, const SphereFitOptions&);
-template std::vector<SphereFit> fitSpheres<float>(const CloudView<float>&, const std::int64_t*, std::size_t,
-                                                  const SphereFitOptions&, int);
-template std::vector<SphereFit> fitSpheres<double>(const CloudView<double>&, const std::int64_t*, std::size_t,
-                                                   const SphereFitOptions&, int);
+template SphereFitResult fitSphere<float>(const CloudView<float>&, const double*, const SphereFitOptions&);
+template SphereFitResult fitSphere<double>(const CloudView<double>&, const double*, const SphereFitOptions&);
+template SphereFitBatchResult fitSpheres<float>(const CloudView<float>&, const std::int64_t*, std::size_t,
+                                                const SphereFitOptions&, int);
+template SphereFitBatchResult fitSpheres<double>(const CloudView<double>&, const std::int64_t*, std::size_t,
+                                                 const SphereFitOptions&, int);
 
 }  // namespace scanalign

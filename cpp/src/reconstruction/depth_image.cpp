@@ -1,4 +1,5 @@
 #include "scanalign/reconstruction/depth_image.hpp"
+#include "scanalign/reconstruction/bilateral_filter.hpp"
 #include "scanalign/common/threads.hpp"
 
 #include <omp.h>
@@ -10,6 +11,8 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <list>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -18,14 +21,14 @@ namespace scanalign {
 
 void checkImageSize(long long width, long long height, const char* what) {
   if (width <= 0 || height <= 0)
-    throw std::invalid_argument(std::string(what) + ": width and height must be positive, got " +
+    throw std::invalid_argument(std::string(what) + ": width, height must be positive, got " +
                                 std::to_string(width) + "x" + std::to_string(height));
   // Both below 2^31 here or the product test below fails: no overflow in the product.
   if (width > (1LL << 31) || height > (1LL << 31) ||
       static_cast<unsigned long long>(width) * static_cast<unsigned long long>(height) > kMaxImagePixels)
-    throw std::invalid_argument(std::string(what) + ": " + std::to_string(width) + "x" + std::to_string(height) +
-                                " pixels is beyond the limit of " + std::to_string(kMaxImagePixels) +
-                                " pixels (kMaxImagePixels)");
+    throw std::invalid_argument(std::string(what) + ": width, height " + std::to_string(width) + "x" +
+                                std::to_string(height) + " pixels is beyond the limit of " +
+                                std::to_string(kMaxImagePixels) + " pixels (kMaxImagePixels)");
 }
 
 void PinholeIntrinsics::validate() const {
@@ -42,17 +45,51 @@ void PinholeIntrinsics::validate() const {
   if (std::max(std::abs(cy), std::abs(height - 1 - cy)) > kMaxSlope * fy)
     throw std::invalid_argument("intrinsics: fy too small or cy too far off the image (ray slope |v - cy| / fy "
                                 "above 1e6)");
+  distortion.validate();
+}
+
+Eigen::Matrix3d PinholeIntrinsics::K() const {
+  Eigen::Matrix3d k;
+  k << fx, 0.0, cx, 0.0, fy, cy, 0.0, 0.0, 1.0;
+  return k;
+}
+
+PinholeIntrinsics PinholeIntrinsics::scaled(double factor) const {
+  if (!(factor > 0.0 && std::isfinite(factor))) throw std::invalid_argument("intrinsics: scale factor must be positive");
+  PinholeIntrinsics s = *this;
+  // Halves to even, as Python's round(); beyond int range the size check below refuses it.
+  const double w = std::nearbyint(width * factor), h = std::nearbyint(height * factor);
+  if (!(w >= 0.0 && w <= 2147483647.0 && h >= 0.0 && h <= 2147483647.0))
+    throw std::invalid_argument("intrinsics: scaled size out of range");
+  s.width = static_cast<int>(w);
+  s.height = static_cast<int>(h);
+  s.fx = fx * factor;
+  s.fy = fy * factor;
+  // Pixel centres sit at integer coordinates: the principal point maps as (c + 0.5) s - 0.5.
+  s.cx = (cx + 0.5) * factor - 0.5;
+  s.cy = (cy + 0.5) * factor - 0.5;
+  s.validate();
+  return s;
+}
+
+bool operator==(const LensDistortion& a, const LensDistortion& b) {
+  return a.k1 == b.k1 && a.k2 == b.k2 && a.p1 == b.p1 && a.p2 == b.p2 && a.k3 == b.k3;
+}
+
+bool operator==(const PinholeIntrinsics& a, const PinholeIntrinsics& b) {
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy && a.cx == b.cx &&
+         a.cy == b.cy && a.distortion == b.distortion;
 }
 
 void LensDistortion::validate() const {
   if (!(std::isfinite(k1) && std::isfinite(k2) && std::isfinite(p1) && std::isfinite(p2) && std::isfinite(k3)))
-    throw std::invalid_argument("lens distortion: k1, k2, p1, p2, k3 must be finite");
+    throw std::invalid_argument("intrinsics: distortion must be 5 finite numbers (k1, k2, p1, p2, k3)");
 }
 
-std::vector<double> undistortedRays(const PinholeIntrinsics& K, const LensDistortion& d, int max_iterations,
-                                    double max_reprojection_error, int num_threads) {
+std::vector<double> undistortedRays(const PinholeIntrinsics& K, int max_iterations, double max_reprojection_error,
+                                    int num_threads) {
   K.validate();
-  d.validate();
+  const LensDistortion& d = K.distortion;
   if (max_iterations < 1) throw std::invalid_argument("undistorted rays: max_iterations must be >= 1");
   if (!(max_reprojection_error > 0.0))
     throw std::invalid_argument("undistorted rays: max_reprojection_error must be > 0 pixels");
@@ -100,6 +137,29 @@ std::vector<double> undistortedRays(const PinholeIntrinsics& K, const LensDistor
   return rays;
 }
 
+std::shared_ptr<const std::vector<double>> cachedUndistortedRays(const PinholeIntrinsics& intrinsics) {
+  intrinsics.validate();
+  using Entry = std::pair<PinholeIntrinsics, std::shared_ptr<const std::vector<double>>>;
+  static std::mutex mutex;
+  static std::list<Entry> cache;  // most recently used first
+  {
+    const std::lock_guard<std::mutex> lock(mutex);
+    for (auto it = cache.begin(); it != cache.end(); ++it)
+      if (it->first == intrinsics) {
+        cache.splice(cache.begin(), cache, it);
+        return cache.front().second;
+      }
+  }
+  // Outside the lock: other threads keep back-projecting with their cameras meanwhile.
+  auto table = std::make_shared<const std::vector<double>>(undistortedRays(intrinsics));
+  const std::lock_guard<std::mutex> lock(mutex);
+  for (const Entry& e : cache)
+    if (e.first == intrinsics) return e.second;  // another thread was first: one copy kept
+  cache.emplace_front(intrinsics, table);
+  if (cache.size() > kRayTableCacheSize) cache.pop_back();
+  return table;
+}
+
 namespace {
 
 void validate(const DepthToCloudSettings& s) {
@@ -112,10 +172,13 @@ void validate(const DepthToCloudSettings& s) {
 
 template <typename DepthT>
 DepthCloud backProject(const DepthT* depth, const PinholeIntrinsics& K, const DepthToCloudSettings& s,
-                       const std::uint8_t* rgb, const double* rays) {
+                       const std::uint8_t* rgb) {
   K.validate();
   validate(s);
   if (depth == nullptr) throw std::invalid_argument("depth to cloud: null depth image");
+  // A distorted camera: each pixel's undistorted ray, from the cache (pinhole: the formula).
+  const std::shared_ptr<const std::vector<double>> table = K.hasDistortion() ? cachedUndistortedRays(K) : nullptr;
+  const double* rays = table ? table->data() : nullptr;
   DepthCloud out;
   const std::size_t expected = (static_cast<std::size_t>(K.width) / s.stride + 1) *
                                (static_cast<std::size_t>(K.height) / s.stride + 1);
@@ -159,13 +222,13 @@ DepthCloud backProject(const DepthT* depth, const PinholeIntrinsics& K, const De
 }  // namespace
 
 DepthCloud depthToCloud(const std::uint16_t* depth, const PinholeIntrinsics& intrinsics,
-                        const DepthToCloudSettings& settings, const std::uint8_t* rgb, const double* rays) {
-  return backProject(depth, intrinsics, settings, rgb, rays);
+                        const DepthToCloudSettings& settings, const std::uint8_t* rgb) {
+  return backProject(depth, intrinsics, settings, rgb);
 }
 
 DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics, const DepthToCloudSettings& settings,
-                        const std::uint8_t* rgb, const double* rays) {
-  return backProject(depth, intrinsics, settings, rgb, rays);
+                        const std::uint8_t* rgb) {
+  return backProject(depth, intrinsics, settings, rgb);
 }
 
 namespace {
@@ -269,14 +332,24 @@ constexpr int kRowLanes = 1;
 
 }  // namespace
 
-void bilateralFilterDepth(const float* depth, int width, int height, float* out, int radius, double sigma_space,
-                          double sigma_depth, int num_threads) {
-  if (width < 0 || height < 0) throw std::invalid_argument("bilateral filter: width and height must be >= 0");
+void BilateralFilterSettings::validate() const {
   if (radius < 0 || radius > 32) throw std::invalid_argument("bilateral filter: radius must be in [0, 32] pixels");
   if (!(sigma_space >= 1e-3 && std::isfinite(sigma_space)))
     throw std::invalid_argument("bilateral filter: sigma_space must be finite and >= 1e-3 pixels");
   if (!(sigma_depth >= 1e-9 && std::isfinite(sigma_depth)))
     throw std::invalid_argument("bilateral filter: sigma_depth must be finite and >= 1e-9 m");
+}
+
+void bilateralFilterDepth(const float* depth, int width, int height, float* out,
+                          const BilateralFilterSettings& settings, int num_threads) {
+  bilateralFilterDepth(depth, width, height, out, settings.radius, settings.sigma_space, settings.sigma_depth,
+                       num_threads);
+}
+
+void bilateralFilterDepth(const float* depth, int width, int height, float* out, int radius, double sigma_space,
+                          double sigma_depth, int num_threads) {
+  if (width < 0 || height < 0) throw std::invalid_argument("bilateral filter: width and height must be >= 0");
+  BilateralFilterSettings{radius, sigma_space, sigma_depth}.validate();
   if (width == 0 || height == 0) return;  // an empty image: nothing to filter
   checkImageSize(width, height, "bilateral filter");
   if (depth == nullptr || out == nullptr) throw std::invalid_argument("bilateral filter: null image");

@@ -324,7 +324,7 @@ void rasterTriangle(const Context& c, const FaceSetup& s, const double* X, const
 }
 
 void checkInputs(std::size_t n_vertices, const std::int32_t* faces, std::size_t n_faces, const PinholeCamera& cam,
-                 const Eigen::Matrix4d& T, const DepthRenderSettings& s, const DepthRenderOutput& out) {
+                 const Eigen::Matrix4d& T, const DepthRenderSettings& s, const DepthRenderResult& out) {
   constexpr int kMaxSize = 32768;
   if (cam.width < 1 || cam.height < 1 || cam.width > kMaxSize || cam.height > kMaxSize)
     throw std::invalid_argument("renderDepth: image size must be in [1, 32768] pixels, got " +
@@ -334,6 +334,8 @@ void checkInputs(std::size_t n_vertices, const std::int32_t* faces, std::size_t 
     throw std::invalid_argument("renderDepth: focal lengths fx, fy must be finite and positive (pixels)");
   if (!(std::isfinite(cam.cx) && std::isfinite(cam.cy)))
     throw std::invalid_argument("renderDepth: principal point cx, cy must be finite (pixels)");
+  if (cam.hasDistortion())
+    throw std::invalid_argument("renderDepth: the renderer draws pinhole images; give intrinsics without distortion");
   requireRigid(T, "renderDepth: T_camera_world");
   if (!(std::isfinite(s.near_clip) && s.near_clip > 0.0))
     throw std::invalid_argument("renderDepth: near_clip must be finite and positive (m)");
@@ -356,7 +358,7 @@ void checkInputs(std::size_t n_vertices, const std::int32_t* faces, std::size_t 
 template <typename Scalar>
 void renderDepth(const CloudView<Scalar>& vertices, const std::int32_t* faces, std::size_t n_faces,
                  const PinholeCamera& camera, const Eigen::Matrix4d& T_camera_world, const DepthRenderSettings& settings,
-                 const DepthRenderOutput& out) {
+                 const DepthRenderResult& out) {
   checkInputs(vertices.size, faces, n_faces, camera, T_camera_world, settings, out);
   const int threads = resolveThreads(settings.num_threads);
   const int width = camera.width, height = camera.height;
@@ -480,13 +482,13 @@ DepthImage renderDepth(const CloudView<Scalar>& vertices, const std::vector<std:
   img.face_id.resize(n);
   img.cos_incidence.resize(n);
   renderDepth(vertices, faces.data(), faces.size() / 3, camera, T_camera_world, settings,
-              DepthRenderOutput{img.depth.data(), img.face_id.data(), img.cos_incidence.data()});
+              DepthRenderResult{img.depth.data(), img.face_id.data(), img.cos_incidence.data()});
   return img;
 }
 
 #define SCANALIGN_INSTANTIATE(S)                                                                               \
   template void renderDepth<S>(const CloudView<S>&, const std::int32_t*, std::size_t, const PinholeCamera&,    \
-                               const Eigen::Matrix4d&, const DepthRenderSettings&, const DepthRenderOutput&);  \
+                               const Eigen::Matrix4d&, const DepthRenderSettings&, const DepthRenderResult&);  \
   template DepthImage renderDepth<S>(const CloudView<S>&, const std::vector<std::int32_t>&, const PinholeCamera&, \
                                      const Eigen::Matrix4d&, const DepthRenderSettings&);
 SCANALIGN_INSTANTIATE(float)

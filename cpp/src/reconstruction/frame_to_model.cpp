@@ -38,7 +38,12 @@ const char* toString(FrameStatus status) {
 }
 
 const char* toString(MotionModel model) {
-  return model == MotionModel::ConstantVelocity ? "constant_velocity" : "previous";
+  switch (model) {
+    case MotionModel::Previous: return "previous";
+    case MotionModel::ConstantVelocity: return "constant_velocity";
+    case MotionModel::Reference: return "reference";
+  }
+  return "unknown";
 }
 
 void validate(const FrameToModelSettings& s) {
@@ -56,8 +61,9 @@ void validate(const FrameToModelSettings& s) {
   if (!(s.max_rotation_change > 0.0) || std::isnan(s.max_rotation_change))
     throw std::invalid_argument("max_rotation_change must be positive (rad; inf = off)");
   if (s.num_threads < 0) throw std::invalid_argument("num_threads must be >= 0");
-  if (s.motion_model != MotionModel::Previous && s.motion_model != MotionModel::ConstantVelocity)
-    throw std::invalid_argument("motion_model must be Previous or ConstantVelocity");
+  if (s.motion_model != MotionModel::Previous && s.motion_model != MotionModel::ConstantVelocity &&
+      s.motion_model != MotionModel::Reference)
+    throw std::invalid_argument("motion_model must be Previous, ConstantVelocity or Reference");
 }
 
 FrameToModel::FrameToModel(FrameToModelSettings settings) : settings_(std::move(settings)) {
@@ -146,11 +152,11 @@ PreparedFrame FrameToModel::prepare(const CloudView<float>& points, const std::u
   return out;
 }
 
-FrameReport FrameToModel::integrate(const CloudView<float>& points, const std::uint8_t* colors,
+FrameResult FrameToModel::integrate(const CloudView<float>& points, const std::uint8_t* colors,
                                     const Eigen::Matrix4d* guess) {
   const auto t0 = Clock::now();
   const PreparedFrame frame = prepare(points, colors);
-  FrameReport r = integratePrepared(frame, guess);
+  FrameResult r = integratePrepared(frame, guess);
   r.input_points = points.size;
   r.total_seconds = since(t0);
   return r;
@@ -172,7 +178,8 @@ FrameStatus FrameToModel::check(const IcpResult& result, const Eigen::Matrix4d& 
 }
 
 Eigen::Matrix4d FrameToModel::predictedPose() const {
-  if (settings_.motion_model != MotionModel::ConstantVelocity || frames_merged_ < 2) return last_pose_;
+  // Reference: the caller gives each frame's guess; without one, constant velocity.
+  if (settings_.motion_model == MotionModel::Previous || frames_merged_ < 2) return last_pose_;
   // T_k = T_{k-1} (T_{k-2}^-1 T_{k-1}): the last camera motion, expressed in the camera
   // frame, applied once more. The rotation is re-normalised (through a unit quaternion)
   // so that rounding in the products cannot accumulate into a non-rigid guess.
@@ -186,10 +193,10 @@ Eigen::Matrix4d FrameToModel::predictedPose() const {
   return T;
 }
 
-FrameReport FrameToModel::integratePrepared(const PreparedFrame& frame, const Eigen::Matrix4d* guess_in) {
+FrameResult FrameToModel::integratePrepared(const PreparedFrame& frame, const Eigen::Matrix4d* guess_in) {
   validate(settings_);
   const auto t0 = Clock::now();
-  FrameReport r;
+  FrameResult r;
   r.index = frames_seen_;  // counted at the end: a call that throws saw no frame
   const Eigen::Matrix4d guess = guess_in ? *guess_in : predictedPose();
   requireRigid(guess, "T_model_camera_guess");

@@ -95,7 +95,7 @@ bool fitSphereLeastSquares(const CloudView<Scalar>& points, const std::vector<st
   xyz.reserve(3 * indices.size());
   for (std::uint32_t i : indices) xyz.insert(xyz.end(), points.ptr(i), points.ptr(i) + 3);
   try {
-    const SphereFit f = fitSphere(CloudView<Scalar>(xyz.data(), indices.size()));
+    const SphereFitResult f = fitSphere(CloudView<Scalar>(xyz.data(), indices.size()));
     if (f.is_plane || f.imaginary || !(f.radius > 0.0) || !std::isfinite(f.radius)) return false;
     out.center = f.center;
     out.radius = f.radius;

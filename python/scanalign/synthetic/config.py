@@ -13,7 +13,7 @@ from typing import Any, Dict, Mapping, Optional, Union
 import numpy as np
 
 from .. import io
-from ..camera import INTRINSICS_PRESETS, Intrinsics, read_camera_file
+from ..camera import INTRINSICS_PRESETS, Intrinsics, intrinsics_from_dict, intrinsics_preset, read_camera_file
 from ..parts import builtin_mesh, normalize_mesh
 from .mount import DEFAULT_ROBOT_HEIGHT, as_robot, attach_robot, robot_mount
 from .noise import NOISE_PRESETS
@@ -173,7 +173,7 @@ class SyntheticConfig:
 
     def intrinsics_object(self) -> Intrinsics:
         """The camera intrinsics after ``resolution_scale``."""
-        K = Intrinsics.preset(self.intrinsics) if isinstance(self.intrinsics, str) else Intrinsics.from_dict(
+        K = intrinsics_preset(self.intrinsics) if isinstance(self.intrinsics, str) else intrinsics_from_dict(
             self.intrinsics)
         return K if self.resolution_scale == 1.0 else K.scaled(self.resolution_scale)
 

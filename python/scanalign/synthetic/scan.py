@@ -76,10 +76,7 @@ class SyntheticScan:
         p, _ = depth_to_cloud(frame.depth, self.intrinsics, depth_scale=frame.depth_scale, min_depth=0.0,
                               max_depth=math.inf)
         p = p.astype(np.float64)
-        if in_base:
-            T = frame.T_base_camera
-            p = p @ T[:3, :3].T + T[:3, 3]
-        return p
+        return _core.common.transform_points(frame.T_base_camera, p) if in_base else p
 
 
 def _camera_poses(poses: Union[ScanTrajectory, Trajectory, np.ndarray], frame_rate: float):

@@ -11,7 +11,6 @@ import numpy as np
 from .. import _core, io, se3
 from .._arrays import as_transform
 from ..camera import Intrinsics
-from ..reconstruction import depth_to_cloud
 from ..rendering import RenderResult, as_intrinsics, render_depth
 
 __all__ = ["SceneObject", "Scene"]
@@ -130,7 +129,7 @@ class Scene:
             if not np.all(np.isfinite(used)):
                 raise ValueError("mesh has non-finite vertices")
             T = se3.rigid([0.0, 0.0, 1.0], yaw, [0.0, 0.0, 0.0])
-            rotated = used @ T[:3, :3].T
+            rotated = _core.common.transform_points(T, used)
             lo, hi = rotated.min(axis=0), rotated.max(axis=0)
             T[:3, 3] = [xy[0] - (lo[0] + hi[0]) / 2, xy[1] - (lo[1] + hi[1]) / 2, self.table_height - lo[2]]
         obj = SceneObject(name=name or f"object{len(self.objects)}", mesh=mesh, T_base_object=T,
@@ -150,51 +149,15 @@ class Scene:
         return np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, self.table_height])
 
     def _build(self) -> Dict[str, np.ndarray]:
+        """The combined mesh (C++ ``_core.synthetic.compose_scene``): each object moved into the
+        base frame, its faces in Morton order of their centroids and its vertices in order of
+        first use (neighbouring faces end up close in memory, which cuts the renderer's cache
+        misses on meshes stored in random order; unused vertices are dropped), then the table."""
         if self._combined is not None:
             return self._combined
-        verts, faces, owner, source, albedo = [], [], [], [], []
-        offset = 0
-        for k, obj in enumerate(self.objects):
-            v = obj.mesh.vertices @ obj.T_base_object[:3, :3].T + obj.T_base_object[:3, 3]
-            f = obj.mesh.faces
-            # Faces in Morton order of their centroids and vertices in order of first use:
-            # neighbouring faces end up close in memory, which cuts the renderer's cache misses
-            # on meshes stored in random order. Unused vertices are dropped.
-            order = _core.synthetic.morton_order(v[f].mean(axis=1))
-            f = f[order]
-            used, first = np.unique(f.ravel(), return_index=True)
-            by_first_use = used[np.argsort(first, kind="stable")]
-            remap = np.empty(len(v), dtype=np.int64)
-            remap[by_first_use] = np.arange(len(by_first_use))
-            verts.append(v[by_first_use])
-            faces.append(remap[f] + offset)
-            owner.append(np.full(len(f), k, dtype=np.int32))
-            source.append(order.astype(np.int64))
-            albedo.append(np.tile(obj.color, (len(f), 1)))
-            offset += len(by_first_use)
-        n_object_faces = sum(len(f) for f in faces)
-        if self.table_size is not None:
-            (sx, sy), (cx, cy) = self.table_size, self.table_center
-            corners = ((-1, -1), (1, -1), (1, 1), (-1, 1))  # counter-clockwise seen from above: normal +z
-            verts.append([[cx + a * sx / 2, cy + b * sy / 2, self.table_height] for a, b in corners])
-            faces.append(np.array([[0, 1, 2], [0, 2, 3]]) + offset)
-            owner.append(np.full(2, -1, dtype=np.int32))
-            source.append(np.arange(2))
-            albedo.append(np.tile(self.checker_colors[0], (2, 1)))
-        V = np.concatenate(verts) if verts else np.zeros((0, 3))
-        F = np.concatenate(faces).astype(np.int32) if faces else np.zeros((0, 3), np.int32)
-        corners = V[F]
-        n = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        norm = np.linalg.norm(n, axis=1, keepdims=True)
-        self._combined = {
-            "vertices": np.ascontiguousarray(V),
-            "faces": np.ascontiguousarray(F),
-            "owner": np.concatenate(owner) if owner else np.zeros(0, np.int32),
-            "source": np.concatenate(source) if source else np.zeros(0, np.int64),
-            "albedo": np.concatenate(albedo) if albedo else np.zeros((0, 3)),
-            "normals": np.divide(n, norm, out=np.zeros_like(n), where=norm > 0),
-            "n_object_faces": np.array(n_object_faces),
-        }
+        objects = [(obj.mesh.vertices, obj.mesh.faces, obj.T_base_object, obj.color) for obj in self.objects]
+        self._combined = _core.synthetic.compose_scene(objects, self.table_size, self.table_center, self.table_height,
+                                                       self.checker_colors[0])
         return self._combined
 
     @property
@@ -238,20 +201,14 @@ class Scene:
 
     def _prepare_shading(self) -> None:
         """Colour of every face under the fixed light, for both checker albedos (they differ
-        on table faces only); the last row is the background (black). Built once."""
+        on table faces only); the last row is the background (black). Built once (C++
+        ``_core.synthetic.scene_colors``)."""
         c = self._build()
         if "lut" in c:
             return
-        lambert = np.abs(c["normals"] @ self.light_direction)
-        intensity = (self.ambient + (1.0 - self.ambient) * lambert)[:, None]
-        alt = c["albedo"].copy()
-        alt[c["owner"] < 0] = self.checker_colors[1]
-
-        def to8(a: np.ndarray) -> np.ndarray:
-            return np.vstack([np.clip(a * 255.0 + 0.5, 0, 255).astype(np.uint8), np.zeros((1, 3), np.uint8)])
-
-        c["lut_alt"] = to8(alt * intensity)
-        c["lut"] = to8(c["albedo"] * intensity)
+        c["lut"], c["lut_alt"] = _core.synthetic.scene_colors(c["normals"], c["albedo"], c["owner"],
+                                                              int(c["n_object_faces"]), self.light_direction,
+                                                              self.ambient, self.checker_colors[1])
 
     def shade(self, result: RenderResult, T_base_camera: np.ndarray,
               intrinsics: Union[Intrinsics, str]) -> np.ndarray:
@@ -265,18 +222,8 @@ class Scene:
         fid = np.asarray(result.face_id)
         if fid.shape != K.shape:
             raise ValueError(f"result has shape {fid.shape}, intrinsics expect {K.shape}")
-        n_faces = len(c["faces"])
         self._prepare_shading()
-        idx = np.where(fid >= 0, fid, n_faces)
-        rgb = c["lut"][idx]
-        table = (idx >= int(c["n_object_faces"])) & (idx < n_faces)  # the table's faces come last
-        if np.any(table):
-            # Checker parity from the base-frame point hit on the table.
-            p, _, pixel = depth_to_cloud(np.where(table, result.depth, np.nan), K, min_depth=0.0,
-                                         max_depth=math.inf, return_pixels=True)
-            x, y, z = p.astype(np.float64).T
-            cell = sum(np.floor((T[i, 0] * x + T[i, 1] * y + T[i, 2] * z + T[i, 3] - self.table_center[i])
-                                / self.checker_size) for i in (0, 1))
-            v, u = np.divmod(pixel[np.mod(cell, 2.0) == 1.0], K.width)
-            rgb[v, u] = c["lut_alt"][idx[v, u]]
-        return rgb
+        # The table's checker parity from the base-frame point hit (the depth back-projected as
+        # depth_to_cloud does): C++ _core.synthetic.shade_scene.
+        return _core.synthetic.shade_scene(c["lut"], c["lut_alt"], int(c["n_object_faces"]), fid,
+                                           np.asarray(result.depth), K, T, self.table_center, self.checker_size)

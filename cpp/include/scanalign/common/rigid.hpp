@@ -1,5 +1,5 @@
 // Rigid transforms in one place: the check every entry point applies to a transform it is
-// given, and the least-squares rotation between corresponding point sets (Kabsch 1976;
+// given, applying a transform to points, and the least-squares rotation between corresponding point sets (Kabsch 1976;
 // Umeyama 1991, "Least-squares estimation of transformation parameters between two point
 // patterns", eqs. 38-43), which the point-to-point ICP estimator, the SVD baseline of the
 // motor estimators, correspondence RANSAC and trajectory alignment (ATE) all use.
@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 #include <Eigen/LU>  // determinant()
@@ -54,6 +55,45 @@ inline Eigen::Matrix4d rigidInverse(const Eigen::Matrix4d& T) {
   inv.topLeftCorner<3, 3>() = T.topLeftCorner<3, 3>().transpose();
   inv.topRightCorner<3, 1>() = -(inv.topLeftCorner<3, 3>() * T.topRightCorner<3, 1>());
   return inv;
+}
+
+/// Applies T to every point: p' = A p + t with [A | t] the top three rows of T, evaluated in
+/// double as ((A_r0 x + A_r1 y) + A_r2 z) + t_r for each row r (the order of the NumPy
+/// expression p @ A.T + t without fused multiply-adds) and rounded once to Scalar. T need not be
+/// rigid (a scale or shear is applied as given) but must be finite with the bottom row
+/// 0 0 0 1 (within kRigidRowTolerance): a projective matrix has no meaning for points here.
+/// Non-finite points give non-finite rows. `out` holds 3 Scalars a point, row-major; it may be
+/// the input itself (stride 3): each point is read before it is written. Throws
+/// std::invalid_argument naming `what` for a bad T.
+template <typename Scalar>
+void transformPoints(const Eigen::Matrix4d& T, const CloudView<Scalar>& points, Scalar* out,
+                     const std::string& what = "T") {
+  if (!T.allFinite()) throw std::invalid_argument(what + ": non-finite entries");
+  if ((T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > kRigidRowTolerance)
+    throw std::invalid_argument(what + ": the bottom row must be 0 0 0 1 (an affine transform)");
+  if (points.size > 0 && out == nullptr) throw std::invalid_argument("transformPoints: null output");
+  for (std::size_t i = 0; i < points.size; ++i) {
+    const Scalar* p = points.ptr(i);
+    const double x = p[0], y = p[1], z = p[2];
+    double q[3];
+    for (int r = 0; r < 3; ++r) {
+      double s = T(r, 0) * x;
+      s += T(r, 1) * y;
+      s += T(r, 2) * z;
+      q[r] = s + T(r, 3);
+    }
+    Scalar* o = out + 3 * i;
+    for (int r = 0; r < 3; ++r) o[r] = static_cast<Scalar>(q[r]);
+  }
+}
+
+/// transformPoints into a new array of 3 Scalars a point.
+template <typename Scalar>
+std::vector<Scalar> transformPoints(const Eigen::Matrix4d& T, const CloudView<Scalar>& points,
+                                    const std::string& what = "T") {
+  std::vector<Scalar> out(3 * points.size);
+  transformPoints(T, points, out.data(), what);
+  return out;
 }
 
 /// The rotation R maximising tr(R^T H) for a cross-covariance H = sum w (y - y_mean)

@@ -25,6 +25,10 @@ struct NormalEstimationSettings {
   int grid_subdivisions = 0;
 };
 
+/// Throws std::invalid_argument naming the field: a radius that is not finite and > 0, a
+/// non-finite viewpoint, min_neighbors < 3, num_threads < 0, grid_subdivisions outside [0, 16].
+void validate(const NormalEstimationSettings& settings);
+
 /// Estimates a unit normal per point: the eigenvector of the smallest eigenvalue of the
 /// neighbourhood covariance, oriented towards the viewpoint. `normals` receives 3*N values
 /// (row-major); `curvature` (may be null) N values of the surface variation

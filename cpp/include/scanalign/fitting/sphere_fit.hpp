@@ -44,7 +44,7 @@ struct SphereFitOptions {
   double plane_tolerance = 1e-6;
 };
 
-struct SphereFit {
+struct SphereFitResult {
   /// The fitted dual object as a 5-vector on (e1, e2, e3, e∞, e0), normalized: a sphere as
   /// [c; ½(c² − r²); 1] (4.60), a plane as [n; δ; 0] with |n| = 1 (4.66).
   Vector5d dual = Vector5d::Zero();
@@ -71,18 +71,25 @@ struct SphereFit {
 /// point beyond kMaxSphereCoordinate (1e150 m), a negative or non-finite weight, all weights zero, and degenerate data that does not
 /// determine a sphere or plane (coincident or collinear points, points on one circle).
 template <typename Scalar>
-SphereFit fitSphere(const CloudView<Scalar>& points, const double* weights = nullptr,
-                    const SphereFitOptions& options = {});
+SphereFitResult fitSphere(const CloudView<Scalar>& points, const double* weights = nullptr,
+                          const SphereFitOptions& options = {});
+
+/// The fits of fitSpheres, one per group.
+struct SphereFitBatchResult {
+  std::vector<SphereFitResult> fits;
+  std::size_t size() const { return fits.size(); }
+  const SphereFitResult& operator[](std::size_t g) const { return fits[g]; }
+};
 
 /// Many independent fits: group g uses points[offsets[g] .. offsets[g+1]) (offsets has
 /// n_groups + 1 non-decreasing entries, the last <= points.size). Runs in parallel (OpenMP,
 /// num_threads <= 0: all). A group that cannot be fitted (any reason fitSphere throws) gets
 /// count = 0 and NaN fields instead of an exception.
 template <typename Scalar>
-std::vector<SphereFit> fitSpheres(const CloudView<Scalar>& points, const std::int64_t* offsets, std::size_t n_groups,
-                                  const SphereFitOptions& options = {}, int num_threads = 0);
+SphereFitBatchResult fitSpheres(const CloudView<Scalar>& points, const std::int64_t* offsets, std::size_t n_groups,
+                                const SphereFitOptions& options = {}, int num_threads = 0);
 
-struct CircleFit {
+struct CircleFitResult {
   Eigen::Vector2d center = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());  ///< m
   double radius = std::numeric_limits<double>::quiet_NaN();  ///< m
   double rms = std::numeric_limits<double>::quiet_NaN();     ///< RMS geometric residual |‖p − c‖ − r|, m
@@ -94,6 +101,6 @@ struct CircleFit {
 /// Pratt's algebraic circle fit (thesis (5.1)-(5.25)) of 2-D points given as n
 /// (x, y) pairs, row-major. Requires at least 3 finite points not on one line; throws
 /// std::invalid_argument otherwise (fewer than 3, non-finite, collinear or coincident).
-CircleFit fitCirclePratt(const double* xy, std::size_t n);
+CircleFitResult fitCirclePratt(const double* xy, std::size_t n);
 
 }  // namespace scanalign

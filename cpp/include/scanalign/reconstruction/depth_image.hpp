@@ -5,7 +5,10 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <vector>
+
+#include <Eigen/Core>
 
 namespace scanalign {
 
@@ -16,28 +19,9 @@ namespace scanalign {
 /// rather than allocating gigabytes: the bilateral filter needs about 12 bytes a pixel.
 constexpr std::size_t kMaxImagePixels = std::size_t{1} << 27;
 
-/// Throws std::invalid_argument naming `what` unless 1 <= width, height and
+/// Throws std::invalid_argument naming `what` (and "width, height") unless 1 <= width, height and
 /// width * height <= kMaxImagePixels.
 void checkImageSize(long long width, long long height, const char* what);
-
-/// Pinhole intrinsics of a rectified depth image, OpenCV convention: the camera frame has
-/// x right, y down, z along the optical axis; the centre of pixel (u, v) = (column, row)
-/// sits at image coordinates (u, v); a camera point projects to u = fx x/z + cx,
-/// v = fy y/z + cy. Focal lengths and principal point in pixels.
-struct PinholeIntrinsics {
-  int width = 0;
-  int height = 0;
-  double fx = 0.0;
-  double fy = 0.0;
-  double cx = 0.0;
-  double cy = 0.0;
-
-  /// Throws std::invalid_argument (naming the field) unless the size is positive and at
-  /// most kMaxImagePixels, fx, fy > 0 and all are finite, and every pixel's ray has finite
-  /// slopes |u - cx| / fx, |v - cy| / fy <= 1e6 (a focal length of 1e-300 pixels or a
-  /// principal point at 1e300 would turn every depth into an infinite point).
-  void validate() const;
-};
 
 /// Brown–Conrady lens distortion (OpenCV's and ROS's "plumb_bob" model, coefficients in
 /// OpenCV's order k1 k2 p1 p2 k3) of normalised image coordinates (x, y) = (X/Z, Y/Z):
@@ -57,9 +41,49 @@ struct LensDistortion {
   void validate() const;
 };
 
+/// Intrinsics of a depth image, OpenCV convention: the camera frame has x right, y down, z
+/// along the optical axis; the centre of pixel (u, v) = (column, row) sits at image
+/// coordinates (u, v); a camera point projects to u = fx x_d + cx, v = fy y_d + cy with
+/// (x_d, y_d) the lens distortion of (x/z, y/z) (a pinhole camera, the default: x_d = x/z,
+/// y_d = y/z). Focal lengths and principal point in pixels. The one intrinsics type of the
+/// library: depth images back-project with it, the renderer draws with it (pinhole only),
+/// camera files are read into it.
+struct PinholeIntrinsics {
+  int width = 0;
+  int height = 0;
+  double fx = 0.0;
+  double fy = 0.0;
+  double cx = 0.0;
+  double cy = 0.0;
+  /// Brown-Conrady distortion of the lens; zero (the default): a pinhole camera, or
+  /// rectified images.
+  LensDistortion distortion = {};
+
+  /// Throws std::invalid_argument (naming the field) unless the size is positive and at
+  /// most kMaxImagePixels, fx, fy > 0 and all are finite, every pixel's ray has finite
+  /// slopes |u - cx| / fx, |v - cy| / fy <= 1e6 (a focal length of 1e-300 pixels or a
+  /// principal point at 1e300 would turn every depth into an infinite point), and the
+  /// distortion coefficients are finite.
+  void validate() const;
+  bool hasDistortion() const { return !distortion.isZero(); }
+  /// The 3x3 camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]].
+  Eigen::Matrix3d K() const;
+  /// The intrinsics of the image resized by `factor` (> 0, finite; 0.5: half resolution):
+  /// size rounded to the nearest integer (halves to even), focal lengths times factor, the
+  /// principal point mapped as (c + 0.5) factor - 0.5 (pixel centres sit at integer
+  /// coordinates); the distortion, which acts on normalised coordinates, unchanged.
+  /// Throws std::invalid_argument for a bad factor or a result validate() refuses.
+  PinholeIntrinsics scaled(double factor) const;
+};
+
+bool operator==(const LensDistortion& a, const LensDistortion& b);
+bool operator==(const PinholeIntrinsics& a, const PinholeIntrinsics& b);
+inline bool operator!=(const PinholeIntrinsics& a, const PinholeIntrinsics& b) { return !(a == b); }
+
 /// The undistorted normalised coordinates (x, y) = (X/Z, Y/Z) of the ray through every
-/// pixel centre (u, v): 2 doubles a pixel, row-major (index 2 (v width + u)), the table
-/// that depthToCloud takes as `rays`. Each pixel is undistorted as OpenCV's undistortPoints
+/// pixel centre (u, v) of a camera with intrinsics.distortion: 2 doubles a pixel, row-major
+/// (index 2 (v width + u)), the table depthToCloud back-projects a distorted camera's pixels
+/// with (cachedUndistortedRays). Each pixel is undistorted as OpenCV's undistortPoints
 /// does it (the same fixed-point iteration x <- (x0 - delta(x)) / radial(x), from the
 /// pinhole coordinates x0 = (u - cx) / fx), for up to `max_iterations` steps or until a
 /// step changes nothing (so the result equals OpenCV's undistortPointsIter with that many
@@ -69,9 +93,17 @@ struct LensDistortion {
 /// no point. Zero distortion gives the pinhole rays ((u - cx) / fx, (v - cy) / fy).
 /// Throws std::invalid_argument on bad intrinsics or coefficients, max_iterations < 1 or
 /// a max_reprojection_error that is not positive.
-std::vector<double> undistortedRays(const PinholeIntrinsics& intrinsics, const LensDistortion& distortion,
-                                    int max_iterations = 100, double max_reprojection_error = 1e-3,
-                                    int num_threads = 0);
+std::vector<double> undistortedRays(const PinholeIntrinsics& intrinsics, int max_iterations = 100,
+                                    double max_reprojection_error = 1e-3, int num_threads = 0);
+
+/// undistortedRays(intrinsics) with its defaults, computed once per intrinsics (size, K and
+/// coefficients) and kept for the next frames: the last kRayTableCacheSize tables are cached
+/// (least recently used dropped first), shared read-only, safe to call from any thread (a
+/// table is computed outside the lock; two threads asking for a new camera at once may both
+/// compute it, and one copy is kept). So a distorted camera's frame costs what a pinhole
+/// frame costs.
+std::shared_ptr<const std::vector<double>> cachedUndistortedRays(const PinholeIntrinsics& intrinsics);
+constexpr std::size_t kRayTableCacheSize = 8;
 
 struct DepthToCloudSettings {
   /// Metres per unit of an integer (uint16) depth image, in (0, 1]: 1e-3 for millimetres,
@@ -96,21 +128,19 @@ struct DepthCloud {
 };
 
 /// Back-projects a row-major depth image of intrinsics.height x intrinsics.width pixels:
-/// p = (z (u - cx) / fx, z (v - cy) / fy, z). A zero, non-finite or out-of-range depth is
+/// p = (z (u - cx) / fx, z (v - cy) / fy, z) for a pinhole camera. A zero, non-finite or out-of-range depth is
 /// an invalid pixel, and so is a pixel whose point is not finite in float32 (a float depth
 /// of 1e38 with max_depth = inf): every returned point is finite. `rgb` (may be null) holds
 /// 3 uint8 per pixel, row-major, registered to the depth image. Throws
 /// std::invalid_argument on bad intrinsics (see PinholeIntrinsics::validate) or settings
 /// (depth_scale outside (0, 1] m, min_depth < 0, max_depth <= min_depth, stride < 1).
-/// With a lens-distorted camera, `rays` is its undistortedRays table (2 doubles a pixel)
-/// and p = (z x, z y, z) with the pixel's (x, y) from it (a NaN ray: an invalid pixel);
-/// null (the default): the pinhole formula above, unchanged.
+/// With lens distortion (intrinsics.distortion not zero), p = (z x, z y, z) with the
+/// pixel's undistorted ray (x, y) from cachedUndistortedRays (a NaN ray: an invalid pixel);
+/// zero distortion takes the pinhole formula above, bit for bit.
 DepthCloud depthToCloud(const std::uint16_t* depth, const PinholeIntrinsics& intrinsics,
-                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr,
-                        const double* rays = nullptr);
+                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr);
 DepthCloud depthToCloud(const float* depth, const PinholeIntrinsics& intrinsics,
-                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr,
-                        const double* rays = nullptr);
+                        const DepthToCloudSettings& settings, const std::uint8_t* rgb = nullptr);
 
 /// Edge-preserving smoothing of a depth image before back-projection (as KinectFusion does
 /// before computing normals). Why: axial sensor noise (about 1 mm at 0.4 m for an SR300)

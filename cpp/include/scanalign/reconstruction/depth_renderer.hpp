@@ -41,8 +41,9 @@
 
 namespace scanalign {
 
-/// Pinhole intrinsics of the rendered image (no distortion), OpenCV convention: the same
-/// type depthToCloud() back-projects with, so a rendered image round-trips.
+/// Intrinsics of the rendered image, OpenCV convention: the same type depthToCloud()
+/// back-projects with, so a rendered image round-trips. The renderer draws pinhole images:
+/// its distortion must be zero.
 using PinholeCamera = PinholeIntrinsics;
 
 struct DepthRenderSettings {
@@ -60,7 +61,7 @@ struct DepthRenderSettings {
 
 /// Output buffers, row-major (H x W), owned by the caller. Any of them but `depth` may be
 /// null when not wanted.
-struct DepthRenderOutput {
+struct DepthRenderResult {
   /// Depth z (m) of the visible surface; quiet NaN where nothing is hit.
   float* depth = nullptr;
   /// Index (row of `faces`) of the visible triangle; -1 where nothing is hit.
@@ -84,18 +85,19 @@ struct DepthRenderOutput {
 /// @throws std::invalid_argument on a face index out of range, a non-finite or non-rigid
 ///         transform, bad intrinsics (size not in [1, 32768] or width x height beyond
 ///         kMaxImagePixels = 2^27, checked before allocating; focal length not finite and
-///         positive, principal point not finite), bad clip planes, or null outputs.
+///         positive, principal point not finite; lens distortion, which a pinhole rendering
+///         cannot show), bad clip planes, or null outputs.
 template <typename Scalar>
 void renderDepth(const CloudView<Scalar>& vertices, const std::int32_t* faces, std::size_t n_faces,
                  const PinholeCamera& camera, const Eigen::Matrix4d& T_camera_world, const DepthRenderSettings& settings,
-                 const DepthRenderOutput& out);
+                 const DepthRenderResult& out);
 
 /// Owning result of the convenience overload.
 struct DepthImage {
   int width = 0, height = 0;
   std::vector<float> depth;             ///< m, NaN where nothing is hit
   std::vector<std::int32_t> face_id;    ///< -1 where nothing is hit
-  std::vector<float> cos_incidence;     ///< see DepthRenderOutput::cos_incidence
+  std::vector<float> cos_incidence;     ///< see DepthRenderResult::cos_incidence
   float at(int u, int v) const { return depth[static_cast<std::size_t>(v) * width + u]; }
   std::int32_t faceAt(int u, int v) const { return face_id[static_cast<std::size_t>(v) * width + u]; }
 };

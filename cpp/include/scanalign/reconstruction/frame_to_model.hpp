@@ -53,6 +53,13 @@ enum class MotionModel {
   /// to Previous until two frames are merged; after a skipped frame the prediction lags
   /// by that frame's motion.
   ConstantVelocity,
+  /// Odometry-aided: each frame's guess is the robot's reference motion since the last
+  /// merged frame applied to that frame's estimate, T_k = T_m (R_m^-1 R_k) with R the
+  /// reference poses (forward kinematics and the hand-eye calibration) and m the last merged
+  /// frame, as in the eye-in-hand paper's robot scans. The caller computes it from the
+  /// reference poses and passes it as the guess; a frame integrated without a guess falls
+  /// back to ConstantVelocity.
+  Reference,
 };
 
 const char* toString(MotionModel model);
@@ -89,7 +96,8 @@ struct FrameToModelSettings {
   /// A registration that jumps further is taken to have failed.
   double max_translation_change = 0.10;
   double max_rotation_change = 0.5;
-  /// Initial guess of a frame given none (see MotionModel). Default: the eye-in-hand paper's.
+  /// Initial guess of a frame given none (see MotionModel; Reference without a guess acts as
+  /// ConstantVelocity). Default: the eye-in-hand paper's.
   MotionModel motion_model = MotionModel::Previous;
   /// OpenMP threads for normals and ICP (overrides icp.num_threads when > 0); 0 = all cores.
   int num_threads = 0;
@@ -126,7 +134,7 @@ struct PreparedFrame {
   CloudView<float> view() const { return CloudView<float>(points.data(), size()); }
 };
 
-struct FrameReport {
+struct FrameResult {
   int index = -1;                    ///< 0-based count of frames given to the pipeline
   double timestamp = 0.0;            ///< s; the frame's time stamp, as the caller gives it
   std::size_t input_points = 0;      ///< points given (before crop and downsampling)
@@ -186,11 +194,11 @@ class FrameToModel {
   /// unchanged. Throws std::invalid_argument for invalid settings or a non-rigid or
   /// non-finite guess, and passes on std::bad_alloc and Interrupted; whatever it throws, the
   /// model, poses and counts are unchanged (the frame did not happen).
-  FrameReport integrate(const CloudView<float>& points_camera, const std::uint8_t* colors = nullptr,
+  FrameResult integrate(const CloudView<float>& points_camera, const std::uint8_t* colors = nullptr,
                         const Eigen::Matrix4d* T_model_camera_guess = nullptr);
 
   /// As integrate(), for a frame already prepared.
-  FrameReport integratePrepared(const PreparedFrame& frame, const Eigen::Matrix4d* T_model_camera_guess = nullptr);
+  FrameResult integratePrepared(const PreparedFrame& frame, const Eigen::Matrix4d* T_model_camera_guess = nullptr);
 
   /// Merges a prepared frame at a pose found elsewhere (e.g. another registration
   /// method), then voxel-grids the model; the pose becomes lastPose(). Returns the new

@@ -29,6 +29,7 @@
 
 #include <Eigen/Core>
 
+#include "scanalign/common/mesh_sampling.hpp"
 #include "scanalign/pose/part_symmetry.hpp"
 
 namespace scanalign {
@@ -63,6 +64,17 @@ const std::vector<std::string>& builtinPartNames();
 /// and the bracket, order 6 about z through the origin for the standoff.
 /// Throws std::invalid_argument for an unknown name.
 PartSymmetry builtinPartSymmetry(const std::string& name);
+
+/// The block's exposed surface sampled uniformly per unit area, with exact normals: samples
+/// of builtinPartMesh(segments) (MeshSampler, from Pcg64(seed), in batches of the points
+/// missing plus 1 % and 16) whose points on the boss's side are moved radially onto the
+/// exact cylinder and those on the cap onto the exact sphere (normals the exact ones there);
+/// points of the top face inside the true circles of the boss and the cap (the slivers
+/// between the inscribed polygons and the circles, which belong to the boss and the cap) are
+/// dropped. The points come in the order drawn (the former NumPy implementation's, sample for
+/// sample). `faces` holds each point's mesh face. Throws std::invalid_argument for segments
+/// outside [8, kMaxPartSegments].
+MeshSamples sampleBuiltinBlock(std::size_t n_points, std::uint64_t seed, int segments = 96);
 
 /// Most segments builtinPartMesh() takes (its chord error is then 4e-9 m, far below any
 /// sensor); more would only allocate (the mesh grows with the segments).
