@@ -27,9 +27,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from scanalign import batch
-from scanalign.batch import Job
-from scanalign.part_library import build_part_library
+from scanalign.pipelines import batch
+from scanalign.pipelines.batch import Job
+from scanalign.grasp.part_library import build_part_library
 
 
 def noop(job: Job, library) -> dict:
@@ -47,7 +47,7 @@ def mixed_jobs(n: int) -> list:
 
 def run(executor: str, workers: int, jobs: list, out: Path, runner=batch.run_job) -> tuple:
     t0 = time.perf_counter()
-    r = batch.run_batch(jobs, out, executor=executor, workers=workers, retries=0, progress=False, plots=False,
+    r = batch.run_batch(jobs, out, executor=executor, workers=workers, retries=0, progress=False,
                         runner=runner)
     return time.perf_counter() - t0, r
 

@@ -28,7 +28,9 @@ import numpy as np
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 from helpers import apply, pose_error, rigid  # noqa: E402
 
-from scanalign import datasets, parts, registration  # noqa: E402
+from scanalign import registration  # noqa: E402
+from scanalign.data import downloads as datasets
+from scanalign.data import parts
 
 # Motions of the camera between the two clouds (T_target_source). "frame-to-frame" is an
 # eye-in-hand step at the eye-in-hand paper's capture rate (10 Hz, arm at <= 0.1 m/s): about 1 cm;

@@ -24,7 +24,8 @@ from typing import Callable, Tuple
 import numpy as np
 
 import scanalign
-from scanalign import datasets, parts
+from scanalign.data import downloads as datasets
+from scanalign.data import parts
 from scanalign.evaluation import MeshDistanceIndex
 
 _ROOT = Path(__file__).resolve().parents[1]
@@ -66,7 +67,7 @@ def query_points(vertices: np.ndarray, faces: np.ndarray, n: int, spread: float,
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--mesh", default="bunny00", help="CGAL example mesh (scanalign.datasets.load_cgal_mesh)")
+    ap.add_argument("--mesh", default="bunny00", help="CGAL example mesh (scanalign.data.downloads.load_cgal_mesh)")
     ap.add_argument("--points", type=int, default=200_000)
     ap.add_argument("--spread", type=float, default=0.01, help="offset from the surface, fraction of the diagonal")
     ap.add_argument("--far", type=float, default=0.05, help="fraction of points anywhere in the doubled box")

@@ -138,7 +138,7 @@ if str(ROOT / "python") not in sys.path and not any(Path(p).joinpath("scanalign"
 
 sys.path.insert(0, str(ROOT / "tests"))
 from helpers import rigid  # noqa: E402  (the tests' rigid-transform helper)
-from scanalign.pipeline import _jsonable  # noqa: E402  (the report writer's JSON conversion)
+from scanalign.pipelines.reconstruct import _jsonable  # noqa: E402  (the report writer's JSON conversion)
 
 SECTIONS = ("dense", "lidar", "loop", "scaling", "memory")
 DEMO_CROP = (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0)
@@ -178,7 +178,7 @@ def log(msg: str) -> None:
 
 def pose_error(T_est: np.ndarray, T_ref: np.ndarray) -> Tuple[float, float]:
     """(translation error mm, rotation error deg) of T_est relative to T_ref."""
-    from scanalign import se3
+    from scanalign.common import rigid as se3
 
     rot, trans = se3.pose_error(T_est, T_ref)
     return trans * 1e3, math.degrees(rot)
@@ -484,10 +484,10 @@ def demo_frames(n_frames: int = 36, resolution_scale: float = 1.0, seed: int = 0
 
 
 def demo_reconstructor(frames, threads: int = 0, registration: str = "scanalign", motion_model: str = "previous"):
-    from scanalign.reconstruction import DepthFilter, Reconstructor
+    from scanalign.reconstruction import BilateralFilterSettings, Reconstructor
 
     return Reconstructor(T_model_camera0=frames[0].T_base_camera, crop_box=list(DEMO_CROP),
-                         normal_radius=DEMO_NORMAL_RADIUS, depth_filter=DepthFilter(), registration=registration,
+                         normal_radius=DEMO_NORMAL_RADIUS, depth_filter=BilateralFilterSettings(), registration=registration,
                          num_threads=threads, icp=dict(num_threads=threads), motion_model=motion_model)
 
 
@@ -535,7 +535,7 @@ def build_dense_inputs(path: Path) -> None:
 
 
 def build_lidar_inputs(path: Path) -> None:
-    from scanalign import datasets
+    from scanalign.data import downloads as datasets
     from scanalign.reconstruction import voxel_grid
 
     raw_source, raw_target, T_ref = datasets.small_gicp_lidar_pair()
@@ -613,14 +613,14 @@ class Open3DLoop:
         self.records: List[Dict[str, Any]] = []
 
     def integrate(self, frame) -> Dict[str, Any]:
-        from scanalign.reconstruction import DepthFilter, bilateral_filter_depth
+        from scanalign.reconstruction import BilateralFilterSettings, bilateral_filter_depth
 
         o3d = self.o3d
         reg = o3d.pipelines.registration
         t0 = time.perf_counter()
         # Same input as scanalign's loop: the raw depth through scanalign's bilateral filter
         # (Open3D's legacy pipeline has no depth filter that skips invalid pixels).
-        depth = bilateral_filter_depth(frame.depth, DepthFilter(), depth_scale=frame.depth_scale)
+        depth = bilateral_filter_depth(frame.depth, BilateralFilterSettings(), depth_scale=frame.depth_scale)
         depth = np.nan_to_num(depth, nan=0.0)
         t_filter = time.perf_counter() - t0
         rgbd = o3d.geometry.RGBDImage.create_from_color_and_depth(
@@ -694,8 +694,8 @@ class ScanalignLoop:
 
 
 def loop_summary(label: str, records: List[Dict[str, Any]], frames, threads: int, settings: str) -> Dict[str, Any]:
-    from scanalign.pipeline import trajectory_metrics
-    from scanalign.trajectory import Trajectory
+    from scanalign.pipelines.reconstruct import trajectory_metrics
+    from scanalign.evaluation.trajectory import Trajectory
 
     reg = [r for r in records if r["status"] == "registered"]
     merged = [r for r in records if r["merged"]]
@@ -775,7 +775,8 @@ def section_loop(args, threads: int, peers) -> Dict[str, Any]:
 
 
 def scaling_surface(n: int, seed: int):
-    from scanalign import datasets, parts
+    from scanalign.data import downloads as datasets
+    from scanalign.data import parts
 
     mesh = datasets.load_cgal_mesh("bunny00")
     v = mesh.vertices - mesh.vertices.mean(axis=0)
@@ -1358,7 +1359,7 @@ def main(argv=None) -> int:
             build_dense_inputs(inputs / "dense.npz")
         if "lidar" in per_thread:
             log("[bench_peers] lidar: loading small_gicp's LiDAR pair")
-            from scanalign import datasets
+            from scanalign.data import downloads as datasets
 
             try:
                 build_lidar_inputs(inputs / "lidar.npz")

@@ -2,7 +2,7 @@
 (Kleppe, PhD thesis, NTNU 2018, paper 5, experiments 1 and 2, Tables I and II).
 
 Data: CGAL demo meshes (mechanical parts and Stanford models, fetched from Debian's
-libcgal-demo by scanalign.datasets) scaled to a 120 mm bounding box, seen from vertices of
+libcgal-demo by scanalign.data.downloads) scaled to a 120 mm bounding box, seen from vertices of
 the tessellated sphere (cad.render_views, --resolution px) -- the thesis's viewpoint clouds --
 plus scans of the part from the synthetic scanner (0.45 m, Zivid-like axial noise of 0.1 mm
 at 0.5 m, growing with z²).
@@ -42,8 +42,12 @@ import numpy as np
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from scanalign import cad, cbd, datasets, features, pose, registration, rendering, synthetic
-from scanalign.camera import intrinsics_preset
+from scanalign import features, pose, registration, synthetic
+from scanalign.pose import model_views as cad
+from scanalign.pose import cbd
+from scanalign.data import downloads as datasets
+from scanalign.reconstruction import rendering
+from scanalign.reconstruction.camera import intrinsics_preset
 
 
 def _pose(rng: np.random.Generator) -> np.ndarray:

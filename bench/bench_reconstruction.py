@@ -37,7 +37,7 @@ import numpy as np
 
 from scanalign import synthetic
 from scanalign.evaluation import absolute_trajectory_error
-from scanalign.reconstruction import DepthFilter, Reconstructor
+from scanalign.reconstruction import BilateralFilterSettings, Reconstructor
 
 METHODS = {
     "scanalign LLS": dict(registration="scanalign", estimator="point_to_plane"),
@@ -64,7 +64,7 @@ def run(scan, method: dict, max_iterations: int, max_distance: float) -> dict:
     # simulated SR300 noise needs them, see the README), with every check off.
     rec = Reconstructor(T_model_camera0=scan.frames[0].T_base_camera, registration=method["registration"],
                         icp=icp, crop_box=(-0.1, 0.1, -0.1, 0.1, 0.1, 1.0), normal_radius=0.01,
-                        depth_filter=DepthFilter(), min_fitness=0.0, require_convergence=False,
+                        depth_filter=BilateralFilterSettings(), min_fitness=0.0, require_convergence=False,
                         max_translation_change=float("inf"), max_rotation_change=float("inf"))
     t0 = time.perf_counter()
     for f in scan.frames:
@@ -138,7 +138,7 @@ def main() -> int:
             ratio = [by_images[pcl][n]["register_seconds"] / by_images[ours][n]["register_seconds"] for n in images]
             print(f"{pcl} / {ours} time: " + ", ".join(f"{n} img {r:.1f}x" for n, r in zip(images, ratio)))
 
-    from scanalign.plots import plot_series
+    from scanalign.viz.plots import plot_series
 
     def series(data: dict, xs, key: str, scale: float = 1.0) -> dict:
         return {m: [data[m][x][key] * scale for x in xs] for m in data}

@@ -4,7 +4,7 @@ Each mesh (the built-in part, about 3000 triangles, and CGAL's Stanford bunny, a
 75000 triangles, scaled to 15 cm) stands alone at the origin and is seen from the
 --frames poses of the default scan loop (40 cm above the table, 20 cm radius) at 640x480
 with the SR300 intrinsics. Reported: the median over --repeats of the mean time per frame
-of scanalign.rendering.render_depth (all threads, then one), of a whole synthetic scan
+of scanalign.reconstruction.rendering.render_depth (all threads, then one), of a whole synthetic scan
 frame (render + sensor noise + shaded RGB, frames rendered concurrently), and, when Open3D
 is installed, of RaycastingScene.cast_rays on the same mesh, poses and pixels (its BVH is
 built once, outside the timing; ray generation is included, as our renderer projects the
@@ -27,8 +27,12 @@ import time
 
 import numpy as np
 
-from scanalign import datasets, parts, rendering, se3, synthetic
-from scanalign.camera import intrinsics_preset
+from scanalign import synthetic
+from scanalign.data import downloads as datasets
+from scanalign.data import parts
+from scanalign.reconstruction import rendering
+from scanalign.common import rigid as se3
+from scanalign.reconstruction.camera import intrinsics_preset
 
 
 def meshes():

@@ -9,7 +9,7 @@ echo "[test] test-only and optional Python packages (evo: reference ATE/RPE; cli
   "atheris>=2.3" "opencv-python-headless>=4.8,<5" "ray>=2.9" "pyarrow>=12" "yourdfpy>=0.0.60" "pin>=4.1" \
   "example-robot-data>=6.0" "rosbags>=0.10" "rerun-sdk>=0.20" "trimesh>=4" "open3d>=0.18"
 echo "[test] fetching test data (Debian packages libcgal-demo and python3-pcl)"
-.venv/bin/python -m scanalign.datasets fetch
+.venv/bin/python -m scanalign.data fetch
 echo "[test] ctest"
 .venv/bin/ctest --test-dir build/py --output-on-failure -j2
 echo "[test] the light build (SCANALIGN_WITH_PCL=OFF, build folder build/light): Python module and build-info test"

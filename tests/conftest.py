@@ -13,7 +13,7 @@ import pytest
 def pytest_configure(config: pytest.Config) -> None:
     config.addinivalue_line(
         "markers",
-        "data: needs the real test data (Debian packages fetched by scanalign.datasets; "
+        "data: needs the real test data (Debian packages fetched by scanalign.data.downloads; "
         "deselect with -m 'not data')",
     )
 
@@ -21,7 +21,7 @@ def pytest_configure(config: pytest.Config) -> None:
 @pytest.fixture(scope="session")
 def dataset_cache() -> Path:
     """Fetch the data packages once per session; skip the test if they are unavailable."""
-    from scanalign import datasets
+    from scanalign.data import downloads as datasets
 
     try:
         datasets.fetch_all()
@@ -37,7 +37,8 @@ def dataset_cache() -> Path:
 def _surface(name: str, n_points: int, seed: int) -> Tuple[np.ndarray, np.ndarray]:
     """A CGAL demo mesh scaled to 15 cm and placed 50 cm in front of a camera at the
     origin, sampled area-uniformly with exact face normals (metres)."""
-    from scanalign import datasets, parts
+    from scanalign.data import downloads as datasets
+    from scanalign.data import parts
 
     mesh = datasets.load_cgal_mesh(name)
     v = mesh.vertices - mesh.vertices.mean(axis=0)

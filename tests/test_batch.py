@@ -1,4 +1,4 @@
-"""Batch runs (scanalign.batch): manifests, the job records against the synthetic cell's truth,
+"""Batch runs (scanalign.pipelines.batch): manifests, the job records against the synthetic cell's truth,
 the same results table from a serial run, the local process pool and a local Ray instance,
 failures and native crashes isolated, resume, retries, and the part library reaching the
 workers instead of being recomputed."""
@@ -16,9 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanalign import batch, io
-from scanalign.batch import Job, run_job
-from scanalign.part_library import build_part_library, load_part_library
+from scanalign import io
+from scanalign.pipelines import batch
+from scanalign.pipelines.batch import Job, run_job
+from scanalign.grasp.part_library import build_part_library, load_part_library
 
 #: Columns that depend on timing or on the process, not on the job.
 TIMING = {"seconds", "worker", "seconds_per_frame"}
@@ -118,7 +119,7 @@ def test_run_job_reports_bad_settings_instead_of_raising():
 
 def test_local_pool_gives_the_serial_table(serial, corrupt, tmp_path):
     jobs = JOBS + [corrupt]
-    result = batch.run_batch(jobs, tmp_path / "out", workers=2, retries=0, progress=False, plots=False)
+    result = batch.run_batch(jobs, tmp_path / "out", workers=2, retries=0, progress=False)
     assert [r["id"] for r in result.records] == [j.id for j in jobs]  # manifest order
     assert same_table(result.records, serial)
     assert {r["worker"].split(":")[1] for r in result.records} != {str(os.getpid())}  # ran in other processes
@@ -144,7 +145,7 @@ def ray_instance():
 
 def test_ray_gives_the_serial_table(serial, corrupt, ray_instance, tmp_path):
     jobs = JOBS + [corrupt]
-    result = batch.run_batch(jobs, tmp_path / "out", executor="ray", retries=0, progress=False, plots=False)
+    result = batch.run_batch(jobs, tmp_path / "out", executor="ray", retries=0, progress=False)
     assert same_table(result.records, serial)
     assert result.executor.startswith("Ray, 1 node(s), 2 CPU(s)")
 
@@ -155,7 +156,7 @@ def test_each_job_runs_with_threads_per_job_openmp_threads(executor, tmp_path, r
         request.getfixturevalue("ray_instance").cloudpickle.register_pickle_by_value(sys.modules[__name__])
     for threads in (1, 2):
         result = batch.run_batch([Job(f"t{k}", "reconstruct") for k in range(2)], tmp_path / f"{threads}",
-                                 executor=executor, workers=1, threads_per_job=threads, progress=False, plots=False,
+                                 executor=executor, workers=1, threads_per_job=threads, progress=False,
                                  runner=threads_runner)
         assert [set(r["threads"]) for r in result.records] == [{threads}] * 2, result.records
 
@@ -165,7 +166,7 @@ def test_each_job_runs_with_threads_per_job_openmp_threads(executor, tmp_path, r
 
 def test_a_crashing_job_is_isolated_on_the_local_pool(tmp_path):
     jobs = [Job("pose-a", "pose", seed=2), Job("crash", "pose"), Job("rec-a", "reconstruct", frames=6)]
-    result = batch.run_batch(jobs, tmp_path, workers=2, retries=1, progress=False, plots=False, runner=crash_runner)
+    result = batch.run_batch(jobs, tmp_path, workers=2, retries=1, progress=False, runner=crash_runner)
     rec = {r["id"]: r for r in result.records}
     assert rec["crash"]["status"] == "crashed" and "died" in rec["crash"]["error"] and rec["crash"]["attempts"] == 2
     assert rec["pose-a"]["status"] == "ok" and rec["pose-a"]["found"] == 3  # in flight beside it, then re-run alone
@@ -177,7 +178,7 @@ def test_a_crashing_job_is_isolated_on_the_local_pool(tmp_path):
 def test_a_crashing_job_is_isolated_on_ray(ray_instance, tmp_path):
     ray_instance.cloudpickle.register_pickle_by_value(sys.modules[__name__])  # workers cannot import this file
     jobs = [Job("crash", "pose"), Job("rec-a", "reconstruct", frames=6)]
-    result = batch.run_batch(jobs, tmp_path, executor="ray", retries=0, progress=False, plots=False,
+    result = batch.run_batch(jobs, tmp_path, executor="ray", retries=0, progress=False,
                              runner=crash_runner)
     rec = {r["id"]: r for r in result.records}
     assert rec["crash"]["status"] == "crashed" and rec["crash"]["error"]
@@ -186,21 +187,21 @@ def test_a_crashing_job_is_isolated_on_ray(ray_instance, tmp_path):
 
 def test_resume_skips_finished_jobs_and_reruns_the_rest(library, tmp_path):
     first = [JOBS[0]]
-    batch.run_batch(first, tmp_path, workers=1, progress=False, plots=False)
+    batch.run_batch(first, tmp_path, workers=1, progress=False)
     before = json.loads((tmp_path / "records.jsonl").read_text().splitlines()[0])
     with open(tmp_path / "records.jsonl", "a") as f:  # an interrupted run: a record torn mid-line
         f.write('{"id": "rec-1", "status": "ok", "se')
-    result = batch.run_batch(JOBS[:2], tmp_path, workers=2, progress=False, plots=False)
+    result = batch.run_batch(JOBS[:2], tmp_path, workers=2, progress=False)
     assert result.skipped == 1
     assert plain(result.records[:1]) == plain([before])  # not run again: the very same record, timings included
     assert result.records[1]["status"] == "ok" and result.records[1]["merged"] == 36
-    again = batch.run_batch(JOBS[:2], tmp_path, workers=2, progress=False, plots=False)
+    again = batch.run_batch(JOBS[:2], tmp_path, workers=2, progress=False)
     assert again.skipped == 2 and plain(again.records) == plain(result.records)
 
 
 def test_failed_jobs_are_retried_as_configured(tmp_path):
     job = Job("missing", "reconstruct", source=str(tmp_path / "no_such_folder"))
-    result = batch.run_batch([job], tmp_path / "out", workers=1, retries=2, progress=False, plots=False)
+    result = batch.run_batch([job], tmp_path / "out", workers=1, retries=2, progress=False)
     assert result.records[0]["status"] == "failed" and result.records[0]["attempts"] == 3
     assert len((tmp_path / "out" / "records.jsonl").read_text().splitlines()) == 3
 
@@ -225,8 +226,7 @@ def test_workers_use_the_saved_part_library(library, tmp_path, executor, request
     path = swapped_library(library, tmp_path)
     stamp = path.stat().st_mtime_ns
     job = Job("pose-0", "pose", seed=0)
-    result = batch.run_batch([job], tmp_path / "out", executor=executor, workers=1, retries=0, progress=False,
-                             plots=False)
+    result = batch.run_batch([job], tmp_path / "out", executor=executor, workers=1, retries=0, progress=False)
     assert path.stat().st_mtime_ns == stamp  # loaded, not rebuilt
     r = result.records[0]
     detail = json.loads(r["detail"])

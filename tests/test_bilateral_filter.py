@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from scanalign import synthetic
-from scanalign.reconstruction import DepthFilter, bilateral_filter_depth
+from scanalign.reconstruction import BilateralFilterSettings, bilateral_filter_depth
 
 
 def reference(depth: np.ndarray, radius: int, sigma_space: float, sigma_depth: float) -> np.ndarray:
@@ -33,7 +33,7 @@ def reference(depth: np.ndarray, radius: int, sigma_space: float, sigma_depth: f
         return np.where(valid, num / den, np.nan)
 
 
-def check(depth: np.ndarray, f: DepthFilter) -> None:
+def check(depth: np.ndarray, f: BilateralFilterSettings) -> None:
     got = bilateral_filter_depth(depth.astype(np.float32), f)
     want = reference(depth, f.radius, f.sigma_space, f.sigma_depth)
     assert got.dtype == np.float32
@@ -45,9 +45,9 @@ def check(depth: np.ndarray, f: DepthFilter) -> None:
     np.testing.assert_allclose(got[ok], want[ok], rtol=3e-6, atol=0)
 
 
-@pytest.mark.parametrize("f", [DepthFilter(), DepthFilter(radius=0), DepthFilter(radius=1, sigma_space=0.7),
-                               DepthFilter(radius=3, sigma_space=2.0, sigma_depth=0.01),
-                               DepthFilter(radius=5, sigma_space=3.0, sigma_depth=0.001)])
+@pytest.mark.parametrize("f", [BilateralFilterSettings(), BilateralFilterSettings(radius=0), BilateralFilterSettings(radius=1, sigma_space=0.7),
+                               BilateralFilterSettings(radius=3, sigma_space=2.0, sigma_depth=0.01),
+                               BilateralFilterSettings(radius=5, sigma_space=3.0, sigma_depth=0.001)])
 def test_filter_equals_the_definition_on_a_sr300_frame(f):
     frame = synthetic.builtin_scan(n_frames=4).frames[2]
     depth = frame.depth.astype(np.float64) * frame.depth_scale
@@ -65,5 +65,5 @@ def test_filter_equals_the_definition_with_holes_edges_and_odd_sizes():
         depth[rng.random((h, w)) < 0.05] = np.nan
         depth[rng.random((h, w)) < 0.02] = np.inf
         depth[rng.random((h, w)) < 0.02] = -1.0
-        for f in (DepthFilter(), DepthFilter(radius=4, sigma_space=2.5, sigma_depth=0.05)):
+        for f in (BilateralFilterSettings(), BilateralFilterSettings(radius=4, sigma_space=2.5, sigma_depth=0.05)):
             check(depth, f)

@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from scanalign import _core, parts
-from scanalign.mesh_metrics import point_to_mesh_distance
+from scanalign import _core
+from scanalign.data import parts
+from scanalign.evaluation.mesh_distance import point_to_mesh_distance
 
 
 def _closed_and_outward(m):

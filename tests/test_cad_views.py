@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanalign import cad, evaluation, parts
+from scanalign import evaluation
+from scanalign.pose import model_views as cad
+from scanalign.data import parts
 
 
 @pytest.mark.parametrize("level,nv,nf", [(0, 12, 20), (1, 42, 80), (2, 162, 320)])
@@ -37,7 +39,7 @@ def test_views_lie_on_the_surface_face_their_camera_and_cover_the_part():
         allpts.append(v.points)
     # every part of the surface is seen by some view: surface samples near a view point
     from scipy.spatial import cKDTree
-    from scanalign.parts import sample_mesh
+    from scanalign.data.parts import sample_mesh
 
     samples, _ = sample_mesh(mesh, 3000, seed=1)
     d, _ = cKDTree(np.vstack(allpts)).query(samples)

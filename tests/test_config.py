@@ -1,10 +1,14 @@
-"""Config files: ``scanalign COMMAND --config FILE``, ``scanalign dump-config COMMAND`` and the
-effective config written beside every output (scanalign.config)."""
+"""One settings schema from the C++ structs to the command line: ``scanalign dump-config
+COMMAND``, ``--config FILE`` (nested YAML / JSON of the structs' fields), ``--set PATH=VALUE``,
+the alias flags, and the effective config written beside every output
+(scanalign.common.settings, scanalign.cli.settings)."""
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -12,23 +16,12 @@ import pytest
 import yaml
 
 from helpers import apply, rigid
-from scanalign import cli, config
+from scanalign import cli
+from scanalign.cli import commands as cli_main
+from scanalign.cli.settings import resolve
+from scanalign.common import settings as schema
 
-
-@pytest.fixture()
-def parsers(monkeypatch, capsys):
-    """The parser of each config-file command, as ``scanalign`` builds it."""
-    found = {}
-    real = config.use_config_file
-
-    def spy(subparsers, argv):
-        found.update({name: subparsers.choices[name] for name in config.COMMANDS})
-        return real(subparsers, argv)
-
-    monkeypatch.setattr(config, "use_config_file", spy)
-    assert cli.main(["dump-config", "register"]) == 0
-    capsys.readouterr()
-    return found
+COMMANDS = dict(cli_main.COMMANDS)
 
 
 @pytest.fixture()
@@ -64,160 +57,207 @@ def settings_of(path: Path) -> dict:
 # --------------------------------------------------------------------------- dump-config
 
 
-@pytest.mark.parametrize("command", config.COMMANDS)
-def test_dump_config_loads_back_to_the_defaults(command, parsers, capsys, tmp_path):
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_dump_config_lists_every_field_and_loads_back_to_the_defaults(command, capsys):
     assert cli.main(["dump-config", command]) == 0
     text = capsys.readouterr().out
-    dumped = yaml.safe_load(text)
-    parser = parsers[command]
-    every = config.settings(parser)
-    assert set(dumped) == {s.key for s in every} and "config" not in dumped and "help" not in dumped
-    for s in every:  # the defaults, as YAML values (tuples as lists, flags as true/false)
-        assert dumped[s.key] == s.default, s.key
-    # Every setting is preceded by a comment naming its option, and read back by load()
-    # it gives the parser's defaults.
+    root = COMMANDS[command].root()
+    assert yaml.safe_load(text) == schema.to_dict(root)
+    paths = [p for p, _, _, _ in schema.leaves(root)]
+    assert len(paths) == len(set(paths)) and len(paths) >= 5
+    # Every leaf appears as a key line, preceded by its comment (unit in brackets when it has one).
     lines = text.splitlines()
-    for s in every:
-        k = next(i for i, line in enumerate(lines) if line.startswith(f"{s.key}: "))
-        comment = []
-        while lines[k - 1 - len(comment)].startswith("# ") and not lines[k - 1 - len(comment)].startswith("# --- "):
-            comment.append(lines[k - 1 - len(comment)])
-        assert comment and comment[-1].startswith(f"# {s.option}"), (s.key, comment)
-    path = tmp_path / f"{command}.yaml"
-    path.write_text(text)
-    assert config.load(path, parser, command) == {s.dest: s.default for s in every}
+    for path, unit, doc, _ in schema.leaves(root):
+        depth, name = path.count("."), path.rsplit(".", 1)[-1]
+        k = next(i for i, line in enumerate(lines) if line.startswith("  " * depth + name + ":"))
+        if doc:
+            assert lines[k - 1].lstrip().startswith("#"), path
+        if unit:
+            block = []
+            for line in reversed(lines[:k]):
+                if not line.lstrip().startswith("#"):
+                    break
+                block.insert(0, line)
+            assert f"[{unit}]" in block[0], (path, block)
 
 
-def test_dump_config_states_units(capsys):
-    assert cli.main(["dump-config", "register"]) == 0
-    text = capsys.readouterr().out
-    assert "# --max-distance [m]: max correspondence distance, m (0.05)\nmax_distance: 0.05\n" in text
-    assert "# --normal-radius [m]:" in text and "max_iterations: 50\n" in text
-    assert "estimator: point_to_plane\n" in text and "one of point_to_plane, point_to_point" in text
-    assert cli.main(["dump-config", "pick"]) == 0
-    assert "# --q-current [Q1, Q2, Q3, Q4, Q5, Q6] [rad]:" in capsys.readouterr().out
-    assert cli.main(["dump-config", "pose"]) == 0
-    assert "# --resolution [px]:" in capsys.readouterr().out
+def test_reconstruct_schema_holds_every_field_of_its_structs(capsys):
+    """dump-config reconstruct: every field of ReconstructionSettings, FrameToModelSettings
+    (nested), IcpSettings and BilateralFilterSettings, from the C++ field tables."""
+    from scanalign.reconstruction import BilateralFilterSettings, FrameToModelSettings, ReconstructionSettings
+    from scanalign.registration import IcpSettings
+
+    assert cli.main(["dump-config", "reconstruct"]) == 0
+    dumped = yaml.safe_load(capsys.readouterr().out)
+    for struct, node in ((ReconstructionSettings, dumped), (FrameToModelSettings, dumped["frame_to_model"]),
+                         (IcpSettings, dumped["frame_to_model"]["icp"]), (BilateralFilterSettings, dumped["depth_filter"])):
+        assert list(node) == list(schema.field_names(struct)), struct.__name__
 
 
-def test_settings_come_from_the_parser():
-    """A new option is a new key with its default, unit and type, with nothing listed by hand."""
-    p = argparse.ArgumentParser()
-    g = p.add_argument_group("things")
-    g.add_argument("--step-size", type=float, default=0.25, help="step, m (0.25)")
-    g.add_argument("--angles", type=float, nargs=2, help="in radians")
-    p.add_argument("--mode", choices=["a", "b"], default="a")
-    p.add_argument("--fast", action="store_true")
-    p.add_argument("positional")
-    s = {x.key: x for x in config.settings(p)}
-    assert list(s) == ["step_size", "angles", "mode", "fast"]
-    assert (s["step_size"].unit, s["step_size"].default, s["step_size"].group) == ("m", 0.25, "things")
-    assert s["angles"].unit == "rad" and s["fast"].is_flag and s["mode"].unit is None
+# --------------------------------------------------------------------------- each field reaches C++
 
 
-# --------------------------------------------------------------------------- precedence
+def _choices(doc: str) -> list:
+    return re.findall(r"'(\w+)'", doc)
+
+
+def _another(value, doc: str):
+    """A valid value different from ``value`` (a field's default)."""
+    if isinstance(value, bool):
+        return not value
+    if isinstance(value, int):
+        return value + 1
+    if isinstance(value, float):
+        if not math.isfinite(value):
+            return 1.0
+        return 0.5 if value == 0 else value * (0.5 if 0 < value <= 1 else 1.5)
+    if isinstance(value, str):
+        return next(c for c in _choices(doc) if c != value)
+    if value is None:  # an optional box
+        return [-1.0, 1.0, -1.0, 1.0, 0.0, 2.0]
+    if isinstance(value, list):
+        return [v + 0.25 for v in value]
+    raise AssertionError(f"no test value for {value!r}")
+
+
+@pytest.mark.parametrize("command", sorted(COMMANDS))
+def test_a_value_in_a_config_file_reaches_the_cpp_struct_for_every_field(command, tmp_path):
+    spec = COMMANDS[command]
+    defaults = spec.root()
+    checked = 0
+    for path, _, doc, value in schema.leaves(defaults):
+        new = _another(value, doc)
+        nested: dict = {}
+        node = nested
+        *parents, last = path.split(".")
+        for key in parents:
+            node = node.setdefault(key, {})
+        node[last] = new
+        f = tmp_path / "one.yaml"
+        f.write_text(yaml.safe_dump(nested))
+        root = resolve(spec, argparse.Namespace(config=str(f), set_values=[]))
+        got = schema.get_path(root, path)
+        shown = schema.to_dict({"v": got})["v"]  # enums by name, boxes as 6 numbers, arrays as lists
+        assert shown == pytest.approx(new) if isinstance(new, (float, list)) else shown == new, (path, shown, new)
+        # and nothing else moved
+        others = {p: v for p, _, _, v in schema.leaves(root) if p != path}
+        assert others == {p: v for p, _, _, v in schema.leaves(defaults) if p != path}, path
+        checked += 1
+    assert checked == len(list(schema.leaves(defaults)))
+
+
+# --------------------------------------------------------------------------- runs
 
 
 def test_a_config_file_changes_the_run_like_the_flags(clouds, capsys):
     rc0, default = register(capsys)
-    Path("run.yaml").write_text("estimator: point_to_point\nnormal-radius: 0.01\nmax_distance: 0.004\n")
+    Path("run.yaml").write_text("icp:\n  estimator: point_to_point\n  max_correspondence_distance: 0.004\n"
+                                "normals:\n  radius: 0.01\n")
     rc1, from_file = register(capsys, "--config", "run.yaml")
     rc2, from_flags = register(capsys, "--estimator", "point_to_point", "--normal-radius", "0.01",
                                "--max-distance", "0.004")
-    assert rc0 == 0 and rc1 == rc2
-    assert from_file == from_flags
+    rc3, from_set = register(capsys, "--set", "icp.estimator=point_to_point", "--set", "normals.radius=0.01",
+                             "--set", "icp.max_correspondence_distance=0.004")
+    assert rc0 == 0 and rc1 == rc2 == rc3
+    assert from_file == from_flags == from_set
     assert from_file != default
     # JSON is YAML: the same settings as a .json file.
-    Path("run.json").write_text(json.dumps({"estimator": "point_to_point", "normal_radius": 0.01,
-                                            "max-distance": 0.004}))
+    Path("run.json").write_text(json.dumps({"icp": {"estimator": "point_to_point", "max_correspondence_distance": 0.004},
+                                            "normals": {"radius": 0.01}}))
     assert register(capsys, "--config", "run.json") == (rc1, from_file)
 
 
-def test_flags_override_the_file(clouds, capsys):
-    Path("run.yaml").write_text("max_iterations: 1\nnormal_radius: 0.01\nout: from_file.ply\n")
+def test_flags_override_the_file_and_set_overrides_both(clouds, capsys):
+    Path("run.yaml").write_text("icp:\n  max_iterations: 1\nnormals:\n  radius: 0.01\n")
     rc, capped = register(capsys, "--config", "run.yaml")
     assert capped["iterations"] == 1 and not capped["converged"] and rc == 2
     rc, result = register(capsys, "--config", "run.yaml", "--max-iterations", "50", "--out", "aligned.ply")
     assert rc == 0 and result["converged"] and result["iterations"] > 1
     assert register(capsys, "--normal-radius", "0.01") == (rc, result)  # the file's other setting kept
     written = settings_of(Path("aligned.config.yaml"))
-    assert (written["max_iterations"], written["normal_radius"], written["out"]) == (50, 0.01, "aligned.ply")
+    assert (written["icp"]["max_iterations"], written["normals"]["radius"]) == (50, 0.01)
+    rc, again = register(capsys, "--config", "run.yaml", "--max-iterations", "50", "--set", "icp.max_iterations=1")
+    assert again["iterations"] == 1 and rc == 2
 
 
 def test_the_effective_config_repeats_the_run(clouds, capsys):
-    Path("run.yaml").write_text("normal_radius: 0.01\nbox: [-1, 1, -1, 1, 0, 2]\n")
+    Path("run.yaml").write_text("normals:\n  radius: 0.01\nicp:\n  box: [-1, 1, -1, 1, 0, 2]\n")
     rc, first = register(capsys, "--config", "run.yaml", "--max-distance", "0.03", "--out", "aligned.ply")
     effective = Path("aligned.config.yaml")
     text = effective.read_text()
     assert "scanalign register source.pcd target.pcd --config aligned.config.yaml" in text
     s = settings_of(effective)
-    assert s["max_distance"] == 0.03 and s["normal_radius"] == 0.01 and s["box"] == [-1.0, 1.0, -1.0, 1.0, 0.0, 2.0]
-    assert s["init"] is None and s["estimator"] == "point_to_plane" and "config" not in s
+    assert s["icp"]["max_correspondence_distance"] == 0.03 and s["normals"]["radius"] == 0.01
+    assert s["icp"]["box"] == [-1.0, 1.0, -1.0, 1.0, 0.0, 2.0] and s["icp"]["estimator"] == "point_to_plane"
     aligned = Path("aligned.ply").read_bytes()
     Path("aligned.ply").unlink()
-    # Fed back, alone: the same result, the same aligned cloud, the same settings.
-    assert register(capsys, "--config", str(effective)) == (rc, first)
+    # Fed back, alone (with the same output): the same result, the same aligned cloud, the same settings.
+    assert register(capsys, "--config", str(effective), "--out", "aligned.ply") == (rc, first)
     assert Path("aligned.ply").read_bytes() == aligned
     assert settings_of(effective) == s
 
 
 def test_reconstruct_writes_its_config_into_the_output_folder(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    Path("run.yaml").write_text("frames: 2\nno_plots: true\nno_progress: true\nout: first\nframe_voxel: 0.004\n")
-    assert cli.main(["reconstruct", "builtin", "--config", "run.yaml", "--threads", "2"]) == 0
+    Path("run.yaml").write_text("frame_to_model:\n  frame_voxel_size: 0.004\n")
+    assert cli.main(["reconstruct", "builtin", "--frames", "2", "--no-plots", "--no-progress", "--out", "first",
+                     "--config", "run.yaml", "--threads", "2"]) == 0
     assert "wrote first/config.yaml" in capsys.readouterr().out
     s = settings_of(Path("first/config.yaml"))
-    assert (s["frames"], s["frame_voxel"], s["threads"], s["no_plots"]) == (2, 0.004, 2, True)
+    assert (s["frame_to_model"]["frame_voxel_size"], s["frame_to_model"]["num_threads"]) == (0.004, 2)
     assert len(Path("first/frames.csv").read_text().splitlines()) == 1 + 2
-    # Fed back with another output folder: the same trajectory.
-    assert cli.main(["reconstruct", "builtin", "--config", "first/config.yaml", "--out", "second",
+    # Fed back with another output folder: the same trajectory, the same settings.
+    assert cli.main(["reconstruct", "builtin", "--frames", "2", "--config", "first/config.yaml", "--out", "second",
                      "--quiet"]) == 0
     assert Path("second/trajectory.txt").read_text() == Path("first/trajectory.txt").read_text()
-    assert settings_of(Path("second/config.yaml")) == {**s, "out": "second", "quiet": True}
-
-
-def test_a_file_can_give_a_required_option(tmp_path, monkeypatch, capsys):
-    """``pose`` requires --model and --scene: a config file may give them."""
-    monkeypatch.chdir(tmp_path)
-    Path("pose.yaml").write_text("model: missing.stl\nscene: missing.ply\n")
-    assert cli.main(["pose", "--config", "pose.yaml"]) == 2
-    assert "missing.stl: no such model file" in capsys.readouterr().err
+    assert settings_of(Path("second/config.yaml")) == s
 
 
 # --------------------------------------------------------------------------- bad files
 
 
-BAD = [  # file text, fragment of the one-line message (after "scanalign register: error: run.yaml: ")
-    ("max_distnce: 0.1\n", "max_distnce: unknown setting of 'scanalign register'; did you mean max_distance?"),
-    ("max_distance: far\n", "max_distance: expected a number, got 'far'"),
-    ("max_distance: true\n", "max_distance: expected a number, got True"),
-    ("max_iterations: 2.5\n", "max_iterations: expected an integer, got 2.5"),
-    ("max_iterations: null\n", "max_iterations: null is not allowed; expected an integer (default 50)"),
-    ("estimator: point_to_line\n", "estimator: 'point_to_line' is not one of point_to_plane, point_to_point"),
-    ("box: [0, 1, 0, 1]\n", "box: expected a list of 6 values, each a number, got [0, 1, 0, 1]"),
-    ("max_distance: [0.1\n", "malformed YAML/JSON at line 2"),
-    ("{\"max_distance\": 0.1,,}\n", "malformed YAML/JSON at line 1"),
-    ("- max_distance\n", "expected a mapping of settings (key: value), got list"),
-    ("max_distance: 0.1\nmax-distance: 0.2\n", "max-distance: given twice (also as max_distance)"),
-    ("config: other.yaml\n", "config: unknown setting"),
+BAD = [  # file text, fragments of the one-line message (after "scanalign register: error: run.yaml: ")
+    ("icp:\n  max_iteratons: 3\n", ["icp.max_iteratons: unknown setting", "did you mean icp.max_iterations?"]),
+    ("icp:\n  max_correspondence_distance: far\n", ["icp.max_correspondence_distance", "expected a real number, got 'far'"]),
+    ("icp:\n  max_correspondence_distance: true\n", ["icp.max_correspondence_distance", "expected a real number"]),
+    ("icp:\n  max_iterations: 2.5\n", ["icp.max_iterations", "expected an integer"]),
+    ("icp:\n  max_iterations: null\n", ["icp.max_iterations", "expected an integer"]),
+    ("icp:\n  estimator: point_to_line\n", ["icp.estimator", "point_to_line"]),
+    ("icp:\n  box: [0, 1, 0, 1]\n", ["icp.box"]),
+    ("icp: 3\n", ["icp: expected a mapping of IcpSettings fields, got int"]),
+    ("icp:\n  max_correspondence_distance: [0.1\n", ["malformed YAML/JSON at line 3"]),
+    ("{\"icp\": 0.1,,}\n", ["malformed YAML/JSON at line 1"]),
+    ("- icp\n", ["expected a mapping of settings (key: value), got list"]),
+    ("config: other.yaml\n", ["config: unknown setting"]),
+    ("icp:\n  max_correspondence_distance: -1\n", ["max_correspondence_distance"]),
 ]
 
 
-@pytest.mark.parametrize("text, fragment", BAD, ids=[b[1].split(":")[0] + f" #{k}" for k, b in enumerate(BAD)])
-def test_a_bad_config_file_is_one_line_naming_file_and_key(clouds, capsys, text, fragment):
+@pytest.mark.parametrize("text, fragments", BAD, ids=[f"#{k}" for k in range(len(BAD))])
+def test_a_bad_config_file_is_one_line_naming_file_and_key(clouds, capsys, text, fragments):
     Path("run.yaml").write_text(text)
     assert cli.main(["register", "source.pcd", "target.pcd", "--config", "run.yaml"]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""
     lines = captured.err.splitlines()
     assert len(lines) == 1 and lines[0].startswith("scanalign register: error: run.yaml: "), captured.err
-    assert fragment in lines[0], lines[0]
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+
+
+def test_a_bad_set_or_flag_is_named(clouds, capsys):
+    assert cli.main(["register", "source.pcd", "target.pcd", "--set", "icp.max_iterations"]) == 2
+    assert "expected PATH=VALUE" in capsys.readouterr().err
+    assert cli.main(["register", "source.pcd", "target.pcd", "--set", "icp.nope=3"]) == 2
+    assert "icp.nope: unknown setting" in capsys.readouterr().err
+    assert cli.main(["register", "source.pcd", "target.pcd", "--max-distance", "-1"]) == 2
+    assert "max_correspondence_distance" in capsys.readouterr().err
 
 
 def test_a_missing_config_file_is_named(clouds, capsys):
     assert cli.main(["register", "source.pcd", "target.pcd", "--config", "nope.yaml"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("scanalign register: error: nope.yaml: cannot read the config file") and err.count("\n") == 1
+    assert err.startswith("scanalign register: error: nope.yaml: cannot read the settings file") and err.count("\n") == 1
 
 
 def test_other_commands_take_no_config(capsys):

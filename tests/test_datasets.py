@@ -1,4 +1,4 @@
-"""Tests for scanalign.parts (mesh sampling, the built-in part) and scanalign.datasets (the
+"""Tests for scanalign.data.parts (mesh sampling, the built-in part) and scanalign.data.downloads (the
 package cache)."""
 
 from __future__ import annotations
@@ -12,7 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanalign import datasets, io, parts
+from scanalign import io
+from scanalign.data import downloads as datasets
+from scanalign.data import parts
 
 # Unit cube [0, 1]^3 as 12 outward-facing triangles.
 CUBE_VERTICES = np.array(
@@ -91,7 +93,7 @@ def test_sample_mesh_zero_area_raises() -> None:
 
 # --------------------------------------------------------------------------- builtin_object
 
-# The geometry documented in scanalign.parts' docstring (metres).
+# The geometry documented in scanalign.data.parts' docstring (metres).
 BOX_HALF = np.array([0.040, 0.025, 0.015])
 TOP = 0.015
 BOSS_XY, BOSS_R, BOSS_TOP = np.array([-0.015, 0.0]), 0.012, 0.030
@@ -324,7 +326,7 @@ def test_missing_dataset_names_the_fetch_command(monkeypatch: pytest.MonkeyPatch
         with pytest.raises(datasets.DatasetUnavailableError) as info:
             load()
         message = str(info.value)
-        assert "`python -m scanalign.datasets fetch`" in message
+        assert "`python -m scanalign.data fetch`" in message
         assert datasets.PINNED_FILES[pinned].filename in message and datasets.OFFLINE_ENV in message
         assert datasets.PINNED_FILES[pinned].sha256 in message and datasets.PINNED_FILES[pinned].url in message
     assert not (tmp_path / "cache" / "debs").exists() or not list((tmp_path / "cache" / "debs").iterdir())
@@ -345,7 +347,7 @@ def test_corrupted_cached_deb_is_detected(fake_pcl_deb: Path, tmp_path: Path,
             call()
         message = str(info.value)
         assert str(cached) in message and expected in message and actual in message
-        assert "`python -m scanalign.datasets fetch`" in message
+        assert "`python -m scanalign.data fetch`" in message
     assert not (tmp_path / "cache" / "packages" / "python3-pcl").exists()  # nothing unpacked from it
 
     # A good copy unpacks; `fetch` checks the cached .deb again even then.

@@ -1,4 +1,4 @@
-"""scanalign.evaluation, scanalign.trajectory and scanalign.plots against independent truth:
+"""scanalign.evaluation, scanalign.evaluation.trajectory and scanalign.viz.plots against independent truth:
 evo (the reference implementation of the TUM metrics), scipy's rotations, Open3D's mesh
 distance, brute-force oracles and analytic cases."""
 
@@ -20,7 +20,7 @@ from scanalign.evaluation import (
     relative_pose_error,
     umeyama_alignment,
 )
-from scanalign.trajectory import Trajectory, associate_timestamps, matrix_from_quaternion, quaternion_from_matrix
+from scanalign.evaluation.trajectory import Trajectory, associate_timestamps, matrix_from_quaternion, quaternion_from_matrix
 
 
 # --------------------------------------------------------------------------------------
@@ -822,7 +822,7 @@ def test_mesh_closest_points_lie_on_their_triangles():
 @pytest.mark.data
 def test_mesh_distance_matches_open3d_on_the_cgal_bunny(dataset_cache):
     o3d = pytest.importorskip("open3d")
-    from scanalign import datasets
+    from scanalign.data import downloads as datasets
 
     mesh = datasets.load_cgal_mesh("bunny00")
     # Open3D computes in float32: give both the same float32-rounded inputs
@@ -854,7 +854,7 @@ def _assert_png(path, min_bytes=5000):
 
 def test_plots_write_png(tmp_path):
     pytest.importorskip("matplotlib")
-    from scanalign import plots
+    from scanalign.viz import plots
 
     rng = np.random.default_rng(16)
     ref = random_trajectory(rng, 60)
@@ -884,7 +884,7 @@ def test_plots_write_png(tmp_path):
 def test_plots_without_matplotlib_raise_a_clear_error(monkeypatch, tmp_path):
     import sys
 
-    from scanalign import plots
+    from scanalign.viz import plots
 
     monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
     monkeypatch.setitem(sys.modules, "matplotlib.backends.backend_agg", None)

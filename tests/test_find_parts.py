@@ -8,9 +8,11 @@ import math
 import numpy as np
 import pytest
 
-from scanalign import _core, cad, io, parts, pose
+from scanalign import _core, io, pose
+from scanalign.pose import model_views as cad
+from scanalign.data import parts
 from scanalign import synthetic as syn
-from scanalign.camera import intrinsics_preset
+from scanalign.reconstruction.camera import intrinsics_preset
 from scanalign.reconstruction import depth_to_cloud
 
 NAMES = ("block", "bracket", "standoff")

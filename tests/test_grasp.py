@@ -11,7 +11,7 @@ import pytest
 
 from scanalign import grasp as G
 from scanalign import kinematics
-from scanalign.synthetic.mount import robot_mount
+from scanalign.synthetic.trajectories import robot_mount
 
 TOP = np.diag([1.0, -1.0, -1.0, 1.0])  # tool z down
 TOP[2, 3] = 0.03

@@ -10,7 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from scanalign import calibration, se3
+from scanalign import calibration
+from scanalign.common import rigid as se3
 from scanalign.calibration import calibrate_hand_eye
 from scanalign.synthetic import DEFAULT_T_FLANGE_CAMERA
 
@@ -140,7 +141,7 @@ def test_targetless_from_the_icp_trajectory_of_a_rendered_scan():
     """A UR5 carries the camera along a ring, up a meridian and along a higher ring (rotations
     about the vertical and about a horizontal axis); the frame-to-model trajectory in the first
     camera's frame and the FK flange poses give T_flange_camera."""
-    from scanalign.pipeline import reconstruct
+    from scanalign.pipelines.reconstruct import reconstruct
     from scanalign.synthetic import ScanTrajectory, SyntheticConfig, attach_robot, look_at, render_scan
 
     cfg = SyntheticConfig(noise="zivid")
@@ -231,7 +232,7 @@ def test_bad_arguments_raise_clear_errors():
         calibrate_hand_eye(bad, C)
     with pytest.raises(TypeError, match="T_base_flange"):
         calibrate_hand_eye(A.astype(complex), C)
-    with pytest.raises(TypeError, match="unknown hand-eye setting 'rotation_wieght'"):
+    with pytest.raises(TypeError, match="rotation_wieght: unknown hand-eye setting; did you mean rotation_weight"):
         calibrate_hand_eye(A, C, rotation_wieght=0.1)
     with pytest.raises(ValueError, match="rotation_weight"):
         calibrate_hand_eye(A, C, rotation_weight=-1.0)

@@ -1,4 +1,4 @@
-"""Open3D, trimesh and evo objects as inputs and outputs (scanalign.interop, scanalign._arrays,
+"""Open3D, trimesh and evo objects as inputs and outputs (scanalign.io.interop, scanalign.common.arrays,
 Trajectory's KITTI / EuRoC / evo conversions): the same results as the NumPy arrays."""
 
 from __future__ import annotations
@@ -8,9 +8,13 @@ import sys
 import numpy as np
 import pytest
 
-from scanalign import cad, features, fitting, interop, io, mesh_metrics, parts, registration, segmentation
+from scanalign import features, fitting, io, registration, segmentation
+from scanalign.pose import model_views as cad
+from scanalign.io import interop
+from scanalign.evaluation import mesh_distance as mesh_metrics
+from scanalign.data import parts
 from scanalign.reconstruction import voxel_grid
-from scanalign.trajectory import Trajectory, TumFormatError, matrix_from_quaternion
+from scanalign.evaluation.trajectory import Trajectory, TumFormatError, matrix_from_quaternion
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +150,7 @@ def test_pose_takes_foreign_clouds():
 
 
 def test_pick_scene_takes_a_foreign_cloud(surface):
-    from scanalign.pick import scan_model
+    from scanalign.pipelines.pick import scan_model
 
     points, rec = scan_model(interop.to_trimesh(surface[0]))
     assert rec is None

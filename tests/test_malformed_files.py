@@ -22,8 +22,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanalign import evaluation, io, trajectory
-from scanalign.trajectory import Trajectory, TumFormatError
+from scanalign import evaluation, io
+from scanalign.evaluation import trajectory
+from scanalign.evaluation.trajectory import Trajectory, TumFormatError
 
 ROOT = Path(__file__).resolve().parents[1]
 TRIANGLE = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])

@@ -6,7 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanalign import cad, parts, pose
+from scanalign import pose
+from scanalign.pose import model_views as cad
+from scanalign.data import parts
 from scanalign._core import pose as P
 
 

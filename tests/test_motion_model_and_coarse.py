@@ -10,7 +10,7 @@ import pytest
 from helpers import apply, pose_error, rigid
 from scanalign import registration as reg
 from scanalign import synthetic
-from scanalign.pipeline import reconstruct
+from scanalign.pipelines.reconstruct import reconstruct
 from scanalign.reconstruction import Reconstructor, make_reconstruction_settings
 
 CROP = [-0.1, 0.1, -0.1, 0.1, 0.1, 1.0]  # the demo settings: workspace box, 10 mm normals, filter

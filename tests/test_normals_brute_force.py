@@ -10,14 +10,14 @@ import pytest
 
 from scanalign import synthetic
 from scanalign.features import estimate_normals
-from scanalign.reconstruction import DepthFilter, bilateral_filter_depth, depth_to_cloud, voxel_grid
+from scanalign.reconstruction import BilateralFilterSettings, bilateral_filter_depth, depth_to_cloud, voxel_grid
 
 
 @pytest.fixture(scope="module")
 def frame_cloud() -> np.ndarray:
     scan = synthetic.builtin_scan(n_frames=4)
     f = scan.frames[1]
-    depth = bilateral_filter_depth(f.depth, DepthFilter(), depth_scale=f.depth_scale)
+    depth = bilateral_filter_depth(f.depth, BilateralFilterSettings(), depth_scale=f.depth_scale)
     p, _ = depth_to_cloud(depth, f.intrinsics, depth_scale=f.depth_scale)
     # A 7 x 7 cm window across the part's edge and the table keeps the brute force small.
     c = p[np.argmin(np.abs(p[:, 0]) + np.abs(p[:, 1]))]

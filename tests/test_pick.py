@@ -8,7 +8,10 @@ import math
 import numpy as np
 import pytest
 
-from scanalign import grasp, io, pick, se3
+from scanalign import grasp, io
+from scanalign.pipelines import pick
+from scanalign.common import rigid as se3
+from scanalign.grasp.parts import load_part
 from scanalign.synthetic.cell import CELL_MOUNTS, pick_cell, score_picks
 
 CELLS = [("ur5", "sr300"), ("ur5", "zivid"), ("kr6_r900_sixx", "sr300")]
@@ -122,7 +125,7 @@ def test_a_grasp_into_the_table_is_rejected(ur5_cell):
 
 def test_a_part_not_in_the_scene_is_reported_not_found(ur5_cell):
     cell, result = ur5_cell
-    big = pick.load_part("block")
+    big = load_part("block")
     big = grasp.PartGrasps(name="big_block", mesh=io.Mesh(np.asarray(big.mesh.vertices) * 1.6, big.mesh.faces),
                            symmetry=big.symmetry, gripper=big.gripper, grasps=big.grasps)
     r = pick.pick(result.points, [big], result.robot, progress=False)
@@ -136,7 +139,7 @@ def test_surface_coverage_rejects_a_part_of_another_size(ur5_cell):
     from scanalign import pose
 
     cell, result = ur5_cell
-    block = pick.load_part("block")
+    block = load_part("block")
     big = io.Mesh(np.asarray(block.mesh.vertices) * 1.6, block.mesh.faces)
     views = [4, 5, 9, 11, 12, 13, 14, 15, 22, 23, 24, 25, 27, 32, 33, 34, 35]
     # Both parts at the radius 0.15 x the cluster's size (12.9 mm): with the big block's own radius
@@ -158,7 +161,7 @@ def test_bad_input(ur5_cell):
         pick.pick(np.zeros((0, 3)), cell.parts, result.robot, progress=False)
     with pytest.raises(ValueError, match="unknown|robot"):
         pick.pick(result.points, cell.parts, "ur99", progress=False)
-    huge = pick.load_part("block")
+    huge = load_part("block")
     huge = grasp.PartGrasps(name="huge", mesh=io.Mesh(np.asarray(huge.mesh.vertices) * 40, huge.mesh.faces),
                             symmetry=huge.symmetry, gripper=huge.gripper, grasps=huge.grasps)
     with pytest.raises(ValueError, match="workspace"):
@@ -190,7 +193,8 @@ def test_scan_from_a_tum_folder_with_a_joint_log(ur5_cell, tmp_path):
     """A real cell's input: depth images in a TUM folder without poses, and the robot's joint
     log. Every frame is placed by FK and the hand-eye transform and refined by ICP: the
     estimated camera poses match the true ones to a millimetre."""
-    from scanalign import pipeline, tum
+    from scanalign.pipelines import reconstruct as pipeline
+    from scanalign.datasets import tum
 
     cell, _ = ur5_cell
     frames = cell.scan.frames

@@ -21,10 +21,12 @@ import sys
 import numpy as np
 import pytest
 
-from scanalign import _core, cad, io, parts, pose
+from scanalign import _core, io, pose
+from scanalign.pose import model_views as cad
+from scanalign.data import parts
 from scanalign import grasp as G
 from scanalign import kinematics
-from scanalign.trajectory import Trajectory
+from scanalign.evaluation.trajectory import Trajectory
 
 PROTOCOLS = (2, 5)
 # One OpenMP thread for the runs here: on a shared machine with more busy threads than cores,
@@ -536,7 +538,9 @@ def test_corrupt_arrays_are_refused_not_read_out_of_bounds(instances):
 
 def test_python_records_holding_core_objects_pickle(instances):
     """The package's dataclasses cross process boundaries once the C++ objects they hold do."""
-    from scanalign import pick, pipeline, reconstruction
+    from scanalign import reconstruction
+    from scanalign.pipelines import pick
+    from scanalign.pipelines import reconstruct as pipeline
 
     mesh = parts.builtin_mesh(name="bracket")
     plan = instances["grasp.GraspPlanResult"][0]
@@ -546,8 +550,8 @@ def test_python_records_holding_core_objects_pickle(instances):
     model = reconstruction.Model(mesh.vertices, mesh.vertices * 0, None)
     run = pipeline.ReconstructionResult(model=model, records=instances["reconstruction.FrameResult"],
                                         estimate=trajectory, reference=None, T_model_camera0=ROT,
-                                        settings=_changed(_core.reconstruction.FrameToModelSettings()),
-                                        registration="scanalign", seconds=1.5)
+                                        settings=_changed(_core.reconstruction.ReconstructionSettings()),
+                                        seconds=1.5)
     records = [
         mesh, trajectory, grasps, pick.PickSettings(planner={"min_wrist_angle": 0.1}), part_pick, model, run,
         pick.PickResult(picks=[part_pick], points=mesh.vertices, detections=instances["pose.PartDetections"][0],

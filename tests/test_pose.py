@@ -9,7 +9,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from scanalign import cad, cbd, datasets, features, fitting, parts, pose, synthetic
+from scanalign import features, fitting, pose, synthetic
+from scanalign.pose import model_views as cad
+from scanalign.pose import cbd
+from scanalign.data import downloads as datasets
+from scanalign.data import parts
 
 
 def _pose(seed: int, t_scale: float = 0.05) -> np.ndarray:

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from scanalign.camera import Frame, Intrinsics
+from scanalign.reconstruction.camera import Frame, Intrinsics
 from scanalign.reconstruction import (
     Reconstructor,
     depth_to_cloud,
@@ -246,8 +246,9 @@ def test_wrong_frames_raise_clear_errors():
 
 def test_settings_overrides_and_crop_box():
     s = make_reconstruction_settings(icp=dict(max_iterations=7), min_fitness=0.5, crop_box=(-0.1, 0.1, -0.1, 0.1, 0, 1))
-    assert s.icp.max_iterations == 7 and s.min_fitness == 0.5 and s.crop_box.as_tuple() == (-0.1, 0.1, -0.1, 0.1, 0, 1)
-    assert s.normal_radius == 0.005 and s.model_voxel_size == 0.001  # the eye-in-hand paper's defaults
+    e = s.frame_to_model  # the engine's fields, given for short
+    assert e.icp.max_iterations == 7 and e.min_fitness == 0.5 and e.crop_box.as_tuple() == (-0.1, 0.1, -0.1, 0.1, 0, 1)
+    assert e.normal_radius == 0.005 and e.model_voxel_size == 0.001  # the eye-in-hand paper's defaults
     # The crop box (camera frame) bounds what is merged.
     f = frames(1)[0]
     rec = Reconstructor(s)
@@ -274,7 +275,7 @@ def test_frame_to_cloud_uses_the_frames_scale():
 
 
 def test_bilateral_filter_smooths_noise_and_keeps_edges():
-    from scanalign.reconstruction import DepthFilter, bilateral_filter_depth
+    from scanalign.reconstruction import BilateralFilterSettings, bilateral_filter_depth
 
     rng = np.random.default_rng(5)
     v, u = np.mgrid[0:60, 0:80]
@@ -287,7 +288,7 @@ def test_bilateral_filter_smooths_noise_and_keeps_edges():
     np.testing.assert_allclose(out[far], step[far], atol=2e-6)
     noisy = step + rng.normal(0, 0.001, step.shape)
     noisy[10, 10] = np.nan
-    f = bilateral_filter_depth(noisy.astype(np.float32), DepthFilter(radius=2, sigma_space=1.5, sigma_depth=0.003))
+    f = bilateral_filter_depth(noisy.astype(np.float32), BilateralFilterSettings(radius=2, sigma_space=1.5, sigma_depth=0.003))
     assert np.isnan(f[10, 10]) and np.isfinite(f[10, 11])
     assert np.nanstd((f - step)[interior]) < 0.5 * np.nanstd((noisy - step)[interior])
     # uint16 input is scaled like the frame's depth; zero stays invalid.
@@ -295,14 +296,14 @@ def test_bilateral_filter_smooths_noise_and_keeps_edges():
     mm[0, 0] = 0
     g = bilateral_filter_depth(mm, depth_scale=0.001)
     assert np.isnan(g[0, 0]) and np.allclose(g[1:, 1:], 0.5)
-    with pytest.raises(ValueError):
-        DepthFilter(radius=-1)
+    with pytest.raises(ValueError, match="radius"):
+        bilateral_filter_depth(mm, BilateralFilterSettings(radius=-1))
     with pytest.raises(ValueError):
         bilateral_filter_depth(np.zeros((4, 4, 2), np.float32))
 
 
 def test_reference_guided_guess_tracks_steps_that_previous_pose_cannot(loop36):
-    from scanalign.pipeline import reconstruct
+    from scanalign.pipelines.reconstruct import reconstruct
 
     big_steps = loop36[::4]  # 40 degrees per frame: beyond ICP's reach from the last pose
     previous_only = reconstruct(big_steps, progress=False)

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from scanalign import cli, synthetic
-from scanalign.pipeline import model_mesh_distance, reconstruct
-from scanalign.trajectory import Trajectory
+from scanalign.pipelines.reconstruct import model_mesh_distance, reconstruct
+from scanalign.evaluation.trajectory import Trajectory
 
 CROP = (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0)  # camera frame: the part and the table around it
 

@@ -61,7 +61,7 @@ def test_absurd_thread_counts_are_clamped_to_the_machine():
     script = textwrap.dedent("""
         import numpy as np
         from scanalign import features, fitting, kinematics, registration, segmentation
-        from scanalign.reconstruction import bilateral_filter_depth, DepthFilter
+        from scanalign.reconstruction import bilateral_filter_depth, BilateralFilterSettings
         rng = np.random.default_rng(0)
         u, v = rng.uniform(-0.1, 0.1, (2, 4000))
         p = np.c_[u, v, 0.4 + 0.01 * np.sin(30 * u)]
@@ -81,7 +81,7 @@ def test_absurd_thread_counts_are_clamped_to_the_machine():
             assert np.array_equal(robot.ik_batch(poses, num_threads=threads).q,
                                   robot.ik_batch(poses, num_threads=1).q, equal_nan=True)
             depth = np.full((48, 64), 0.5, np.float32)
-            bilateral_filter_depth(depth, DepthFilter(), num_threads=threads)
+            bilateral_filter_depth(depth, BilateralFilterSettings(), num_threads=threads)
         print("ok")
     """)
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
@@ -171,7 +171,9 @@ def test_a_scene_without_the_part_is_not_a_detection(method):
     """A cloud of random points the size of the part used to give found=True (fitness ~0.8 on
     clutter, coverage ~0.05): a false detection a picking cell would act on. The same part,
     really present, is still found."""
-    from scanalign import cad, parts, pose
+    from scanalign import pose
+    from scanalign.pose import model_views as cad
+    from scanalign.data import parts
 
     mesh = parts.builtin_mesh()
     views = cad.render_views(mesh, resolution=100)
@@ -222,7 +224,7 @@ def test_a_wrongly_typed_argument_is_named_not_a_signature_dump(cloud):
 
 def test_sampling_more_points_than_memory_holds_is_refused_before_allocating():
     """sample_mesh(mesh, 2**31) used to be killed by the OOM killer (320 GiB of draws)."""
-    from scanalign import parts
+    from scanalign.data import parts
 
     mesh = parts.builtin_mesh(24)
     with pytest.raises(ValueError, match=r"n_points = 2147483648 need 320\.0 GiB"):
@@ -235,7 +237,9 @@ def test_an_inlier_threshold_as_large_as_the_part_is_not_a_detection():
     """With inlier_threshold = 1e300 m every placement has fitness and coverage 1: the fuzz
     suite saw found=True with the scene 36 cm off the part. Such a threshold now gives
     found=False with the reason; a sensible one still finds the part."""
-    from scanalign import cad, parts, pose
+    from scanalign import pose
+    from scanalign.pose import model_views as cad
+    from scanalign.data import parts
 
     views = cad.render_views(parts.builtin_mesh(24), resolution=40)
     scene = views[7].points_in_camera()

@@ -11,7 +11,11 @@ import time
 import numpy as np
 import pytest
 
-from scanalign import cad, cbd, cga, features, fitting, kinematics, parts, pose, se3
+from scanalign import cga, features, fitting, kinematics, pose
+from scanalign.pose import model_views as cad
+from scanalign.pose import cbd
+from scanalign.data import parts
+from scanalign.common import rigid as se3
 
 # ----------------------------------------------------------------------------- CGA
 

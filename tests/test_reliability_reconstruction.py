@@ -17,10 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from scanalign import _core, pipeline, synthetic
-from scanalign.camera import Frame, Intrinsics
-from scanalign.reconstruction import DepthFilter, Reconstructor, bilateral_filter_depth, depth_to_cloud, voxel_grid
-from scanalign.rendering import render_depth
+from scanalign import _core, synthetic
+from scanalign.pipelines import reconstruct as pipeline
+from scanalign.reconstruction.camera import Frame, Intrinsics
+from scanalign.viz.reports import save_report
+from scanalign.reconstruction import BilateralFilterSettings, Reconstructor, bilateral_filter_depth, depth_to_cloud, voxel_grid
+from scanalign.reconstruction.rendering import render_depth
 
 K = Intrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)
 
@@ -114,7 +116,7 @@ def test_an_interrupt_during_the_registration_leaves_the_model_bit_identical(tmp
                                          icp=dict(max_iterations=100000, transformation_epsilon=0.0,
                                                   transformation_rotation_epsilon=0.0, fitness_epsilon=0.0,
                                                   absolute_mse_epsilon=0.0))
-        f = _core.reconstruction.FrameToModel(s)
+        f = _core.reconstruction.FrameToModel(s.frame_to_model)
         f.reset(np.eye(4))
         assert f.integrate(p, None, None, "scanalign").status == "initialized"
         before = [f.model_points(), f.model_normals(), f.frames_seen, f.frames_merged, np.array(f.last_pose)]
@@ -180,7 +182,7 @@ def test_reconstruct_keeps_the_reconstruction_when_the_evaluation_fails(tmp_path
     assert "degenerate" in res.metrics["evaluation_error"]
     for r in res.records:  # the model frame is the base frame: every estimate at the true pose
         np.testing.assert_allclose(r.T_model_camera, T, atol=1e-6)
-    paths = res.save(tmp_path)
+    paths = save_report(res, tmp_path)
     for key in ("model", "trajectory", "reference", "frames", "report", "trajectory_png"):
         assert paths[key].stat().st_size > 0, key
     assert "evaluation_error" in (tmp_path / "report.json").read_text()
@@ -232,7 +234,7 @@ def test_the_bilateral_filter_checks_the_memory_it_would_need_and_its_parameters
     assert not np.isinf(out).any()
     # Huge sigmas are a plain average: a constant image stays exactly constant.
     flat = np.full((9, 9), 0.7, np.float32)
-    np.testing.assert_allclose(bilateral_filter_depth(flat, DepthFilter(2, 1e300, 1e300)), flat, rtol=1e-6)
+    np.testing.assert_allclose(bilateral_filter_depth(flat, BilateralFilterSettings(radius=2, sigma_space=1e300, sigma_depth=1e300)), flat, rtol=1e-6)
 
 
 def test_voxel_grid_refuses_non_real_attributes_and_absurd_leaves():

@@ -1,4 +1,4 @@
-"""scanalign.se3 against scipy's rotations, numpy's inverse and analytic angles, and its
+"""scanalign.common.rigid against scipy's rotations, numpy's inverse and analytic angles, and its
 rigidity rule against the C++ core's (both must accept and reject the same matrices)."""
 
 from __future__ import annotations
@@ -8,7 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from scanalign import registration, se3
+from scanalign import registration
+from scanalign.common import rigid as se3
 
 
 @pytest.mark.parametrize("seed", range(4))

@@ -222,7 +222,7 @@ def test_pcl_table_scene(dataset_cache):
     the floor (about 60 % of the points); the table top lies about 0.7 m above it. As in
     paper 3, step (1) crops to the table's bounds (y >= -0.2 m drops the floor), after
     which the table is the dominant plane and the objects on it are separated."""
-    from scanalign import datasets
+    from scanalign.data import downloads as datasets
 
     spatial = pytest.importorskip("scipy.spatial")
     pts = datasets.load_pcl_cloud("table_scene_lms400")

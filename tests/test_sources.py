@@ -1,4 +1,4 @@
-"""Frame sources (scanalign.sources): ROS 1 / ROS 2 bags written with rosbags' own writers
+"""Frame sources (scanalign.datasets.sources): ROS 1 / ROS 2 bags written with rosbags' own writers
 from the synthetic scanner, PNG folders with ROS / OpenCV camera YAML, lens distortion in
 the back-projection (against OpenCV), and malformed recordings."""
 
@@ -10,9 +10,13 @@ import sys
 import numpy as np
 import pytest
 
-from scanalign import camera, reconstruction, sources, synthetic, tum
-from scanalign.camera import Intrinsics, intrinsics_from_dict, read_camera
-from scanalign.pipeline import reconstruct
+from scanalign import reconstruction, synthetic
+from scanalign.reconstruction import camera
+from scanalign import datasets
+from scanalign.datasets import sources
+from scanalign.datasets import tum
+from scanalign.reconstruction.camera import Intrinsics, intrinsics_from_dict, read_camera
+from scanalign.pipelines.reconstruct import reconstruct
 
 rosbags = pytest.importorskip("rosbags")
 from rosbags.rosbag1 import Writer as Writer1  # noqa: E402
@@ -82,7 +86,7 @@ def _camera_info(store, ros1, t, frame_id, K, distortion=(0.0,) * 5, model="plum
 
 
 def _tf(store, ros1, t, parent, child, T_parent_child):
-    from scanalign.trajectory import quaternion_from_matrix
+    from scanalign.evaluation.trajectory import quaternion_from_matrix
 
     ty = store.types
     q = quaternion_from_matrix(T_parent_child[:3, :3])
@@ -177,7 +181,7 @@ def test_bag_reconstructs_like_the_tum_folder(recording, tmp_path, kind):
     write_bag(path, frames, ros1=ros1, storage=storage, joints=joints)
     if kind == "ros2_mcap":  # also the bare storage file
         path = next(path.glob("*.mcap"))
-    seq = sources.open_source(path)
+    seq = datasets.open_source(path)
     assert isinstance(seq, sources.BagSequence) and len(seq) == len(frames)
     assert seq.depth_topic == "/camera/aligned_depth_to_color/image_raw"
     assert seq.color_topic == "/camera/color/image_raw"
@@ -258,25 +262,25 @@ def test_realsense_viewer_layout(recording, tmp_path):
                           "sensor_msgs/msg/CameraInfo"))
         w.write(d, 3, ser(_image(store, True, t, "0", f.depth, "mono16"), "sensor_msgs/msg/Image"))
         w.write(c, 3, ser(_image(store, True, t, "1", f.rgb, "rgb8"), "sensor_msgs/msg/Image"))
-    seq = sources.open_source(path)
+    seq = datasets.open_source(path)
     assert seq.depth_topic == "/device_0/sensor_0/Depth_0/image/data"
     assert seq.camera_info_topic == "/device_0/sensor_0/Depth_0/info/camera_info"
     assert seq.depth_scale == 1e-4 and seq.color_topic is None
     assert any("Color_0" in n for n in seq.notes) and seq[0].rgb is None
     assert np.array_equal(seq[0].depth, f.depth) and seq.intrinsics == f.intrinsics
     # Named anyway, the colour stream is used (same size).
-    assert np.array_equal(sources.open_source(path, color_topic="/device_0/sensor_1/Color_0/image/data")[0].rgb, f.rgb)
+    assert np.array_equal(datasets.open_source(path, color_topic="/device_0/sensor_1/Color_0/image/data")[0].rgb, f.rgb)
 
 
 def test_malformed_bags_name_the_file(recording, tmp_path):
     frames = recording["frames"][:2]
     no_depth = write_bag(tmp_path / "nodepth.bag", frames, depth=False, tf=False)
     with pytest.raises(ValueError, match=r"nodepth\.bag: no depth images.*rgb8"):
-        sources.open_source(no_depth)
+        datasets.open_source(no_depth)
     no_info = write_bag(tmp_path / "noinfo", frames, ros1=False, camera_info=False, tf=False)
     with pytest.raises(ValueError, match=r"noinfo: no sensor_msgs/CameraInfo.*intrinsics="):
-        sources.open_source(no_info)
-    seq = sources.open_source(no_info, intrinsics=frames[0].intrinsics)  # ... which intrinsics= mends
+        datasets.open_source(no_info)
+    seq = datasets.open_source(no_info, intrinsics=frames[0].intrinsics)  # ... which intrinsics= mends
     assert np.array_equal(seq[1].depth, frames[1].depth)
 
     def odd_encoding(w, store, ser):
@@ -290,7 +294,7 @@ def test_malformed_bags_name_the_file(recording, tmp_path):
     garbage = tmp_path / "garbage.bag"
     garbage.write_bytes(b"#ROSBAG V2.0\n" + b"\x00" * 64)
     with pytest.raises(ValueError, match=r"garbage\.bag: not a readable ROS bag"):
-        sources.open_source(garbage)
+        datasets.open_source(garbage)
 
 
 def test_unsupported_distortion_model_in_a_bag(recording, tmp_path):
@@ -307,14 +311,14 @@ def test_unsupported_distortion_model_in_a_bag(recording, tmp_path):
                                           "sensor_msgs/msg/Image"))
     with pytest.raises(ValueError, match=r"fish: camera_info topic /depth/camera_info: distortion model "
                                          r"'equidistant' is not supported"):
-        sources.open_source(path)
+        datasets.open_source(path)
 
 
 def test_missing_rosbags_says_how_to_install(monkeypatch, tmp_path, recording):
     path = write_bag(tmp_path / "x.bag", recording["frames"][:1], tf=False)
     monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
     with pytest.raises(ImportError, match=r"pip install 'scanalign\[ros\]'"):
-        sources.open_source(path)
+        datasets.open_source(path)
 
 
 # -- image folders and camera files -------------------------------------------------------------
@@ -421,7 +425,7 @@ def test_png_folder_reconstructs_like_the_tum_folder(recording, tmp_path, flavou
     K = frames[0].intrinsics
     folder = _image_folder(recording, tmp_path / "pngs", _yaml(ROS_YAML if flavour == "ros" else OPENCV_YAML, K),
                            names)
-    seq = sources.open_source(folder)
+    seq = datasets.open_source(folder)
     assert isinstance(seq, sources.ImageFolderSequence) and len(seq) == len(frames)
     assert seq.intrinsics == K and seq.depth_scale == 0.001
     for f, g in zip(frames, seq):
@@ -437,16 +441,16 @@ def test_png_folder_errors(recording, tmp_path):
     K = recording["frames"][0].intrinsics
     folder = _image_folder(recording, tmp_path / "p", "width: 10\n")
     with pytest.raises(ValueError, match=r"camera\.yaml.*missing keys"):
-        sources.open_source(folder)
+        datasets.open_source(folder)
     (folder / "camera.yaml").write_text(_yaml(ROS_YAML, K.scaled(0.5)))
     with pytest.raises(ValueError, match=r"depth/.*\.png.*160x120"):
-        sources.open_source(folder)[0]
+        datasets.open_source(folder)[0]
     (folder / "camera.yaml").unlink()
     with pytest.raises(ValueError, match="no camera file"):
-        sources.open_source(folder)
-    assert len(sources.open_source(folder, intrinsics=K, stride=2)) == 3
+        datasets.open_source(folder)
+    assert len(datasets.open_source(folder, intrinsics=K, stride=2)) == 3
     with pytest.raises(ValueError, match="not a recording"):
-        sources.open_source(tmp_path)
+        datasets.open_source(tmp_path)
 
 
 # -- the command line --------------------------------------------------------------------------

@@ -11,10 +11,11 @@ import pytest
 
 from helpers import rigid
 from scanalign import io as sio
-from scanalign import parts, rendering
+from scanalign.data import parts
+from scanalign.reconstruction import rendering
 from scanalign import synthetic as syn
-from scanalign.camera import Frame, Intrinsics, intrinsics_preset, read_camera
-from scanalign.trajectory import Trajectory
+from scanalign.reconstruction.camera import Frame, Intrinsics, intrinsics_preset, read_camera
+from scanalign.evaluation.trajectory import Trajectory
 
 K_SR300 = intrinsics_preset("sr300")
 
@@ -237,8 +238,8 @@ def test_production_modules_do_not_import_the_simulator_or_the_downloader():
     import subprocess
     import sys
 
-    code = ("import sys, scanalign.rendering, scanalign.parts; "
-            "print(sorted(m for m in sys.modules if m.startswith(('scanalign.synthetic', 'scanalign.datasets'))))")
+    code = ("import sys, scanalign.reconstruction.rendering, scanalign.data.parts; "
+            "print(sorted(m for m in sys.modules if m.startswith(('scanalign.synthetic', 'scanalign.data.downloads'))))")
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}  # the scanalign under test
     out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True, env=env).stdout
     assert out.strip() == "[]"
@@ -265,7 +266,7 @@ def test_builtin_mesh_is_a_closed_part_on_the_analytic_surfaces():
     assert volume == pytest.approx(analytic, rel=2e-3)  # outward winding: positive volume
     np.testing.assert_allclose(m.vertices.min(0), [-0.04, -0.025, -0.015], atol=1e-12)
     np.testing.assert_allclose(m.vertices.max(0), [0.04, 0.025, 0.030], atol=1e-12)
-    # Every vertex lies on one of the part's analytic surfaces (documented in scanalign.parts).
+    # Every vertex lies on one of the part's analytic surfaces (documented in scanalign.data.parts).
     p = m.vertices
     on_box = (np.isclose(np.abs(p[:, 0]), 0.04, atol=1e-12) | np.isclose(np.abs(p[:, 1]), 0.025, atol=1e-12)
               | np.isclose(np.abs(p[:, 2]), 0.015, atol=1e-12)) & np.all(np.abs(p) <= [0.04, 0.025, 0.015 + 1e-12], 1)
@@ -658,7 +659,7 @@ def test_config_reads_a_mesh_file(tmp_path):
 
 
 def test_camera_files_json_and_yaml(tmp_path):
-    from scanalign.camera import read_camera_file
+    from scanalign.reconstruction.camera import read_camera_file
 
     # OpenCV writes a "%YAML:1.0" first line (a directive YAML parsers reject); YAML 1.1 reads
     # "1e-3" without a dot as text: both are handled.

@@ -1,4 +1,4 @@
-"""Tests for scanalign.tum: TUM RGB-D benchmark sequence folders.
+"""Tests for scanalign.datasets.tum: TUM RGB-D benchmark sequence folders.
 
 Independent truth used here: a minimal PNG encoder/decoder written from the PNG
 specification (zlib + the five row filters), a brute-force O(N*M) version of the
@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from helpers import rigid
-from scanalign import tum
-from scanalign.camera import INTRINSICS_PRESETS, Frame, Intrinsics
-from scanalign.trajectory import Trajectory, associate_timestamps
-from scanalign.tum import TumFormatError, TumSequence, is_tum_folder, write_tum_sequence
+from scanalign.datasets import tum
+from scanalign.reconstruction.camera import INTRINSICS_PRESETS, Frame, Intrinsics
+from scanalign.evaluation.trajectory import Trajectory, associate_timestamps
+from scanalign.datasets.tum import TumFormatError, TumSequence, is_tum_folder, write_tum_sequence
 
 SMALL = Intrinsics(16, 12, 20.0, 21.0, 7.5, 5.5)  # (H, W) = (12, 16)
 T0 = 1305031102.175304  # a real TUM timestamp (freiburg1_xyz)

@@ -1,4 +1,4 @@
-"""Robot.from_urdf (scanalign.urdf): DH robots from URDF chains.
+"""Robot.from_urdf (scanalign.kinematics.urdf): DH robots from URDF chains.
 
 Independent truth: Pinocchio's forward kinematics (`pin`) of the same URDF files, the
 URDFs that `example-robot-data` ships (UR3, UR5, UR10, Kinova Jaco 2, Unitree Z1, Franka

@@ -1,4 +1,4 @@
-"""The rerun live view (scanalign.viewer): recordings hold the expected entities; the arm's
+"""The rerun live view (scanalign.viz.viewer): recordings hold the expected entities; the arm's
 joint chain matches the robot's forward kinematics. Skipped without rerun-sdk."""
 
 from __future__ import annotations
@@ -9,8 +9,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from scanalign import kinematics, parts
-from scanalign.viewer import Viewer, arm_points
+from scanalign import kinematics
+from scanalign.data import parts
+from scanalign.viz.viewer import Viewer, arm_points
 
 
 def _contents(path):
@@ -48,7 +49,7 @@ def test_arm_points_follow_forward_kinematics():
 
 def test_reconstruction_recording(small_scan, tmp_path):
     pytest.importorskip("rerun")
-    from scanalign.pipeline import reconstruct
+    from scanalign.pipelines.reconstruct import reconstruct
 
     path = tmp_path / "scan.rrd"
     with Viewer(save=path, model_every=2) as view:
@@ -65,7 +66,7 @@ def test_reconstruction_recording(small_scan, tmp_path):
 def test_pick_recording(tmp_path):
     """log_pick: the scene, each posed part as its mesh at its pose, the arm at the chosen grasp."""
     pytest.importorskip("rerun")
-    from scanalign.pick import PartPick, PickResult
+    from scanalign.pipelines.pick import PartPick, PickResult
 
     robot = kinematics.ur5()
     q = np.array([0.1, -1.3, 1.5, -1.8, -1.6, 0.2])

@@ -122,10 +122,10 @@ PYBIND11_MODULE(_core, m) {
     }
   });
   // A wrongly typed argument is named in the TypeError instead of pybind11's dump of every
-  // signature (scanalign._arrays.explain_bad_arguments wraps each function and method).
+  // signature (scanalign.common.arrays.explain_bad_arguments wraps each function and method).
   // Skipped only where the module is loaded outside its package (type-stub generation).
   try {
-    const py::object explain = py::module_::import("scanalign._arrays").attr("explain_bad_arguments");
+    const py::object explain = py::module_::import("scanalign.common.arrays").attr("explain_bad_arguments");
     for (const auto& item : m.attr("__dict__").cast<py::dict>())
       if (py::isinstance<py::module_>(item.second)) explain(item.second);
   } catch (py::error_already_set& e) {

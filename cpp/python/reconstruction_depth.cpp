@@ -201,7 +201,7 @@ void bindIntrinsics(py::module_& m) {
                          "pixel (u, v) = (column, row) has its centre at image coordinates (u, v); a camera point "
                          "projects to u = fx x_d + cx, v = fy y_d + cy, (x_d, y_d) the Brown-Conrady distortion of "
                          "(x/z, y/z) (zero: a pinhole camera). Immutable and hashable (a cache and dict key). The one "
-                         "intrinsics type of the library (scanalign.camera.Intrinsics)")
+                         "intrinsics type of the library (scanalign.reconstruction.camera.Intrinsics)")
                .def(py::init([](py::handle width, py::handle height, py::handle fx, py::handle fy, py::handle cx,
                                     py::handle cy, py::handle distortion) {
                       K k;
@@ -237,7 +237,7 @@ void bindIntrinsics(py::module_& m) {
                      return d;
                    },
                    "The fields as a JSON-ready dict (width, height, fx, fy, cx, cy; distortion as a list only when "
-                   "it is not zero): the keys scanalign.camera.intrinsics_from_dict reads")
+                   "it is not zero): the keys scanalign.reconstruction.camera.intrinsics_from_dict reads")
                .def("__repr__", &describe))
       .output("width", &K::width, "px", "image width")
       .output("height", &K::height, "px", "image height")

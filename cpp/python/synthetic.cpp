@@ -1,6 +1,6 @@
 // _core.synthetic: the built-in parts (mesh, symmetry, surface samples), the simulator's scene
 // (compositing and shading), camera paths, the sensor noise model and the Morton order behind
-// scanalign.parts and scanalign.synthetic.
+// scanalign.data.parts and scanalign.synthetic.
 #include <cmath>
 #include <limits>
 #include <string>
@@ -320,7 +320,7 @@ void defineSynthetic(py::module_& s) {
       "frames shared in proportion to cos(elevation), successive rings in opposite directions. ValueError naming a "
       "bad argument (n_frames an integer in [number of rings, 100000]; distance and target within 1e6 m).");
   s.def("builtin_part_mesh", &builtinPartMeshPy, py::arg("segments"), py::arg("name") = "block",
-        "A built-in part (see scanalign.parts: block, bracket, standoff) as a watertight mesh in metres, its own "
+        "A built-in part (see scanalign.data.parts: block, bracket, standoff) as a watertight mesh in metres, its own "
         "frame: (vertices (V,3) float64, faces (F,3) int64 wound counter-clockwise seen from outside, surface (F,) "
         "int32: 0 plane, 1 cylinder (boss, stud), 2 cap sphere). ValueError for segments outside [8, 4096] or an "
         "unknown name.");

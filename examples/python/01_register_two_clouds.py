@@ -5,7 +5,7 @@ Run after the README's set-up:  .venv/bin/python examples/python/01_register_two
 
 import numpy as np
 
-from scanalign import parts
+from scanalign.data import parts
 from scanalign.features import estimate_normals
 from scanalign.registration import Box, icp
 

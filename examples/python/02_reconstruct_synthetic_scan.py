@@ -14,7 +14,7 @@ import numpy as np
 
 from scanalign import synthetic
 from scanalign.evaluation import absolute_trajectory_error
-from scanalign.reconstruction import DepthFilter, Reconstructor
+from scanalign.reconstruction import BilateralFilterSettings, Reconstructor
 
 out = sys.argv[1] if len(sys.argv) > 1 else "example-02"
 scan = synthetic.builtin_scan(n_frames=36, noise="sr300", seed=0)
@@ -23,7 +23,7 @@ rec = Reconstructor(
     T_model_camera0=scan.frames[0].T_base_camera,    # model frame = robot base frame
     crop_box=(-0.1, 0.1, -0.1, 0.1, 0.1, 1.0),       # the workspace in the camera's view (m)
     normal_radius=0.01,                              # see the README: noisy consumer sensor
-    depth_filter=DepthFilter(),
+    depth_filter=BilateralFilterSettings(),
 )
 for frame in scan.frames:
     record = rec.integrate(frame)                    # guess: the previous registration

@@ -2,7 +2,7 @@
 the objects, match the part's 42 tessellated-sphere views with the curvature-based
 descriptor, refine with ICP, and write poses.json, the placed model (PLY) and a PNG overlay.
 
-The part is CGAL's fandisk (Debian libcgal-demo, fetched by scanalign.datasets) scaled to
+The part is CGAL's fandisk (Debian libcgal-demo, fetched by scanalign.data.downloads) scaled to
 120 mm; the "scan" is one of its views moved to a known pose above a table plane.
 
     python examples/python/04_find_cad_part.py [--out scanalign-04]
@@ -17,7 +17,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from scanalign import cad, datasets, pose
+from scanalign import pose
+from scanalign.pose import model_views as cad
+from scanalign.data import downloads as datasets
 
 
 def main() -> int:
@@ -50,7 +52,7 @@ def main() -> int:
     dist = 1000 * np.linalg.norm(r.T_scene_model[:3, 3] - T_true[:3, 3])
     print(f"{len(found.objects)} object(s); best view {r.view}, fitness {r.fitness:.3f}, coverage {r.coverage:.3f}, "
           f"RMSE {1000 * r.inlier_rmse:.3f} mm, {r.seconds:.1f} s; error {ang:.4f} deg, {dist:.4f} mm")
-    paths = pose.write_pose_outputs(mesh, scene, r, out / "object0", object_indices=found.objects[0])
+    paths = write_pose_outputs(mesh, scene, r, out / "object0", object_indices=found.objects[0])
     (out / "poses.json").write_text(json.dumps([r.as_dict()], indent=2))
     print("wrote", ", ".join(str(p) for p in paths.values()))
     return 0 if r.found and ang < 0.2 and dist < 0.5 else 1

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import argparse
 
-from scanalign import pick
+from scanalign.pipelines import pick
 from scanalign.synthetic.cell import pick_cell, score_picks
 
 

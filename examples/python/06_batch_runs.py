@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import argparse
 
-from scanalign import batch
-from scanalign.batch import Job
+from scanalign.pipelines import batch
+from scanalign.pipelines.batch import Job
 
 
 def main() -> int:

@@ -1,17 +1,17 @@
 """scanalign: real-time eye-in-hand 3D reconstruction and CAD-based pose estimation.
 
-Submodules, imported on first use so ``import scanalign`` stays fast: ``registration`` (ICP
-engine, PCL baselines), ``features`` (normals, shape factors), ``reconstruction`` (depth to
-cloud, frame-to-model, voxel grid), ``segmentation`` and ``fitting`` (RANSAC, CGA sphere and
-plane fits), ``cga``, ``cad``, ``cbd`` and ``pose`` (CAD-model pose), ``kinematics`` (FK and
-analytic IK of 6R arms), ``io``, ``tum``, ``trajectory`` and ``datasets`` (files and data),
-``camera``, ``rendering``, ``parts`` and ``synthetic`` (the simulated eye-in-hand scanner),
-``pipeline``, ``evaluation`` and ``mesh_metrics`` (the reconstruction job and its metrics),
-``calibration``, ``grasp`` and ``pick`` (hand-eye, grasps, the pick pipeline), ``part_library``
-and ``batch`` (batch runs on a process pool or Ray), ``urdf`` (robots from URDF), ``config`` (settings
-files for the commands), ``interop`` and ``viewer`` (Open3D/trimesh objects, a live rerun view),
-``se3``, ``plots`` and ``cli``. Each
-module's docstring describes it.
+Subpackages, imported on first use so ``import scanalign`` stays fast. The areas mirror the
+compiled core (``_core.<area>``) and the C++ tree (``cpp/include/scanalign/<area>/``):
+``common`` (argument checks, rigid transforms, the settings schema), ``io`` (clouds, meshes,
+Open3D/trimesh interop), ``registration`` (ICP engine, PCL baselines), ``features``,
+``segmentation``, ``fitting``, ``cga``, ``calibration`` (hand-eye), ``evaluation``
+(trajectories, ATE/RPE, cloud-to-mesh), ``kinematics`` (FK and analytic IK, URDF),
+``reconstruction`` (cameras, depth, rendering, frame-to-model), ``pose`` (CBD, model views,
+CAD pose, part identification), ``grasp`` (parts, grasps, planning, the part library) and
+``synthetic`` (the simulated eye-in-hand scanner). Above them the application layers:
+``data`` (built-in parts, test data downloads), ``datasets`` (recordings: one
+``open_source`` factory), ``pipelines`` (reconstruct, pick, batch), ``viz`` (plots, reports,
+the live viewer) and ``cli``. docs/architecture.md draws the map and its import rules.
 
 Units are metres and radians throughout.  A transform named ``T_a_b`` is a 4x4
 homogeneous matrix that maps coordinates expressed in frame ``b`` into frame ``a``
@@ -23,17 +23,16 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-_SUBMODULES = ("registration", "features", "reconstruction", "io", "datasets", "parts", "rendering", "camera",
-               "trajectory", "tum", "synthetic", "cga", "kinematics", "cad", "cbd", "pose", "fitting", "segmentation",
-               "pipeline", "evaluation", "mesh_metrics", "plots", "se3", "cli", "calibration", "grasp", "pick",
-               "part_library", "batch", "urdf", "config", "sources", "interop", "viewer")
+_SUBMODULES = ("common", "io", "registration", "features", "segmentation", "fitting", "cga", "calibration",
+               "evaluation", "kinematics", "reconstruction", "pose", "grasp", "synthetic", "data", "datasets",
+               "pipelines", "viz", "cli")
 
 __all__ = ["__version__", *_SUBMODULES]
 
 
 def __getattr__(name: str) -> Any:  # PEP 562: lazy submodules
     if name == "__version__":  # the compiled core's, from CMakeLists.txt (the one version source)
-        from ._core import __version__
+        from scanalign._core import __version__
 
         return __version__
     if name in _SUBMODULES:

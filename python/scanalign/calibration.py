@@ -7,7 +7,7 @@ gives its pose in a frame ``world`` that is fixed but unknown relative to the ba
 - views of a fixed, known target: ``T_camera_target[i]`` (target -> camera, e.g. a
   checkerboard pose from PnP); ``world`` is the target;
 - no target: the frame-to-model ICP trajectory of a scan, ``T_world_camera[i]`` (camera ->
-  the scan's model frame; :func:`scanalign.pipeline.reconstruct` with
+  the scan's model frame; :func:`scanalign.pipelines.reconstruct.reconstruct` with
   ``model_frame="camera"``, whose model frame is the first camera's).
 
 Both unknowns are solved for: ``T_base_flange[i] @ T_flange_camera = T_base_world @
@@ -20,8 +20,8 @@ from __future__ import annotations
 
 from typing import Any, Optional
 
-from . import _core
-from ._arrays import fields_of, set_fields
+from scanalign import _core
+from scanalign.common.settings import fields_of, set_fields
 
 __all__ = ["HandEyeSettings", "HandEyeResult", "calibrate_hand_eye"]
 

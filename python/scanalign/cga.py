@@ -42,7 +42,7 @@ that would overflow) raises ``ValueError`` naming the argument; complex, string 
 
 from __future__ import annotations
 
-from . import _core
+from scanalign import _core
 
 __all__ = [
     "Multivector", "Sphere", "Plane", "Line", "Motor", "Point", "Circle", "Reality",

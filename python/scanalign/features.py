@@ -3,19 +3,22 @@
 
 from __future__ import annotations
 
-from typing import Sequence, Tuple, Union
+from typing import Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from . import _core
-from ._arrays import as_points
+from scanalign import _core
+from scanalign.common.arrays import as_points
+from scanalign.common.settings import with_overrides
 
-__all__ = ["estimate_normals", "shape_factors"]
+__all__ = ["NormalEstimationSettings", "estimate_normals", "shape_factors"]
+
+NormalEstimationSettings = _core.features.NormalEstimationSettings
 
 
-def estimate_normals(points: np.ndarray, radius: float = 0.005, viewpoint: Sequence[float] = (0.0, 0.0, 0.0), *,
-                     min_neighbors: int = 3, return_curvature: bool = False,
-                     num_threads: int = 0) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
+def estimate_normals(points: np.ndarray, radius: Optional[float] = None, viewpoint: Optional[Sequence[float]] = None, *,
+                     settings: Optional[NormalEstimationSettings] = None, return_curvature: bool = False,
+                     **overrides: object) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
     """Unit normals by PCA over a radius neighbourhood, oriented towards a viewpoint.
 
     The normal of point p is the eigenvector of the smallest eigenvalue of the covariance
@@ -24,13 +27,14 @@ def estimate_normals(points: np.ndarray, radius: float = 0.005, viewpoint: Seque
 
     Args:
         points: (N, 3) float32/float64 points, metres.
-        radius: neighbourhood radius, metres (eye-in-hand paper §3.5: 5 mm).
-        viewpoint: point the normals face, metres, in the cloud's frame (the camera
-            centre, i.e. the origin, for a cloud in its camera frame).
-        min_neighbors: fewer neighbours (the point included) give a NaN normal.
+        radius, viewpoint: neighbourhood radius (m; eye-in-hand paper §3.5: 5 mm) and the
+            point the normals face (m, the cloud's frame: the camera centre, i.e. the
+            origin, for a cloud in its camera frame); None: those of ``settings``.
+        settings: :class:`NormalEstimationSettings` (default its C++ defaults); keyword
+            ``overrides`` name its other fields (``min_neighbors``: fewer neighbours, the
+            point included, give a NaN normal; ``num_threads``: 0 = all cores).
         return_curvature: also return the surface variation
             lambda_0 / (lambda_0 + lambda_1 + lambda_2) in [0, 1/3].
-        num_threads: OpenMP threads, 0 = all cores.
 
     Returns:
         (N, 3) normals in the input dtype (NaN rows for non-finite points or too few
@@ -40,8 +44,9 @@ def estimate_normals(points: np.ndarray, radius: float = 0.005, viewpoint: Seque
         TypeError: non-float points. ValueError: shape, non-positive radius, a viewpoint
         that is not 3 finite numbers, min_neighbors < 3.
     """
-    normals, curvature = _core.features.estimate_normals(as_points(points, "points"), float(radius), viewpoint,
-                                                         int(min_neighbors), int(num_threads))
+    given = {k: v for k, v in (("radius", radius), ("viewpoint", viewpoint)) if v is not None}
+    s = with_overrides(NormalEstimationSettings, settings, {**given, **overrides}, "normal estimation")
+    normals, curvature = _core.features.estimate_normals(as_points(points, "points"), s)
     return (normals, curvature) if return_curvature else normals
 
 

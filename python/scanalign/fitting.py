@@ -13,7 +13,7 @@ is ``[c, (|c|^2 - r^2)/2, 1]`` (4.60) and a dual plane ``[n, delta, 0]`` for the
 
 from __future__ import annotations
 
-from . import _core
+from scanalign import _core
 
 __all__ = ["SphereFitResult", "CircleFitResult", "SphereFitBatchResult", "fit_sphere", "fit_spheres", "fit_circle_2d",
            "MIN_SPHERE_POINTS"]

@@ -24,8 +24,9 @@ from typing import Literal, Optional, Sequence, Union
 
 import numpy as np
 
-from . import _core
-from ._arrays import as_points, as_transform, foreign_attribute, set_fields
+from scanalign import _core
+from scanalign.common.arrays import as_points, as_transform, foreign_attribute
+from scanalign.common.settings import set_fields
 
 Box = _core.registration.Box
 IcpSettings = _core.registration.IcpSettings

@@ -37,7 +37,7 @@ from typing import List, Tuple
 
 import numpy as np
 
-from . import _core
+from scanalign import _core
 
 __all__ = ["PlaneResult", "SphereResult", "TableSegmentationResult", "RansacSettings", "TableSegmentationSettings",
            "ransac_plane", "ransac_sphere", "segment_table", "segment_table_full", "plane_from_points",

@@ -68,7 +68,7 @@ def finite(a, what: str = "output") -> None:
 def call(fn, *args, **kwargs):
     """Calls fn; documented exceptions pass (returning None), the rest propagate as
     findings, and so does a TypeError that only dumps pybind11's signatures (the library
-    names the wrongly typed argument, scanalign._arrays.explain_bad_arguments)."""
+    names the wrongly typed argument, scanalign.common.arrays.explain_bad_arguments)."""
     try:
         result = fn(*args, **kwargs)
     except ALLOWED as exc:

@@ -200,7 +200,7 @@ _DEPTHS = ["u16"] * 4 + ["f32", "nan", "empty", "zeros", "3d", "wrong_size", "ne
 
 
 def _intrinsics(kind: str):
-    from scanalign.camera import Intrinsics
+    from scanalign.reconstruction.camera import Intrinsics
     base = dict(width=32, height=24, fx=30.0, fy=30.0, cx=16.0, cy=12.0)
     base.update({"ok": {}, "fx0": {"fx": 0.0}, "nan": {"cx": NAN}, "neg": {"fy": -30.0}, "huge": {"fx": 1e300},
                  "size0": {"width": 0}}[kind])
@@ -229,7 +229,7 @@ def depth_to_cloud(case):
         sigma_s=numbers(1.5), sigma_d=numbers(0.003), scale=numbers(0.001), threads=counts(0, 5000))
 def bilateral_filter_depth(case):
     from scanalign import reconstruction
-    f = call(reconstruction.DepthFilter, radius=case["radius"], sigma_space=case["sigma_s"], sigma_depth=case["sigma_d"])
+    f = call(reconstruction.BilateralFilterSettings, radius=case["radius"], sigma_space=case["sigma_s"], sigma_depth=case["sigma_d"])
     if f is not None:
         r = call(reconstruction.bilateral_filter_depth, _depth(case["depth"], case["seed"]), f,
                  depth_scale=case["scale"], num_threads=case["threads"])
@@ -422,13 +422,13 @@ def ik_round_trip(case):
 # -- CAD views, pose and CBD ---------------------------------------------------------------
 @functools.lru_cache(maxsize=1)
 def _part():
-    from scanalign import parts
+    from scanalign.data import parts
     return parts.builtin_mesh(24)
 
 
 @functools.lru_cache(maxsize=1)
 def _part_cloud():
-    from scanalign import parts
+    from scanalign.data import parts
     return parts.sample_mesh(_part(), 1500, seed=1)[0]
 
 
@@ -458,7 +458,7 @@ def _mesh(kind):
 @target("cad", mesh=choice(_MESHES), res=counts([24, 40], 10**5), angle=numbers(1.0, 3.2), level=counts(0, 9),
         dist=choice([None, 0.5, 0.0, -1.0, NAN, 1e300]))
 def render_views(case):
-    from scanalign import cad
+    from scanalign.pose import model_views as cad
     views = call(cad.render_views, _mesh(case["mesh"]), resolution=case["res"], view_angle=case["angle"],
                  level=case["level"], distance=case["dist"])
     for v in views or []:
@@ -505,7 +505,7 @@ def align_flags(case):
 
 @functools.lru_cache(maxsize=1)
 def _views():
-    from scanalign import cad
+    from scanalign.pose import model_views as cad
     return cad.render_views(_part(), resolution=40)
 
 
@@ -538,7 +538,7 @@ def pcl_feature_alignment(case):
 
 @target("cbd", points=clouds(1500), radius=numbers([0.05, 0.3]), kp=counts([50, 200]), min_nb=counts(0))
 def cbd_compute(case):
-    from scanalign import cbd
+    from scanalign.pose import cbd
     f = call(cbd.compute, build(case["points"]), radius=case["radius"], max_keypoints=case["kp"], min_neighbors=case["min_nb"])
     if f is not None:
         finite(f.descriptors, "CBD descriptors")
@@ -547,7 +547,7 @@ def cbd_compute(case):
 
 @target("cbd", points=clouds(1500), radius=numbers(0.3), min_nb=counts(20), k=counts(50))
 def cbd_parts(case):
-    from scanalign import cbd
+    from scanalign.pose import cbd
     r = call(cbd.neighbourhood_pca, build(case["points"]), case["radius"])
     if r is not None:
         counts_, ev = r
@@ -602,7 +602,8 @@ _EDITS = st.lists(st.tuples(st.sampled_from(["flip", "cut", "insert", "digits"])
 def readers(case):
     import tempfile
 
-    from scanalign import io, trajectory
+    from scanalign import io
+    from scanalign.evaluation import trajectory
     with tempfile.TemporaryDirectory() as tmp:
         files = _valid_files(tmp)
         path, data = sorted(files.items())[case["which"] % len(files)]
@@ -678,7 +679,8 @@ _TRAJ = ["ok"] * 4 + ["static", "nan_time", "nan_pose", "unsorted", "duplicate_t
 @target("evaluation", est=choice(_TRAJ), ref=choice(_TRAJ), seed=st.integers(0, 99), align=st.booleans(),
         delta=numbers(1), assoc=st.booleans(), maxdiff=numbers(0.02))
 def trajectory_errors(case):
-    from scanalign import evaluation, trajectory
+    from scanalign import evaluation
+    from scanalign.evaluation import trajectory
     est = call(trajectory.Trajectory, *_trajectory(case["est"], case["seed"]))
     ref = call(trajectory.Trajectory, *_trajectory(case["ref"], case["seed"] + 1))
     if est is None or ref is None:
@@ -718,7 +720,7 @@ def mesh_distance(case):
 
 @target("se3", T=transforms(), T2=transforms(), axis=choice(_VEC), angle=choice(_SCALAR))
 def se3_functions(case):
-    from scanalign import se3
+    from scanalign.common import rigid as se3
     T, T2 = build(case["T"]), build(case["T2"])
     call(se3.inverse, T)
     call(se3.pose_error, T, T2)
@@ -733,7 +735,8 @@ def se3_functions(case):
 @target("rendering", mesh=choice(_MESHES), intr=choice(["ok"] * 4 + ["fx0", "nan", "neg", "huge", "size0"]),
         T=transforms(), near=numbers(0.01), far=numbers(INF), n=counts(100, 10**12))
 def render_and_sample(case):
-    from scanalign import parts, rendering
+    from scanalign.data import parts
+    from scanalign.reconstruction import rendering
     v, f = _mesh(case["mesh"])
     T = build(case["T"])
     if isinstance(T, np.ndarray) and T.shape == (4, 4) and T.dtype.kind == "f":

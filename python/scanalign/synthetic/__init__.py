@@ -2,7 +2,7 @@
 does not import it).
 
 A camera on a robot's hand moves around objects on a table; the z-buffer renderer
-(:mod:`scanalign.rendering`) computes what it sees and a sensor model adds RealSense- or
+(:mod:`scanalign.reconstruction.rendering`) computes what it sees and a sensor model adds RealSense- or
 Zivid-like noise. Every pose, surface and pixel is known exactly.
 
 Frames (``T_a_b`` maps b-coordinates into a; metres, 4x4 float64): ``base``, the scene
@@ -32,21 +32,21 @@ kinematics of those joints the reference poses, so a reconstruction is scored ag
 robot's own pose, as in the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929,
 §4). A pose the arm cannot reach raises ValueError naming the frame and the IK status.
 
-Modules: :mod:`.scene` (objects on a table), :mod:`.trajectories` (camera paths),
-:mod:`.mount` (the robot), :mod:`.noise` (sensor models), :mod:`.scan` (rendering a scan),
-:mod:`.config` (a scan from one configuration).
+Modules: :mod:`.scene` (objects on a table), :mod:`.trajectories` (camera paths and the
+robot that carries the camera), :mod:`.noise` (sensor models), :mod:`.scan` (rendering a
+scan), :mod:`.config` (a scan from one configuration), :mod:`.cell` (the built-in pick cell).
 """
 
 from __future__ import annotations
 
-from ..parts import builtin_mesh, normalize_mesh
-from ..rendering import RenderResult, look_at, render_depth
-from .config import SyntheticConfig, builtin_scan
-from .mount import DEFAULT_ROBOT_HEIGHT, attach_robot, robot_mount
-from .noise import NOISE_PRESETS, SensorNoise
-from .scan import SyntheticScan, render_scan
-from .scene import Scene, SceneObject
-from .trajectories import DEFAULT_T_FLANGE_CAMERA, ScanTrajectory, hemisphere_trajectory, loop_trajectory
+from scanalign.data.parts import builtin_mesh, normalize_mesh
+from scanalign.reconstruction.rendering import RenderResult, look_at, render_depth
+from scanalign.synthetic.config import SyntheticConfig, builtin_scan
+from scanalign.synthetic.trajectories import DEFAULT_ROBOT_HEIGHT, attach_robot, robot_mount
+from scanalign.synthetic.noise import NOISE_PRESETS, SensorNoise
+from scanalign.synthetic.scan import SyntheticScan, render_scan
+from scanalign.synthetic.scene import Scene, SceneObject
+from scanalign.synthetic.trajectories import DEFAULT_T_FLANGE_CAMERA, ScanTrajectory, hemisphere_trajectory, loop_trajectory
 
 __all__ = [
     "RenderResult", "render_depth", "look_at", "builtin_mesh", "normalize_mesh", "SceneObject", "Scene",

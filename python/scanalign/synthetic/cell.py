@@ -1,7 +1,7 @@
 """The built-in pick cell: known parts at known poses on a table, a robot with a camera on its
 hand that scans them, and the ground truth a pick is scored against.
 
-Two cells, both with the parts of :data:`scanalign.pick.BUILTIN_PART_FILES` (the machined
+Two cells, both with the parts of :data:`scanalign.grasp.parts.BUILTIN_PART_FILES` (the machined
 block, the angle bracket and the hexagonal standoff) and the camera at
 :data:`~scanalign.synthetic.DEFAULT_T_FLANGE_CAMERA`:
 
@@ -29,12 +29,13 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from .. import se3
-from ..grasp import symmetric_pose_error
-from .mount import robot_mount
-from .scan import SyntheticScan, render_scan
-from .scene import Scene
-from .trajectories import loop_trajectory
+from scanalign.common import rigid as se3
+from scanalign.grasp import symmetric_pose_error
+from scanalign.synthetic.trajectories import robot_mount
+from scanalign.synthetic.scan import SyntheticScan, render_scan
+from scanalign.synthetic.scene import Scene
+from scanalign.synthetic.trajectories import loop_trajectory
+from scanalign.grasp.parts import load_part
 
 __all__ = ["CELL_MOUNTS", "CELL_SCAN_ARCS", "DEFAULT_PLACEMENTS", "PickCell", "pick_cell", "score_picks"]
 
@@ -81,8 +82,6 @@ def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_fram
         n_frames: frames of the scan loop.
         placements: (part name, (x, y) m, yaw rad) per part; default :data:`DEFAULT_PLACEMENTS`.
     """
-    from ..pick import load_part
-
     if robot not in CELL_MOUNTS:
         raise ValueError(f"robot: the built-in cells are {sorted(CELL_MOUNTS)}, got {robot!r}")
     scene = Scene(table_size=(0.6, 0.6))
@@ -100,7 +99,7 @@ def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_fram
 
 
 def score_picks(result: Any, truth: Dict[str, np.ndarray]) -> Dict[str, Dict[str, float]]:
-    """Errors of a :class:`scanalign.pick.PickResult` against the cell's truth, per picked part:
+    """Errors of a :class:`scanalign.pipelines.pick.PickResult` against the cell's truth, per picked part:
     ``tcp_m`` / ``tcp_deg``, the TCP pose at the chosen grasp against the same grasp on the
     truly placed part (the nearest of its symmetric copies), and ``pose_m`` / ``pose_deg``,
     the part's pose error (up to its symmetry)."""

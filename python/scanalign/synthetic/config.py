@@ -12,14 +12,15 @@ from typing import Any, Dict, Mapping, Optional, Union
 
 import numpy as np
 
-from .. import io
-from ..camera import INTRINSICS_PRESETS, Intrinsics, intrinsics_from_dict, intrinsics_preset, read_camera_file
-from ..parts import builtin_mesh, normalize_mesh
-from .mount import DEFAULT_ROBOT_HEIGHT, as_robot, attach_robot, robot_mount
-from .noise import NOISE_PRESETS
-from .scan import SyntheticScan, render_scan
-from .scene import Scene
-from .trajectories import ScanTrajectory, hemisphere_trajectory, loop_trajectory
+from scanalign import io
+from scanalign.reconstruction.camera import INTRINSICS_PRESETS, Intrinsics, intrinsics_from_dict, intrinsics_preset, read_camera_file
+from scanalign.data.parts import builtin_mesh, normalize_mesh
+from scanalign.synthetic.trajectories import DEFAULT_ROBOT_HEIGHT, as_robot, attach_robot, robot_mount
+from scanalign.synthetic.noise import NOISE_PRESETS
+from scanalign.synthetic.scan import SyntheticScan, render_scan
+from scanalign.synthetic.scene import Scene
+from scanalign.synthetic.trajectories import ScanTrajectory, hemisphere_trajectory, loop_trajectory
+from scanalign.data import downloads as datasets  # the downloader, only for CGAL mesh names
 
 __all__ = ["SyntheticConfig", "builtin_scan"]
 
@@ -46,8 +47,8 @@ class SyntheticConfig:
     """Everything that defines a synthetic scan; read from JSON or flat YAML (``key: value``).
 
     Attributes:
-        mesh: ``"builtin"`` (:func:`scanalign.parts.builtin_mesh`), a CGAL demo mesh name
-            (``"bunny00"``, ``"fandisk"``, ... fetched by :mod:`scanalign.datasets`), or a path
+        mesh: ``"builtin"`` (:func:`scanalign.data.parts.builtin_mesh`), a CGAL demo mesh name
+            (``"bunny00"``, ``"fandisk"``, ... fetched by :mod:`scanalign.data.downloads`), or a path
             to a .ply/.off/.stl/.obj file.
         object_size: largest extent of the object (m) after scaling; None keeps the builtin
             part's size (80 mm) and scales other meshes to 0.15 m.
@@ -60,7 +61,7 @@ class SyntheticConfig:
         rings, min_elevation, max_elevation: hemisphere: number of rings, at elevations evenly
             spaced in [min_elevation, max_elevation] (rad).
         start_angle: azimuth of the first frame (rad).
-        intrinsics: a preset name of :data:`scanalign.camera.INTRINSICS_PRESETS` or a mapping
+        intrinsics: a preset name of :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a mapping
             width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
         noise, seed: a preset name of ``NOISE_PRESETS`` and the noise seed.
         depth_unit: metres per uint16 depth unit; ``"auto"`` for the sensor's own unit (0.1 mm
@@ -166,8 +167,6 @@ class SyntheticConfig:
         elif os.sep in self.mesh or (os.altsep and os.altsep in self.mesh):
             raise FileNotFoundError(f"mesh file {self.mesh!r} does not exist")
         else:  # a CGAL demo mesh name, optionally with an extension ("pig.stl")
-            from .. import datasets  # the downloader, only for CGAL mesh names
-
             m = datasets.load_cgal_mesh(self.mesh)
         return normalize_mesh(m, 0.15 if self.object_size is None else self.object_size)
 

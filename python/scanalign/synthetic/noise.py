@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Dict, Union
 
-from .. import _core
+from scanalign import _core
 
 __all__ = ["SensorNoise", "NOISE_PRESETS"]
 

@@ -10,15 +10,16 @@ from typing import Any, Dict, List, Optional, Union
 
 import numpy as np
 
-from .. import _core, io, se3
-from ..camera import Frame, Intrinsics
-from ..reconstruction import depth_to_cloud
-from .._arrays import require_memory
-from ..rendering import as_intrinsics
-from ..trajectory import Trajectory
-from .noise import SensorNoise, as_noise
-from .scene import Scene
-from .trajectories import ScanTrajectory
+from scanalign import _core, io
+from scanalign.common import rigid as se3
+from scanalign.reconstruction.camera import Frame, Intrinsics
+from scanalign.reconstruction import depth_to_cloud
+from scanalign.common.arrays import require_memory
+from scanalign.reconstruction.rendering import as_intrinsics
+from scanalign.evaluation.trajectory import Trajectory
+from scanalign.synthetic.noise import SensorNoise, as_noise
+from scanalign.synthetic.scene import Scene
+from scanalign.synthetic.trajectories import ScanTrajectory
 
 __all__ = ["SyntheticScan", "render_scan"]
 
@@ -28,7 +29,7 @@ class SyntheticScan:
     """A rendered scan with its ground truth.
 
     Attributes:
-        frames: one :class:`scanalign.camera.Frame` per pose: ``depth`` (uint16 in units of
+        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose: ``depth`` (uint16 in units of
             ``depth_scale`` metres, 0 = missing, by default the sensor's own unit; or float32
             metres with NaN when rendered with ``depth_unit=None``), ``rgb`` (uint8,
             registered to the depth), ``timestamp`` (s), ``T_base_camera`` (the exact pose,
@@ -116,7 +117,7 @@ def render_scan(
         poses: a :class:`ScanTrajectory` (flange poses + hand-eye, and the robot's joints when
             it has a robot: stored in the scan and each frame's meta), a :class:`Trajectory`
             of ``T_base_camera``, or an (N, 4, 4) array of ``T_base_camera`` (camera -> base, m).
-        intrinsics: camera intrinsics or a preset name (:data:`scanalign.camera.INTRINSICS_PRESETS`).
+        intrinsics: camera intrinsics or a preset name (:data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS`).
         noise: a :class:`SensorNoise` or a preset name (``NOISE_PRESETS``); None = "none".
         seed: noise seed. Frame ``k``'s noise is seeded from
             ``numpy.random.SeedSequence(seed).spawn(N)[k]``: equal seeds give bit-identical

@@ -8,10 +8,11 @@ from typing import Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from .. import _core, io, se3
-from .._arrays import as_transform
-from ..camera import Intrinsics
-from ..rendering import RenderResult, as_intrinsics, render_depth
+from scanalign import _core, io
+from scanalign.common import rigid as se3
+from scanalign.common.arrays import as_transform
+from scanalign.reconstruction.camera import Intrinsics
+from scanalign.reconstruction.rendering import RenderResult, as_intrinsics, render_depth
 
 __all__ = ["SceneObject", "Scene"]
 

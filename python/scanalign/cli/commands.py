@@ -1,0 +1,698 @@
+"""The ``scanalign`` command line.
+
+  scanalign demo               reconstruct a built-in synthetic eye-in-hand scan (no download)
+  scanalign reconstruct SRC    reconstruct a TUM RGB-D folder or a synthetic-scan config
+  scanalign synth CONFIG DIR   render a synthetic scan into a TUM RGB-D folder
+  scanalign register SRC TGT   ICP between two point-cloud files (PCD or PLY)
+  scanalign register-demo      one simulated frame registered by scanalign and stock PCL
+  scanalign pick --demo        scan a built-in cell, find its parts, plan grasps and joint targets
+  scanalign demo --pick        the same
+  scanalign ik                 all analytic IK solutions of a tool pose
+  scanalign pose SCAN          find a CAD part in a scan
+  scanalign batch MANIFEST     run many jobs on a process pool or a Ray cluster
+  scanalign dump-config CMD    every setting of a command with its default and unit (for --config)
+
+Units: metres, radians, seconds. Run ``scanalign COMMAND --help`` for every option.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+from scanalign import _core, io, kinematics as kin, pose as _pose, synthetic
+from scanalign.cli import config as _cfg
+from scanalign.cli.settings import Alias, Command, add_settings_options, dump, resolve, write_effective
+from scanalign.common import rigid as se3
+from scanalign.data import parts
+from scanalign import datasets
+from scanalign.datasets import tum
+from scanalign.features import NormalEstimationSettings, estimate_normals
+from scanalign.pipelines import batch, pick as _pick
+from scanalign.pipelines.reconstruct import model_mesh_distance, reconstruct, write_joints_csv
+from scanalign.reconstruction import ReconstructionSettings
+from scanalign.registration import Box, IcpSettings, icp, pcl_icp
+from scanalign.synthetic.cell import pick_cell, score_picks
+from scanalign.viz import plots
+from scanalign.viz.reports import save_report, write_pose_outputs
+from scanalign.viz.viewer import Viewer
+
+
+def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
+    """Runs the two-cloud registration demo; returns the report written to ``out/report.json``."""
+    if not (np.isfinite(noise) and noise >= 0):
+        raise ValueError(f"--noise must be a finite depth noise >= 0 (m), got {noise}")
+    rng = np.random.default_rng(seed)
+    out.mkdir(parents=True, exist_ok=True)
+    # Model: the built-in part, in the model frame, 40 cm in front of the first camera.
+    part, _ = parts.builtin_object(n_points=40000, seed=seed)
+    model = part + np.array([0.0, 0.0, 0.40])
+    model_normals = estimate_normals(model, radius=0.005, viewpoint=(0.0, 0.0, 0.0))
+    # A new frame: the camera moved by T_model_camera; the frame sees part of the object
+    # (one side cut away) with depth noise, in its own camera frame.
+    T_model_camera = se3.rigid((0.3, 1.0, 0.2), np.deg2rad(4.0), (0.012, -0.008, 0.006))
+    visible = model[model[:, 0] > -0.02]
+    frame = (np.linalg.inv(T_model_camera) @ np.c_[visible, np.ones(len(visible))].T).T[:, :3]
+    frame = frame + rng.normal(0.0, noise, frame.shape)
+
+    print(f"model: {len(model)} points, frame: {len(frame)} points, depth noise {noise * 1000:.2f} mm")
+    runs = {}
+    for name, fn in (
+        ("scanalign", lambda: icp(frame, model, model_normals, max_correspondence_distance=0.02)),
+        ("pcl_point_to_plane_lls", lambda: pcl_icp(frame, model, model_normals, variant="point_to_plane_lls",
+                                                   max_correspondence_distance=0.02)),
+        ("pcl_svd", lambda: pcl_icp(frame, model, variant="svd", max_correspondence_distance=0.02)),
+    ):
+        t0 = time.perf_counter()
+        r = fn()
+        wall = time.perf_counter() - t0
+        rot, trans = se3.pose_error(r.T_target_source, T_model_camera)
+        runs[name] = dict(status=r.status, converged=bool(r.converged), iterations=r.iterations,
+                          fitness=r.fitness, inlier_rmse_m=r.inlier_rmse, rotation_error_rad=rot,
+                          translation_error_m=trans, seconds=wall, T_target_source=r.T_target_source.tolist())
+        print(f"  {name:24s} {r.status:24s} it={r.iterations:3d}  rot err {np.rad2deg(rot):.4f} deg  "
+              f"trans err {trans * 1000:.3f} mm  rmse {r.inlier_rmse * 1000:.3f} mm  {wall * 1000:.1f} ms")
+    speedup = runs["pcl_point_to_plane_lls"]["seconds"] / runs["scanalign"]["seconds"]
+    print(f"  scanalign is {speedup:.1f}x faster than PCL IterativeClosestPointWithNormals here")
+    T = np.asarray(runs["scanalign"]["T_target_source"])
+    aligned = (T @ np.c_[frame, np.ones(len(frame))].T).T[:, :3]
+    io.write_ply(out / "model.ply", model, normals=model_normals,
+                 colors=np.tile(np.array([[180, 180, 180]], np.uint8), (len(model), 1)))
+    io.write_ply(out / "frame_aligned.ply", aligned,
+                 colors=np.tile(np.array([[230, 80, 40]], np.uint8), (len(aligned), 1)))
+    report = dict(T_model_camera_true=T_model_camera.tolist(), runs=runs, speedup_vs_pcl_lls=speedup)
+    (out / "report.json").write_text(json.dumps(report, indent=2))
+    print(f"wrote {out / 'model.ply'}, {out / 'frame_aligned.ply'} (open both in a viewer) and {out / 'report.json'}")
+    return report
+
+
+def register(args: argparse.Namespace) -> int:
+    """``scanalign register``: ICP between two files; prints JSON, writes the aligned source."""
+    settings = args.settings
+    src, _ = io.read_cloud(Path(args.source))
+    tgt, tgt_normals = io.read_cloud(Path(args.target))
+    if tgt_normals is None or not np.isfinite(tgt_normals).any():
+        tgt_normals = estimate_normals(tgt, settings=settings["normals"])
+    try:
+        init = np.loadtxt(args.init).reshape(4, 4) if args.init else None
+    except (ValueError, OSError) as e:
+        raise ValueError(f"--init {args.init}: expected a text file holding a 4x4 matrix ({e})") from None
+    r = icp(src, tgt, tgt_normals, init, settings=settings["icp"])
+    result = dict(status=r.status, converged=bool(r.converged), iterations=r.iterations, fitness=r.fitness,
+                  inlier_rmse_m=r.inlier_rmse, T_target_source=r.T_target_source.tolist(), seconds=r.seconds)
+    print(json.dumps(result, indent=2))
+    if args.out:
+        aligned = (r.T_target_source @ np.c_[src, np.ones(len(src))].T).T[:, :3]
+        io.write_ply(Path(args.out), aligned[np.all(np.isfinite(aligned), axis=1)])
+    return 0 if r.converged else 2
+
+
+def _load_source(source: str, args: argparse.Namespace) -> tuple:
+    """Frames and, for synthetic scans, the scan (for its mesh) from a SOURCE argument
+    (:func:`scanalign.datasets.open_source`)."""
+    overrides = {"n_frames": args.frames, "noise": args.noise, "seed": args.seed, **_robot_overrides(args)}
+    src = datasets.open_source(source, synthetic_overrides=overrides, intrinsics=args.intrinsics,
+                               depth_scale=args.depth_scale, start=args.start, stride=args.frame_stride,
+                               limit=args.limit)
+    if isinstance(src, synthetic.SyntheticScan):
+        what = "built-in synthetic scan" if source == "builtin" else f"synthetic scan from {source}"
+        return src.frames, src, what + _robot_note(src)
+    what = ("TUM RGB-D folder" if isinstance(src, datasets.TumSequence) else
+            "ROS bag" if isinstance(src, datasets.BagSequence) else "image folder")
+    return src, None, f"{what} {source}"
+
+
+def _robot_overrides(args: argparse.Namespace) -> dict:
+    """SyntheticConfig fields from --robot / --robot-base (only those given)."""
+    out: dict = {}
+    if getattr(args, "robot", None) is not None:
+        out["robot"] = args.robot
+    if getattr(args, "robot_base", None) is not None:
+        names = ("robot_x", "robot_y", "robot_z", "robot_roll", "robot_pitch", "robot_yaw")
+        out.update(zip(names, (float(v) for v in args.robot_base)))
+    return out
+
+
+def _robot_note(scan) -> str:
+    if scan.robot is None:
+        return " (camera poses as planned, no robot)"
+    p = scan.T_base_robot[:3, 3]
+    return (f" (camera on a {scan.robot.name} based at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m, "
+            f"poses from its forward kinematics)")
+
+
+def _add_robot_options(g) -> None:
+    g.add_argument("--robot", help="robot arm that moves the camera: ur5 (default), another name known to "
+                                   "scanalign.kinematics (ur3, ur10, ur3e, ur5e, ur10e, kr6_r900_sixx), or 'none' "
+                                   "for the planned camera poses without an arm. With an arm, its joints come "
+                                   "from inverse kinematics (closest to the previous frame, radians, written to "
+                                   "joints.csv) and the reference poses from its forward kinematics")
+    g.add_argument("--robot-base", type=float, nargs=6, metavar=("X", "Y", "Z", "ROLL", "PITCH", "YAW"),
+                   help="where the robot's base frame sits in the scene: position in metres and roll, pitch, yaw "
+                        "in radians (R = Rz(yaw) Ry(pitch) Rx(roll)); default: hanging 0.9 m above the object, "
+                        "i.e. OBJECT_X OBJECT_Y 0.9 3.141592653589793 0 0")
+
+
+def _box(values: Any) -> Any:
+    return tuple(float(v) for v in values)
+
+
+def _box_preset(name: str) -> Any:
+    return Box.free_hand_preset() if name == "free_hand" else Box.banana_preset()
+
+
+_F = "frame_to_model."
+#: The reconstruct command's settings: one ReconstructionSettings; its flags are aliases of fields.
+RECONSTRUCT = Command(ReconstructionSettings, (
+    Alias("--min-depth", "min_depth", "depth images"),
+    Alias("--max-depth", "max_depth", "depth images"),
+    Alias("--pixel-stride", "pixel_stride", "depth images"),
+    Alias("--crop", _F + "crop_box", "depth images", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+          value=_box, help="keep only points inside this box in camera coordinates (x right, y down, z forward)"),
+    Alias("--depth-filter", "filter_depth", "reconstruction"),
+    Alias("--normal-radius", _F + "normal_radius", "reconstruction"),
+    Alias("--voxel", _F + "model_voxel_size", "reconstruction"),
+    Alias("--frame-voxel", _F + "frame_voxel_size", "reconstruction"),
+    Alias("--min-fitness", _F + "min_fitness", "reconstruction"),
+    Alias("--no-require-convergence", _F + "require_convergence", "reconstruction", flag=False,
+          help="accept registrations that hit the iteration cap"),
+    Alias("--model-frame", "model_frame", "reconstruction", choices=["auto", "camera", "base"]),
+    Alias("--initial-guess", _F + "motion_model", "reconstruction",
+          choices=["previous", "constant_velocity", "reference"]),
+    Alias("--registration", "registration", "registration",
+          choices=["scanalign", "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls"]),
+    Alias("--estimator", _F + "icp.estimator", "registration", choices=["point_to_plane", "point_to_point"]),
+    Alias("--max-distance", _F + "icp.max_correspondence_distance", "registration"),
+    Alias("--max-iterations", _F + "icp.max_iterations", "registration"),
+    Alias("--box", _F + "icp.box", "registration", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+          value=_box, help="box correspondence rejector in camera coordinates (eye-in-hand paper §3.4)"),
+    Alias("--box-preset", _F + "icp.box", "registration", choices=["free_hand", "banana"], value=_box_preset,
+          help="the eye-in-hand paper's box rejector values"),
+    Alias("--threads", _F + "num_threads", "registration"),
+))
+#: The demo's preset over ReconstructionSettings: it keeps the workspace around the part
+#: (20 x 20 cm in the camera's view) and uses 10 mm normals (with SR300-like noise, 5 mm
+#: normals measured 12 mm ATE against 4 mm); its simulated SR300 noise also calls for the
+#: bilateral depth filter (ATE 12.6 -> 4.1 mm).
+DEMO_PRESET = {"filter_depth": True, "frame_to_model": {"crop_box": (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0),
+                                                        "normal_radius": 0.01}}
+
+
+def _register_root() -> dict:
+    """The register command's settings: ICP (with a 5 cm correspondence distance: two
+    independent scans, not consecutive frames) and the target's normals."""
+    return {"icp": IcpSettings(max_correspondence_distance=0.05), "normals": NormalEstimationSettings()}
+
+
+REGISTER = Command(_register_root, (
+    Alias("--max-distance", "icp.max_correspondence_distance"),
+    Alias("--max-iterations", "icp.max_iterations"),
+    Alias("--estimator", "icp.estimator", choices=["point_to_plane", "point_to_point"]),
+    Alias("--normal-radius", "normals.radius"),
+    Alias("--box", "icp.box", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"), value=_box,
+          help="box rejector in the source camera frame"),
+))
+
+
+def _viewer(args: argparse.Namespace):
+    """The rerun live view of ``--view`` / ``--view-save FILE.rrd``, or None."""
+    if not (getattr(args, "view", False) or getattr(args, "view_save", None)):
+        return None
+    return Viewer(spawn=bool(getattr(args, "view", False)), save=getattr(args, "view_save", None))
+
+
+def _add_view_options(g) -> None:
+    g.add_argument("--view", action="store_true", help="stream the run to a rerun viewer (spawned, or one already "
+                                                       "running; needs pip install rerun-sdk)")
+    g.add_argument("--view-save", metavar="FILE.rrd", help="save the rerun recording of the run to this file")
+
+
+def _run_reconstruction(source: str, args: argparse.Namespace) -> dict:
+    t0 = time.perf_counter()
+    frames, scan, what = _load_source(source, args)
+    load_seconds = time.perf_counter() - t0
+    if not args.quiet:
+        n = len(frames) if hasattr(frames, "__len__") else "?"
+        print(f"scanalign: reconstructing {what}: {n} frames"
+              + (f" (rendered in {load_seconds:.2f} s)" if scan is not None else ""))
+    view = _viewer(args)
+    try:
+        result = reconstruct(frames, args.settings, progress=not (args.no_progress or args.quiet),
+                             on_frame=None if view is None else view.on_frame)
+        if view is not None:
+            view.log_reconstruction(result)
+    finally:
+        if view is not None:
+            view.close()
+    if scan is not None:
+        result.metrics["model_to_mesh_m"] = model_mesh_distance(result, scan.mesh.vertices, scan.mesh.faces)
+        result.metrics["render_seconds"] = load_seconds
+    paths = save_report(result, args.out, plots_too=not args.no_plots)
+    summary = result.summary()
+    if not args.quiet:
+        _print_summary(summary, paths)
+    return summary
+
+
+def _print_summary(summary: dict, paths: dict) -> None:
+    def mm(v: Optional[float]) -> str:
+        return "n/a" if v is None else f"{v * 1000:.2f} mm"
+
+    print(f"  frames: {summary['frames']} given, {summary['merged']} merged"
+          + (f", skipped {summary['skipped']}" if summary["skipped"] else ""))
+    if summary.get("seconds_per_frame_median") is not None:
+        print(f"  time per frame: median {summary['seconds_per_frame_median'] * 1000:.0f} ms "
+              f"(max {summary['seconds_per_frame_max'] * 1000:.0f} ms), "
+              f"median {summary['iterations_median']:.0f} ICP iterations; total {summary['seconds_total']:.1f} s")
+    print(f"  model: {summary['model_points']} points")
+    if "ate_m" in summary:
+        print(f"  ATE: rmse {mm(summary['ate_m']['rmse'])}, max {mm(summary['ate_m']['max'])};  "
+              f"RPE (1 frame): rmse {mm(summary['rpe_translation_m']['rmse'])}, "
+              f"{summary['rpe_rotation_deg']['rmse']:.3f} deg")
+    if "model_to_mesh_m" in summary:
+        q = summary["model_to_mesh_m"]
+        print(f"  model to mesh: mean {mm(q['mean'])}, 95th percentile {mm(q['p95'])}")
+    print("  wrote " + ", ".join(str(p) for p in paths.values()))
+
+
+def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> None:
+    g = p.add_argument_group("output")
+    g.add_argument("--out", default=out_default, help=f"output folder (default: {out_default})")
+    g.add_argument("--no-plots", action="store_true", help="do not write trajectory.png / frames.png")
+    g.add_argument("--no-progress", action="store_true", help="no progress bar")
+    g.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    _add_view_options(g)
+    g = p.add_argument_group("synthetic scans (builtin or a config file)")
+    g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
+    g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
+    g.add_argument("--seed", type=int, help="random seed of the sensor noise (builtin: 0)")
+    _add_robot_options(g)
+    g = p.add_argument_group("real sequences (TUM RGB-D folder)")
+    g.add_argument("--intrinsics", help="intrinsics preset (tum_fr1, tum_fr2, tum_fr3, tum_default, sr300, d435) or "
+                                        "a JSON/YAML file with width height fx fy cx cy (pixels); default: the "
+                                        "folder's camera.json/yaml")
+    g.add_argument("--depth-scale", type=float, help="metres per depth-PNG unit (TUM: 0.0002 = 1/5000)")
+    g.add_argument("--start", type=int, default=0, help="first frame to use (default 0)")
+    g.add_argument("--frame-stride", type=int, default=1, help="use every n-th frame (default 1)")
+    g.add_argument("--limit", type=int, help="use at most this many frames")
+    add_settings_options(p, RECONSTRUCT)
+
+
+def synth(args: argparse.Namespace) -> int:
+    """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder."""
+    overrides = {"n_frames": args.frames, "noise": args.noise, "seed": args.seed, **_robot_overrides(args)}
+    scan = datasets.open_source(args.config, synthetic_overrides=overrides)
+    if not isinstance(scan, synthetic.SyntheticScan):
+        raise ValueError(f"{args.config}: expected a synthetic config file (.json/.yaml) or 'builtin'")
+    folder = tum.write_tum_sequence(args.out, scan.frames, intrinsics=scan.intrinsics,
+                                    depth_scale=scan.frames[0].depth_scale)
+    extra = ""
+    if scan.joints is not None:
+        write_joints_csv(Path(folder) / "joints.csv", [f.index for f in scan.frames],
+                         [f.timestamp for f in scan.frames], scan.joints)
+        extra = f", {scan.robot.name} joints in joints.csv (rad)"
+    print(f"scanalign: wrote {len(scan.frames)} frames to {folder} (TUM RGB-D layout, ground truth included{extra})")
+    return 0
+
+
+def ik_command(args: argparse.Namespace) -> int:
+    """``scanalign ik``: every inverse-kinematics solution of one tool pose, labelled."""
+    robot = kin.Robot.by_name(args.robot)
+    if (args.pose is None) == (args.joints is None):
+        raise ValueError("give exactly one of --pose X Y Z RX RY RZ or --joints Q1 ... Q6")
+    if args.joints is not None:
+        q_in = np.asarray(args.joints, dtype=np.float64)
+        T = robot.fk(q_in)
+        source = f"FK of q = {np.array2string(q_in, precision=4)} rad"
+    else:
+        v = np.asarray(args.pose, dtype=np.float64)
+        if not np.all(np.isfinite(v)):
+            raise ValueError("--pose: non-finite value")
+        theta = float(np.linalg.norm(v[3:]))  # rotation vector: axis * angle
+        T = se3.rigid(v[3:] if theta > 0 else (0.0, 0.0, 1.0), theta, v[:3])
+        source = "the given pose"
+    sol = robot.ik(T, respect_limits=not args.ignore_limits)
+    p = T[:3, 3]
+    print(f"{robot.name} ({robot.geometry}): tool at ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m in the robot base "
+          f"frame ({source})")
+    print("  k  shoulder elbow wrist  status           q1..q6 [rad]                                   |FK(q)-T|")
+    labels = []
+    for k in range(8):
+        s_, e_, w_ = (int(x) for x in sol.config[k])
+        labels.append(f"shoulder {s_:+d} elbow {e_:+d} wrist {w_:+d}")
+        line = f"  {k}  {s_:+d}       {e_:+d}    {w_:+d}     {sol.status[k]:<16}"
+        if np.all(np.isfinite(sol.q[k])):
+            err = float(np.abs(robot.fk(sol.q[k]) - T).max())
+            line += " " + " ".join(f"{x:+7.4f}" for x in sol.q[k]) + f"   {err:.1e}"
+        if sol.singular[k]:
+            line += "  singular: " + ",".join(sol.singular[k])
+        if sol.unreachable_step[k]:
+            line += f"  ({sol.unreachable_step[k]} point pair imaginary)"
+        print(line)
+    print(f"  {len(sol)} solution(s) ok, {len(sol.distinct())} distinct")
+    if args.closest is not None:
+        best = robot.ik_closest(T, np.asarray(args.closest, dtype=np.float64),
+                                respect_limits=not args.ignore_limits)
+        print(f"  closest to {np.array2string(np.asarray(args.closest), precision=4)}: {best.status}"
+              + (" q = " + " ".join(f"{x:+.4f}" for x in best.q) if best.ok else ""))
+    if args.plot:
+        path = plots.plot_arm_configurations(robot, sol.q, args.plot, labels=labels, T_base_tool=T,
+                                             title=f"{robot.name}: inverse kinematics solutions")
+        print(f"  wrote {path}")
+    return 0 if len(sol) else 1
+
+
+def pose_command(args: argparse.Namespace) -> int:
+    """``scanalign pose``: find a CAD part in a scan; exit status 1 when no object is found."""
+    if not (np.isfinite(args.model_scale) and args.model_scale > 0):
+        raise ValueError(f"--model-scale must be a finite factor > 0, got {args.model_scale}")
+    model_path = Path(args.model)
+    if not model_path.exists():
+        raise FileNotFoundError(f"{model_path}: no such model file")
+    mesh = io.read_mesh(model_path)
+    if args.model_scale != 1.0:
+        mesh = io.Mesh(np.asarray(mesh.vertices) * args.model_scale, mesh.faces)
+    scene_path = Path(args.scene)
+    if not scene_path.exists():
+        raise FileNotFoundError(f"{scene_path}: no such scene file")
+    scene, _ = io.read_cloud(scene_path)
+    scene = scene[np.all(np.isfinite(scene), axis=1)]
+    kw = dict(method=args.method, views=args.views, resolution=args.resolution,
+              inlier_threshold=args.inlier_threshold, icp_distance=args.icp_distance, progress=not args.quiet)
+    if args.method == "cbd":
+        kw["radius"] = args.cbd_radius
+    if args.no_segment:
+        results = [_pose.estimate_pose(mesh, scene, **kw)]
+        objects = [np.arange(len(scene))]
+    else:
+        found = _pose.find_objects(mesh, scene, max_objects=args.max_objects, table_threshold=args.table_threshold,
+                                   cluster_tolerance=args.cluster_tolerance, up=args.up, **kw)
+        results, objects = found.poses, found.objects
+        if not results:
+            print("scanalign pose: no object cluster above the table", file=sys.stderr)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    report = []
+    for k, (r, idx) in enumerate(zip(results, objects)):
+        entry = r.as_dict()
+        entry["object"] = k
+        entry["object_points"] = int(len(idx))
+        if r.found:
+            paths = write_pose_outputs(mesh, scene, r, out / f"object{k}", object_indices=idx)
+            entry.update({key: str(v) for key, v in paths.items()})
+        report.append(entry)
+        state = "found" if r.found else "not found"
+        print(f"object {k} ({len(idx)} points): {state} with {r.method}, view {r.view}, fitness {r.fitness:.3f}, "
+              f"coverage {r.coverage:.3f}, inlier RMSE {1000 * r.inlier_rmse:.3f} mm, {r.seconds:.2f} s"
+              + ("" if r.found else f" ({r.message})"))
+        if r.found:
+            print("  T_scene_model =\n" + np.array2string(np.asarray(r.T_scene_model), precision=6,
+                                                           suppress_small=True, prefix="  "))
+    (out / "poses.json").write_text(json.dumps(report, indent=2))
+    print(f"wrote {out / 'poses.json'}")
+    return 0 if any(r.found for r in results) else 1
+
+
+def _matrix_file(path: Optional[str], what: str) -> Optional[np.ndarray]:
+    if path is None:
+        return None
+    try:
+        return se3.require_rigid(np.loadtxt(path, ndmin=2), what)
+    except (OSError, ValueError) as e:
+        raise ValueError(f"{what} {path}: expected a text file holding a rigid 4x4 matrix ({e})") from None
+
+
+def pick_command(args: argparse.Namespace) -> int:
+    """``scanalign pick``: scan -> part poses -> grasps -> joint targets; exit status 1 when
+    nothing can be picked."""
+    s = _pick.PickSettings()
+    truth = None
+    if args.demo:
+        cell = pick_cell(args.robot or "ur5", noise=args.noise, seed=args.seed)
+        scene, parts, robot, T_base_robot, T_fc, truth = cell.scan, cell.parts, cell.robot, None, None, cell.truth
+        print(f"scanalign pick: built-in cell: {cell.robot.name}, {len(cell.parts)} parts on the table, "
+              f"{len(cell.scan)} frames with {args.noise} noise")
+    else:
+        if args.scene is None or not args.parts or args.robot is None:
+            raise ValueError("give --scene, --parts and --robot (or --demo)")
+        scene, parts, robot = args.scene, args.parts, args.robot
+        T_base_robot, T_fc = _matrix_file(args.robot_base, "--robot-base"), _matrix_file(args.hand_eye, "--hand-eye")
+    view = _viewer(args)
+    try:
+        result = _pick.pick(scene, parts, robot, T_base_robot=T_base_robot, T_flange_camera=T_fc, joints=args.joints,
+                            q_current=args.q_current, settings=s, progress=not args.quiet, viewer=view)
+    finally:
+        if view is not None:
+            view.close()
+    _pick.print_picks(result)
+    if truth is not None:
+        for name, e in score_picks(result, truth).items():
+            print(f"  {name}: TCP at the chosen grasp {1000 * e['tcp_m']:.3f} mm / {e['tcp_deg']:.3f} deg "
+                  f"from the true grasp; part pose {1000 * e['pose_m']:.3f} mm / {e['pose_deg']:.3f} deg")
+    paths = save_report(result, args.out, plots_too=not args.no_plots)
+    print("wrote " + ", ".join(str(p) for p in paths.values()))
+    return 0 if any(p.status == "picked" for p in result.picks) else 1
+
+
+def _add_pick_options(p: argparse.ArgumentParser, demo: bool) -> None:
+    if not demo:
+        p.add_argument("--demo", action="store_true", help="the built-in cell (a UR5 or the KR6, three parts)")
+        p.add_argument("--scene", help="TUM RGB-D folder (with --joints), or a PLY / PCD cloud in the base frame")
+        p.add_argument("--parts", nargs="+", help="part files (JSON / YAML: mesh, grasps, symmetry) or built-in "
+                                                  "part names (block, bracket, standoff)")
+        p.add_argument("--joints", help="joint log of the scan (index,timestamp,q1..q6; as 'scanalign synth' writes)")
+        p.add_argument("--hand-eye", help="text file: T_flange_camera, 4x4 (camera -> flange, m)")
+        p.add_argument("--robot-base", help="text file: T_base_robot, 4x4 (robot base -> cell base, m)")
+    p.add_argument("--robot", help="the arm: ur5, kr6_r900_sixx, ... (demo: ur5)")
+    p.add_argument("--noise", default="sr300", choices=["sr300", "zivid", "d435", "none"],
+                   help="demo: sensor noise preset (sr300)")
+    p.add_argument("--seed", type=int, default=0, help="demo: noise seed (0)")
+    p.add_argument("--q-current", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
+                   help="the robot's joints now, rad (default: the scan's last)")
+    p.add_argument("--out", default="scanalign-pick", help="output folder (scanalign-pick)")
+    p.add_argument("--no-plots", action="store_true", help="do not write pick.png")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_view_options(p)
+
+
+def batch_command(args: argparse.Namespace) -> int:
+    """``scanalign batch``: every job of a manifest on a process pool or Ray; exit status 1
+    when a job failed or crashed."""
+    jobs = batch.read_manifest(args.manifest)
+    if not args.quiet:
+        print(f"scanalign batch: {len(jobs)} jobs from {args.manifest} on {args.executor}")
+    result = batch.run_batch(jobs, args.out, executor=args.executor, workers=args.workers, address=args.address,
+                             threads_per_job=args.threads_per_job, retries=args.retries, progress=not args.quiet)
+    if not args.no_plots:
+        save_report(result, args.out)
+    s = batch.summarize(result)
+    print(f"  {s['executor']}: {s['jobs']} jobs ({s['skipped_as_done']} done before), status {s['status']}, "
+          f"{s['wall_seconds']:.1f} s" + (f", {s['jobs_per_minute']:.1f} jobs/min" if s["jobs_per_minute"] else ""))
+    for kind, k in s["kinds"].items():
+        extra = ", ".join(f"{key[:-7]} {v * (1000 if key.endswith('_m_median') else 1):.3g}"
+                          + (" mm" if key.endswith("_m_median") else " deg" if "deg" in key else "")
+                          for key, v in k.items() if key.endswith("_median") and key != "seconds_median")
+        print(f"  {kind}: {k['ok']}/{k['jobs']} ok, median {k['seconds_median']:.2f} s per job"
+              + (f"; medians: {extra}" if extra else ""))
+    for job_id, error in s["failures"].items():
+        print(f"  {job_id}: {error}", file=sys.stderr)
+    print("wrote " + ", ".join(str(p) for p in result.paths.values()))
+    return 0 if all(r["status"] == "ok" for r in result.records) else 1
+
+
+def _version_line() -> str:
+    pcl = "with the PCL baselines" if _core.built_with_pcl else "without PCL (SCANALIGN_WITH_PCL=OFF)"
+    return f"scanalign {_core.__version__} ({pcl})"
+
+
+def _record_config(sub, args: argparse.Namespace, rc: int) -> int:
+    """Writes the settings a run used beside its outputs (``config.yaml`` in ``--out``;
+    ``register``: ``NAME.config.yaml`` beside ``--out NAME.ply``, none without ``--out``);
+    returns ``rc``."""
+    if args.command not in SETTINGSCOMMANDS or not args.out:
+        return rc
+    out = Path(args.out)
+    path = out.with_suffix(".config.yaml") if args.command == "register" else out / "config.yaml"
+    if hasattr(args, "settings"):
+        inputs = [a for a in (getattr(args, "source", None), getattr(args, "target", None)) if a]
+        write_effective(args.command, args.settings, args, inputs, path)
+    else:
+        _cfg.write_effective(sub.choices[args.command], args.command, args, path)
+    if args.command != "register" and not getattr(args, "quiet", False):  # register's stdout is JSON
+        print(f"  wrote {path} (the settings of this run: --config {path} repeats it)")
+    return rc
+
+
+#: The commands whose settings are C++ structs (``--config``, ``--set``, ``dump-config``).
+COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER}
+SETTINGSCOMMANDS = ("reconstruct", "pose", "pick", "register")
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    parser = argparse.ArgumentParser(prog="scanalign", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=_version_line(),
+                        help="print the version and whether the PCL baselines are built, then exit")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    p = sub.add_parser("demo", help="reconstruct a built-in synthetic eye-in-hand scan (no download needed)",
+                       description="Renders a built-in synthetic scan (a camera on the hand of a UR5 circling a "
+                                   "part on a table, SR300-like noise; the reference poses are the robot's forward "
+                                   "kinematics), reconstructs it frame-to-model and writes model.ply, "
+                                   "trajectory.txt, reference.txt, frames.csv, joints.csv, report.json, "
+                                   "trajectory.png and frames.png.")
+    _add_reconstruct_options(p, "scanalign-demo")
+    # The demo keeps the workspace around the part (20 x 20 cm in the camera's view) and uses
+    # 10 mm normals: with SR300-like noise, 5 mm normals measured 12 mm ATE against 4 mm.
+    # Its simulated SR300 noise also calls for the bilateral depth filter (ATE 12.6 -> 4.1 mm).
+    p.add_argument("--pick", action="store_true", help="instead: the pick demo (as 'scanalign pick --demo')")
+    p = sub.add_parser("pick", help="scan, find the known parts, plan grasps and joint targets to pick them",
+                       description="Reconstructs the scan in the robot's base frame (every frame placed by the "
+                                   "robot's forward kinematics and the hand-eye transform, refined by ICP), finds "
+                                   "each known part (table plane, clusters, CBD + ICP), and plans each part's grasp: "
+                                   "every grasp, symmetric copy and IK branch, rejected with a reason (unreachable, "
+                                   "joint limits, singularity, gripper below the table, branch change on the "
+                                   "approach) or ranked by joint motion. Writes picks.json, joints.csv, scene.ply "
+                                   "and pick.png. Exit status 1 when nothing can be picked.")
+    _add_pick_options(p, demo=False)
+    p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder, a ROS bag, a PNG folder or a synthetic scan",
+                       description="Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper) of SOURCE: a folder in the "
+                                   "TUM RGB-D layout (depth/, rgb/, depth.txt, rgb.txt, optional groundtruth.txt), "
+                                   "a ROS 1 .bag or ROS 2 bag (depth, colour, camera_info, /joint_states, /tf; "
+                                   "RealSense recordings too), a folder of PNG depth and colour images with a camera "
+                                   "YAML, a synthetic-scan config (.json/.yaml), or 'builtin'. Writes the same outputs as "
+                                   "'scanalign demo'.")
+    p.add_argument("source", help="TUM RGB-D folder, ROS bag, PNG folder, synthetic config file, or 'builtin'")
+    _add_reconstruct_options(p, "scanalign-out")
+    p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder")
+    p.add_argument("config", help="synthetic config file (.json/.yaml) or 'builtin'")
+    p.add_argument("out", help="output folder")
+    p.add_argument("--frames", type=int, help="builtin: number of frames (36)")
+    p.add_argument("--noise", help="builtin: noise preset (sr300)")
+    p.add_argument("--seed", type=int, help="builtin: random seed (0)")
+    _add_robot_options(p)
+    p = sub.add_parser("register", help="ICP between two clouds (PCD or PLY, metres)")
+    p.add_argument("source", help="source cloud (its camera frame)")
+    p.add_argument("target", help="target cloud (the model frame); normals are estimated if absent")
+    p.add_argument("--init", help="text file with the initial 4x4 T_target_source (default identity)")
+    p.add_argument("--out", help="write the aligned source cloud to this PLY file")
+    add_settings_options(p, REGISTER)
+    p = sub.add_parser("register-demo", help="register one simulated frame with scanalign and stock PCL")
+    p.add_argument("--out", default="scanalign-register-demo", help="output folder")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--noise", type=float, default=0.0005, help="depth noise sigma in metres (default 0.0005)")
+    p = sub.add_parser("ik", help="all analytic inverse-kinematics solutions of a tool pose (CGA, thesis Paper 1)",
+                       description="Prints every inverse-kinematics solution (up to 8) of one tool pose with its "
+                                   "configuration labels (shoulder front/back, elbow up/down, wrist flip), status "
+                                   "and forward-kinematics check. Exit status 1 when no solution is ok.")
+    p.add_argument("--robot", default="ur5", help="ur5 (default), ur3, ur10, ur3e, ur5e, ur10e, ur5_thesis, "
+                                                  "kr6_r900_sixx")
+    p.add_argument("--pose", type=float, nargs=6, metavar=("X", "Y", "Z", "RX", "RY", "RZ"),
+                   help="tool pose in the robot base frame: position in metres and rotation vector (axis times "
+                        "angle) in radians, as a UR controller shows it")
+    p.add_argument("--joints", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
+                   help="use the pose of these joint values (radians, forward kinematics)")
+    p.add_argument("--closest", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
+                   help="also print the solution nearest these joints (radians)")
+    p.add_argument("--ignore-limits", action="store_true", help="ignore the joint limits")
+    p.add_argument("--plot", help="write a PNG with every configuration drawn as a stick figure")
+    p = sub.add_parser("pose", help="find a CAD part in a scan (CBD or a PCL baseline, then ICP; thesis ch. 6)",
+                       description="Segments the table (CGA RANSAC), clusters the objects, matches the model's "
+                                   "42 tessellated-sphere views to each object (curvature-based descriptor or a "
+                                   "stock PCL baseline), refines with ICP and reports T_scene_model (scene <- "
+                                   "model), fitness, RMSE and time. Writes poses.json, the aligned model as PLY "
+                                   "and a PNG overlay per object. Exit status 1 when nothing is found.")
+    p.add_argument("--model", required=True, help="CAD mesh: STL, PLY, OFF or OBJ (metres, or see --model-scale)")
+    p.add_argument("--scene", required=True, help="scan: PCD or PLY, metres, camera frame")
+    p.add_argument("--method", default="cbd", choices=["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags"],
+                   help="coarse alignment (default cbd)")
+    p.add_argument("--cbd-radius", type=float, default=0.0063,
+                   help="CBD neighbourhood radius, m (thesis 0.0063; about 0.015 for scans with ~1-2 mm noise)")
+    p.add_argument("--model-scale", type=float, default=1.0, help="multiply the model's coordinates (0.001: mm)")
+    p.add_argument("--views", type=int, nargs="+", help="only these of the 42 views (default all)")
+    p.add_argument("--resolution", type=int, default=150, help="model view size, pixels (150)")
+    p.add_argument("--no-segment", action="store_true", help="the scene is one object: skip table and clusters")
+    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"), help="table normal direction (default: "
+                                                                           "towards the camera at the origin)")
+    p.add_argument("--table-threshold", type=float, default=0.005, help="table plane inlier distance, m (0.005)")
+    p.add_argument("--cluster-tolerance", type=float, default=0.01, help="object cluster distance, m (0.01)")
+    p.add_argument("--max-objects", type=int, default=5, help="largest clusters matched (5)")
+    p.add_argument("--inlier-threshold", type=float, default=0.005, help="fitness distance, m (0.005)")
+    p.add_argument("--icp-distance", type=float, default=0.01, help="ICP correspondence distance, m (0.01)")
+    p.add_argument("--out", default="scanalign-pose", help="output folder (scanalign-pose)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p = sub.add_parser("batch", help="run a manifest of reconstruction, pose and pick jobs (process pool or Ray)",
+                       description="Runs every job of MANIFEST (YAML or CSV, see docs/batch.md) on a local process "
+                                   "pool or a Ray cluster, with the part library built once and shared, and writes "
+                                   "results.csv, results.parquet, summary.json and results.png into --out. A re-run "
+                                   "with the same --out skips the jobs already done. Exit status 1 when a job failed.")
+    p.add_argument("manifest", help="manifest file (.yaml/.yml or .csv)")
+    p.add_argument("--executor", choices=["local", "ray"], default="local", help="where the jobs run (local)")
+    p.add_argument("--address", help="Ray cluster address ('auto', 'ray://head:10001'); default: a local Ray "
+                                     "instance")
+    p.add_argument("--workers", type=int, help="parallel jobs (default: cores / --threads-per-job)")
+    p.add_argument("--threads-per-job", type=int, default=1, help="OpenMP threads (and Ray CPUs) per job (1)")
+    p.add_argument("--retries", type=int, default=1, help="times a failed or crashed job is tried again (1)")
+    p.add_argument("--out", default="scanalign-batch", help="output folder (scanalign-batch)")
+    p.add_argument("--no-plots", action="store_true", help="skip results.png")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p = sub.add_parser("dump-config", help="print every setting of a command with its default and unit (YAML)",
+                       description="Prints every setting of COMMAND as YAML, with its default and a comment "
+                                   "giving the option, unit and meaning. Edit it and pass it back with "
+                                   "'scanalign COMMAND ... --config FILE'; flags given on the command line override "
+                                   "the file. Every run of these commands writes the settings it used beside its "
+                                   "outputs (config.yaml in --out; register: NAME.config.yaml beside --out).")
+    p.add_argument("config_command", metavar="COMMAND", choices=SETTINGSCOMMANDS,
+                   help="one of " + ", ".join(SETTINGSCOMMANDS))
+    for name in _cfg.COMMANDS:
+        _cfg.add_config_option(sub.choices[name], name)
+    try:  # --config FILE: the file's settings become the command's defaults
+        _cfg.use_config_file(sub, sys.argv[1:] if argv is None else argv)
+    except _cfg.ConfigFileError as e:
+        print(f"scanalign {e.command}: error: {e}", file=sys.stderr)
+        return 2
+    args = parser.parse_args(argv)
+    try:
+        if args.command == "dump-config":
+            name = args.config_command
+            command = COMMANDS.get(name)
+            print(dump(name, command.root()) if command else _cfg.dump(sub.choices[name], name), end="")
+            return 0
+        if args.command in COMMANDS or args.command == "demo":
+            args.settings = resolve(COMMANDS.get(args.command, RECONSTRUCT), args,
+                                    DEMO_PRESET if args.command == "demo" else None)
+        if args.command == "batch":
+            return batch_command(args)
+        if args.command == "ik":
+            return ik_command(args)
+        if args.command == "pose":
+            return _record_config(sub, args, pose_command(args))
+        if args.command == "pick":
+            return _record_config(sub, args, pick_command(args))
+        if args.command == "demo" and args.pick:
+            ns = argparse.Namespace(demo=True, robot=args.robot, noise=args.noise or "sr300", seed=args.seed or 0,
+                                    q_current=None, out=args.out if args.out != "scanalign-demo" else "scanalign-pick",
+                                    no_plots=args.no_plots, quiet=args.quiet, joints=None,
+                                    view=args.view, view_save=args.view_save)
+            return pick_command(ns)
+        if args.command in ("demo", "reconstruct"):
+            _run_reconstruction("builtin" if args.command == "demo" else args.source, args)
+            return _record_config(sub, args, 0) if args.command == "reconstruct" else 0
+        if args.command == "synth":
+            return synth(args)
+        if args.command == "register-demo":
+            register_demo(Path(args.out), seed=args.seed, noise=args.noise)
+            return 0
+        return _record_config(sub, args, register(args))
+    except (ValueError, TypeError, OSError, RuntimeError, ImportError) as e:  # OSError: unreadable input, unwritable output
+        print(f"scanalign {args.command}: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,153 @@
+"""The settings of the ``scanalign`` commands: one schema from the C++ structs to the command line.
+
+A command's settings are a *root* (:mod:`scanalign.common.settings`): the C++ settings struct
+of its task (``reconstruct``: ``ReconstructionSettings``; ``pick``: ``PickSettings``; ...), or a
+few structs side by side. The values come, each overriding the one before, from:
+
+1. the structs' C++ defaults (and a command's preset, e.g. ``demo``'s workspace crop);
+2. ``--config FILE``: a nested YAML / JSON file of fields (``dump-config COMMAND`` writes one);
+3. the command's own flags for common settings (``--max-distance``: an alias of
+   ``frame_to_model.icp.max_correspondence_distance``), whose help, unit and default come from
+   the field;
+4. ``--set PATH=VALUE`` (repeatable), for any field.
+
+Flags are otherwise for inputs and outputs. The settings a run used are written beside its
+outputs (``config.yaml``); ``--config`` on that file repeats the run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Dict, Optional, Sequence, Tuple
+
+from scanalign.common import settings as schema
+
+__all__ = ["Alias", "Command", "add_settings_options", "resolve", "dump", "write_effective"]
+
+
+@dataclass(frozen=True)
+class Alias:
+    """A flag that sets one field: ``--max-distance 0.03`` = ``--set
+    frame_to_model.icp.max_correspondence_distance=0.03``. ``value`` turns what argparse
+    parsed into the field's value (e.g. a preset name into a Box); ``flag`` is the value a
+    flag without argument stores (``--no-require-convergence``: False)."""
+
+    option: str
+    path: str
+    group: Optional[str] = None
+    nargs: Any = None
+    metavar: Any = None
+    choices: Optional[Sequence[str]] = None
+    flag: Any = None
+    value: Optional[Callable[[Any], Any]] = None
+    help: str = ""
+
+
+@dataclass(frozen=True)
+class Command:
+    """What a command's settings are: ``root()`` builds the defaults (a struct or a mapping of
+    structs), ``aliases`` are its flags for common fields."""
+
+    root: Callable[[], Any]
+    aliases: Tuple[Alias, ...] = field(default_factory=tuple)
+
+
+def _help(root: Any, alias: Alias) -> str:
+    """The alias's help from the field: what it is, its unit and its default."""
+    node, _, name = alias.path.rpartition(".")
+    owner = schema.get_path(root, node) if node else root
+    unit, doc = next(((f[1], f[2]) for f in type(owner).__fields__ if f[0] == name), ("", ""))
+    default = schema.get_path(root, alias.path)
+    text = alias.help or doc
+    return f"{text}{', ' + unit if unit else ''} (default {_shown(default)}; --set {alias.path})".replace("%", "%%")
+
+
+def _shown(value: Any) -> str:
+    """A default as YAML writes it (``0.02``, ``point_to_plane``, ``null``)."""
+    return schema.dump_yaml({"v": value}, comments=False).strip()[len("v: "):]
+
+
+def add_settings_options(parser: argparse.ArgumentParser, command: Command) -> None:
+    """``--config FILE``, ``--set PATH=VALUE`` and the command's alias flags."""
+    root = command.root()
+    parser.add_argument("--config", metavar="FILE",
+                        help="YAML/JSON file of settings, nested as 'scanalign dump-config' prints them")
+    parser.add_argument("--set", dest="set_values", metavar="PATH=VALUE", action="append", default=[],
+                        help="set one setting, e.g. --set frame_to_model.icp.max_iterations=30 (after --config "
+                             "and the flags; repeatable)")
+    groups: Dict[str, Any] = {}
+    for a in command.aliases:
+        target = parser if a.group is None else groups.setdefault(a.group, parser.add_argument_group(a.group))
+        kwargs: Dict[str, Any] = dict(dest=f"alias:{a.path}", default=None, help=_help(root, a))
+        if a.flag is not None:
+            kwargs.update(action="store_const", const=a.flag)
+        elif isinstance(schema.get_path(root, a.path), bool) and a.nargs is None:
+            kwargs.update(action=argparse.BooleanOptionalAction)
+        else:
+            kwargs.update(nargs=a.nargs, metavar=a.metavar or (None if a.choices else a.option[2:].upper().replace("-", "_")),
+                          choices=a.choices,
+                          type=_type_of(schema.get_path(root, a.path)) if a.value is None else str)
+        target.add_argument(a.option, **kwargs)
+
+
+def _type_of(default: Any) -> Callable[[str], Any]:
+    if isinstance(default, bool) or default is None or isinstance(default, str):
+        return str
+    if isinstance(default, int):
+        return int
+    return float
+
+
+def resolve(command: Command, args: argparse.Namespace, preset: Optional[Dict[str, Any]] = None) -> Any:
+    """The settings of a parsed command line: defaults < preset < --config < flags < --set.
+    ValueError / TypeError name the file, flag or path of a bad value, before any work."""
+    root = command.root()
+    if preset:
+        schema.update(root, preset)
+    if getattr(args, "config", None):
+        try:
+            schema.update(root, schema.load_yaml(args.config))
+            _validate(root)
+        except (TypeError, ValueError) as e:
+            raise ValueError(f"{args.config}: {e}") if not str(e).startswith(str(args.config)) else e from None
+    for a in command.aliases:
+        given = getattr(args, f"alias:{a.path}", None)
+        if given is not None:
+            try:
+                schema.set_path(root, a.path, a.value(given) if a.value else given)
+            except (TypeError, ValueError) as e:
+                raise ValueError(f"{a.option}: {str(e).removeprefix(a.path + ': ')}") from None
+    for text in getattr(args, "set_values", []):
+        path, value = schema.parse_assignment(text)
+        schema.set_path(root, path, value)
+    _validate(root)
+    return root
+
+
+def _validate(root: Any) -> None:
+    for value in ([root] if not isinstance(root, dict) else root.values()):
+        if hasattr(value, "validate"):
+            value.validate()
+
+
+def dump(command_name: str, root: Any, header: Sequence[str] = ()) -> str:
+    """``dump-config``'s YAML: every field with its value, unit and meaning."""
+    lines = list(header) or [
+        f"# scanalign {command_name}: every setting with its default ([unit] meaning above each).",
+        f"# Use: scanalign {command_name} ... --config FILE; flags and --set PATH=VALUE override the file.",
+        "# Units: metres, radians, seconds unless stated."]
+    return schema.dump_yaml(root, header=lines + [""])
+
+
+def write_effective(command_name: str, root: Any, args: argparse.Namespace, inputs: Sequence[str],
+                    path: Path) -> Path:
+    """Writes the settings of this run beside its outputs, with the command that repeats it."""
+    repeat = shlex.join(["scanalign", command_name, *inputs, "--config", str(path)])
+    source = f" (defaults < {args.config} < flags)" if getattr(args, "config", None) else " (defaults < flags)"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(dump(command_name, root, [f"# The settings of this 'scanalign {command_name}' run{source}.",
+                                              f"# Repeat it: {repeat}"]))
+    return path

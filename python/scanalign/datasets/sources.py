@@ -1,0 +1,774 @@
+"""Frame sources: RGB-D recordings as sequences of :class:`scanalign.reconstruction.camera.Frame`.
+
+:func:`scanalign.datasets.open_source` opens whatever a recording is and returns a sequence
+of frames (``len``, indexing, iteration; images decoded when a frame is requested) that
+:func:`scanalign.pipelines.reconstruct.reconstruct` and the pick pipeline read:
+
+- a TUM RGB-D folder (``depth.txt``): :class:`scanalign.datasets.tum.TumSequence`;
+- a ROS 1 ``.bag`` (RealSense ``.bag`` recordings included), a ROS 2 bag folder
+  (``metadata.yaml``) or a single ``.mcap`` / ``.db3`` file: :class:`BagSequence`, read with
+  the pure-Python ``rosbags`` package (``pip install 'scanalign[ros]'``), no ROS install;
+- a folder of PNG images with a camera file: :class:`ImageFolderSequence`.
+
+Bags: the depth stream is a ``sensor_msgs/Image`` topic (``16UC1`` / ``mono16`` in units
+of ``depth_scale`` m, by default 1 mm as RealSense and the ROS drivers write, or ``32FC1``
+metres), found by message type and encoding unless named; colour (``rgb8``, ``bgr8``,
+``rgba8``, ``bgra8``) is used when its images have the depth images' size (registered, e.g.
+RealSense ``aligned_depth_to_color``) and paired by header timestamp; the intrinsics and the
+lens distortion come from the ``sensor_msgs/CameraInfo`` topic nearest the depth topic. The
+robot's ``sensor_msgs/JointState`` messages (``/joint_states``) give each frame's
+``meta["joints"]`` (linear interpolation at the depth timestamp), and ``/tf`` + ``/tf_static``
+give ``T_base_camera`` (the chain from ``base_frame`` to the depth image's frame, each moving
+link interpolated linearly / spherically) when they connect the two.
+
+Example::
+
+    from scanalign.datasets import open_source
+    from scanalign.pipelines.reconstruct import reconstruct
+
+    frames = open_source("scan.bag")                 # or a ROS 2 folder, .mcap, PNG folder, TUM folder
+    print(frames)                                    # the topics it chose
+    result = reconstruct(frames)
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from pathlib import Path
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from scanalign.reconstruction.camera import INTRINSICS_PRESETS, Frame, Intrinsics, read_camera, sequence_index
+from scanalign.evaluation.trajectory import Trajectory, associate_timestamps, matrix_from_quaternion
+from scanalign.datasets import tum
+from scanalign.reconstruction.camera import camera_from_dict
+from scanalign.datasets.tum import CAMERA_FILE_NAMES
+from scanalign.datasets.tum import load_image
+
+__all__ = ["BagSequence", "ImageFolderSequence", "is_bag", "is_image_folder", "DEPTH_ENCODINGS",
+           "COLOR_ENCODINGS"]
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Depth image encodings read from bags: numpy dtype and whether the values are metres.
+DEPTH_ENCODINGS = {"16UC1": ("u2", False), "mono16": ("u2", False), "32FC1": ("f4", True)}
+#: Colour encodings: channels and whether the order is BGR.
+COLOR_ENCODINGS = {"rgb8": (3, False), "bgr8": (3, True), "rgba8": (4, False), "bgra8": (4, True)}
+
+_IMAGE, _INFO = "sensor_msgs/msg/Image", "sensor_msgs/msg/CameraInfo"
+_JOINTS, _TF, _FLOAT32 = "sensor_msgs/msg/JointState", "tf2_msgs/msg/TFMessage", "std_msgs/msg/Float32"
+
+#: UR arms' joint names in kinematic order (the ROS drivers publish them alphabetically).
+_UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
+              "wrist_3_joint")
+
+
+def _rosbags():
+    try:
+        from rosbags.highlevel import AnyReader
+        from rosbags.typesys import Stores, get_typestore
+    except ImportError as e:
+        raise ImportError("reading ROS bags needs the pure-Python package 'rosbags': pip install 'scanalign[ros]' "
+                          f"(or pip install rosbags) ({e})") from None
+    return AnyReader, Stores, get_typestore
+
+
+def is_bag(path: Any) -> bool:
+    """True for a ROS 1 ``.bag`` file, a ROS 2 ``.mcap`` / ``.db3`` file or a ROS 2 bag folder
+    (one with ``metadata.yaml``)."""
+    try:
+        p = Path(path)
+        return (p.is_file() and p.suffix.lower() in (".bag", ".mcap", ".db3")) or (
+            p.is_dir() and (p / "metadata.yaml").is_file())
+    except (TypeError, ValueError, OSError):
+        return False
+
+
+_IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
+_COLOR_DIRS = ("rgb", "color", "colour")
+
+
+def is_image_folder(path: Any) -> bool:
+    """True for a folder with a ``depth/`` sub-folder of PNG images (:class:`ImageFolderSequence`)."""
+    try:
+        d = Path(path) / "depth"
+        return d.is_dir() and any(f.suffix.lower() == ".png" for f in d.iterdir())
+    except (TypeError, ValueError, OSError):
+        return False
+
+
+def _resolve_intrinsics(intrinsics: Any) -> Tuple[Optional[Intrinsics], Optional[float]]:
+    """An Intrinsics, a preset name or a camera file (and its depth_scale); None passes."""
+    if intrinsics is None or isinstance(intrinsics, Intrinsics):
+        return intrinsics, None
+    if isinstance(intrinsics, str) and intrinsics in INTRINSICS_PRESETS:
+        return INTRINSICS_PRESETS[intrinsics], None
+    if isinstance(intrinsics, (str, os.PathLike)):
+        if not Path(intrinsics).is_file():
+            raise ValueError(f"intrinsics {os.fspath(intrinsics)!r} is neither a preset {sorted(INTRINSICS_PRESETS)} "
+                             "nor an existing camera file")
+        return read_camera(intrinsics)
+    raise TypeError(f"intrinsics must be an Intrinsics, a preset name, a camera file path or None, "
+                    f"got {type(intrinsics).__name__}")
+
+
+def _check_selection(start: Any, stride: Any, limit: Any) -> None:
+    for name, v, low in (("stride", stride, 1), ("start", start, 0), ("limit", 0 if limit is None else limit, 0)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+            raise TypeError(f"{name} must be an integer{' or None' * (name == 'limit')}, got {v!r}")
+        if v < low:
+            raise ValueError(f"{name} must be >= {low}, got {v}")
+
+
+def _check_scale(depth_scale: Any) -> Optional[float]:
+    if depth_scale is None:
+        return None
+    if isinstance(depth_scale, bool) or not isinstance(depth_scale, (int, float, np.number)) or not (
+            math.isfinite(float(depth_scale)) and 0 < float(depth_scale) <= 1):
+        raise ValueError(f"depth_scale must be in (0, 1] metres per unit, got {depth_scale!r}")
+    return float(depth_scale)
+
+
+def _field(msg: Any, *names: str) -> Any:
+    """A message field under its ROS 2 name or its ROS 1 one (``k`` / ``K``)."""
+    for n in names:
+        if hasattr(msg, n):
+            return getattr(msg, n)
+    raise AttributeError(f"message {type(msg).__name__} has none of the fields {names}")
+
+
+def _stamp_ns(msg: Any) -> int:
+    s = msg.header.stamp
+    return int(s.sec) * 1_000_000_000 + int(_field(s, "nanosec", "nsec"))
+
+
+def _seconds(ns: Any) -> Any:
+    """Nanoseconds (int or int64 array) as float seconds, rounded once: whole seconds plus the
+    fraction, so that a stamp of 1700000000.1 s reads as the float 1700000000.1."""
+    if isinstance(ns, np.ndarray):
+        return (ns // 1_000_000_000).astype(np.float64) + (ns % 1_000_000_000) / 1e9
+    return int(ns) // 1_000_000_000 + (int(ns) % 1_000_000_000) / 1e9
+
+
+def _common_prefix(a: str, b: str) -> int:
+    """Number of leading topic-name components two topics share."""
+    n = 0
+    for x, y in zip(a.strip("/").split("/"), b.strip("/").split("/")):
+        if x != y:
+            break
+        n += 1
+    return n
+
+
+def _order_joints(names: Sequence[str]) -> List[str]:
+    """A joint order for the robot: UR names (any prefix) in kinematic order, others as published."""
+    for prefix in {n[: -len(u)] for n in names for u in _UR_JOINTS if n.endswith(u)}:
+        ur = [prefix + u for u in _UR_JOINTS]
+        if all(n in names for n in ur):
+            return ur
+    return list(names)
+
+
+class BagSequence:
+    """The RGB-D frames of a ROS 1 or ROS 2 bag, read with ``rosbags`` (pure Python).
+
+    On construction the bag's topics are chosen and every depth, colour, joint-state and tf
+    message's timestamp is read; images are decoded when a frame is requested. Frames are the
+    depth images in header-timestamp order; with colour, each is paired with a colour image
+    within ``max_time_difference`` (:func:`scanalign.evaluation.trajectory.associate_timestamps`, each
+    image used once) and depth images without a partner are dropped (counted in
+    :attr:`dropped_depth_frames`). Then ``start``, ``stride``, ``limit`` select frames.
+
+    Args:
+        path: a ROS 1 ``.bag``, a ROS 2 bag folder, or a ROS 2 ``.mcap`` / ``.db3`` file.
+        depth_topic: the depth ``sensor_msgs/Image`` topic; default: the only topic whose
+            encoding is a depth encoding (:data:`DEPTH_ENCODINGS`), preferring names with
+            ``aligned_depth_to_color`` when colour is present, then names with ``depth``.
+        color_topic: the colour topic, or False for none; default: the colour-encoded
+            (:data:`COLOR_ENCODINGS`) image topic registered to the depth images (their size
+            and ``header.frame_id``) that shares the longest name prefix with the depth topic
+            (none: no colour, said in :attr:`notes`). A named one must have the depth size.
+        camera_info_topic: the ``sensor_msgs/CameraInfo`` of the depth images; default: the one
+            sharing the longest name prefix with the depth topic among those of the depth
+            images' size. Its K and (Brown-Conrady, "plumb_bob") distortion are used.
+        intrinsics: an :class:`Intrinsics`, a preset name or a camera file overriding
+            camera_info (needed when the bag has none).
+        depth_scale: metres per unit of 16-bit depth; default: a RealSense recording's
+            ``Depth Units`` option when present, else 0.001 (millimetres, the ROS
+            convention). Float (32FC1) depth is metres.
+        joint_states_topic: the robot's ``sensor_msgs/JointState`` topic, or False; default
+            ``/joint_states`` or the only JointState topic.
+        joint_names: the joints to put into ``meta["joints"]``, in this order; default: the
+            first message's names (a UR arm's in kinematic order, whatever order the driver
+            publishes them in).
+        base_frame: the tf frame ``T_base_camera`` is relative to; default: the root of the tf
+            tree above the camera frame. ``tf=False``: no poses from tf.
+        camera_frame: the tf frame of the depth images; default: their ``header.frame_id``.
+        max_time_difference: largest |t_depth - t_colour| (s) of a pair.
+        max_joint_gap, max_tf_gap: largest time (s) between the two joint states / moving tf
+            samples that bracket a frame for it to get joints / a pose.
+        start, stride, limit: frame selection after pairing.
+
+    Attributes:
+        path, depth_topic, color_topic (or None), camera_info_topic (or None),
+        joint_states_topic (or None), joint_names, base_frame, camera_frame, intrinsics,
+        depth_scale, timestamps ((N,) float64 depth header times, s), dropped_depth_frames,
+        notes (what was chosen or ignored, and why).
+
+    Frames: ``depth`` (H, W) uint16 (units of :attr:`depth_scale`) or float32 metres, ``rgb``
+    (H, W, 3) uint8 or None, ``timestamp`` the depth header time (s), ``T_base_camera`` from
+    tf or None; ``meta``: ``joints`` ((n,) rad, when known), ``joint_names``,
+    ``depth_topic``, ``rgb_timestamp``, ``bag``.
+
+    Raises:
+        ImportError: ``rosbags`` is not installed.
+        ValueError: naming the file: not a readable bag, no depth topic (or several and none
+            named), an unknown or mismatched encoding, no camera_info (and no intrinsics), a
+            named topic that is missing or of the wrong type, a malformed image.
+    """
+
+    def __init__(self, path: PathLike, *, depth_topic: Optional[str] = None, color_topic: Any = None,
+                 camera_info_topic: Optional[str] = None, intrinsics: Any = None, depth_scale: Optional[float] = None,
+                 joint_states_topic: Any = None, joint_names: Optional[Sequence[str]] = None, tf: bool = True,
+                 base_frame: Optional[str] = None, camera_frame: Optional[str] = None,
+                 max_time_difference: float = 0.02, max_joint_gap: float = 0.1, max_tf_gap: float = 0.1,
+                 start: int = 0, stride: int = 1, limit: Optional[int] = None) -> None:
+        AnyReader, Stores, get_typestore = _rosbags()
+        self.path = Path(path)
+        if not self.path.exists():
+            raise FileNotFoundError(f"{self.path}: no such bag")
+        _check_selection(start, stride, limit)
+        for name, v in (("max_time_difference", max_time_difference), ("max_joint_gap", max_joint_gap),
+                        ("max_tf_gap", max_tf_gap)):
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ValueError(f"{name} must be a finite number >= 0 (s), got {v!r}")
+        self.notes: List[str] = []
+        self._reader = None
+        self._max_joint_gap, self._max_tf_gap = float(max_joint_gap), float(max_tf_gap)
+        ros1 = self.path.suffix.lower() == ".bag"
+        self._typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+        try:
+            reader = AnyReader([self.path], default_typestore=self._typestore)
+            reader.open()
+        except ImportError:
+            raise
+        except Exception as e:  # rosbags raises its own error types (and struct/OS errors on garbage)
+            raise ValueError(f"{self.path}: not a readable ROS bag ({type(e).__name__}: {e})") from None
+        self._reader = reader
+        try:
+            self._index(depth_topic, color_topic, camera_info_topic, intrinsics, depth_scale, joint_states_topic,
+                        joint_names, tf, base_frame, camera_frame, float(max_time_difference), start, stride, limit)
+        except BaseException:
+            self.close()
+            raise
+
+    # -- construction ----------------------------------------------------------------------
+
+    def _error(self, message: str) -> ValueError:
+        return ValueError(f"{self.path}: {message}")
+
+    def _topics(self, msgtype: str) -> Dict[str, Any]:
+        return {c.topic: c for c in self._reader.connections if c.msgtype == msgtype}
+
+    def _first(self, connection: Any) -> Any:
+        for conn, _, raw in self._reader.messages(connections=[connection]):
+            return self._deserialize(raw, conn)
+        return None
+
+    def _deserialize(self, raw: bytes, conn: Any) -> Any:
+        try:
+            return self._reader.deserialize(raw, conn.msgtype)
+        except Exception as e:
+            raise self._error(f"topic {conn.topic}: cannot decode a {conn.msgtype} message ({type(e).__name__}: "
+                              f"{e})") from None
+
+    def _pick_topic(self, given: Any, msgtype: str, what: str) -> Optional[Any]:
+        topics = self._topics(msgtype)
+        if given is None:
+            return None
+        if given not in topics:
+            other = [c.msgtype for c in self._reader.connections if c.topic == given]
+            found = f"it is a {other[0]}" if other else "no such topic"
+            raise self._error(f"{what} topic {given!r}: {found}; {msgtype} topics: {sorted(topics) or 'none'}")
+        return topics[given]
+
+    def _index(self, depth_topic, color_topic, info_topic, intrinsics, depth_scale, joints_topic, joint_names, tf,
+               base_frame, camera_frame, max_dt, start, stride, limit) -> None:
+        images = self._topics(_IMAGE)
+        firsts = {t: self._first(c) for t, c in images.items()}
+        firsts = {t: m for t, m in firsts.items() if m is not None}
+
+        # Depth.
+        if depth_topic is not None:
+            depth_conn = self._pick_topic(depth_topic, _IMAGE, "depth")
+            first = firsts.get(depth_topic)
+            if first is None:
+                raise self._error(f"depth topic {depth_topic!r} has no messages")
+            if first.encoding not in DEPTH_ENCODINGS:
+                raise self._error(f"depth topic {depth_topic!r} has encoding {first.encoding!r}; depth must be one of "
+                                  f"{sorted(DEPTH_ENCODINGS)}")
+        else:
+            cands = sorted(t for t, m in firsts.items() if m.encoding in DEPTH_ENCODINGS)
+            if not cands:
+                listed = ", ".join(f"{t} ({m.encoding})" for t, m in sorted(firsts.items())) or "none"
+                raise self._error(f"no depth images: no sensor_msgs/Image topic with a depth encoding "
+                                  f"{sorted(DEPTH_ENCODINGS)} (image topics: {listed})")
+            has_color = any(m.encoding in COLOR_ENCODINGS for m in firsts.values())
+            for rule in (lambda t: has_color and "aligned_depth_to_color" in t, lambda t: "depth" in t.lower()):
+                if len(cands) > 1 and sum(map(rule, cands)) >= 1:
+                    cands = [t for t in cands if rule(t)]
+            if len(cands) > 1:
+                raise self._error(f"several depth image topics {cands}; pass depth_topic=")
+            depth_topic = cands[0]
+            depth_conn = images[depth_topic]
+        first = firsts[depth_topic]
+        self.depth_topic = depth_topic
+        self._depth_dtype, self._float_depth = DEPTH_ENCODINGS[first.encoding]
+        size = (int(first.width), int(first.height))
+
+        # Colour.
+        self.color_topic = None
+        color_conn = None
+        if color_topic is not None and color_topic is not False:
+            color_conn = self._pick_topic(color_topic, _IMAGE, "colour")
+            m = firsts.get(color_topic)
+            if m is None or m.encoding not in COLOR_ENCODINGS:
+                raise self._error(f"colour topic {color_topic!r} has encoding {getattr(m, 'encoding', None)!r}; "
+                                  f"colour must be one of {sorted(COLOR_ENCODINGS)}")
+            if (int(m.width), int(m.height)) != size:
+                raise self._error(f"colour topic {color_topic!r} has {m.width}x{m.height} images but the depth images "
+                                  f"are {size[0]}x{size[1]}: colour must be registered to depth (e.g. RealSense "
+                                  "aligned_depth_to_color)")
+            self.color_topic = color_topic
+        elif color_topic is None:
+            # Registered colour has the depth images' size and optical frame (RealSense's
+            # aligned_depth_to_color is published in the colour camera's frame).
+            cands = [t for t, m in firsts.items() if m.encoding in COLOR_ENCODINGS]
+            same = sorted((t for t in cands if (int(firsts[t].width), int(firsts[t].height)) == size
+                           and firsts[t].header.frame_id == first.header.frame_id),
+                          key=lambda t: (-_common_prefix(t, depth_topic), t))
+            if same:
+                self.color_topic, color_conn = same[0], images[same[0]]
+            elif cands:
+                self.notes.append(f"colour topics {sorted(cands)} left out: not registered to the depth images (not "
+                                  f"{size[0]}x{size[1]} in frame {first.header.frame_id!r}); color_topic= uses one "
+                                  "of the same size anyway")
+
+        # Camera.
+        self.camera_info_topic = None
+        infos = self._topics(_INFO)
+        given, file_scale = _resolve_intrinsics(intrinsics)
+        if given is None:
+            if info_topic is not None:
+                conn = self._pick_topic(info_topic, _INFO, "camera_info")
+            else:
+                sized = {t: c for t, c in infos.items()
+                         if (m := self._first(c)) is not None and (int(m.width), int(m.height)) == size}
+                if not sized:
+                    raise self._error(f"no sensor_msgs/CameraInfo for the {size[0]}x{size[1]} depth images of "
+                                      f"{depth_topic} (camera_info topics: {sorted(infos) or 'none'}); pass "
+                                      "intrinsics= (a preset, a camera file or an Intrinsics)")
+                info_topic = max(sorted(sized), key=lambda t: _common_prefix(t, depth_topic))
+                conn = sized[info_topic]
+            msg = self._first(conn)
+            if msg is None:
+                raise self._error(f"camera_info topic {info_topic!r} has no messages")
+            try:
+                given, _ = camera_from_dict({"width": int(msg.width), "height": int(msg.height),
+                                             "K": np.asarray(_field(msg, "k", "K"), dtype=np.float64),
+                                             "D": np.asarray(_field(msg, "d", "D"), dtype=np.float64),
+                                             "distortion_model": msg.distortion_model})
+            except ValueError as e:
+                raise self._error(f"camera_info topic {info_topic}: {e}") from None
+            self.camera_info_topic = info_topic
+        if (given.width, given.height) != size:
+            raise self._error(f"depth images are {size[0]}x{size[1]} but the intrinsics are "
+                              f"{given.width}x{given.height}")
+        self.intrinsics = given
+
+        # Depth scale: argument, camera file, RealSense's "Depth Units" option, 1 mm.
+        scale = _check_scale(depth_scale)
+        if scale is None and file_scale is not None:
+            scale = _check_scale(file_scale)
+        if scale is None:
+            units = [c for t, c in self._topics(_FLOAT32).items() if t.lower().endswith("depth units/value")]
+            if units:
+                units.sort(key=lambda c: -_common_prefix(c.topic, depth_topic))
+                m = self._first(units[0])
+                if m is not None and math.isfinite(float(m.data)) and 0 < float(m.data) <= 1:
+                    # A float32 in the bag: its shortest decimal (1e-4, not 1.0000000475e-4).
+                    scale = float(np.format_float_positional(np.float32(m.data), unique=True))
+                    self.notes.append(f"depth_scale {scale:g} m from {units[0].topic}")
+        self.depth_scale = 0.001 if scale is None else scale
+
+        # Timestamps of every image (header stamps; bag time kept for random access).
+        self._depth = self._stamps(depth_conn)
+        self._color = self._stamps(color_conn) if color_conn is not None else []
+        self._depth_conn, self._color_conn = depth_conn, color_conn
+        if not self._depth:
+            raise self._error(f"depth topic {depth_topic} has no messages")
+        d_ts = _seconds(np.array([s for s, _, _ in self._depth], dtype=np.int64))
+        di, ci = np.arange(len(d_ts)), None
+        if self._color:
+            c_ts = _seconds(np.array([s for s, _, _ in self._color], dtype=np.int64))
+            pairs = associate_timestamps(d_ts, c_ts, max_dt)
+            if len(pairs) == 0:
+                raise self._error(f"no depth image of {depth_topic} has a colour image of {self.color_topic} within "
+                                  f"max_time_difference={max_dt} s")
+            di, ci = pairs[:, 0], pairs[:, 1]
+        self.dropped_depth_frames = int(len(d_ts) - len(di))
+        keep = np.arange(len(di))[start::stride][:limit]
+        self._frames = [(int(di[k]), None if ci is None else int(ci[k])) for k in keep]
+        self.timestamps = d_ts[[d for d, _ in self._frames]] if self._frames else np.zeros(0)
+        self.camera_frame = camera_frame or first.header.frame_id or None
+
+        # Robot joints.
+        self.joint_states_topic, self.joint_names = None, None
+        self._joint_t = np.zeros(0, dtype=np.int64)
+        if joints_topic is not False:
+            states = self._topics(_JOINTS)
+            if joints_topic is not None:
+                conn = self._pick_topic(joints_topic, _JOINTS, "joint_states")
+            elif "/joint_states" in states:
+                conn = states["/joint_states"]
+            elif len(states) == 1:
+                conn = next(iter(states.values()))
+            else:
+                conn = None
+                if states:
+                    self.notes.append(f"several JointState topics {sorted(states)}: none used; pass "
+                                      "joint_states_topic=")
+            if conn is not None:
+                self._read_joints(conn, joint_names)
+
+        # Poses from tf.
+        self.base_frame = None
+        self._tf_chain: List[Tuple[str, str]] = []
+        if tf:
+            self._read_tf(base_frame)
+
+    def _stamps(self, conn: Any) -> List[Tuple[int, int, int]]:
+        """(header stamp ns, bag time ns, ordinal among the messages at that bag time), sorted
+        by header stamp (bag order breaks ties)."""
+        out, last, n = [], None, 0
+        for c, t, raw in self._reader.messages(connections=[conn]):
+            n = n + 1 if t == last else 0
+            last = t
+            stamp = _stamp_ns(self._deserialize(raw, c))
+            out.append((stamp if stamp > 0 else t, t, n))
+        if len({s for s, _, _ in out}) != len(out):
+            raise self._error(f"topic {conn.topic}: two images with the same header timestamp")
+        return sorted(out)
+
+    def _read_joints(self, conn: Any, joint_names: Optional[Sequence[str]]) -> None:
+        times, rows, names = [], [], None if joint_names is None else [str(n) for n in joint_names]
+        for c, t, raw in self._reader.messages(connections=[conn]):
+            m = self._deserialize(raw, c)
+            msg_names = [str(n) for n in m.name]
+            if names is None:
+                names = _order_joints(msg_names)
+            if not all(n in msg_names for n in names):
+                continue  # another publisher's joints (a gripper)
+            pos = np.asarray(m.position, dtype=np.float64)
+            if len(pos) != len(msg_names):
+                raise self._error(f"topic {conn.topic}: a JointState with {len(msg_names)} names and {len(pos)} "
+                                  "positions")
+            stamp = _stamp_ns(m)
+            times.append(stamp if stamp > 0 else t)
+            rows.append(pos[[msg_names.index(n) for n in names]])
+        if not rows:
+            self.notes.append(f"{conn.topic}: no joint states" + (f" with all of {names}" if names else ""))
+            return
+        order = np.argsort(np.array(times, dtype=np.int64), kind="stable")
+        self._joint_t = np.array(times, dtype=np.int64)[order]
+        self._joint_q = np.stack(rows)[order]
+        self.joint_states_topic, self.joint_names = conn.topic, names
+
+    def _read_tf(self, base_frame: Optional[str]) -> None:
+        edges: Dict[str, Dict[str, Any]] = {}  # child -> {parent, static, samples [(t, T)]}
+        for topic, static in (("/tf_static", True), ("/tf", False)):
+            conn = self._topics(_TF).get(topic)
+            if conn is None:
+                continue
+            for c, t, raw in self._reader.messages(connections=[conn]):
+                for ts in self._deserialize(raw, c).transforms:
+                    child, parent = ts.child_frame_id.lstrip("/"), ts.header.frame_id.lstrip("/")
+                    e = edges.setdefault(child, {"parent": parent, "static": static, "samples": []})
+                    if e["parent"] != parent:
+                        raise self._error(f"{topic}: frame {child!r} has two parents, {e['parent']!r} and {parent!r}")
+                    r, q = ts.transform.translation, ts.transform.rotation
+                    T = np.eye(4)
+                    T[:3, :3] = matrix_from_quaternion(np.array([q.x, q.y, q.z, q.w], dtype=np.float64))
+                    T[:3, 3] = (r.x, r.y, r.z)
+                    stamp = _stamp_ns(ts)
+                    e["samples"].append((stamp if stamp > 0 else t, T))
+        if not edges or self.camera_frame is None:
+            return
+        camera = self.camera_frame.lstrip("/")
+        chain, frame = [], camera
+        while frame in edges and frame != base_frame and len(chain) <= len(edges):
+            chain.append(frame)
+            frame = edges[frame]["parent"]
+        if base_frame is not None and frame != base_frame.lstrip("/"):
+            raise self._error(f"tf: no chain from base_frame {base_frame!r} to the camera frame {camera!r}")
+        if not chain:
+            self.notes.append(f"tf: the camera frame {camera!r} is not in the tf tree: no poses")
+            return
+        self.base_frame = frame
+        self._tf_edges = []
+        for child in reversed(chain):  # base -> camera
+            e = edges[child]
+            s = sorted(e["samples"], key=lambda x: x[0])
+            traj = Trajectory(_seconds(np.array([x[0] for x in s], dtype=np.int64)), np.stack([x[1] for x in s]))
+            # A static link (tf_static) holds whatever was published last, at any time.
+            self._tf_edges.append((e["static"], traj, np.array([x[0] for x in s], dtype=np.int64)))
+        self._tf_chain = [(edges[c]["parent"], c) for c in reversed(chain)]
+
+    # -- frames ----------------------------------------------------------------------------
+
+    def _interp_joints(self, t: int) -> Optional[np.ndarray]:
+        ts = self._joint_t
+        if ts.size == 0:
+            return None
+        k = int(np.searchsorted(ts, t))
+        if k < ts.size and ts[k] == t:
+            return self._joint_q[k].copy()
+        if k == 0 or k == ts.size or (ts[k] - ts[k - 1]) * 1e-9 > self._max_joint_gap:
+            return None
+        w = (t - ts[k - 1]) / (ts[k] - ts[k - 1])
+        return (1 - w) * self._joint_q[k - 1] + w * self._joint_q[k]
+
+    def _pose(self, t: int) -> Optional[np.ndarray]:
+        if not self._tf_chain:
+            return None
+        T = np.eye(4)
+        for constant, traj, ns in self._tf_edges:
+            if constant:
+                T = T @ traj.poses[-1]
+                continue
+            k = int(np.searchsorted(ns, t))
+            if k < ns.size and ns[k] == t:
+                E = traj.poses[k]
+            elif k == 0 or k == ns.size or (ns[k] - ns[k - 1]) * 1e-9 > self._max_tf_gap:
+                return None
+            else:
+                E = traj.interpolate([_seconds(t)], max_gap=np.inf).poses[0]
+            T = T @ E
+        return T
+
+    def _message(self, conn: Any, entry: Tuple[int, int, int]) -> Any:
+        _, t, n = entry
+        for k, (c, _, raw) in enumerate(self._reader.messages(connections=[conn], start=t, stop=t + 1)):
+            if k == n:
+                return self._deserialize(raw, c)
+        raise self._error(f"topic {conn.topic}: message at bag time {t} ns not found")  # pragma: no cover
+
+    def _image(self, msg: Any, topic: str, depth: bool) -> np.ndarray:
+        enc = msg.encoding
+        table = DEPTH_ENCODINGS if depth else COLOR_ENCODINGS
+        where = f"topic {topic}, t={_seconds(_stamp_ns(msg)):.6f} s"
+        if enc not in table:
+            raise self._error(f"{where}: unknown {'depth' if depth else 'colour'} encoding {enc!r} (expected one of "
+                              f"{sorted(table)})")
+        w, h, step = int(msg.width), int(msg.height), int(msg.step)
+        if (w, h) != (self.intrinsics.width, self.intrinsics.height):
+            raise self._error(f"{where}: a {w}x{h} image, the camera is {self.intrinsics.width}x"
+                              f"{self.intrinsics.height}")
+        if depth:
+            code, _ = table[enc]
+            dtype, channels = np.dtype((">" if msg.is_bigendian else "<") + code), 1
+        else:
+            dtype, channels = np.dtype(np.uint8), table[enc][0]
+        row = w * channels * dtype.itemsize
+        data = np.asarray(msg.data, dtype=np.uint8).reshape(-1)
+        if step < row or data.size < step * h:
+            raise self._error(f"{where}: image data of {data.size} bytes does not hold {h} rows of {w} {enc} pixels "
+                              f"(step {step})")
+        rows = data[: step * h].reshape(h, step)[:, :row]
+        img = np.ascontiguousarray(rows).view(dtype).reshape((h, w) if channels == 1 else (h, w, channels))
+        if depth:
+            return img.astype(np.float32 if code == "f4" else np.uint16)
+        rgb = img[..., :3]
+        return np.ascontiguousarray(rgb[..., ::-1] if table[enc][1] else rgb)
+
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    def __getitem__(self, i: int) -> Frame:
+        k = sequence_index(i, len(self), "BagSequence")
+        if self._reader is None:
+            raise ValueError(f"{self.path}: the bag is closed")
+        d, c = self._frames[k]
+        entry = self._depth[d]
+        depth = self._image(self._message(self._depth_conn, entry), self.depth_topic, True)
+        meta: Dict[str, Any] = {"bag": os.fspath(self.path), "depth_topic": self.depth_topic, "rgb_timestamp": None}
+        rgb = None
+        if c is not None:
+            rgb = self._image(self._message(self._color_conn, self._color[c]), self.color_topic, False)
+            meta["rgb_timestamp"] = _seconds(self._color[c][0])
+        q = self._interp_joints(entry[0])
+        if q is not None:
+            meta["joints"], meta["joint_names"] = q, list(self.joint_names)
+        return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
+                     timestamp=_seconds(entry[0]), T_base_camera=self._pose(entry[0]), index=k, meta=meta)
+
+    def __iter__(self) -> Iterator[Frame]:
+        for k in range(len(self)):
+            yield self[k]
+
+    def close(self) -> None:
+        """Closes the bag (frames can no longer be read)."""
+        if self._reader is not None:
+            reader, self._reader = self._reader, None
+            try:
+                reader.close()
+            except Exception:  # pragma: no cover - closing a half-open reader
+                pass
+
+    def __enter__(self) -> "BagSequence":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # pragma: no cover
+            pass
+
+    def __repr__(self) -> str:
+        return (f"BagSequence({os.fspath(self.path)!r}, frames={len(self)}, depth={self.depth_topic}, "
+                f"color={self.color_topic}, camera_info={self.camera_info_topic}, joints={self.joint_states_topic}, "
+                f"tf={f'{self.base_frame}->{self.camera_frame}' if self._tf_chain else None}, "
+                f"intrinsics={self.intrinsics}, depth_scale={self.depth_scale})")
+
+
+_NUMBER = re.compile(r"[-+]?(\d+(\.\d*)?|\.\d+)")
+
+
+class ImageFolderSequence:
+    """RGB-D frames from a folder of images and a camera file::
+
+        folder/
+            camera.yaml        # a camera file: scanalign's keys, a ROS camera_info YAML or an
+                               #   OpenCV calibration YAML (distortion included); or camera.json,
+                               #   intrinsics.yaml, ... (scanalign.datasets.tum.CAMERA_FILE_NAMES)
+            depth/*.png        # 16-bit depth, units of depth_scale m (0 = no measurement)
+            rgb/*.png          # optional colour (or color/, colour/; PNG or JPEG), registered
+
+    Timestamps are the file names when they are numbers (seconds, e.g. ``1700000000.033.png``;
+    an integer above 1e15 is nanoseconds), else ``index / frame_rate``. Depth and colour are
+    paired by timestamp (within ``max_time_difference``) when the names are numbers, else by
+    equal names, else in name order when both folders hold the same number of images.
+
+    Args:
+        folder: the folder. intrinsics: overrides the camera file (an :class:`Intrinsics`,
+            a preset name, a camera file). depth_scale: metres per depth unit; default: the
+            camera file's ``depth_scale``, else 0.001 (millimetres).
+        frame_rate: frames per second when the names are not times (30).
+        start, stride, limit: frame selection after pairing.
+
+    Raises:
+        FileNotFoundError / ValueError (naming the file): no depth images, no camera file (or
+        several), a malformed camera file, images that cannot be paired, a bad image.
+    """
+
+    def __init__(self, folder: PathLike, *, intrinsics: Any = None, depth_scale: Optional[float] = None,
+                 max_time_difference: float = 0.02, frame_rate: float = 30.0, start: int = 0, stride: int = 1,
+                 limit: Optional[int] = None) -> None:
+        self.folder = Path(folder)
+        if not is_image_folder(self.folder):
+            raise FileNotFoundError(f"{self.folder}: no depth/ folder of PNG images")
+        _check_selection(start, stride, limit)
+        if not (frame_rate > 0 and math.isfinite(frame_rate)):
+            raise ValueError(f"frame_rate must be a positive number of frames per second, got {frame_rate!r}")
+        given, file_scale = _resolve_intrinsics(intrinsics)
+        self.camera_file = None
+        if given is None or (depth_scale is None and file_scale is None):
+            found = [self.folder / n for n in CAMERA_FILE_NAMES if (self.folder / n).is_file()]
+            if len(found) > 1:
+                raise ValueError(f"{self.folder}: more than one camera file {[p.name for p in found]}; keep one")
+            if found:
+                cam, scale = read_camera(found[0])
+                if given is None:
+                    given, self.camera_file = cam, found[0]
+                file_scale = scale if file_scale is None else file_scale
+            elif given is None:
+                raise ValueError(f"{self.folder}: no camera file ({', '.join(CAMERA_FILE_NAMES)}); pass intrinsics=")
+        self.intrinsics = given
+        self.depth_scale = _check_scale(depth_scale) or _check_scale(file_scale) or 0.001
+        depth = sorted(f for f in (self.folder / "depth").iterdir() if f.suffix.lower() == ".png")
+        color_dir = next((self.folder / n for n in _COLOR_DIRS if (self.folder / n).is_dir()), None)
+        color = [] if color_dir is None else sorted(
+            f for f in color_dir.iterdir() if f.suffix.lower() in _IMAGE_SUFFIXES)
+        d_t, c_t = self._times(depth, frame_rate), self._times(color, frame_rate)
+        numeric = all(_NUMBER.fullmatch(f.stem) for f in depth + color)
+        if numeric:
+            od, oc = np.argsort(d_t, kind="stable"), np.argsort(c_t, kind="stable")
+            depth, d_t = [depth[k] for k in od], d_t[od]
+            color, c_t = [color[k] for k in oc], c_t[oc]
+        pairs: List[Tuple[int, Optional[int]]] = [(k, None) for k in range(len(depth))]
+        if color:
+            if numeric:
+                p = associate_timestamps(d_t, c_t, float(max_time_difference))
+                pairs = [(int(a), int(b)) for a, b in p]
+            elif {f.stem for f in depth} == {f.stem for f in color}:
+                by = {f.stem: k for k, f in enumerate(color)}
+                pairs = [(k, by[f.stem]) for k, f in enumerate(depth)]
+            elif len(depth) == len(color):
+                pairs = [(k, k) for k in range(len(depth))]
+            else:
+                raise ValueError(f"{self.folder}: cannot pair {len(depth)} depth images with {len(color)} colour "
+                                 f"images in {color_dir.name}/ (name them by timestamp or with equal names)")
+            if not pairs:
+                raise ValueError(f"{self.folder}: no depth image has a colour image within max_time_difference="
+                                 f"{max_time_difference} s")
+        self.dropped_depth_frames = len(depth) - len(pairs)
+        pairs = pairs[start::stride][:limit]
+        self.depth_files = [depth[a] for a, _ in pairs]
+        self.rgb_files = [color[b] for _, b in pairs] if color else None
+        self.timestamps = np.array([d_t[a] for a, _ in pairs], dtype=np.float64)
+
+    @staticmethod
+    def _times(files: List[Path], frame_rate: float) -> np.ndarray:
+        if files and all(_NUMBER.fullmatch(f.stem) for f in files):
+            return np.array([int(f.stem) * 1e-9 if "." not in f.stem and abs(int(f.stem)) > 10**15 else float(f.stem)
+                             for f in files])
+        return np.arange(len(files), dtype=np.float64) / frame_rate
+
+    def __len__(self) -> int:
+        return len(self.depth_files)
+
+    def __getitem__(self, i: int) -> Frame:
+        k = sequence_index(i, len(self), "ImageFolderSequence")
+
+        def check(path: Path):
+            def f(im: Any) -> None:
+                if (im.size[1], im.size[0]) != self.intrinsics.shape:
+                    raise ValueError(f"{path}: a {im.size[0]}x{im.size[1]} image, the camera is "
+                                     f"{self.intrinsics.width}x{self.intrinsics.height}")
+            return f
+
+        d = self.depth_files[k]
+        depth = load_image(d, "depth", check(d))
+        rgb = None
+        meta: Dict[str, Any] = {"depth_file": os.fspath(d), "rgb_file": None}
+        if self.rgb_files is not None:
+            c = self.rgb_files[k]
+            rgb = load_image(c, "colour", check(c))
+            meta["rgb_file"] = os.fspath(c)
+        return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
+                     timestamp=float(self.timestamps[k]), index=k, meta=meta)
+
+    def __iter__(self) -> Iterator[Frame]:
+        for k in range(len(self)):
+            yield self[k]
+
+    def __repr__(self) -> str:
+        return (f"ImageFolderSequence({os.fspath(self.folder)!r}, frames={len(self)}, "
+                f"rgb={self.rgb_files is not None}, "
+                f"intrinsics={self.intrinsics}, depth_scale={self.depth_scale})")

@@ -1,0 +1,173 @@
+"""Grasps on CAD parts and grasp planning with the analytic IK (issue 17): which joint targets
+pick a part at a known pose, and why every other candidate was rejected.
+
+Frames (metres, radians; ``T_a_b`` maps b into a): ``T_base_tcp = T_base_model @ T_model_grasp``,
+``T_base_flange = T_base_tcp @ inv(T_flange_tcp)``; the pre-grasp is the grasp moved back by
+``pre_grasp_distance`` against ``approach`` (grasp frame). :func:`plan_grasp` tries every grasp
+x symmetry copy x IK configuration; each :class:`GraspCandidate` has a ``reason``: ``"ok"``,
+``"unreachable"``, ``"outside_limits"``, ``"near_singularity"``, ``"below_table"`` or
+``"approach_branch_change"``, and a ``detail``. Grasp files (JSON or YAML):
+:func:`read_part_grasps`, :func:`write_part_grasps`; schema in docs/api/grasp.md.
+The classes are the C++ structs (``scanalign._core.grasp``; :class:`PartSymmetry` and
+:func:`symmetric_pose_error` from ``scanalign._core.pose``).
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, List, Optional, Sequence
+
+import numpy as np
+
+from scanalign import _core
+from scanalign.common.settings import set_fields
+from scanalign import kinematics
+
+__all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCandidate", "GraspPlanResult",
+           "PartGrasps", "plan_grasp", "read_part_grasps", "write_part_grasps", "symmetric_pose_error"]
+
+_G = _core.grasp
+Grasp = _G.Grasp
+Gripper = _G.Gripper
+PartSymmetry = _core.pose.PartSymmetry
+GraspPlannerSettings = _G.GraspPlannerSettings
+GraspCandidate = _G.GraspCandidate
+GraspPlanResult = _G.GraspPlanResult
+#: ``symmetric_pose_error(T_a, T_b, symmetry)`` -> (rad, m): the pose error of a part up to its
+#: symmetry, translation measured at the symmetry point.
+symmetric_pose_error = _core.pose.symmetric_pose_error
+
+
+def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmetry: Optional[PartSymmetry] = None,
+               gripper: Optional[Gripper] = None, table_plane: Sequence[float] = (0.0, 0.0, 1.0, 0.0),
+               q_current: Optional[Sequence[float]] = None, **settings: Any) -> GraspPlanResult:
+    """Joint targets to pick a part at ``T_base_model`` (4x4, m, base frame).
+
+    ``robot``: a :class:`scanalign.kinematics.Robot` (its ``T_base_dh0`` places it in the
+    cell; its tool is replaced by ``gripper.T_flange_tcp``) or a name. ``symmetry``: default
+    none; ``gripper``: default :meth:`Gripper.parallel_jaw`; ``table_plane``: (nx, ny, nz, d),
+    unit normal pointing up, ``n.p + d = 0`` in the base frame; ``q_current``: joints now (rad,
+    default zeros); ``settings``: fields of :class:`GraspPlannerSettings` by name.
+    Raises ValueError / TypeError naming the argument or field.
+    """
+    if isinstance(robot, str):
+        robot = kinematics.Robot.by_name(robot)
+    for value, name, cls in ((robot, "robot", kinematics.Robot), (symmetry, "symmetry", PartSymmetry),
+                             (gripper, "gripper", Gripper)):
+        if value is not None and not isinstance(value, cls):
+            raise TypeError(f"{name}: expected {cls.__name__}, got {type(value).__name__}")
+    s = set_fields(GraspPlannerSettings(), settings, "plan_grasp")
+    if isinstance(grasps, Grasp) or not all(isinstance(g, Grasp) for g in grasps):
+        raise TypeError("grasps: expected a list of scanalign.grasp.Grasp")
+    return _G.plan_grasp(robot, T_base_model, list(grasps), PartSymmetry() if symmetry is None else symmetry,
+                         Gripper.parallel_jaw() if gripper is None else gripper, table_plane,
+                         np.zeros(6) if q_current is None else q_current, s)
+
+
+@dataclass
+class PartGrasps:
+    """A grasp file's content: the part and its grasps (schema in docs/api/grasp.md)."""
+    name: str
+    grasps: List[Grasp]
+    symmetry: Optional[PartSymmetry] = None
+    gripper: Optional[Gripper] = None
+    #: a mesh file path (relative to the grasp file's folder) or "builtin:<name>"; in memory also an io.Mesh
+    mesh: Any = None
+    scale: float = 1.0  #: mesh units -> metres (grasps are always in metres)
+
+
+_GRASP_KEYS = {"name", "T_model_grasp", "approach", "pre_grasp_distance"}
+_GRIPPER_KEYS = {"T_flange_tcp", "shape", "box_centre", "box_half_extents", "capsule_a", "capsule_b", "capsule_radius",
+                 "flange_radius"}
+
+
+def _build(where: str, cls: Any, fields: dict, allowed: set, required: Sequence[str] = ()) -> Any:
+    """cls(**fields), every error a ValueError naming ``where`` and the field."""
+    if not isinstance(fields, dict):
+        raise ValueError(f"{where}: expected a mapping, got {type(fields).__name__}")
+    for key in fields:
+        if key not in allowed:
+            raise ValueError(f"{where}: unknown field {key!r} (expected {sorted(allowed)})")
+    for key in required:
+        if key not in fields:
+            raise ValueError(f"{where}: missing field {key!r}")
+    args = {}
+    for key, value in fields.items():
+        try:
+            args[key] = np.asarray(value) if isinstance(value, list) else value
+        except ValueError as e:  # a ragged list
+            raise ValueError(f"{where}: field {key!r}: {e}") from None
+    try:
+        return cls(**args)  # the C++ checks name the field
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{where}: {e}") from None
+
+
+def read_part_grasps(path: Any) -> PartGrasps:
+    """Reads a grasp file (``.json``, ``.yaml`` or ``.yml``). ValueError naming the file, the
+    grasp and the field for a missing field, a wrong type or a non-rigid matrix."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except UnicodeDecodeError as e:
+        raise ValueError(f"{p}: not UTF-8 text ({e})") from None
+    try:
+        data = json.loads(text) if p.suffix.lower() == ".json" else __import__("yaml").safe_load(text)
+    except Exception as e:  # the parsers' own errors, with the file named
+        raise ValueError(f"{p}: not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'}: {e}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"{p}: expected a mapping at the top level")
+    unknown = set(data) - {"name", "mesh", "scale", "symmetry", "gripper", "grasps"}
+    if unknown:
+        raise ValueError(f"{p}: unknown field(s) {sorted(unknown)}")
+    grasps = data.get("grasps")
+    if not isinstance(grasps, list) or not grasps:
+        raise ValueError(f"{p}: field 'grasps' must be a non-empty list")
+    out = []
+    for i, g in enumerate(grasps):
+        label = f"{p}: grasps[{i}]" + (f" ({g['name']!r})" if isinstance(g, dict) and "name" in g else "")
+        out.append(_build(label, Grasp, g, _GRASP_KEYS, ["T_model_grasp"]))
+    scale = data.get("scale", 1.0)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale < float("inf"):
+        raise ValueError(f"{p}: field 'scale' must be a positive number, got {scale!r}")
+    for key in ("name", "mesh"):
+        if key in data and not isinstance(data[key], str):
+            raise ValueError(f"{p}: field {key!r} must be a string, got {data[key]!r}")
+    sym = data.get("symmetry")
+    gripper = data.get("gripper")
+    return PartGrasps(
+        name=data.get("name", p.stem), grasps=out, mesh=data.get("mesh"), scale=float(scale),
+        symmetry=None if sym is None else _build(f"{p}: symmetry", PartSymmetry, sym, {"axis", "point", "order"}),
+        gripper=None if gripper is None else _build(f"{p}: gripper", Gripper, gripper, _GRIPPER_KEYS))
+
+
+def _list(a: Any) -> Any:
+    return np.asarray(a, dtype=np.float64).tolist()
+
+
+def write_part_grasps(path: Any, part: PartGrasps) -> None:
+    """Writes ``part`` as JSON (``.json``) or YAML (``.yaml``, ``.yml``); read back by
+    :func:`read_part_grasps` to the same values."""
+    p = Path(path)
+    data: dict = {"name": part.name, "scale": float(part.scale)}
+    if part.mesh is not None:
+        if not isinstance(part.mesh, str):
+            raise ValueError(f"part.mesh: only a mesh file path or 'builtin:<name>' can be written, got "
+                             f"{type(part.mesh).__name__}")
+        data["mesh"] = part.mesh
+    if part.symmetry is not None:
+        s = part.symmetry
+        data["symmetry"] = {"axis": _list(s.axis), "point": _list(s.point), "order": int(s.order)}
+    if part.gripper is not None:
+        data["gripper"] = {k: (getattr(part.gripper, k) if k == "shape" else _list(getattr(part.gripper, k)))
+                           for k in sorted(_GRIPPER_KEYS)}
+    data["grasps"] = [{"name": g.name, "T_model_grasp": _list(g.T_model_grasp), "approach": _list(g.approach),
+                       "pre_grasp_distance": float(g.pre_grasp_distance)} for g in part.grasps]
+    if p.suffix.lower() == ".json":
+        p.write_text(json.dumps(data, indent=2) + "\n")
+    elif p.suffix.lower() in (".yaml", ".yml"):
+        p.write_text(__import__("yaml").safe_dump(data, sort_keys=False))
+    else:
+        raise ValueError(f"path: expected a .json, .yaml or .yml file name, got {p.name!r}")

@@ -1,0 +1,165 @@
+"""Where batch jobs run: a local process pool, or a Ray cluster.
+
+Both executors take jobs and yield ``(job, record)`` as jobs finish, in any order. Each job
+runs with ``threads_per_job`` OpenMP threads (set through ``threadpoolctl`` in the worker,
+the same count the scheduler reserves), so workers never oversubscribe cores. The part
+library reaches each worker once: the local pool loads its ``.npz`` in every worker process
+at start-up; Ray puts the loaded library in the object store once and every task gets a
+reference to it.
+
+A worker that dies (a crash in native code, the OOM killer) must not take the batch with it:
+
+* local: the pool breaks and every job in flight gets ``BrokenProcessPool``. Those jobs are
+  run again one at a time in a fresh single-process pool, so the job that really crashes is
+  the one that breaks that pool: it gets the record ``status="crashed"``, the others run.
+* Ray: the task's ``ray.get`` raises (``WorkerCrashedError``, ``RayTaskError``); its record
+  says ``crashed`` with Ray's message, and the cluster replaces the worker.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures as cf
+import multiprocessing
+import os
+import platform
+from pathlib import Path
+from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple
+
+from scanalign.pipelines.batch.jobs import Job, empty_record, run_job
+from scanalign.grasp.part_library import load_part_library
+import scanalign
+
+__all__ = ["EXECUTORS", "LocalExecutor", "RayExecutor", "crashed_record"]
+
+EXECUTORS = ("local", "ray")
+#: What a worker calls per job: ``(job, library) -> record`` (default :func:`run_job`); a
+#: module-level function, so that it pickles by reference to spawned processes and Ray.
+Runner = Callable[[Job, Any], Dict[str, Any]]
+
+_worker_library: Any = None  # the part library of this worker process (local pool only)
+
+
+def crashed_record(job: Job, message: str) -> Dict[str, Any]:
+    """The record of a job whose worker died."""
+    record = empty_record(job)
+    record.update(status="crashed", error=message)
+    return record
+
+
+def _limit_threads(threads: int) -> None:
+    """OpenMP threads of this process (the engine's 0 = 'all cores' then means these)."""
+    from threadpoolctl import threadpool_limits
+
+    from scanalign import _core  # noqa: F401 -- loads libgomp, so threadpoolctl finds it
+
+    threadpool_limits(limits=threads, user_api="openmp")
+
+
+def _init_local_worker(library_path: Optional[str], threads: int) -> None:
+    global _worker_library
+    _limit_threads(threads)
+    if library_path:
+        _worker_library = load_part_library(library_path)
+
+
+def _run_local(job: Job, runner: Runner) -> Dict[str, Any]:
+    return runner(job, _worker_library)
+
+
+class LocalExecutor:
+    """A pool of ``workers`` processes on this machine (``spawn``: no state inherited)."""
+
+    def __init__(self, workers: Optional[int] = None, threads_per_job: int = 1):
+        self.workers = max(1, workers or (os.cpu_count() or 1) // max(1, threads_per_job))
+        self.threads = threads_per_job
+
+    def describe(self) -> str:
+        return f"local pool, {self.workers} worker(s) x {self.threads} thread(s) on {platform.node()}"
+
+    def _pool(self, workers: int, library_path: Optional[str]) -> cf.ProcessPoolExecutor:
+        return cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
+                                      initializer=_init_local_worker, initargs=(library_path, self.threads))
+
+    def run(self, jobs: Sequence[Job], library_path: Optional[Path], library: Any = None, runner: Runner = run_job
+            ) -> Iterator[Tuple[Job, Dict[str, Any]]]:
+        path = str(library_path) if library_path else None
+        suspects: List[Job] = []
+        with self._pool(self.workers, path) as pool:
+            futures = {pool.submit(_run_local, job, runner): job for job in jobs}
+            for future in cf.as_completed(futures):
+                try:
+                    yield futures[future], future.result()
+                except cf.process.BrokenProcessPool:
+                    suspects.append(futures[future])
+        for job in suspects:  # one at a time: the crash is the job's own
+            with self._pool(1, path) as pool:
+                try:
+                    yield job, pool.submit(_run_local, job, runner).result()
+                except cf.process.BrokenProcessPool:
+                    yield job, crashed_record(job, "the worker process died (a crash in native code, or killed) "
+                                                   "while running this job alone")
+
+    def close(self) -> None:
+        pass
+
+
+def _run_ray(job: Job, library: Any, threads: int, runner: Runner) -> Dict[str, Any]:
+    _limit_threads(threads)
+    return runner(job, library)
+
+
+class RayExecutor:
+    """Tasks on a Ray cluster: ``ray.init()`` starts a local instance (``workers`` CPUs)
+    when ``address`` is None, else connects to the cluster at ``address`` (``"auto"``, or
+    ``"ray://host:10001"``). Each task reserves ``threads_per_job`` CPUs; ``workers`` caps
+    the tasks in flight (None: as many as the cluster's CPUs take)."""
+
+    def __init__(self, address: Optional[str] = None, workers: Optional[int] = None, threads_per_job: int = 1):
+        try:
+            import ray
+        except ImportError:
+            raise ImportError("the ray executor needs Ray: pip install 'scanalign[ray]' (or pip install ray)") from None
+        self.ray = ray
+        self.threads = threads_per_job
+        self.workers = workers  # at most this many tasks in flight (None: as many as the cluster takes)
+        self._started = not ray.is_initialized()
+        if self._started:
+            kw: Dict[str, Any] = dict(include_dashboard=False, log_to_driver=False, configure_logging=False)
+            if address is None and workers:
+                kw["num_cpus"] = workers * threads_per_job
+            # the workers import scanalign from where this process does (a source checkout too)
+            kw["runtime_env"] = {"env_vars": {"PYTHONPATH": _package_root()}}
+            ray.init(address=address, **kw)
+        self._task = ray.remote(num_cpus=threads_per_job, max_retries=0)(_run_ray)
+
+    def describe(self) -> str:
+        cpus = self.ray.cluster_resources().get("CPU", 0)
+        nodes = len([n for n in self.ray.nodes() if n.get("Alive")])
+        return f"Ray, {nodes} node(s), {cpus:g} CPU(s), {self.threads} thread(s) per job"
+
+    def run(self, jobs: Sequence[Job], library_path: Optional[Path], library: Any = None, runner: Runner = run_job
+            ) -> Iterator[Tuple[Job, Dict[str, Any]]]:
+        ray = self.ray
+        ref = ray.put(library)  # once: every task gets this reference, not a copy per task
+        queue = list(jobs)
+        limit = self.workers or len(queue)
+        pending: Dict[Any, Job] = {}
+        while queue or pending:
+            while queue and len(pending) < limit:
+                job = queue.pop(0)
+                pending[self._task.remote(job, ref, self.threads, runner)] = job
+            done, _ = ray.wait(list(pending), num_returns=1)
+            job = pending.pop(done[0])
+            try:
+                yield job, ray.get(done[0])
+            except (ray.exceptions.RayError, OSError) as e:
+                yield job, crashed_record(job, f"{type(e).__name__}: {str(e).splitlines()[0] if str(e) else ''}")
+
+    def close(self) -> None:
+        if self._started:
+            self.ray.shutdown()
+
+
+def _package_root() -> str:
+    """The folder holding the scanalign package this process imported."""
+    return str(Path(scanalign.__file__).resolve().parent.parent)

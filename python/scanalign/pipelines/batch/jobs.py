@@ -1,0 +1,283 @@
+"""Batch jobs: a small serialisable description in, a plain result record out.
+
+A :class:`Job` says what to run (``kind``), on which input (``source``: ``"synthetic"`` for
+the built-in cell rendered from ``robot``, ``noise``, ``seed``, ``frames``, or a file or
+folder) and with which settings. :func:`run_job` is a pure function of the job and the
+part library: no globals, no files written unless ``save`` names a folder, and every error
+caught into the record (``status`` ``"failed"`` and ``error``) so one bad input never stops
+a batch. Records hold numbers and strings only, one flat dict per job, ready for a table.
+
+Kinds:
+
+* ``reconstruct``: frame-to-model reconstruction (:func:`scanalign.pipelines.reconstruct.reconstruct`) of
+  a synthetic scan (:class:`scanalign.synthetic.SyntheticConfig`: ``frames``, ``noise``,
+  ``seed``, ``robot``) or a recording (TUM RGB-D folder, ROS bag, PNG folder); ATE/RPE against the reference poses, and the
+  model's distance to the true surface for synthetic scans.
+* ``pose``: parts in a scan (:func:`scanalign.pose.find_parts` with the library's described
+  views): a cloud file (PLY/PCD, base frame) or the built-in pick cell seen from ``frames``
+  viewpoints merged with the robot's exact poses; pose errors against the cell's truth.
+* ``pick``: scan, part poses, grasps and joint targets (:func:`scanalign.pipelines.pick.pick`) on the
+  built-in cell, or on a TUM folder with ``joints``, ``hand_eye`` and ``robot_base`` files
+  in ``settings``; grasp and pose errors against the cell's truth.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+from scanalign.pipelines.reconstruct import model_mesh_distance, reconstruct
+from scanalign.synthetic import SyntheticConfig
+from scanalign.datasets import open_source
+from scanalign.grasp.parts import load_part
+from scanalign.pose.model_views import tessellated_sphere
+from scanalign import io, pose, reconstruction
+from scanalign.grasp import symmetric_pose_error
+from scanalign.synthetic.cell import pick_cell
+from scanalign.common import rigid as se3
+from scanalign.pipelines import pick
+from scanalign.synthetic.cell import pick_cell, score_picks
+
+__all__ = ["DEFAULT_PARTS", "Job", "KINDS", "LIBRARY_SETTINGS", "POSE_SETTINGS", "RECORD_FIELDS",
+           "SYNTHETIC_RECONSTRUCTION", "TEXT_FIELDS", "empty_record", "run_job"]
+
+KINDS = ("reconstruct", "pose", "pick")
+#: Parts of the built-in cell, used by pose and pick jobs that name none.
+DEFAULT_PARTS = ("block", "bracket", "standoff")
+_DEFAULT_FRAMES = {"reconstruct": 36, "pose": 4, "pick": 24}
+#: Reconstruction settings of synthetic scans, as ``scanalign demo``: the workspace around
+#: the part (camera frame, m), 10 mm normals and the bilateral depth filter, which its
+#: SR300-like noise calls for. A job's ``settings`` override them.
+SYNTHETIC_RECONSTRUCTION = {"crop_box": (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0), "normal_radius": 0.01,
+                            "depth_filter": "default"}
+
+#: Columns every record has, in table order (metrics not applying to a kind are NaN).
+RECORD_FIELDS = (
+    "id", "kind", "source", "robot", "noise", "seed", "frames", "status", "error", "attempts", "seconds",
+    "worker",
+    # reconstruct
+    "merged", "model_points", "ate_rmse_m", "ate_max_m", "rpe_translation_rmse_m", "rpe_rotation_rmse_deg",
+    "model_to_mesh_mean_m", "seconds_per_frame",
+    # pose and pick
+    "parts", "found", "pose_error_max_m", "pose_error_max_deg", "fitness_min",
+    # pick
+    "picked", "tcp_error_max_m", "tcp_error_max_deg",
+    # per part, as JSON: {part: {status, pose_m, pose_deg[, tcp_m, tcp_deg]}}
+    "detail",
+)
+#: Columns holding text; the others hold numbers (NaN where they do not apply).
+TEXT_FIELDS = frozenset({"id", "kind", "source", "robot", "noise", "status", "error", "worker", "detail"})
+#: Columns holding counts (integers; empty where they do not apply).
+COUNT_FIELDS = frozenset({"seed", "frames", "attempts", "merged", "model_points", "parts", "found", "picked"})
+
+
+def empty_record(job: "Job") -> Dict[str, Any]:
+    """A record of ``job`` with nothing measured yet: text fields empty, numbers NaN."""
+    record: Dict[str, Any] = {k: "" if k in TEXT_FIELDS else math.nan for k in RECORD_FIELDS}
+    record.update(id=job.id, kind=job.kind, source=job.source, robot=job.robot, noise=job.noise, seed=job.seed,
+                  frames=job.n_frames, attempts=1)
+    return record
+
+
+#: find_parts keywords of the part library and of every pose and pick job: the pick
+#: pipeline's CBD radius per part (:attr:`scanalign.pipelines.pick.PickSettings.cbd_radius_fraction`).
+LIBRARY_SETTINGS = {"cbd_radius_fraction": 0.15}
+#: The rest of a pose job's find_parts keywords (as the pick pipeline's; ``settings`` override).
+POSE_SETTINGS = {"up": (0.0, 0.0, 1.0), "table_threshold": 0.004, "min_cluster_size": 300, "voxel_size": 0.001}
+
+
+@dataclass(frozen=True)
+class Job:
+    """What to run: one row of a batch manifest (see docs/batch.md).
+
+    Attributes:
+        id: unique name in the batch (the resume key).
+        kind: ``"reconstruct"``, ``"pose"`` or ``"pick"``.
+        source: ``"synthetic"`` or a path: a recording (TUM RGB-D folder, ROS bag or PNG folder:
+            reconstruct; TUM folder: pick), a PLY or
+            PCD cloud in the robot's base frame, metres (pose).
+        robot, noise, seed: the synthetic scan: robot name, sensor noise preset, noise seed.
+        frames: synthetic views (0: 36 for reconstruct, 4 for pose, 24 for pick).
+        parts: part names (built-in) or part files (pose, pick); default :data:`DEFAULT_PARTS`.
+        settings: keywords of the kind's function (``reconstruct``: of
+            :func:`scanalign.pipelines.reconstruct.reconstruct`; ``pose``: of :func:`scanalign.pose.find_parts`;
+            ``pick``: fields of :class:`scanalign.pipelines.pick.PickSettings`, plus ``joints``,
+            ``hand_eye``, ``robot_base`` files for a real scan).
+        save: a folder to write the job's outputs into (model, trajectories, picks), or "".
+    """
+
+    id: str
+    kind: str
+    source: str = "synthetic"
+    robot: str = "ur5"
+    noise: str = "sr300"
+    seed: int = 0
+    frames: int = 0
+    parts: Tuple[str, ...] = ()
+    settings: Dict[str, Any] = field(default_factory=dict)
+    save: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.id, str) or not self.id or any(c in self.id for c in '/\\\n"'):
+            raise ValueError(f"job id must be a non-empty string without / \\ \" or newlines, got {self.id!r}")
+        if self.kind not in KINDS:
+            raise ValueError(f"job {self.id!r}: kind must be one of {KINDS}, got {self.kind!r}")
+        if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
+            raise ValueError(f"job {self.id!r}: seed must be an integer >= 0, got {self.seed!r}")
+        if not isinstance(self.frames, int) or isinstance(self.frames, bool) or not 0 <= self.frames <= 10000:
+            raise ValueError(f"job {self.id!r}: frames must be an integer in [0, 10000], got {self.frames!r}")
+        if not isinstance(self.settings, dict):
+            raise ValueError(f"job {self.id!r}: settings must be a mapping, got {type(self.settings).__name__}")
+        object.__setattr__(self, "parts", tuple(str(p) for p in self.parts))
+
+    @property
+    def synthetic(self) -> bool:
+        return self.source == "synthetic"
+
+    @property
+    def n_frames(self) -> int:
+        return self.frames or _DEFAULT_FRAMES[self.kind]
+
+    @property
+    def part_names(self) -> Tuple[str, ...]:
+        return self.parts or DEFAULT_PARTS
+
+    def as_dict(self) -> Dict[str, Any]:
+        return asdict(self)
+
+
+def run_job(job: Job, library: Any = None) -> Dict[str, Any]:
+    """Runs one job and returns its record (every field of :data:`RECORD_FIELDS`).
+
+    Never raises for a failing job: the record's ``status`` is ``"ok"`` or ``"failed"``
+    with ``error`` (exception type, message and the innermost frame). ``library``: a
+    :class:`scanalign.grasp.part_library.PartLibrary` holding the job's parts (pose and pick
+    jobs; without one, or for a part it lacks, the views are rendered and described here).
+    """
+    record = empty_record(job)
+    record.update(status="ok", worker=f"{platform.node()}:{os.getpid()}")
+    t0 = time.perf_counter()
+    try:
+        record.update(_RUNNERS[job.kind](job, library))
+    except Exception as e:  # noqa: BLE001 -- isolation is the point: the batch goes on
+        where = traceback.extract_tb(e.__traceback__)[-1] if e.__traceback__ else None
+        record.update(status="failed", error=f"{type(e).__name__}: {e}"
+                      + (f" (at {Path(where.filename).name}:{where.lineno})" if where else ""))
+    record["seconds"] = time.perf_counter() - t0
+    return record
+
+
+# ----------------------------------------------------------------------------------- kinds
+
+
+def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
+    scan = None
+    if job.synthetic:
+        scan = SyntheticConfig(n_frames=job.n_frames, noise=job.noise, seed=job.seed, robot=job.robot).build()
+        frames: Any = scan.frames
+    else:
+        frames = open_source(job.source)  # a TUM folder, a ROS bag or a folder of PNGs + camera file
+    settings = {**(SYNTHETIC_RECONSTRUCTION if job.synthetic else {}), **job.settings}
+    result = reconstruct(frames, progress=False, **settings)
+    s = result.summary()
+    out = {"frames": s["frames"], "merged": s["merged"], "model_points": s["model_points"],
+           "seconds_per_frame": s["seconds_per_frame_median"]}
+    if "ate_m" in s:
+        out.update(ate_rmse_m=s["ate_m"]["rmse"], ate_max_m=s["ate_m"]["max"],
+                   rpe_translation_rmse_m=s["rpe_translation_m"]["rmse"],
+                   rpe_rotation_rmse_deg=s["rpe_rotation_deg"]["rmse"])
+    if scan is not None:
+        out["model_to_mesh_mean_m"] = model_mesh_distance(result, scan.mesh.vertices, scan.mesh.faces)["mean"]
+    if job.save:
+        result.save(job.save)
+    return out
+
+
+def _models(names: Sequence[str], library: Any) -> Tuple[List[Any], List[Any], List[Any]]:
+    """(part definitions, views or meshes, symmetries) of the named parts."""
+    parts = [load_part(n) for n in names]
+    models = [library[p.name].views if library is not None and p.name in library else p.mesh for p in parts]
+    return parts, models, [p.symmetry for p in parts]
+
+
+def _upper_views() -> List[int]:
+    directions, _ = tessellated_sphere(1)
+    return [i for i, d in enumerate(directions) if d[2] > 0]
+
+
+def _pose(job: Job, library: Any) -> Dict[str, Any]:
+    names = job.part_names
+    parts, models, symmetries = _models(names, library)
+    truth: Dict[str, np.ndarray] = {}
+    if job.synthetic:
+        cell = pick_cell(job.robot, noise=job.noise, seed=job.seed, n_frames=job.n_frames)
+        truth = cell.truth
+        points = np.concatenate([cell.scan.points(i, in_base=True) for i in range(len(cell.scan))])
+        points = reconstruction.voxel_grid(points, 0.001).points  # one point per mm voxel, as a merged scan
+    else:
+        points, _ = io.read_cloud(job.source)
+        points = points[np.isfinite(points).all(axis=1)]
+    kw = {**POSE_SETTINGS, "views": _upper_views(), **LIBRARY_SETTINGS, **job.settings}
+    detections = pose.find_parts(models, points, symmetries=symmetries, **kw)
+    found = [d for d in detections.detections if d.status.name == "found"]
+    detail: Dict[str, Dict[str, Any]] = {n: {"status": "not_found"} for n in names}
+    for d in found:
+        name = names[d.part]
+        detail[name] = {"status": "found"}
+        if name in truth:
+            rot, dist = symmetric_pose_error(np.asarray(d.pose.T_scene_model), truth[name], parts[d.part].symmetry)
+            detail[name].update(pose_m=dist, pose_deg=math.degrees(rot))
+    errors = [v for v in detail.values() if "pose_m" in v]
+    out: Dict[str, Any] = {"parts": len(names), "found": len({d.part for d in found}), "detail": json.dumps(detail),
+                           "fitness_min": min((d.pose.fitness for d in found), default=math.nan)}
+    if errors:
+        out.update(pose_error_max_m=max(e["pose_m"] for e in errors),
+                   pose_error_max_deg=max(e["pose_deg"] for e in errors))
+    if job.save:
+        Path(job.save).mkdir(parents=True, exist_ok=True)
+        io.write_ply(Path(job.save) / "scene.ply", points)
+    return out
+
+
+def _matrix(settings: Dict[str, Any], key: str) -> Optional[np.ndarray]:
+    return None if settings.get(key) is None else se3.require_rigid(np.loadtxt(settings[key], ndmin=2), key)
+
+
+def _pick(job: Job, library: Any) -> Dict[str, Any]:
+    settings = dict(job.settings)
+    files = {k: settings.pop(k, None) for k in ("joints", "hand_eye", "robot_base")}
+    settings.setdefault("cbd_radius_fraction", LIBRARY_SETTINGS["cbd_radius_fraction"])
+    s = pick.PickSettings(**settings)
+    truth: Dict[str, np.ndarray] = {}
+    if job.synthetic:
+        cell = pick_cell(job.robot, noise=job.noise, seed=job.seed, n_frames=job.n_frames)
+        scene, parts, robot, truth = cell.scan, [p.name for p in cell.parts], cell.robot, cell.truth
+        result = pick.pick(scene, parts, robot, settings=s, progress=False, library=library)
+    else:
+        result = pick.pick(job.source, list(job.part_names), job.robot, joints=files["joints"],
+                           T_flange_camera=_matrix(files, "hand_eye"), T_base_robot=_matrix(files, "robot_base"),
+                           settings=s, progress=False, library=library)
+    errors = score_picks(result, truth) if truth else {}
+    found = [p for p in result.picks if p.status in ("picked", "no_grasp")]
+    detail = {p.part: {"status": p.status, **errors.get(p.part, {})} for p in result.picks}
+    out: Dict[str, Any] = {"parts": len(result.parts), "found": len(found), "detail": json.dumps(detail),
+                           "picked": sum(p.status == "picked" for p in result.picks),
+                           "fitness_min": min((p.fitness for p in found), default=math.nan)}
+    if errors:
+        e = errors.values()
+        out.update(pose_error_max_m=max(v["pose_m"] for v in e), pose_error_max_deg=max(v["pose_deg"] for v in e),
+                   tcp_error_max_m=max(v["tcp_m"] for v in e), tcp_error_max_deg=max(v["tcp_deg"] for v in e))
+    if job.save:
+        result.save(job.save)
+    return out
+
+
+_RUNNERS = {"reconstruct": _reconstruct, "pose": _pose, "pick": _pick}

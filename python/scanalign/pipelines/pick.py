@@ -1,0 +1,441 @@
+"""From scan to grasp to joint targets: the cell pipeline that joins reconstruction, part
+pose and inverse kinematics (the two source works' system: the eye-in-hand paper, Comput.
+Electron. Agric. 180 (2021) 105929, Algorithm 1, and Kleppe, PhD thesis, NTNU 2018, ch. 6-7
+and Paper 1).
+
+Stages (each a function, :func:`pick` runs them in order):
+
+1. :func:`scan_model`: the scene in the robot's base frame: RGB-D frames with the joints the
+   robot reported are reconstructed frame-to-model, each frame starting from the robot's
+   pose ``T_base_camera = FK(q) T_flange_camera``; or an existing cloud / reconstruction.
+2. :func:`scanalign.pose.find_parts`: table plane and object clusters (CGA RANSAC), the pose
+   ``T_base_model`` of each known part per cluster (CBD + ICP), with fitness, coverage and an
+   "ambiguous" status.
+3. :func:`plan_picks`: per found part, every grasp (and its symmetric copies) and IK branch,
+   rejected with a reason or ranked by joint motion (:func:`scanalign.grasp.plan_grasp`).
+
+Frames (``T_a_b`` maps b-coordinates into a; metres, radians)::
+
+    base --T_base_flange(q)--> flange --T_flange_camera--> camera      (scan)
+    base --T_base_model--> model --T_model_grasp--> tcp                 (part, grasp)
+    flange --T_flange_tcp--> tcp                                        (gripper)
+    so the flange target is T_base_flange = T_base_model T_model_grasp inv(T_flange_tcp).
+
+Everything numeric runs in C++; this module orders the stages, converts inputs and writes
+the outputs (``picks.json``, ``joints.csv``, ``scene.ply``, ``pick.png``).
+"""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import json
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Optional, Sequence, Union
+
+import numpy as np
+
+from scanalign import grasp as _grasp, io
+from scanalign.grasp.parts import load_part
+from scanalign.common import rigid as se3
+from scanalign.common.arrays import as_points, foreign_kind
+from scanalign.kinematics import Robot
+from scanalign.pipelines import reconstruct as pipeline
+from scanalign import datasets
+from scanalign import pose
+from scanalign.pose import model_views as cad
+from scanalign.data.parts import sample_mesh
+
+__all__ = ["PickSettings", "PartPick", "PickResult", "pick", "scan_model", "plan_picks", "read_joint_log",
+           "placed_parts", "print_picks"]
+
+
+
+@dataclass
+class PickSettings:
+    """Settings of :func:`pick` (units beside each field).
+
+    The reconstruction starts every frame from the robot's pose, which is within the robot's
+    accuracy and the hand-eye error (about a millimetre) of the truth, so ICP only needs a
+    short correspondence distance; a long one lets the table plane's noise drag a frame
+    sideways (the table dominates the points and constrains nothing in its own plane).
+    """
+
+    pixel_stride: int = 2               #: use every n-th depth pixel (2: a quarter of them)
+    icp_distance: float = 0.003         #: reconstruction ICP max correspondence distance, m
+    voxel: float = 0.001                #: model voxel grid edge, m (the eye-in-hand paper: 1 mm)
+    max_depth: float = 1.0              #: farthest depth used, m
+    table_threshold: float = 0.004      #: table plane inlier distance, m
+    cluster_tolerance: float = 0.01     #: object cluster distance, m
+    min_cluster_size: int = 300         #: smallest object cluster, points
+    max_objects: int = 10               #: clusters matched, largest first
+    cluster_voxel: float = 0.001        #: each cluster reduced to one point per voxel before its pose, m
+    #: CBD neighbourhood per part: max(6.3 mm, this x the part's size). Merged scans with
+    #: millimetre noise need a neighbourhood well above the noise on large parts (12.5 mm on
+    #: the block) and a small one on small parts (6.3 mm on the standoff); see
+    #: :func:`scanalign.pose.find_parts`.
+    cbd_radius_fraction: float = 0.15
+    #: Model views matched: "upper" (the views from above the part's own xy plane: the part
+    #: rests on its base, z up in the CAD frame, as parts on a table usually do; 2.5 times
+    #: faster than all 42) or "all" (any orientation).
+    views: str = "upper"
+    pose: Dict[str, Any] = field(default_factory=dict)     #: keywords of :func:`scanalign.pose.find_parts`
+    planner: Dict[str, Any] = field(default_factory=dict)  #: fields of :class:`scanalign.grasp.GraspPlannerSettings`
+
+
+@dataclass
+class PartPick:
+    """The outcome for one detected part (or one known part not found).
+
+    Attributes:
+        part: the part's name; cluster: index of its object cluster (-1: not found).
+        status: ``"picked"`` (joint targets below), ``"no_grasp"`` (found, but every grasp
+            candidate was rejected: see ``plan.candidates``), ``"ambiguous"`` (two poses or
+            parts scored alike: not picked), ``"not_found"`` (the part is not in the scene).
+        message: why, in words.
+        T_base_model: (4, 4) the part's pose (model -> base), or None.
+        fitness, coverage: the pose's scores (fraction of model points on the object and of
+            object points explained).
+        plan: the :class:`scanalign.grasp.GraspPlanResult` (every candidate with its reason).
+    """
+
+    part: str
+    status: str
+    message: str = ""
+    cluster: int = -1
+    T_base_model: Optional[np.ndarray] = None
+    fitness: float = 0.0
+    coverage: float = 0.0
+    plan: Any = None
+    grasp_names: List[str] = field(default_factory=list)
+
+    @property
+    def chosen(self) -> Any:
+        """The chosen grasp candidate, or None."""
+        return self.plan.candidates[self.plan.chosen] if self.status == "picked" else None
+
+    def as_dict(self) -> Dict[str, Any]:
+        d: Dict[str, Any] = {"part": self.part, "status": self.status, "message": self.message,
+                             "cluster": self.cluster, "fitness": self.fitness, "coverage": self.coverage,
+                             "T_base_model": None if self.T_base_model is None else self.T_base_model.tolist()}
+        if self.plan is not None:
+            d["candidates"] = [self._candidate(c) for c in self.plan.candidates]
+            d["rejected"] = [c for c in d["candidates"] if c["reason"] != "ok"]
+        if self.status == "picked":
+            d["chosen"] = self._candidate(self.chosen)
+        return d
+
+    def _candidate(self, c: Any) -> Dict[str, Any]:
+        ok = c.reason == "ok"
+        return {"grasp": self.grasp_names[c.grasp_index], "grasp_index": c.grasp_index,
+                "symmetry_index": c.symmetry_index, "ik_config": c.config_index, "reason": c.reason,
+                "detail": c.detail, "cost": float(c.cost) if ok else None,
+                "q_pregrasp": [float(v) for v in c.q_pregrasp] if np.all(np.isfinite(c.q_pregrasp)) else None,
+                "q_grasp": [float(v) for v in c.q_grasp] if ok else None,
+                **{k: np.asarray(getattr(c, k)).tolist() for k in ("T_base_tcp_pregrasp", "T_base_tcp_grasp",
+                                                                  "T_base_flange_pregrasp", "T_base_flange_grasp")}}
+
+
+@dataclass
+class PickResult:
+    """Outcome of :func:`pick`.
+
+    Attributes:
+        picks: one :class:`PartPick` per detected part, then one per known part not found.
+        points: (N, 3) the scene in the base frame (the reconstruction's model), metres.
+        detections: the :func:`scanalign.pose.find_parts` result (table plane, clusters).
+        robot: the picking robot (placed in the base frame, its tool the gripper's TCP).
+        q_current: (6,) the joints the motion cost was measured from, rad.
+        parts: the parts as loaded (:func:`load_part`), in the order given.
+        seconds: wall time per stage (``scan``, ``detect``, ``plan``, ``total``).
+        reconstruction: the :class:`scanalign.pipelines.reconstruct.ReconstructionResult` when frames were
+            reconstructed, else None.
+    """
+
+    picks: List[PartPick]
+    points: np.ndarray
+    detections: Any
+    robot: Any
+    q_current: np.ndarray
+    parts: List[Any]
+    seconds: Dict[str, float] = field(default_factory=dict)
+    reconstruction: Any = None
+
+    def as_dict(self) -> Dict[str, Any]:
+        return {"robot": self.robot.name, "q_current": self.q_current.tolist(), "seconds": self.seconds,
+                "table_plane": [float(v) for v in _table_plane(self.detections)],
+                "picks": [p.as_dict() for p in self.picks],
+                "unmatched_clusters": [{"cluster": k, "points": len(d.indices), "size_m": d.size, "message": d.message}
+                                       for k, d in enumerate(self.detections.detections) if d.status.name == "not_found"]}
+
+    def save(self, out_dir: Union[str, Path]) -> Dict[str, Path]:
+        """Writes ``picks.json`` (every part, its pose, the chosen grasp, joint targets and every
+        rejected candidate with its reason), ``joints.csv`` (the joint path of each chosen
+        approach, pre-grasp to grasp, rad), ``scene.ply`` (the scene, grey, with each placed
+        part's surface coloured); :func:`scanalign.viz.reports.save_report` adds ``pick.png`` (the
+        arm at each grasp over the scene). Returns the paths written."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {"picks": out / "picks.json", "joints": out / "joints.csv", "scene": out / "scene.ply"}
+        with io.atomic_open(paths["picks"], "w", encoding="utf-8") as f:
+            json.dump(self.as_dict(), f, indent=1)
+        with io.atomic_open(paths["joints"], "w", newline="", encoding="utf-8") as f:
+            w = csv.writer(f)
+            w.writerow(["part", "step", "q1", "q2", "q3", "q4", "q5", "q6"])
+            for p in self.picks:
+                if p.status == "picked":
+                    for k, q in enumerate(p.plan.approach_q):
+                        w.writerow([p.part, k] + [repr(float(v)) for v in q])
+        _write_scene(paths["scene"], self)
+        return paths
+
+
+def read_joint_log(path: Union[str, Path]) -> Dict[float, np.ndarray]:
+    """A joint log as ``scanalign synth`` writes it (``index,timestamp,q1,...,q6``, seconds and
+    radians): {timestamp: (6,) joints}. Raises ValueError naming the file and line."""
+    out: Dict[float, np.ndarray] = {}
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    if not rows or [c.strip() for c in rows[0][1:8]] != ["timestamp", "q1", "q2", "q3", "q4", "q5", "q6"]:
+        raise ValueError(f"{path}: expected the header index,timestamp,q1,...,q6")
+    for n, row in enumerate(rows[1:], start=2):
+        try:
+            t, q = float(row[1]), np.array([float(v) for v in row[2:8]])
+        except (ValueError, IndexError):
+            raise ValueError(f"{path}, line {n}: expected a timestamp and six joint values (rad)") from None
+        if q.shape != (6,) or not np.all(np.isfinite(q)) or not math.isfinite(t):
+            raise ValueError(f"{path}, line {n}: non-finite or missing joint values")
+        out[t] = q
+    return out
+
+
+def _robot(robot: Any, T_base_robot: Optional[np.ndarray]) -> Any:
+    r = Robot.by_name(robot) if isinstance(robot, str) else robot
+    if not isinstance(r, Robot):
+        raise TypeError(f"robot: expected a scanalign.kinematics.Robot or a robot name, got {type(robot)!r}")
+    if T_base_robot is not None:
+        r = r.with_base(se3.require_rigid(T_base_robot, "T_base_robot") @ r.T_base_dh0)
+    return r
+
+
+def _frames_with_robot_poses(frames: Sequence[Any], robot: Any, T_flange_camera: np.ndarray,
+                             joints: Optional[Dict[float, np.ndarray]]) -> List[Any]:
+    """Each frame's ``T_base_camera`` from the robot: FK of its joints (``meta["joints"]`` or
+    the joint log at its timestamp, within 1 ms) and the hand-eye transform."""
+    flange = robot.with_tool(np.eye(4))
+    stamps = np.array(sorted(joints)) if joints else np.zeros(0)
+    out = []
+    for f in frames:
+        q = (getattr(f, "meta", None) or {}).get("joints")
+        if q is None and stamps.size:
+            k = int(np.argmin(np.abs(stamps - f.timestamp)))
+            q = joints[stamps[k]] if abs(stamps[k] - f.timestamp) <= 1e-3 else None
+        if q is None:
+            raise ValueError(f"frame {f.index} (t = {f.timestamp:.6f} s) has no robot joints: the pick pipeline "
+                             "places every frame by the robot's forward kinematics (give a joint log)")
+        out.append(dataclasses.replace(f, T_base_camera=flange.fk(np.asarray(q, dtype=np.float64)) @ T_flange_camera))
+    return out
+
+
+def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.ndarray] = None,
+               joints: Optional[Union[str, Path]] = None, settings: Optional[PickSettings] = None,
+               progress: bool = True, on_frame: Any = None) -> tuple:
+    """The scene in the robot's base frame, metres: ``(points (N, 3), reconstruction or None)``.
+
+    ``scene`` is a :class:`scanalign.synthetic.SyntheticScan` (its robot and hand-eye
+    transform are used unless given), a list of :class:`scanalign.reconstruction.camera.Frame`
+    or a recording :func:`scanalign.datasets.open_source` reads (a TUM RGB-D folder, a ROS bag,
+    an image folder; with ``joints``, a joint log, unless the frames carry their joints), a
+    :class:`scanalign.pipelines.reconstruct.ReconstructionResult` built in the base frame, a PLY / PCD
+    cloud file or an (N, 3) array already in the base frame (or an Open3D / trimesh cloud).
+    ``on_frame``: the per-frame hook of :func:`scanalign.pipelines.reconstruct.reconstruct`."""
+    s = settings or PickSettings()
+    if isinstance(scene, pipeline.ReconstructionResult):
+        return np.asarray(scene.model.points, dtype=np.float64), scene
+    if isinstance(scene, (str, Path)) and not datasets.is_recording(scene):
+        return io.read_cloud(scene)[0].astype(np.float64), None
+    if isinstance(scene, np.ndarray) or foreign_kind(scene) == "cloud":
+        return as_points(scene, "scene", np.dtype(np.float64)), None
+    frames = scene.frames if hasattr(scene, "frames") else scene
+    if isinstance(scene, (str, Path)):  # a TUM folder, a ROS bag or an image folder
+        frames = list(datasets.open_source(scene))
+    if T_flange_camera is None:
+        T_flange_camera = getattr(scene, "T_flange_camera", None)
+    if T_flange_camera is None:
+        raise ValueError("T_flange_camera (camera -> flange, the hand-eye calibration) is needed to place the frames")
+    if robot is None:
+        raise ValueError("robot: the arm that moved the camera is needed to place the frames")
+    log = read_joint_log(joints) if joints is not None else None
+    placed = _frames_with_robot_poses(list(frames), robot, se3.require_rigid(T_flange_camera, "T_flange_camera"), log)
+    rec = pipeline.reconstruct(placed, model_frame="base", initial_guess="reference", pixel_stride=s.pixel_stride,
+                               max_depth=s.max_depth, model_voxel_size=s.voxel, progress=progress,
+                               icp=dict(max_correspondence_distance=s.icp_distance), on_frame=on_frame)
+    return np.asarray(rec.model.points, dtype=np.float64), rec
+
+
+def _table_plane(detections: Any) -> np.ndarray:
+    """(n, d) of the table plane n.p + d = 0 in the base frame, n pointing up (+z)."""
+    plane = detections.table.plane  # n.p = distance
+    n, d = np.asarray(plane.normal, dtype=np.float64), -float(plane.distance)
+    if n[2] < 0:
+        n, d = -n, -d
+    return np.append(n, d)
+
+
+def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: Any = None,
+               q_current: Optional[Sequence[float]] = None, planner: Optional[Dict[str, Any]] = None) -> List[PartPick]:
+    """Grasp planning for every detection of :func:`scanalign.pose.find_parts` (poses in the
+    base frame): a :class:`PartPick` per detection, then a ``not_found`` one per part that
+    no cluster matched. ``robot`` is placed in the base frame; ``q_current`` (rad) defaults
+    to the zero joints."""
+    q0 = np.zeros(6) if q_current is None else np.asarray(q_current, dtype=np.float64)
+    plane = _table_plane(detections)
+    out: List[PartPick] = []
+    for k, det in enumerate(detections.detections):
+        if det.status.name == "not_found":  # a cluster that is none of the parts (listed in picks.json)
+            continue
+        part = parts[det.part]
+        pp = PartPick(part.name, det.status.name, det.message, cluster=k, T_base_model=np.array(det.pose.T_scene_model),
+                      fitness=det.pose.fitness, coverage=det.pose.coverage, grasp_names=[g.name for g in part.grasps])
+        if det.status.name == "found":
+            pp.plan = _grasp.plan_grasp(robot, pp.T_base_model, part.grasps, symmetry=part.symmetry,
+                                        gripper=gripper or part.gripper, table_plane=plane, q_current=q0,
+                                        **(planner or {}))
+            pp.status, pp.message = ("picked", "") if pp.plan.found else ("no_grasp", pp.plan.message)
+        out.append(pp)
+    seen = {parts[d.part].name for d in detections.detections if d.status.name != "not_found"}
+    out += [PartPick(p.name, "not_found", "no object cluster matched this part") for p in parts if p.name not in seen]
+    return out
+
+
+def _parts(parts: Sequence[Any]) -> List[Any]:
+    if isinstance(parts, (str, Path)) or not parts:
+        raise ValueError("parts: give a list of at least one part (a part file, a built-in part name or a PartGrasps)")
+    return [load_part(p) for p in parts]
+
+
+def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: Optional[np.ndarray] = None,
+         T_flange_camera: Optional[np.ndarray] = None, joints: Optional[Union[str, Path]] = None, gripper: Any = None,
+         q_current: Optional[Sequence[float]] = None, settings: Optional[PickSettings] = None,
+         progress: bool = True, library: Any = None, viewer: Any = None) -> PickResult:
+    """Scan, find every known part, and plan the joint targets to pick each one.
+
+    Args:
+        scene: what :func:`scan_model` takes (frames with robot joints, a TUM folder with a
+            joint log, a synthetic scan, a reconstruction or a cloud in the base frame).
+        parts: part files (JSON / YAML, see :func:`scanalign.grasp.read_part_grasps`),
+            built-in part names ("block", "bracket", "standoff") or
+            :class:`scanalign.grasp.PartGrasps`: each a CAD mesh, its grasps and symmetry.
+        robot: a :class:`scanalign.kinematics.Robot` or a name; default the synthetic scan's.
+        T_base_robot: (4, 4) where the robot's own base sits in the base frame (robot base ->
+            base, m); default the robot as given (or the synthetic scan's mount).
+        T_flange_camera: (4, 4) the hand-eye calibration (camera -> flange, m); default the
+            synthetic scan's (see :func:`scanalign.calibration.calibrate_hand_eye`).
+        joints: a joint log for a TUM folder (:func:`read_joint_log`).
+        gripper: a :class:`scanalign.grasp.Gripper` (default each part file's, else
+            :meth:`Gripper.parallel_jaw`).
+        q_current: (6,) the robot's joints now, rad (default the scan's last joints, else 0).
+        settings: :class:`PickSettings`.
+        progress: progress bars on stderr.
+        library: a :class:`scanalign.grasp.part_library.PartLibrary`: the views of the parts it
+            holds are taken from it instead of rendered (their descriptors are recomputed
+            when ``cbd_radius_fraction`` makes the CBD radius depend on the cluster).
+        viewer: a :class:`scanalign.viz.viewer.Viewer`: the scan streamed while it is reconstructed
+            (the arm drawn is the picking robot unless the viewer has one), then the result.
+
+    Returns:
+        :class:`PickResult` (``save(out_dir)`` writes the files).
+
+    Raises:
+        ValueError: an empty scene or part list, a part larger than the robot's workspace,
+            a malformed part file, frames without joints, a non-rigid transform.
+        TypeError: an unknown robot type.
+    """
+    s = settings or PickSettings()
+    t0 = time.perf_counter()
+    part_list = _parts(parts)
+    if robot is None:
+        robot = getattr(scene, "robot", None)
+        if robot is None:
+            raise ValueError("robot: give the picking robot (a Robot or a name such as 'ur5')")
+    arm = _robot(robot, T_base_robot)
+    reach = float(np.sum(np.abs(arm.a)) + np.sum(np.abs(arm.d)))
+    for p in part_list:
+        size = float(np.ptp(np.asarray(p.mesh.vertices), axis=0).max())
+        if size > reach:
+            raise ValueError(f"part {p.name!r} is {size:.3f} m across, larger than the {arm.name}'s workspace "
+                             f"(sum of its link lengths {reach:.3f} m): check the part's scale (metres)")
+    if viewer is not None and viewer.robot is None:
+        viewer.robot = arm
+    points, rec = scan_model(scene, arm, T_flange_camera=T_flange_camera, joints=joints, settings=s, progress=progress,
+                             on_frame=None if viewer is None else viewer.on_frame)
+    if len(points) == 0:
+        raise ValueError("the scene has no points")
+    t1 = time.perf_counter()
+    if s.views not in ("upper", "all"):
+        raise ValueError(f"settings.views must be 'upper' or 'all', got {s.views!r}")
+    directions, _ = cad.tessellated_sphere(1)
+    views = [i for i, d in enumerate(directions) if d[2] > 0] if s.views == "upper" else None
+    models = [library[p.name].views if library is not None and p.name in library else p.mesh for p in part_list]
+    detections = pose.find_parts(models, points, symmetries=[p.symmetry for p in part_list],
+                                 up=(0.0, 0.0, 1.0), table_threshold=s.table_threshold,
+                                 cluster_tolerance=s.cluster_tolerance, min_cluster_size=s.min_cluster_size,
+                                 max_objects=s.max_objects, voxel_size=s.cluster_voxel, views=views,
+                                 progress=progress, **{"cbd_radius_fraction": s.cbd_radius_fraction, **s.pose})
+    t2 = time.perf_counter()
+    if q_current is None:
+        q_last = getattr(scene, "joints", None)
+        q_current = q_last[-1] if q_last is not None and len(q_last) else np.zeros(6)
+    picks = plan_picks(detections, part_list, arm, gripper=gripper, q_current=q_current, planner=s.planner)
+    t3 = time.perf_counter()
+    seconds = {"scan": t1 - t0, "detect": t2 - t1, "plan": t3 - t2, "total": t3 - t0}
+    q_current = np.asarray(q_current, dtype=np.float64)
+    result = PickResult(picks, points, detections, arm, q_current, part_list, seconds, rec)
+    if viewer is not None:
+        viewer.log_pick(result)
+    return result
+
+
+def placed_parts(result: PickResult, samples: int = 5000) -> List[tuple]:
+    """(pick index, (samples, 3) points of the part's surface at its found pose, base frame, m)
+    for every part with a pose."""
+    meshes = {p.name: p.mesh for p in result.parts}
+    return [(k, (sample_mesh(meshes[p.part], samples, seed=0)[0] @ p.T_base_model[:3, :3].T + p.T_base_model[:3, 3]))
+            for k, p in enumerate(result.picks) if p.T_base_model is not None]
+
+
+def _write_scene(path: Path, result: PickResult) -> None:
+    """The scene (grey) and every posed part's surface (one colour per pick), base frame."""
+    palette = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189]], np.uint8)
+    pts = [result.points.astype(np.float32)]
+    cols = [np.full((len(result.points), 3), 150, np.uint8)]
+    for k, v in placed_parts(result):
+        pts.append(v.astype(np.float32))
+        cols.append(np.tile(palette[k % len(palette)], (len(v), 1)))
+    io.write_ply(path, np.vstack(pts), colors=np.vstack(cols))
+
+
+def print_picks(result: PickResult, file: Any = sys.stdout) -> None:
+    """One line per part: status, pose scores, chosen grasp and joint targets, rejections."""
+    for p in result.picks:
+        line = f"{p.part:<10} {p.status:<10}"
+        if p.T_base_model is not None:
+            t = p.T_base_model[:3, 3]
+            line += f" at ({t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}) m, fitness {p.fitness:.2f} coverage {p.coverage:.2f}"
+        print(line, file=file)
+        if p.status == "picked":
+            c = p.chosen
+            print(f"{'':11}grasp {p.grasp_names[c.grasp_index]!r}, IK configuration {c.config_index}, q_grasp = "
+                  + " ".join(f"{v:+.4f}" for v in c.q_grasp) + " rad", file=file)
+        elif p.message:
+            print(f"{'':11}{p.message}", file=file)
+        if p.plan is not None:
+            reasons: Dict[str, int] = {}
+            for c in p.plan.candidates:
+                reasons[c.reason] = reasons.get(c.reason, 0) + 1
+            print(f"{'':11}candidates: " + ", ".join(f"{n} {r}" for r, n in sorted(reasons.items())), file=file)
+    print(" ".join(f"{k} {v:.2f} s" for k, v in result.seconds.items()), file=file)

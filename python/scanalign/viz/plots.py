@@ -1,0 +1,474 @@
+"""Figures for reports and benchmarks: trajectories, per-frame statistics, curves.
+
+matplotlib is imported on first use and only through its object-oriented API with the Agg
+canvas (no pyplot, no display, no global backend switch), so these functions work on
+headless machines and do not disturb an interactive session.  Every function writes a PNG
+and returns its path.
+
+Conventions: inputs in metres and seconds; ``T_world_camera`` poses.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from scanalign.evaluation.trajectory import Trajectory
+from scanalign.evaluation import absolute_trajectory_error
+from scanalign.pipelines.pick import placed_parts
+
+__all__ = ["plot_batch", "plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory",
+           "pose_overlay", "plot_pick"]
+
+PathLike = Union[str, os.PathLike]
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def _figure(figsize: Tuple[float, float]):
+    """A matplotlib Figure attached to an Agg canvas (no pyplot state)."""
+    try:
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError(
+            "scanalign.viz.plots needs matplotlib (pip install matplotlib); the rest of scanalign "
+            "works without it") from exc
+    fig = Figure(figsize=figsize, layout="constrained")
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig, path: PathLike, dpi: int) -> Path:
+    out = Path(path)
+    if out.parent and not out.parent.exists():
+        out.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=dpi, format="png")
+    return out
+
+
+def _plane_axes(plane: Optional[str], positions: np.ndarray) -> Tuple[int, int]:
+    if plane is None:
+        ext = np.ptp(positions, axis=0) if positions.shape[0] else np.zeros(3)
+        i, j = sorted(np.argsort(-ext, kind="stable")[:2].tolist())
+        return i, j
+    if len(plane) != 2 or plane[0] not in _AXES or plane[1] not in _AXES or plane[0] == plane[1]:
+        raise ValueError(f"plane must be two different letters of 'xyz' such as 'xy' or 'xz', got {plane!r}")
+    return _AXES[plane[0]], _AXES[plane[1]]
+
+
+def _length_unit(units: str, extent: float) -> Tuple[str, float]:
+    if units == "auto":
+        units = "mm" if extent < 0.5 else "m"
+    if units == "m":
+        return "m", 1.0
+    if units == "mm":
+        return "mm", 1000.0
+    raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
+
+
+def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory], path: PathLike,
+                            title: Optional[str] = None, aligned: bool = True, plane: Optional[str] = None,
+                            units: str = "auto", with_scale: bool = False, associate: bool = False,
+                            max_difference: float = 0.02, dpi: int = 150) -> Path:
+    """Top-down view of estimated vs reference camera centres, like Fig. 4 of the eye-in-hand
+    paper (Comput. Electron. Agric. 180 (2021) 105929).
+
+    The reference is a black line, the estimate a coloured one, and thin grey segments join
+    corresponding poses (their lengths are the ATE errors when ``aligned``).  Circles mark
+    the start, squares the end.  Axes are equal, in metres or millimetres.
+
+    Args:
+        estimate, reference: ``T_world_camera`` trajectories, paired by index (equal length)
+            or by timestamps with ``associate`` (``max_difference`` s). Without a reference
+            (real data) the estimate alone is drawn, in its own frame.
+        path: PNG file to write (parent folders are created).
+        aligned: align the estimate to the reference first (as the ATE does; the ATE RMSE
+            appears in the legend).  Otherwise both are drawn as given and the legend shows
+            the RMSE of the raw distances.
+        plane: two axes of the reference world frame, e.g. ``"xy"`` (x horizontal) or
+            ``"xz"``; default: the two axes along which the reference centres extend most.
+        units: ``"m"``, ``"mm"`` or ``"auto"`` (mm when the drawn extent is under 0.5 m).
+        with_scale: similarity alignment.
+
+    Returns:
+        The written path.
+    """
+    ate = None
+    if reference is not None:
+        ate = absolute_trajectory_error(estimate, reference, align=aligned, with_scale=with_scale,
+                                        associate=associate, max_difference=max_difference)
+    est = ate.aligned.positions if ate else estimate.positions
+    ref = ate.reference.positions if ate else est[:0]
+    i, j = _plane_axes(plane, ref if ate else est)
+    both = np.concatenate([est, ref])
+    extent = float(np.ptp(both[:, [i, j]], axis=0).max()) if both.shape[0] else 0.0
+    unit, k = _length_unit(units, extent)
+    e2, r2 = est[:, [i, j]] * k, ref[:, [i, j]] * k
+    fig = _figure((6.4, 5.6))
+    ax = fig.add_subplot(1, 1, 1)
+    if ate:
+        from matplotlib.collections import LineCollection
+
+        ax.add_collection(LineCollection(np.stack([r2, e2], axis=1), colors="0.6", linewidths=0.6, label="error",
+                                         zorder=1))
+        ax.plot(r2[:, 0], r2[:, 1], "-", color="black", lw=1.4, label="reference", zorder=2)
+    ax.plot(e2[:, 0], e2[:, 1], "-", color="tab:blue", lw=1.2,
+            label="estimate" + (" (aligned)" if ate and aligned else ""), zorder=3)
+    for pts, color in ((r2, "black"), (e2, "tab:blue")) if ate else ((e2, "tab:blue"),):
+        ax.plot(pts[0, 0], pts[0, 1], "o", color=color, ms=6, mfc="white", zorder=4)
+        ax.plot(pts[-1, 0], pts[-1, 1], "s", color=color, ms=6, zorder=4)
+    ax.plot([], [], "o", color="0.3", mfc="white", label="start")
+    ax.plot([], [], "s", color="0.3", label="end")
+    names = "xyz"
+    ax.set_xlabel(f"{names[i]} ({unit})")
+    ax.set_ylabel(f"{names[j]} ({unit})")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.autoscale_view()
+    ax.grid(True, lw=0.3, alpha=0.5)
+    if ate:
+        label = "ATE" if aligned else "RMS distance (unaligned)"
+        summary = (f"{label} RMSE {ate.translation.rmse * k:.3g} {unit}, max {ate.translation.max * k:.3g} {unit}, "
+                   f"{ate.translation.count} poses")
+    else:
+        summary = f"estimated camera path (model frame), {len(estimate)} poses, no reference"
+    ax.set_title(f"{title + chr(10) if title else ''}{summary}")
+    ax.legend(loc="best", fontsize=8)
+    return _save(fig, path, dpi)
+
+
+_ALIASES = {"time": ("time", "seconds"), "iterations": ("iterations",), "fitness": ("fitness",),
+            "model_size": ("model_size", "model_points"), "skipped": ("skipped",)}
+
+
+def _columns(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]]) -> Dict[str, np.ndarray]:
+    """Normalises rows-of-dicts or dict-of-columns to float columns by canonical name."""
+    if isinstance(per_frame, Mapping):
+        raw = {k: list(v) for k, v in per_frame.items()}
+        n = len(next(iter(raw.values()))) if raw else 0
+        if any(len(v) != n for v in raw.values()):
+            raise ValueError("per_frame: columns have different lengths")
+    else:
+        rows = list(per_frame)
+        if not all(isinstance(r, Mapping) for r in rows):
+            raise TypeError("per_frame: expected a sequence of dicts or a dict of columns")
+        keys = set().union(*(r.keys() for r in rows)) if rows else set()
+        raw = {k: [r.get(k) for r in rows] for k in keys}
+        n = len(rows)
+    cols: Dict[str, np.ndarray] = {}
+    for name, aliases in _ALIASES.items():
+        for a in aliases:
+            if a in raw:
+                cols[name] = np.array([np.nan if x is None else float(x) for x in raw[a]], dtype=np.float64)
+                break
+    cols["_n"] = np.array(n)
+    return cols
+
+
+def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]], path: PathLike,
+                     title: Optional[str] = None, dpi: int = 150) -> Path:
+    """Per-frame registration cost and model growth, two panels sharing the frame axis.
+
+    Top: registration time (ms, bars) with ICP iterations on a twin axis.  Bottom: model
+    size (points) with the ICP fitness on a twin axis.  Skipped frames (``skipped`` true,
+    or a missing / NaN time) are shaded red with an ``x`` on the frame axis.
+
+    Args:
+        per_frame: one dict per frame, or a dict of equal-length columns, with the time in
+            seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``, the
+            model size in points (``model_size`` or ``model_points``) and ``skipped``.
+        path: PNG file to write.
+
+    Returns:
+        The written path.
+    """
+    cols = _columns(per_frame)
+    n = int(cols.pop("_n"))
+    if n == 0:
+        raise ValueError("per_frame: no frames")
+    if "time" not in cols:
+        raise ValueError(f"per_frame: no time column (one of {_ALIASES['time']})")
+    frames = np.arange(n)
+    t_ms = cols["time"] * 1000.0
+    skipped = ~np.isfinite(t_ms)
+    if "skipped" in cols:
+        skipped |= np.nan_to_num(cols["skipped"], nan=0.0) != 0
+    fig = _figure((7.5, 5.5))
+    ax1 = fig.add_subplot(2, 1, 1)
+    ax2 = fig.add_subplot(2, 1, 2, sharex=ax1)
+    ok = ~skipped
+    ax1.bar(frames[ok], t_ms[ok], width=0.8, color="tab:blue", label="registration time")
+    ax1.set_ylabel("time (ms)")
+    handles = [ax1.containers[0]] if ax1.containers else []
+    if "iterations" in cols:
+        ax1b = ax1.twinx()
+        (h,) = ax1b.plot(frames, cols["iterations"], ".-", color="tab:orange", lw=0.8, ms=3, label="iterations")
+        ax1b.set_ylabel("ICP iterations")
+        handles.append(h)
+    if "model_size" in cols:
+        (h2,) = ax2.plot(frames, cols["model_size"], "-", color="tab:green", lw=1.2, label="model size")
+        ax2.set_ylabel("model size (points)")
+        h2s = [h2]
+    else:
+        h2s = []
+        ax2.set_yticks([])
+    if "fitness" in cols:
+        ax2b = ax2.twinx()
+        (h,) = ax2b.plot(frames, cols["fitness"], ".", color="tab:purple", ms=3, label="fitness")
+        ax2b.set_ylabel("fitness")
+        h2s.append(h)
+    for ax in (ax1, ax2):
+        for f in frames[skipped]:
+            ax.axvspan(f - 0.5, f + 0.5, color="tab:red", alpha=0.15, lw=0)
+        ax.grid(True, lw=0.3, alpha=0.5)
+    if np.any(skipped):
+        ax1.plot(frames[skipped], np.zeros(int(skipped.sum())), "x", color="tab:red", ms=7, clip_on=False,
+                 label="skipped")
+        handles.append(ax1.lines[-1])
+    ax2.set_xlabel("frame")
+    if handles:
+        ax1.legend(handles=handles, loc="upper left", fontsize=8)
+    if h2s:
+        ax2.legend(handles=h2s, loc="upper left", fontsize=8)
+    total = np.nansum(cols["time"])
+    ax1.set_title(f"{title + chr(10) if title else ''}{n} frames, {int(skipped.sum())} skipped, "
+                  f"registration {total:.3g} s total")
+    return _save(fig, path, dpi)
+
+
+def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path: PathLike, *,
+                xlabel: str = "", ylabel: str = "", title: Optional[str] = None, logx: bool = False,
+                logy: bool = False, errors: Optional[Mapping[str, Sequence[float]]] = None,
+                markers: bool = True, dpi: int = 150) -> Path:
+    """Benchmark curves: one line per label over shared x values (eye-in-hand paper Figs. 5, 6, 7, 9:
+    time or ATE vs number of images or iteration cap).
+
+    Args:
+        x: (M,) x values (e.g. number of images, iteration cap).
+        series: label -> (M,) y values; NaN leaves a gap (e.g. a method that failed).
+        path: PNG file to write.
+        xlabel, ylabel: axis labels, with units (e.g. ``"total time (s)"``).
+        logx, logy: logarithmic axes (non-positive values are not drawn).
+        errors: optional label -> (M,) symmetric error bars (e.g. standard deviations).
+
+    Returns:
+        The written path.
+
+    Raises:
+        ValueError: no series, or a series whose length differs from ``x``.
+    """
+    xv = np.asarray(x, dtype=np.float64).reshape(-1)
+    if not series:
+        raise ValueError("plot_series: no series given")
+    fig = _figure((6.4, 4.4))
+    ax = fig.add_subplot(1, 1, 1)
+    style = "o-" if markers else "-"
+    for label, y in series.items():
+        yv = np.asarray(y, dtype=np.float64).reshape(-1)
+        if yv.shape != xv.shape:
+            raise ValueError(f"plot_series: series {label!r} has {yv.size} values for {xv.size} x values")
+        err = None if errors is None or label not in errors else np.asarray(errors[label], dtype=np.float64)
+        if err is not None:
+            if err.shape != xv.shape:
+                raise ValueError(f"plot_series: errors for {label!r} have {err.size} values for {xv.size} x values")
+            ax.errorbar(xv, yv, yerr=err, fmt=style, ms=4, lw=1.2, capsize=3, label=str(label))
+        else:
+            ax.plot(xv, yv, style, ms=4, lw=1.2, label=str(label))
+    if logx:
+        ax.set_xscale("log")
+        finite_x = np.unique(xv[np.isfinite(xv) & (xv > 0)])
+        if 0 < finite_x.size <= 12:  # label the measured x values (image counts, caps) plainly
+            from matplotlib.ticker import NullFormatter
+
+            ax.set_xticks(finite_x, [f"{v:g}" for v in finite_x])
+            ax.xaxis.set_minor_formatter(NullFormatter())
+    if logy:
+        ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    if title:
+        ax.set_title(title)
+    ax.grid(True, which="both", lw=0.3, alpha=0.5)
+    ax.legend(loc="best", fontsize=8)
+    return _save(fig, path, dpi)
+
+
+def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels: Optional[Sequence[str]] = None,
+                            T_base_tool: Optional[np.ndarray] = None, title: Optional[str] = None,
+                            dpi: int = 110) -> Path:
+    """Draws arm configurations (e.g. all IK solutions of one pose) as stick figures.
+
+    Args:
+        robot: a :class:`scanalign.kinematics.Robot` (its ``joint_positions(q, tcp=True)``
+            gives the origins of DH frames 0..6 and the TCP in the robot base frame).
+        q: (K, 6) joint values, radians; rows with NaN are skipped.
+        path: output PNG.
+        labels: one caption per row (e.g. "shoulder +1 elbow +1 wrist -1").
+        T_base_tool: (4, 4) target tool pose (tool -> base), drawn as a small RGB triad.
+        title: figure title.
+
+    Returns:
+        The path written. One 3D panel per configuration, metres, equal axes.
+    """
+    q = np.atleast_2d(np.asarray(q, dtype=np.float64))
+    if q.ndim != 2 or q.shape[1] != 6:
+        raise ValueError(f"q: expected shape (K, 6), got {q.shape}")
+    rows = [k for k in range(q.shape[0]) if np.all(np.isfinite(q[k]))]
+    if labels is not None and len(labels) != q.shape[0]:
+        raise ValueError("labels: need one label per row of q")
+    n = max(len(rows), 1)
+    cols = min(n, 4)
+    nrows = (n + cols - 1) // cols
+    fig = _figure((3.2 * cols, 3.2 * nrows))
+    chains = [(k, np.asarray(robot.joint_positions(q[k], tcp=True))) for k in rows]
+    pts = np.vstack([c for _, c in chains] + ([np.asarray(T_base_tool)[None, :3, 3]] if T_base_tool is not None else [])
+                    ) if chains else np.zeros((1, 3))
+    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    half = 0.55 * max(float(np.ptp(pts, axis=0).max()), 1e-3)
+    for i, (k, chain) in enumerate(chains):
+        ax = fig.add_subplot(nrows, cols, i + 1, projection="3d")
+        ax.plot(chain[:, 0], chain[:, 1], chain[:, 2], "-o", color="0.25", lw=2.5, ms=3.5)
+        ax.plot([chain[0, 0]], [chain[0, 1]], [chain[0, 2]], "s", color="k", ms=6)
+        if T_base_tool is not None:
+            T = np.asarray(T_base_tool, dtype=np.float64)
+            for a, colour in enumerate(("r", "g", "b")):
+                e = T[:3, 3] + 0.25 * half * T[:3, a]
+                ax.plot([T[0, 3], e[0]], [T[1, 3], e[1]], [T[2, 3], e[2]], color=colour, lw=1.5)
+        ax.set_xlim(centre[0] - half, centre[0] + half)
+        ax.set_ylim(centre[1] - half, centre[1] + half)
+        ax.set_zlim(centre[2] - half, centre[2] + half)
+        ax.set_box_aspect((1, 1, 1))
+        ax.tick_params(labelsize=6)
+        ax.set_title(labels[k] if labels is not None else f"solution {k}", fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _save(fig, path, dpi)
+
+
+def plot_joint_trajectory(t: Sequence[float], q: np.ndarray, path: PathLike, *,
+                          limits: Optional[np.ndarray] = None, title: Optional[str] = None, dpi: int = 110) -> Path:
+    """Joint angles over time, one panel per joint, with the joint limits as dashed lines.
+
+    Args:
+        t: (N,) times, seconds.
+        q: (N, 6) joint values, radians (NaN rows: steps without a solution, left as gaps).
+        path: output PNG.
+        limits: (6, 2) lower / upper joint limits, radians.
+        title: figure title.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    if q.ndim != 2 or q.shape[1] != 6 or t.shape != (q.shape[0],):
+        raise ValueError(f"expected t (N,) and q (N, 6), got {t.shape} and {q.shape}")
+    fig = _figure((9.0, 5.0))
+    axes = fig.subplots(2, 3, sharex=True)
+    for j, ax in enumerate(axes.ravel()):
+        ax.plot(t, np.degrees(q[:, j]), color="C0", lw=1.4)
+        if limits is not None:
+            lo, hi = np.degrees(np.asarray(limits, dtype=np.float64)[j])
+            span = np.nanmax(np.abs(np.degrees(q[:, j]))) if np.isfinite(q[:, j]).any() else 180.0
+            for v in (lo, hi):
+                if abs(v) <= 1.5 * span + 30:
+                    ax.axhline(v, color="C3", ls="--", lw=0.8)
+        vals = np.degrees(q[:, j])
+        if np.isfinite(vals).any():  # at least 10 degrees of span: a still joint reads as still
+            mid = 0.5 * (np.nanmin(vals) + np.nanmax(vals))
+            half = max(0.55 * (np.nanmax(vals) - np.nanmin(vals)), 5.0)
+            ax.set_ylim(mid - half, mid + half)
+        ax.ticklabel_format(axis="y", useOffset=False)
+        ax.set_title(f"joint {j + 1}", fontsize=9)
+        ax.set_ylabel("deg", fontsize=8)
+        ax.grid(alpha=0.3)
+    for ax in axes[1]:
+        ax.set_xlabel("time [s]", fontsize=8)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    return _save(fig, path, dpi)
+
+
+def pose_overlay(obj: np.ndarray, placed: np.ndarray, result: Any, path: PathLike, *, dpi: int = 110) -> Path:
+    """Three orthographic projections (mm) of an object's scan points (orange) and the model
+    placed at ``result.T_scene_model`` (blue), titled with the pose's quality figures."""
+    fig = _figure((13, 4.4))
+    axes = fig.subplots(1, 3)
+    for ax, (i, j, name) in zip(axes, ((0, 1, "x-y"), (0, 2, "x-z"), (1, 2, "y-z"))):
+        ax.scatter(1000 * obj[::3, i], 1000 * obj[::3, j], s=0.3, c="tab:orange", label="object (scan)")
+        ax.scatter(1000 * placed[::3, i], 1000 * placed[::3, j], s=0.3, c="tab:blue", alpha=0.4,
+                   label="model at T_scene_model")
+        ax.set_title(f"{name} (mm)")
+        ax.set_aspect("equal")
+    axes[0].legend(loc="upper right", markerscale=12, fontsize=8)
+    fig.suptitle(f"{result.method}: fitness {result.fitness:.3f}, coverage {result.coverage:.3f}, "
+                 f"inlier RMSE {1000 * result.inlier_rmse:.3f} mm, {result.seconds:.2f} s")
+    return _save(fig, path, dpi)
+
+
+def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
+    """The arm at each chosen grasp over the scene (a :class:`scanalign.pipelines.pick.PickResult`):
+    a 3D view and a top view in the base frame (m): scene points grey, placed parts coloured,
+    the arm as a stick figure from its base through the joints to the TCP, and the straight
+    approach from the pre-grasp (dashed)."""
+    fig = _figure((13, 6))
+    ax3, ax2 = fig.add_subplot(1, 2, 1, projection="3d"), fig.add_subplot(1, 2, 2)
+    pts = result.points[:: max(1, len(result.points) // 20000)]
+    ax3.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=0.2, c="0.6")
+    ax2.scatter(pts[:, 0], pts[:, 1], s=0.2, c="0.7")
+    robot, T_dh0 = result.robot, np.asarray(result.robot.T_base_dh0)
+    chains = [T_dh0[None, :3, 3]]
+    for k, v in placed_parts(result, 1500):  # the parts at their found poses, the pick's colour
+        ax3.scatter(v[:, 0], v[:, 1], v[:, 2], s=0.5, c=f"C{k % 10}")
+        ax2.scatter(v[:, 0], v[:, 1], s=0.5, c=f"C{k % 10}")
+    for k, p in enumerate(result.picks):
+        if p.status != "picked":
+            continue
+        c, colour = p.chosen, f"C{k % 10}"
+        chain = np.asarray(robot.joint_positions(c.q_grasp, tcp=True))
+        chains.append(chain)
+        approach = np.array([np.asarray(c.T_base_tcp_pregrasp)[:3, 3], np.asarray(c.T_base_tcp_grasp)[:3, 3]])
+        for ax, dims in ((ax3, 3), (ax2, 2)):
+            ax.plot(*chain[:, :dims].T, "-o", color=colour, lw=2, ms=3, label=f"{p.part}: {p.grasp_names[c.grasp_index]}")
+            ax.plot(*approach[:, :dims].T, "--", color="k", lw=1)
+    allp = np.vstack([pts] + chains)
+    centre, half = 0.5 * (allp.min(0) + allp.max(0)), 0.55 * float(np.ptp(allp, axis=0).max())
+    ax3.set_xlim(centre[0] - half, centre[0] + half)
+    ax3.set_ylim(centre[1] - half, centre[1] + half)
+    ax3.set_zlim(centre[2] - half, centre[2] + half)
+    ax3.set_box_aspect((1, 1, 1))
+    ax2.set_aspect("equal")
+    ax2.set_title("top view (m, base frame)")
+    ax2.legend(loc="best", fontsize=8)
+    fig.suptitle(f"{robot.name}: joint targets at the chosen grasps")
+    return _save(fig, path, dpi)
+
+
+def plot_batch(records: Sequence[Mapping[str, Any]], path: PathLike, *, dpi: int = 110) -> Path:
+    """Distributions of a batch's results (:func:`scanalign.pipelines.batch.run_batch` records): time per
+    job by kind, and the accuracy metrics that the jobs report (ATE RMSE, pose and TCP
+    errors, in mm / degrees), one histogram each; failed jobs are counted in the title."""
+    panels = [("seconds", "time per job (s)", 1.0), ("ate_rmse_m", "reconstruction ATE RMSE (mm)", 1000.0),
+              ("pose_error_max_m", "worst part pose error per job (mm)", 1000.0),
+              ("pose_error_max_deg", "worst part pose error per job (deg)", 1.0),
+              ("tcp_error_max_m", "worst grasp TCP error per job (mm)", 1000.0)]
+
+    def values(key: str, kind: str) -> np.ndarray:
+        v = np.array([r.get(key) for r in records if r.get("kind") == kind and r.get("status") == "ok"], dtype=float)
+        return v[np.isfinite(v)]
+
+    kinds = sorted({str(r.get("kind")) for r in records})
+    shown = [p for p in panels if any(values(p[0], k).size for k in kinds)] or panels[:1]
+    fig = _figure((4.2 * len(shown), 3.6))
+    for i, (key, label, scale) in enumerate(shown):
+        ax = fig.add_subplot(1, len(shown), i + 1)
+        for j, kind in enumerate(kinds):
+            v = values(key, kind) * scale
+            if v.size:
+                ax.hist(v, bins=min(30, max(5, v.size // 2)), alpha=0.6, color=f"C{j}",
+                        label=f"{kind} (n={v.size}, median {np.median(v):.3g})")
+        ax.set_xlabel(label)
+        ax.set_ylabel("jobs")
+        ax.legend(fontsize=7)
+    bad = sum(r.get("status") != "ok" for r in records)
+    fig.suptitle(f"batch: {len(records)} jobs, {bad} failed or crashed")
+    return _save(fig, path, dpi)

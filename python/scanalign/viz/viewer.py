@@ -1,0 +1,213 @@
+"""A live 3D view in rerun (https://rerun.io, optional: ``pip install rerun-sdk``).
+
+:class:`Viewer` streams a reconstruction while it runs -- the growing model, the camera and
+its path, the robot arm -- and the outcome of a pick (the scene, every found part at its
+pose, the arm at each chosen grasp) to a rerun viewer, to a ``.rrd`` recording, or both::
+
+    from scanalign.pipelines.reconstruct import reconstruct
+    from scanalign.viz.viewer import Viewer
+
+    with Viewer(spawn=True, save="scan.rrd") as view:   # spawn: start / connect to the viewer
+        result = reconstruct(frames, on_frame=view.on_frame)
+        view.log_reconstruction(result)
+
+``scanalign reconstruct|pick --view`` and ``--view-save FILE.rrd`` do the same from the
+command line; :func:`scanalign.pipelines.pick.pick` takes ``viewer=``. Open a recording with
+``rerun FILE.rrd``.
+
+Entities (world = the model / robot base frame, metres): ``world/model`` (points),
+``world/camera`` (pose and pinhole), ``world/camera_path`` (line strip of the camera centres),
+``world/reference_path`` (the robot's camera path, when known), ``world/arm`` (the joint
+origins of the arm from forward kinematics as a line strip; ``world/arm/flange``: the flange
+frame), ``world/scene`` and ``world/parts/<k>_<name>`` (pick: the part's mesh at its pose),
+``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (the
+frame index) and ``time`` (the frame timestamp, s).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any, List, Optional, Union
+
+import numpy as np
+from scanalign.kinematics import Robot
+
+__all__ = ["Viewer", "arm_points"]
+
+
+def _rerun() -> Any:
+    try:
+        import rerun
+    except ImportError as e:
+        raise ImportError("the live view needs the optional package 'rerun-sdk': pip install rerun-sdk") from e
+    return rerun
+
+
+def arm_points(robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = None) -> np.ndarray:
+    """(8, 3) points of the arm in its base frame, metres: the origins of DH frames 0..6, then
+    the tool centre point (``Robot.joint_positions(q, tcp=True)``). With ``T_base_flange``
+    (e.g. logged by the robot) the chain is re-anchored so that its flange lies there (a robot
+    mounted elsewhere than its name's default)."""
+    q = np.asarray(q, dtype=np.float64).reshape(6)
+    points = np.asarray(robot.joint_positions(q, tcp=True))
+    if T_base_flange is not None:
+        M = np.asarray(T_base_flange, dtype=np.float64) @ np.linalg.inv(np.asarray(robot.fk_flange(q)))
+        points = points @ M[:3, :3].T + M[:3, 3]
+    return points
+
+
+def _colors(c: Optional[np.ndarray]) -> Optional[np.ndarray]:
+    if c is None or len(c) == 0:
+        return None
+    c = np.asarray(c)
+    return c if c.dtype == np.uint8 else np.clip(np.rint(c * 255), 0, 255).astype(np.uint8)
+
+
+class Viewer:
+    """A rerun recording of scanalign runs.
+
+    Args:
+        name: the rerun application id.
+        spawn: start a rerun viewer (or connect to one already listening on its port).
+        save: write the recording to this ``.rrd`` file (as well, with ``spawn``).
+        connect: a rerun gRPC URL to stream to (a viewer on another machine).
+        robot: the :class:`scanalign.kinematics.Robot` drawn from the frames' joints (default:
+            ``Frame.meta["robot"]`` by name).
+        model_every: log the growing model every this many merged frames (its last state is
+            logged by :meth:`log_reconstruction`).
+        max_model_points: points logged per model update at most (evenly subsampled).
+
+    Raises:
+        ImportError: rerun-sdk is not installed.
+    """
+
+    def __init__(self, name: str = "scanalign", *, spawn: bool = False, save: Optional[Union[str, os.PathLike]] = None,
+                 connect: Optional[str] = None, robot: Any = None, model_every: int = 5,
+                 max_model_points: int = 500_000) -> None:
+        rr = self.rr = _rerun()
+        self.rec = rr.RecordingStream(name)
+        sinks = []
+        if spawn:
+            self.rec.spawn(connect=False)
+            sinks.append(rr.GrpcSink())
+        if connect:
+            sinks.append(rr.GrpcSink(connect))
+        if save is not None:
+            sinks.append(rr.FileSink(os.fspath(save)))
+        if sinks:
+            self.rec.set_sinks(*sinks)
+        self.robot, self.model_every, self.max_model_points = robot, max(1, int(model_every)), int(max_model_points)
+        self._path: List[np.ndarray] = []
+        self._merged = 0
+        self._T_world_base: Optional[np.ndarray] = None
+        self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+
+    # --- primitives ---------------------------------------------------------------------
+
+    def log_points(self, path: str, points: np.ndarray, colors: Optional[np.ndarray] = None, **kw: Any) -> None:
+        """(N, 3) points (metres; optional (N, 3) colours, uint8 or float in [0, 1]) at ``path``."""
+        p = np.asarray(points, dtype=np.float32).reshape(-1, 3)
+        step = max(1, -(-len(p) // self.max_model_points))
+        c = _colors(colors)
+        self.rec.log(path, self.rr.Points3D(p[::step], colors=None if c is None else c[::step], **kw))
+
+    def log_pose(self, path: str, T: np.ndarray, axis_length: float = 0.05) -> None:
+        """A 4x4 pose (child -> world) at ``path``, drawn as axes."""
+        T = np.asarray(T, dtype=np.float64)
+        self.rec.log(path, self.rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]),
+                     self.rr.TransformAxes3D(axis_length))
+
+    def log_arm(self, path: str, robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = None) -> None:
+        """The arm at joints ``q`` (rad) as a line strip through its joint origins, base frame
+        (see :func:`arm_points`), with its flange frame at ``path/flange``."""
+        pts = arm_points(robot, q, T_base_flange)
+        if self._T_world_base is not None:
+            pts = pts @ self._T_world_base[:3, :3].T + self._T_world_base[:3, 3]
+        self.rec.log(path, self.rr.LineStrips3D([pts], radii=0.006, colors=[[255, 140, 0]]),
+                     self.rr.Points3D(pts, radii=0.01))
+
+    # --- reconstruction -----------------------------------------------------------------
+
+    def on_frame(self, frame: Any, record: Any, reconstructor: Any) -> None:
+        """The per-frame hook of :func:`scanalign.pipelines.reconstruct.reconstruct` (``on_frame=``): the
+        camera, its path, the arm (from ``frame.meta["joints"]``) and, every ``model_every``
+        merged frames, the model."""
+        rr = self.rr
+        self.rec.set_time("frame", sequence=int(record.index))
+        self.rec.set_time("time", duration=float(record.timestamp))
+        T_base_camera = getattr(frame, "T_base_camera", None)
+        if self._T_world_base is None and record.merged and T_base_camera is not None:
+            self._T_world_base = np.asarray(record.T_model_camera) @ np.linalg.inv(np.asarray(T_base_camera))
+        if record.merged:
+            T = np.asarray(record.T_model_camera, dtype=np.float64)
+            self._path.append(T[:3, 3].copy())
+            self.rec.log("world/camera", rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]))
+            K = getattr(frame, "intrinsics", None)
+            if K is not None and self._merged == 0:  # the camera's image, once
+                self.rec.log("world/camera", rr.Pinhole(focal_length=[K.fx, K.fy], principal_point=[K.cx, K.cy],
+                                                        width=K.width, height=K.height, image_plane_distance=0.05))
+            self.rec.log("world/camera_path", rr.LineStrips3D([np.array(self._path)], radii=0.001,
+                                                              colors=[[30, 120, 220]]))
+            self._merged += 1
+            if self._merged % self.model_every == 1 or self.model_every == 1:
+                model = reconstructor.model
+                self.log_points("world/model", model.points, model.colors, radii=0.0008)
+        meta = getattr(frame, "meta", None) or {}
+        robot = self.robot
+        if robot is None and meta.get("robot") is not None:
+            robot = self.robot = Robot.by_name(str(meta["robot"]))
+        if robot is not None and meta.get("joints") is not None:
+            self.log_arm("world/arm", robot, meta["joints"], meta.get("T_base_flange"))
+
+    def log_reconstruction(self, result: Any) -> None:
+        """The final model, the estimated camera path and the reference path of a
+        :class:`scanalign.pipelines.reconstruct.ReconstructionResult`."""
+        if result.records:
+            self.rec.set_time("frame", sequence=int(result.records[-1].index))
+        self.log_points("world/model", result.model.points, result.model.colors, radii=0.0008)
+        self.rec.log("world/camera_path", self.rr.LineStrips3D([result.estimate.positions], radii=0.001,
+                                                               colors=[[30, 120, 220]]))
+        if result.reference is not None and len(result.reference):
+            ref = result.reference.positions
+            if self._T_world_base is not None:
+                ref = ref @ self._T_world_base[:3, :3].T + self._T_world_base[:3, 3]
+            self.rec.log("world/reference_path", self.rr.LineStrips3D([ref], radii=0.001, colors=[[40, 170, 60]]))
+
+    # --- pick ---------------------------------------------------------------------------
+
+    def log_pick(self, result: Any) -> None:
+        """A :class:`scanalign.pipelines.pick.PickResult`: the scene, each part with a pose as its mesh
+        there (``world/parts/<k>_<name>``) and the arm at each chosen grasp
+        (``world/grasps/<k>_<name>/arm``), all in the base frame."""
+        rr = self.rr
+        self._T_world_base = None  # the pick's world is its base frame
+        self.rec.set_time("frame", sequence=int(result.reconstruction.records[-1].index) + 1
+                          if result.reconstruction is not None and result.reconstruction.records else 0)
+        grey = np.full((len(result.points), 3), 160, np.uint8)
+        self.log_points("world/scene", result.points, grey, radii=0.0008)
+        meshes = {p.name: p.mesh for p in result.parts}
+        for k, p in enumerate(result.picks):
+            if p.T_base_model is None:
+                continue
+            key = f"{k}_{p.part}"
+            self.log_pose(f"world/parts/{key}", p.T_base_model)
+            m = meshes[p.part]
+            self.rec.log(f"world/parts/{key}", rr.Mesh3D(vertex_positions=m.vertices, triangle_indices=m.faces,
+                                                         albedo_factor=[70, 130, 230, 255]))
+            if p.status == "picked":
+                c = p.chosen
+                self.log_arm(f"world/grasps/{key}/arm", result.robot, c.q_grasp)
+                self.log_pose(f"world/grasps/{key}/tcp", np.asarray(c.T_base_tcp_grasp), axis_length=0.03)
+
+    # --- lifetime -----------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Flushes everything to the viewer / file and disconnects."""
+        self.rec.flush()
+        self.rec.disconnect()
+
+    def __enter__(self) -> "Viewer":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.close()
