@@ -19,7 +19,7 @@ from scanalign import _core
 from scanalign.common.arrays import as_transform
 
 __all__ = ["ROTATION_TOLERANCE", "ROW_TOLERANCE", "rotation_about", "rigid", "inverse", "rotation_angle",
-           "pose_error", "rigid_problem", "require_rigid"]
+           "pose_error", "rigid_problem", "require_rigid", "transform_points"]
 
 #: Largest |R^T R - I| entry accepted as a rotation (C++ ``kRigidTolerance``: 1e-5).
 ROTATION_TOLERANCE: float = _core.common.RIGID_TOLERANCE
@@ -104,3 +104,9 @@ def require_rigid(T: object, name: str) -> np.ndarray:
     if why is not None:
         raise ValueError(f"{name}: {why}")
     return m
+
+
+def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """``T`` (4x4, finite, last row 0 0 0 1) applied to (N, 3) float32/float64 points: a new
+    array of their dtype, computed in double in C++ (``transformPoints``)."""
+    return _core.common.transform_points(np.asarray(T, dtype=np.float64), points)

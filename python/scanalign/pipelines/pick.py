@@ -39,6 +39,7 @@ from typing import Any, Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
+from scanalign.common.rigid import transform_points
 from scanalign import grasp as _grasp, io
 from scanalign.grasp.parts import load_part
 from scanalign.common import rigid as se3
@@ -404,7 +405,7 @@ def placed_parts(result: PickResult, samples: int = 5000) -> List[tuple]:
     """(pick index, (samples, 3) points of the part's surface at its found pose, base frame, m)
     for every part with a pose."""
     meshes = {p.name: p.mesh for p in result.parts}
-    return [(k, (sample_mesh(meshes[p.part], samples, seed=0)[0] @ p.T_base_model[:3, :3].T + p.T_base_model[:3, 3]))
+    return [(k, transform_points(p.T_base_model, sample_mesh(meshes[p.part], samples, seed=0)[0]))
             for k, p in enumerate(result.picks) if p.T_base_model is not None]
 
 

@@ -27,7 +27,7 @@ from scanalign.reconstruction import (FrameResult, Model, ReconstructionSettings
                                       make_reconstruction_settings)
 from scanalign.io import atomic_open
 from scanalign.common.settings import to_dict
-from scanalign.common.rigid import inverse
+from scanalign.common.rigid import inverse, transform_points
 from scanalign.evaluation.trajectory import Trajectory
 from scanalign.evaluation import absolute_trajectory_error, relative_pose_error
 from scanalign.evaluation import mesh_distance_stats
@@ -295,6 +295,6 @@ def model_mesh_distance(result: ReconstructionResult, vertices_base: np.ndarray,
         k = np.nonzero(np.isclose(ref.timestamps, first.timestamp, rtol=0, atol=1e-9))[0]
         if k.size:
             T_base_model = ref.poses[k[0]] @ inverse(first.T_model_camera)
-    pts = result.model.points.astype(np.float64) @ T_base_model[:3, :3].T + T_base_model[:3, 3]
+    pts = transform_points(T_base_model, result.model.points.astype(np.float64))
     s = mesh_distance_stats(pts, vertices_base, faces)
     return {k: float(getattr(s, k)) for k in ("mean", "median", "p95", "max", "rmse")}

@@ -10,6 +10,7 @@ from typing import Any, Dict, Optional, Union
 
 import numpy as np
 
+from scanalign.common.rigid import transform_points
 from scanalign import io
 from scanalign.common.arrays import as_points, foreign_kind
 from scanalign.data.parts import sample_mesh
@@ -83,7 +84,7 @@ def write_pose_outputs(model: object, scene: np.ndarray, result: Any, prefix: Un
     else:
         mp, _ = sample_mesh(model, samples, seed=0)
     T = np.asarray(result.T_scene_model, dtype=np.float64)
-    placed = mp @ T[:3, :3].T + T[:3, 3]
+    placed = transform_points(T, mp)
     paths = {"model_ply": prefix.with_name(prefix.name + "_model.ply"),
              "scene_ply": prefix.with_name(prefix.name + "_scene.ply"),
              "overlay_png": prefix.with_name(prefix.name + "_overlay.png")}

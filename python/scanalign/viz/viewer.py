@@ -30,6 +30,7 @@ import os
 from typing import Any, List, Optional, Union
 
 import numpy as np
+from scanalign.common.rigid import transform_points
 from scanalign.kinematics import Robot
 
 __all__ = ["Viewer", "arm_points"]
@@ -52,7 +53,7 @@ def arm_points(robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = 
     points = np.asarray(robot.joint_positions(q, tcp=True))
     if T_base_flange is not None:
         M = np.asarray(T_base_flange, dtype=np.float64) @ np.linalg.inv(np.asarray(robot.fk_flange(q)))
-        points = points @ M[:3, :3].T + M[:3, 3]
+        points = transform_points(M, points)
     return points
 
 
@@ -122,7 +123,7 @@ class Viewer:
         (see :func:`arm_points`), with its flange frame at ``path/flange``."""
         pts = arm_points(robot, q, T_base_flange)
         if self._T_world_base is not None:
-            pts = pts @ self._T_world_base[:3, :3].T + self._T_world_base[:3, 3]
+            pts = transform_points(self._T_world_base, pts)
         self.rec.log(path, self.rr.LineStrips3D([pts], radii=0.006, colors=[[255, 140, 0]]),
                      self.rr.Points3D(pts, radii=0.01))
 
@@ -170,7 +171,7 @@ class Viewer:
         if result.reference is not None and len(result.reference):
             ref = result.reference.positions
             if self._T_world_base is not None:
-                ref = ref @ self._T_world_base[:3, :3].T + self._T_world_base[:3, 3]
+                ref = transform_points(self._T_world_base, ref)
             self.rec.log("world/reference_path", self.rr.LineStrips3D([ref], radii=0.001, colors=[[40, 170, 60]]))
 
     # --- pick ---------------------------------------------------------------------------
