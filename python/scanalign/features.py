@@ -40,8 +40,8 @@ def estimate_normals(points: np.ndarray, radius: float = 0.005, viewpoint: Seque
         TypeError: non-float points. ValueError: shape, non-positive radius, a viewpoint
         that is not 3 finite numbers, min_neighbors < 3.
     """
-    normals, curvature = _core.features.estimate_normals(as_points(points, "points"), float(radius), viewpoint,
-                                                         int(min_neighbors), int(num_threads))
+    normals, curvature = _core.features.estimate_normals(as_points(points, "points"), radius, viewpoint,
+                                                         min_neighbors, num_threads)  # types checked in C++
     return (normals, curvature) if return_curvature else normals
 
 

@@ -259,7 +259,9 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[FrameToModelSettings
     joints: List[Optional[np.ndarray]] = []
     robot_name: Optional[str] = None
     try:
-        for frame in frames:
+        for k, frame in enumerate(frames):
+            if not isinstance(frame, Frame):
+                raise TypeError(f"frames: item {k} is a {type(frame).__name__}, not a scanalign.camera.Frame")
             if rec is None:
                 base = frame.T_base_camera is not None and model_frame in ("auto", "base")
                 if model_frame == "base" and frame.T_base_camera is None:
