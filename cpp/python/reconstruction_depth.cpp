@@ -118,7 +118,9 @@ std::vector<std::int32_t> facesArg(const py::array& faces, py::ssize_t n_vertice
 }
 
 py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, const PinholeIntrinsics& camera,
-                        const Eigen::Matrix4d& T_camera_world, const DepthRenderSettings& settings) {
+                        const py::object& T_in, const DepthRenderSettings& settings) {
+  // Through the field conversion: pybind11's Eigen caster would parse strings, drop imaginary parts.
+  const Eigen::Matrix4d T_camera_world = fields::Conv<Eigen::Matrix4d>::set(T_in, "T_camera_world");
   if (camera.width < 1 || camera.height < 1 || camera.width > 32768 || camera.height > 32768)
     throw py::value_error("intrinsics: width, height must be in [1, 32768] pixels, got " +
                           std::to_string(camera.width) + " x " + std::to_string(camera.height));
