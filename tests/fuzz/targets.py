@@ -1064,7 +1064,7 @@ def _cloud(n=60, seed=0):
 
 def _points_entries():
     """(label, argument name, call(points)) for entry points that take an (N, 3) cloud."""
-    from scanalign import _core, cga, evaluation, features, fitting, reconstruction, registration, segmentation
+    from scanalign import _core, cga, evaluation, features, fitting, pose, reconstruction, registration, segmentation
     v, f = _mesh("part")
     tgt = _cloud(80, 1)
     return [
@@ -1078,7 +1078,7 @@ def _points_entries():
         ("Icp target", "target", lambda p: registration.Icp(p, estimator="point_to_point")),
         ("transform_points", "points", lambda p: _core.common.transform_points(np.eye(4), p)),
         ("point_to_mesh_distance", "points", lambda p: evaluation.point_to_mesh_distance(p, v, f)),
-        ("alignment_fitness", "source", lambda p: _core.registration.alignment_fitness(p, tgt, np.eye(4), 0.01)),
+        ("alignment_fitness", "source", lambda p: pose.alignment_fitness(p, tgt, np.eye(4), 0.01)),
         ("sample_mesh", "vertices", lambda p: _core.common.sample_mesh(p, np.array([[0, 1, 2]]), 10, 0)),
     ]
 
