@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <string>
 #include <vector>
@@ -44,12 +45,14 @@ inline bool accepts(const py::dtype& d, unsigned accept) {
          ((accept & kBools) && k == 'b');
 }
 
-/// The words for what `accept` names, e.g. "a float32 or float64 array".
+/// The words for what `accept` names: "a float32 or float64 array", or "real numbers (a
+/// float32, float64 or integer array)".
 inline std::string acceptedWords(unsigned accept) {
-  std::string s = "a float32 or float64";
+  if (!(accept & (kIntegers | kBools))) return "a float32 or float64 array";
+  std::string s = "real numbers (a float32, float64";
   if (accept & kIntegers) s += (accept & kBools) ? ", integer" : " or integer";
   if (accept & kBools) s += " or bool";
-  return s + " array";
+  return s + " array)";
 }
 
 /// `o` (an array or any array-like: a list of rows, a tuple ...) as a NumPy array of a dtype
@@ -164,9 +167,12 @@ inline void requireMemory(double bytes, const std::string& what) {
   rlimit as{};
   if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY)
     limit = std::min(limit, 0.5 * static_cast<double>(as.rlim_cur));
-  if (!(bytes <= limit))
-    throw py::value_error(what + " need " + std::to_string(bytes / 1073741824.0) + " GiB, over the memory available (" +
-                          std::to_string(limit / 1073741824.0) + " GiB)");
+  if (!(bytes <= limit)) {
+    char text[96];
+    std::snprintf(text, sizeof text, " need %.1f GiB, over the memory available (%.1f GiB)", bytes / 1073741824.0,
+                  limit / 1073741824.0);
+    throw py::value_error(what + text);
+  }
 }
 
 /// intArg for a C++ int in [lo, 2^31 - 1].
