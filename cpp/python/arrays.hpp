@@ -5,9 +5,13 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <cstdio>
 #include <limits>
 #include <string>
 #include <vector>
+
+#include <sys/resource.h>
+#include <unistd.h>
 
 #include <Eigen/Core>
 
@@ -19,6 +23,60 @@
 namespace scanalign::python {
 
 namespace py = pybind11;
+
+// ---- The one dtype rule of the bindings (README "Conventions") ---------------------------
+// Number arrays are float32 or float64 (either byte order; copied to native order when
+// needed). Where a function documents them, any integer dtype (and, for real-valued
+// attributes, bool) too. Everything else -- float16, long double (float96/float128),
+// complex, strings, objects, datetimes, and values that are no array -- is a TypeError
+// naming the argument and the dtype. Every entry point that takes points or other number
+// arrays converts them with checkedArray / checkedAs (or withCloud / asCloudArray below).
+
+/// Which dtypes an argument accepts (a bit set).
+enum Dtypes : unsigned { kFloats = 1u, kIntegers = 2u, kBools = 4u, kReals = kFloats | kIntegers };
+
+/// Whether `d` is float32 or float64 (any byte order).
+inline bool isFloat32Or64(const py::dtype& d) { return d.kind() == 'f' && (d.itemsize() == 4 || d.itemsize() == 8); }
+
+/// Whether `d` is one of the dtypes `accept` names.
+inline bool accepts(const py::dtype& d, unsigned accept) {
+  const char k = d.kind();
+  return ((accept & kFloats) && isFloat32Or64(d)) || ((accept & kIntegers) && (k == 'i' || k == 'u')) ||
+         ((accept & kBools) && k == 'b');
+}
+
+/// The words for what `accept` names: "a float32 or float64 array", or "real numbers (a
+/// float32, float64 or integer array)".
+inline std::string acceptedWords(unsigned accept) {
+  if (!(accept & (kIntegers | kBools))) return "a float32 or float64 array";
+  std::string s = "real numbers (a float32, float64";
+  if (accept & kIntegers) s += (accept & kBools) ? ", integer" : " or integer";
+  if (accept & kBools) s += " or bool";
+  return s + " array)";
+}
+
+/// `o` (an array or any array-like: a list of rows, a tuple ...) as a NumPy array of a dtype
+/// `accept` names; TypeError naming `what` and the dtype (or the value) otherwise.
+inline py::array checkedArray(py::handle o, const std::string& what, unsigned accept = kFloats) {
+  const py::array a = py::array::ensure(o);
+  const bool an_array = py::isinstance<py::array>(o);
+  if (a && accepts(a.dtype(), accept)) return a;
+  std::string got;
+  if (a && (an_array || a.dtype().kind() != 'O')) {
+    got = "dtype " + std::string(py::str(a.dtype()));
+  } else {
+    const std::string r = py::repr(o);
+    got = r.size() <= 60 ? r : "a " + std::string(py::str(py::type::of(o).attr("__name__")));
+  }
+  throw py::type_error(what + ": expected " + acceptedWords(accept) + ", got " + got);
+}
+
+/// checkedArray as a C-contiguous, native-order Scalar array (no copy when it already is one).
+template <typename Scalar>
+py::array_t<Scalar, py::array::c_style | py::array::forcecast> checkedAs(py::handle o, const std::string& what,
+                                                                          unsigned accept = kFloats) {
+  return py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(checkedArray(o, what, accept));
+}
 
 /// True when `a` holds native-order Scalar values. Compares the element type, not the dtype
 /// object's identity: an array that went through pickle (multiprocessing, joblib, Ray)
@@ -46,28 +104,23 @@ CloudView<Scalar> cloudView(const py::array& a, const char* what) {
   return CloudView<Scalar>(static_cast<const Scalar*>(a.data()), static_cast<std::size_t>(a.shape(0)), stride);
 }
 
-/// `a` as an array cloudView<Scalar> can view: `a` itself when it already is one (no copy),
-/// else a C-contiguous Scalar copy. TypeError naming `what` unless `a` holds floats.
+/// `o` as an array cloudView<Scalar> can view: `o` itself when it already is one (no copy),
+/// else a C-contiguous Scalar copy. TypeError naming `what` unless it is float32/float64.
 template <typename Scalar>
-py::array asCloudArray(const py::array& a, const char* what) {
-  if (a.dtype().kind() != 'f')
-    throw py::type_error(std::string(what) + ": expected a float32 or float64 array, got dtype " +
-                         std::string(py::str(a.dtype())));
+py::array asCloudArray(const py::object& o, const char* what) {
+  const py::array a = checkedArray(o, what);
   const auto item = static_cast<py::ssize_t>(sizeof(Scalar));
   const bool viewable = holds<Scalar>(a) && a.ndim() == 2 && a.strides(1) == item &&
                         (a.shape(0) <= 1 || (a.strides(0) >= 3 * item && a.strides(0) % item == 0));
   return viewable ? a : py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
 }
 
-/// Calls f(CloudView<float>) or f(CloudView<double>) in the precision of `o` (any float
-/// array-like; copied only when its layout demands it). TypeError naming `what` for a
-/// non-float array, ValueError for a shape other than (N, 3).
+/// Calls f(CloudView<float>) or f(CloudView<double>) in the precision of `o` (any float32 /
+/// float64 array-like; copied only when its layout demands it). TypeError naming `what` for
+/// another dtype, ValueError for a shape other than (N, 3).
 template <typename F>
 auto withCloud(const py::object& o, const char* what, F&& f) {
-  const py::array a = py::array::ensure(o);
-  if (!a || a.dtype().kind() != 'f')
-    throw py::type_error(std::string(what) + ": expected a float32 or float64 array" +
-                         (a ? ", got dtype " + std::string(py::str(a.dtype())) : std::string()));
+  const py::array a = checkedArray(o, what);
   if (holds<float>(a)) return f(cloudView<float>(asCloudArray<float>(a, what), what));
   return f(cloudView<double>(asCloudArray<double>(a, what), what));
 }
@@ -104,6 +157,22 @@ inline std::uint64_t seedArg(const py::object& o, const char* what) {
     throw py::value_error(std::string(what) + " must be an integer in [0, 2^64), got " + std::string(py::repr(o)));
   }
   return v;
+}
+
+/// ValueError naming `what` when `bytes` exceed half of this machine's memory or the
+/// process's address-space limit (checked before allocating: a huge size is a clear error,
+/// not an unbounded allocation).
+inline void requireMemory(double bytes, const std::string& what) {
+  double limit = 0.5 * static_cast<double>(sysconf(_SC_PAGE_SIZE)) * static_cast<double>(sysconf(_SC_PHYS_PAGES));
+  rlimit as{};
+  if (getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY)
+    limit = std::min(limit, 0.5 * static_cast<double>(as.rlim_cur));
+  if (!(bytes <= limit)) {
+    char text[96];
+    std::snprintf(text, sizeof text, " need %.1f GiB, over the memory available (%.1f GiB)", bytes / 1073741824.0,
+                  limit / 1073741824.0);
+    throw py::value_error(what + text);
+  }
 }
 
 /// intArg for a C++ int in [lo, 2^31 - 1].

@@ -32,12 +32,7 @@ std::string shapeText(const py::array& a) {
 /// (N, 4, 4) real array -> N rigid transforms; TypeError / ValueError naming `name` (and the
 /// index of a pose that is not rigid).
 std::vector<Eigen::Matrix4d> poses(py::handle x, const std::string& name) {
-  const py::array a = py::array::ensure(x);
-  const char kind = a ? a.dtype().kind() : 'O';
-  if (kind != 'f' && kind != 'i' && kind != 'u')
-    throw py::type_error(name + ": expected an (N, 4, 4) array of real numbers, got " +
-                         (a ? "dtype " + std::string(py::str(a.dtype())) : std::string(py::str(py::type::of(x)))));
-  const F64 f = F64::ensure(a);
+  const F64 f = checkedAs<double>(x, name, kReals);
   if (f.ndim() != 3 || f.shape(1) != 4 || f.shape(2) != 4)
     throw py::value_error(name + ": expected an (N, 4, 4) array of poses, got shape " + shapeText(f));
   std::vector<Eigen::Matrix4d> out(static_cast<std::size_t>(f.shape(0)));

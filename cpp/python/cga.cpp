@@ -80,10 +80,7 @@ py::array_t<double> fromCoeffs(const Coeffs& c) {
 }
 /// An (N, cols) float array of finite values as C-contiguous float64; TypeError / ValueError naming `what`.
 RowArray finiteRows(const py::object& o, py::ssize_t cols, const char* what) {
-  const py::array a = py::array::ensure(o);
-  if (!a || a.dtype().kind() != 'f')
-    throw py::type_error(std::string(what) + ": expected a float32/float64 array" +
-                         (a ? ", got " + std::string(py::str(a.dtype())) : std::string()));
+  const py::array a = checkedArray(o, what);
   if (a.ndim() != 2 || a.shape(1) != cols)
     throw py::value_error(std::string(what) + ": expected an (N, " + std::to_string(cols) + ") array");
   RowArray r = RowArray::ensure(a);
@@ -102,13 +99,9 @@ std::string shapeOf(const py::array& a) {
 /// TypeError for complex, string or object input; ValueError for another size or NaN/Inf.
 RowArray realValues(const py::object& o, py::ssize_t n, const std::string& what) {
   const py::array a = py::array::ensure(o);
-  if (!a) throw py::type_error(what + ": expected " + std::to_string(n) + " real numbers");
-  const char k = a.dtype().kind();
-  if (k == 'c')
+  if (a && a.dtype().kind() == 'c')
     throw py::type_error(what + ": complex values are refused (the imaginary part would be dropped)");
-  if (k != 'f' && k != 'i' && k != 'u')
-    throw py::type_error(what + ": expected " + std::to_string(n) + " real numbers, got dtype " +
-                         std::string(py::str(a.dtype())));
+  checkedArray(o, what, kReals);
   if (a.size() != n || a.ndim() < 1 || a.ndim() > 2)
     throw py::value_error(what + ": expected " + std::to_string(n) + " values, got shape " + shapeOf(a));
   RowArray r = RowArray::ensure(a);

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "arrays.hpp"
+#include "fields.hpp"
 #include "scanalign/common/look_at.hpp"
 #include "scanalign/common/mesh_sampling.hpp"
 #include "scanalign/common/rigid.hpp"
@@ -34,16 +35,25 @@ void defineCommon(py::module_& m) {
   m.attr("RIGID_ROW_TOLERANCE") = kRigidRowTolerance;
   m.def(
       "rigid_problem",
-      [](const Eigen::Matrix4d& T) -> py::object {
-        const char* problem = rigidProblem(T);
+      [](const py::object& T) -> py::object {
+        const char* problem = rigidProblem(fields::Conv<Eigen::Matrix4d>::set(T, "T"));
         return problem ? py::object(py::str(problem)) : py::object(py::none());
       },
       py::arg("T"), "Why a 4x4 matrix is not a rigid transform (common/rigid.hpp), or None when it is.");
-  m.def("look_at", &lookAt, py::arg("eye"), py::arg("target"), py::arg("up") = Eigen::Vector3d::UnitZ(),
+  // Eigen arguments through the field conversion: pybind11's own would parse strings and
+  // drop imaginary parts.
+  m.def(
+      "look_at",
+      [](const py::object& eye, const py::object& target, const py::object& up) {
+        using V = fields::Conv<Eigen::Vector3d>;
+        return lookAt(V::set(eye, "eye"), V::set(target, "target"), V::set(up, "up"));
+      },
+      py::arg("eye"), py::arg("target"), py::arg("up") = Eigen::Vector3d::UnitZ(),
         "T_world_camera (4x4) of a camera at eye (m) whose optical axis (z) points at target, image up (-y) near up");
   m.def(
       "transform_points",
-      [](const Eigen::Matrix4d& T, const py::object& points) -> py::object {
+      [](const py::object& T_in, const py::object& points) -> py::object {
+        const Eigen::Matrix4d T = fields::Conv<Eigen::Matrix4d>::set(T_in, "T");
         return withCloud(points, "points", [&](auto view) -> py::object { return transformed(T, view); });
       },
       py::arg("T"), py::arg("points"),
@@ -54,11 +64,12 @@ void defineCommon(py::module_& m) {
   m.def(
       "sample_mesh",
       [](const py::object& vertices, const py::object& faces, const py::object& n_points, const py::object& seed) {
-        const auto v = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(vertices);
-        if (!v || v.ndim() != 2 || v.shape(1) != 3)
+        const auto v = checkedAs<double>(vertices, "vertices", kReals);
+        if (v.ndim() != 2 || v.shape(1) != 3)
           throw py::value_error("vertices: expected a (V, 3) array of real numbers, metres");
         const std::vector<std::int64_t> f = indexRows(faces, "faces", 3);
         const auto n = static_cast<std::size_t>(intArg(n_points, "n_points", 0, std::int64_t{1} << 40));
+        requireMemory(160.0 * static_cast<double>(n), "n_points = " + std::to_string(n));  // points, normals, draws
         const std::uint64_t seed_value = seedArg(seed, "seed");
         MeshSamples s;
         {

@@ -44,11 +44,7 @@ py::array asArray(const py::object& o, const char* what) {
 
 /// (N, 3) float32 / float64 array as a C-contiguous float64 copy or view.
 Rows float64Rows(const py::object& o, const char* what, const char* shape) {
-  const py::array a = asArray(o, what);
-  const char kind = a.dtype().kind();
-  if (kind != 'f' || (a.itemsize() != 4 && a.itemsize() != 8))
-    throw py::type_error(std::string(what) + ": expected a float32 or float64 array, got dtype " +
-                         std::string(py::str(a.dtype())));
+  const py::array a = checkedArray(o, what);
   if (a.ndim() != 2 || a.shape(1) != 3)
     throw py::value_error(std::string(what) + ": expected shape " + shape + ", got " +
                           shapeOf(a));

@@ -40,6 +40,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "arrays.hpp"
+
 namespace scanalign::python {
 
 namespace py = pybind11;
@@ -131,16 +133,11 @@ std::string expected() {
   }
 }
 
-/// Real numbers of a given shape (any real dtype); TypeError naming `where` otherwise.
+/// Real numbers (float32/float64, integer or bool: arrays.hpp's dtype rule); TypeError naming
+/// `where` otherwise.
 inline py::array realArray(py::handle h, const std::string& where, const std::string& what) {
-  const py::object np = py::module_::import("numpy");
-  py::array a;
-  try {
-    a = np.attr("asarray")(h);
-  } catch (const py::error_already_set&) {
-    wrongType(where, what, h);
-  }
-  if (std::string("biuf").find(a.dtype().kind()) == std::string::npos || a.dtype().kind() == 0) wrongType(where, what, h);
+  const py::array a = py::array::ensure(h);
+  if (!a || !accepts(a.dtype(), kReals | kBools)) wrongType(where, what, h);
   return a;
 }
 

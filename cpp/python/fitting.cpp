@@ -15,18 +15,6 @@ namespace scanalign::python {
 
 namespace {
 
-/// `o` as a contiguous Scalar array; TypeError naming `what` unless its dtype kind is one of
-/// `kinds` ("f": float, "biuf": real, "iu": integer).
-template <typename Scalar>
-py::array_t<Scalar, py::array::c_style | py::array::forcecast> numeric(const py::object& o, const char* what,
-                                                                       const char* kinds) {
-  const py::array a = py::array::ensure(o);
-  if (!a || std::string(kinds).find(a.dtype().kind()) == std::string::npos)
-    throw py::type_error(std::string(what) + ": expected " +
-                         (kinds[0] == 'f' ? "a float" : kinds[0] == 'b' ? "a real" : "an integer") + " array" +
-                         (a ? ", got dtype " + std::string(py::str(a.dtype())) : std::string()));
-  return py::array_t<Scalar, py::array::c_style | py::array::forcecast>::ensure(a);
-}
 
 /// One column of a batch: (G,) or (G, K) of `get(fit)`, as an Eigen array (the field table
 /// shows it as a NumPy array of T).
@@ -136,7 +124,7 @@ void defineFitting(py::module_& m) {
         return withCloud(points, "points", [&](auto view) {
           py::array_t<double, py::array::c_style | py::array::forcecast> w;
           if (!weights.is_none()) {
-            w = numeric<double>(weights, "weights", "biuf");
+            w = checkedAs<double>(weights, "weights", kReals | kBools);
             if (w.ndim() != 1 || static_cast<std::size_t>(w.shape(0)) != view.size)
               throw py::value_error("weights: expected shape (" + std::to_string(view.size) + ",)");
           }
@@ -174,7 +162,7 @@ Raises:
   m.def(
       "fit_spheres",
       [](const py::object& points, const py::object& offsets, double plane_tolerance, int num_threads) {
-        const auto o = numeric<std::int64_t>(offsets, "offsets", "iu");
+        const auto o = checkedAs<std::int64_t>(offsets, "offsets", kIntegers);
         if (o.ndim() != 1 || o.shape(0) < 1) throw py::value_error("offsets: expected shape (G + 1,)");
         // Checked here: fitSpheres turns each group's error into a NaN group, which would
         // hide a bad argument behind G "unfittable" groups.
@@ -206,7 +194,7 @@ Raises:
   m.def(
       "fit_circle_2d",
       [](const py::object& points) {
-        const auto xy = numeric<double>(points, "points", "f");
+        const auto xy = checkedAs<double>(points, "points");
         if (xy.ndim() != 2 || xy.shape(1) != 2) throw py::value_error("points: expected an (N, 2) array");
         py::gil_scoped_release release;
         return fitCirclePratt(xy.data(), static_cast<std::size_t>(xy.shape(0)));

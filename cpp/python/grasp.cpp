@@ -33,12 +33,7 @@ std::string shapeText(const py::array& a) {
 /// `x` as a finite rows x cols (cols 0: a vector of `rows`) float64 matrix; TypeError naming
 /// `name` unless it holds real numbers, ValueError for another shape or a non-finite value.
 Eigen::MatrixXd realArray(const py::object& x, const std::string& name, int rows, int cols) {
-  const py::array a = py::array::ensure(x);
-  const char kind = a ? a.dtype().kind() : 'O';
-  if (kind != 'f' && kind != 'i' && kind != 'u')
-    throw py::type_error(name + ": expected real numbers, got " +
-                         (a ? "dtype " + std::string(py::str(a.dtype())) : std::string(py::str(py::type::of(x)))));
-  const auto f = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(a);
+  const auto f = checkedAs<double>(x, name, kReals);
   const bool fits = cols == 0 ? f.ndim() == 1 && f.shape(0) == rows
                               : f.ndim() == 2 && f.shape(0) == rows && f.shape(1) == cols;
   if (!fits)

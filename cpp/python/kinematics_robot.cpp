@@ -34,12 +34,7 @@ std::string shapeText(const py::array& a) {
 
 F64 realArray(py::handle x, const std::string& name) {
   if (py::isinstance<F64>(x)) return py::reinterpret_borrow<F64>(x);  // the hot path: no copy
-  const py::array a = py::array::ensure(x);
-  const char kind = a ? a.dtype().kind() : 'O';
-  if (kind != 'f' && kind != 'i' && kind != 'u')
-    throw py::type_error(name + ": expected real numbers (a float or integer array), got " +
-                         (a ? "dtype " + std::string(py::str(a.dtype())) : std::string(py::str(py::type::of(x)))));
-  return F64::ensure(a);
+  return checkedAs<double>(x, name, kReals);
 }
 
 Vector6d vector6(py::handle x, const std::string& name, bool nonnegative) {

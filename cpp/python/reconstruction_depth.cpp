@@ -31,9 +31,10 @@ void checkImage(const py::array& depth, const PinholeIntrinsics& K) {
 /// Returns the (possibly converted) C-contiguous image and whether it is float.
 std::pair<py::array, bool> depthImage(const py::array& depth) {
   const char kind = depth.dtype().kind();
-  if (kind == 'f') return {py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(depth), true};
+  if (isFloat32Or64(depth.dtype()))
+    return {py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(depth), true};
   if (kind != 'u' && kind != 'i')
-    throw py::type_error("depth: expected uint16 or float, got dtype " + std::string(py::str(depth.dtype())));
+    throw py::type_error("depth: expected uint16 (or another integer type) or float32/float64, got dtype " + std::string(py::str(depth.dtype())));
   if (!holds<std::uint16_t>(depth) && depth.size() > 0) {
     const auto wide = py::array_t<std::int64_t, py::array::forcecast>::ensure(depth);
     const auto* d = wide.data();
@@ -117,7 +118,9 @@ std::vector<std::int32_t> facesArg(const py::array& faces, py::ssize_t n_vertice
 }
 
 py::tuple renderDepthPy(const py::array& vertices, const py::array& faces, const PinholeIntrinsics& camera,
-                        const Eigen::Matrix4d& T_camera_world, const DepthRenderSettings& settings) {
+                        const py::object& T_in, const DepthRenderSettings& settings) {
+  // Through the field conversion: pybind11's Eigen caster would parse strings, drop imaginary parts.
+  const Eigen::Matrix4d T_camera_world = fields::Conv<Eigen::Matrix4d>::set(T_in, "T_camera_world");
   if (camera.width < 1 || camera.height < 1 || camera.width > 32768 || camera.height > 32768)
     throw py::value_error("intrinsics: width, height must be in [1, 32768] pixels, got " +
                           std::to_string(camera.width) + " x " + std::to_string(camera.height));
@@ -153,6 +156,8 @@ int sizeArg(py::handle v, const char* where) {
   if (fields::isReal(v)) {
     const double d = PyFloat_AsDouble(v.ptr());
     if (std::isfinite(d) && d == std::floor(d) && std::abs(d) < 2147483648.0) return static_cast<int>(d);
+  } else {
+    throw py::type_error(std::string(where) + " must be a positive integer, got " + fields::shown(v));
   }
   throw py::value_error(std::string(where) + " must be a positive integer, got " + fields::shown(v));
 }
@@ -165,6 +170,7 @@ LensDistortion distortionArg(py::handle v) {
                           fields::shown(v));
   };
   if (py::isinstance<py::str>(v) || py::isinstance<py::bytes>(v)) return fail();
+  checkedArray(v, "PinholeIntrinsics.distortion", kReals);  // no strings parsed, no imaginary parts dropped
   py::array_t<double> a;
   try {
     a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(

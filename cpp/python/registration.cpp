@@ -149,7 +149,12 @@ class AnyIcp {
   }
 
   IcpSettings settings() const { return std::visit([](const auto& icp) { return icp.settings(); }, engine_); }
-  void setSettings(const IcpSettings& s) {
+  void setSettings(const py::object& o) {
+    // py::object, not IcpSettings: a wrong value is a TypeError naming the property, not
+    // pybind11's dump of the setter's signature.
+    if (!py::isinstance<IcpSettings>(o))
+      throw py::type_error("Icp.settings: expected an IcpSettings, got " + fields::shown(o));
+    const IcpSettings s = o.cast<IcpSettings>();
     validate(s);
     std::visit(
         [&](auto& icp) {
@@ -489,7 +494,8 @@ void defineRegistration(py::module_& m) {
   defineKdTree(m);
   m.def(
       "alignment_fitness",
-      [](const py::array& s, const py::array& t, const Eigen::Matrix4d& T, double thr, int threads) {
+      [](const py::array& s, const py::array& t, const py::object& T_in, double thr, int threads) {
+        const Eigen::Matrix4d T = fields::Conv<Eigen::Matrix4d>::set(T_in, "T_target_source");
         const auto f = alignmentFitness(cloudView<double>(s, "source"), cloudView<double>(t, "target"), T, thr, threads);
         return py::make_tuple(f.first, f.second);
       },

@@ -46,8 +46,8 @@ RansacSettings ransacSettings(double threshold, const py::int_& max_iterations, 
 
 /// A 3-vector argument; ValueError naming it otherwise (finiteness is checked by validate()).
 Eigen::Vector3d vec3(const py::handle& o, const char* what) {
-  const auto a = py::array_t<double, py::array::forcecast>::ensure(o);
-  if (!a || a.ndim() != 1 || a.shape(0) != 3)
+  const auto a = checkedAs<double>(o, what, kReals);
+  if (a.ndim() != 1 || a.shape(0) != 3)
     throw py::value_error(std::string(what) + ": expected 3 coordinates, metres");
   return {a.at(0), a.at(1), a.at(2)};
 }

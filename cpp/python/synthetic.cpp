@@ -70,9 +70,9 @@ py::array_t<float> applySensorNoisePy(const SensorNoise& noise, const py::array&
   using Image = py::array_t<float, py::array::c_style | py::array::forcecast>;
   // The size first, before a conversion allocates (a broadcast view claims any size for free).
   if (depth.ndim() == 2 && depth.size() > 0) checkImageSize(depth.shape(1), depth.shape(0), "depth");
-  const auto z = Image::ensure(depth), c = Image::ensure(cos_incidence);
-  if (!z || z.ndim() != 2) throw py::value_error("depth: expected an (H, W) float array");
-  if (!c || c.ndim() != 2 || c.shape(0) != z.shape(0) || c.shape(1) != z.shape(1))
+  const Image z = checkedAs<float>(depth, "depth"), c = checkedAs<float>(cos_incidence, "cos_incidence");
+  if (z.ndim() != 2) throw py::value_error("depth: expected an (H, W) float array");
+  if (c.ndim() != 2 || c.shape(0) != z.shape(0) || c.shape(1) != z.shape(1))
     throw py::value_error("cos_incidence: expected an array of the depth's shape (H, W)");
   py::array_t<float> out({z.shape(0), z.shape(1)});
   const auto w = static_cast<int>(z.shape(1)), h = static_cast<int>(z.shape(0));
@@ -135,8 +135,8 @@ void bindSensorNoise(py::module_& s) {
 /// A 3-vector or 2-vector of finite reals; ValueError naming `what` otherwise.
 template <int N>
 Eigen::Matrix<double, N, 1> fixedArg(const py::handle& o, const char* what) {
-  const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(o);
-  if (!a || a.ndim() != 1 || a.shape(0) != N)
+  const auto a = checkedAs<double>(o, what, kReals);
+  if (a.ndim() != 1 || a.shape(0) != N)
     throw py::value_error(std::string(what) + ": expected " + std::to_string(N) + " numbers");
   return Eigen::Map<const Eigen::Matrix<double, N, 1>>(a.data());
 }
@@ -162,15 +162,15 @@ void bindScene(py::module_& s) {
           if (!py::isinstance<py::tuple>(item) || py::len(item) != 4)
             throw py::value_error("objects: expected (vertices, faces, T_base_object, albedo) tuples");
           const auto t = py::reinterpret_borrow<py::tuple>(item);
-          keep_vertices.push_back(py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(t[0]));
+          keep_vertices.push_back(checkedAs<double>(t[0], "objects: vertices", kReals));
           const auto& v = keep_vertices.back();
-          if (!v || v.ndim() != 2 || v.shape(1) != 3) throw py::value_error("objects: vertices must be (V, 3) reals");
+          if (v.ndim() != 2 || v.shape(1) != 3) throw py::value_error("objects: vertices must be (V, 3) reals");
           keep_faces.push_back(indexRows(t[1], "objects: faces", 3));
           SceneObjectMesh o;
           o.vertices = CloudView<double>(v.data(), static_cast<std::size_t>(v.shape(0)));
           o.faces = keep_faces.back().data();
           o.n_faces = keep_faces.back().size() / 3;
-          o.T_base_object = t[2].cast<Eigen::Matrix4d>();
+          o.T_base_object = fields::Conv<Eigen::Matrix4d>::set(t[2], "objects: T_base_object");
           o.albedo = fixedArg<3>(t[3], "objects: albedo");
           in.push_back(o);
         }
@@ -210,10 +210,10 @@ void bindScene(py::module_& s) {
       [](const py::object& normals, const py::object& albedo, const py::object& owner, std::size_t n_object_faces,
          const Eigen::Vector3d& light_direction, double ambient, const py::object& table_alternate) {
         SceneMesh mesh;
-        const auto n = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(normals);
-        const auto a = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(albedo);
-        const auto o = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>::ensure(owner);
-        if (!n || !a || !o || n.ndim() != 2 || n.shape(1) != 3 || a.ndim() != 2 || a.shape(1) != 3 ||
+        const auto n = checkedAs<double>(normals, "normals", kReals);
+        const auto a = checkedAs<double>(albedo, "albedo", kReals);
+        const auto o = checkedAs<std::int32_t>(owner, "owner", kIntegers);
+        if (n.ndim() != 2 || n.shape(1) != 3 || a.ndim() != 2 || a.shape(1) != 3 ||
             a.shape(0) != n.shape(0) || o.ndim() != 1 || o.shape(0) != n.shape(0))
           throw py::value_error("normals, albedo: expected (F, 3) arrays and owner an (F,) array");
         const auto faces = static_cast<std::size_t>(n.shape(0));
@@ -247,9 +247,9 @@ void bindScene(py::module_& s) {
         c.alternate = colorTableArg(alternate, "alternate");
         c.object_faces = n_object_faces;
         const py::ssize_t h = intrinsics.height, w = intrinsics.width;
-        const auto fid = py::array_t<std::int32_t, py::array::c_style | py::array::forcecast>::ensure(face_id);
-        const auto z = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(depth);
-        if (!fid || fid.ndim() != 2 || fid.shape(0) != h || fid.shape(1) != w || !z || z.ndim() != 2 ||
+        const auto fid = checkedAs<std::int32_t>(face_id, "face_id", kIntegers);
+        const auto z = checkedAs<float>(depth, "depth");
+        if (fid.ndim() != 2 || fid.shape(0) != h || fid.shape(1) != w || z.ndim() != 2 ||
             z.shape(0) != h || z.shape(1) != w)
           throw py::value_error("face_id, depth: expected (" + std::to_string(h) + ", " + std::to_string(w) +
                                 ") images matching the intrinsics");
@@ -274,6 +274,7 @@ void bindScene(py::module_& s) {
       "sample_builtin_block",
       [](const py::object& n_points, const py::object& seed, int segments) {
         const auto n = static_cast<std::size_t>(intArg(n_points, "n_points", 0, std::int64_t{1} << 40));
+        requireMemory(160.0 * static_cast<double>(n), "n_points = " + std::to_string(n));  // points, normals, draws
         const std::uint64_t seed_value = seedArg(seed, "seed");
         MeshSamples r;
         {

@@ -173,7 +173,7 @@ def point_to_plane_lls(source: np.ndarray, target: np.ndarray, target_normals: n
         are then kept at zero motion rather than solved from round-off).
     """
     T, rank, cond, degenerate, _ = _core.registration.point_to_plane_lls(
-        *_paired(source, target, target_normals), float(degeneracy_threshold))
+        *_paired(source, target, target_normals), degeneracy_threshold)
     return np.asarray(T), int(rank), float(cond), bool(degenerate)
 
 
@@ -191,7 +191,7 @@ def box_rejector_keep(source: np.ndarray, query_indices: Sequence[int], box: Box
     """Runs ``scanalign::BoxRejector`` (the PCL ``CorrespondenceRejector`` plug-in) on
     correspondences whose source indices are ``query_indices``; returns the kept ones
     (int64). ValueError for indices out of range or a missing / invalid box."""
-    kept = _core.registration.box_rejector_keep(as_points(source, "source", _F32), [int(i) for i in query_indices], box)
+    kept = _core.registration.box_rejector_keep(as_points(source, "source", _F32), query_indices, box)
     return np.asarray(kept, dtype=np.int64)
 
 

@@ -9,12 +9,13 @@ process so a crash or a hang fails that group's test, not the whole run.
 from __future__ import annotations
 
 import functools
+import re
 from typing import Callable, Dict, List, Tuple
 
 import numpy as np
 from hypothesis import strategies as st
 
-from contract import STATS, ContractError, call, finite
+from contract import STATS, ContractError, call, check_result, finite
 from inputs import (INF, NAN, Param, build, cases, choice, clouds, counts, good_clouds, numbers,
                     rigid_from, transforms)
 
@@ -1028,3 +1029,395 @@ def read_part_grasps(case):
         finite(a, "approach")
         if np.abs(T[:3, :3].T @ T[:3, :3] - np.eye(3)).max() > 1e-6 or np.abs(T[3] - (0, 0, 0, 1)).max() > 1e-6:
             raise ContractError(f"read_part_grasps accepted a non-rigid T_model_grasp {T.tolist()}")
+
+
+# -- the argument rule at the binding boundary (issue 26, item 6) -------------------------
+# Each target below keeps one held-out finding fixed: valid input returns, the bad input
+# named here raises a TypeError / ValueError naming the argument (and, for a dtype, the dtype).
+def refused(fn, *args, names=(), exc=(TypeError, ValueError), **kwargs) -> None:
+    """fn(*args, **kwargs) must raise one of `exc` whose message names each of `names`."""
+    try:
+        result = fn(*args, **kwargs)
+    except exc as e:
+        if re.match(r"[\w.]*\(\): incompatible function arguments", str(e)):
+            raise ContractError(f"a signature dump instead of a message naming the argument: {e}") from e
+        missing = [n for n in names if n not in str(e)]
+        if missing:
+            raise ContractError(f"{type(e).__name__} does not name {missing}: {e}") from e
+        STATS["refused"] += 1
+        return
+    raise ContractError(f"accepted (expected {'/'.join(x.__name__ for x in exc)} naming {list(names)}): "
+                        f"returned {type(result).__name__}")
+
+
+def accepted(fn, *args, **kwargs):
+    """fn(*args, **kwargs) must return (valid input refused is a finding)."""
+    try:
+        result = fn(*args, **kwargs)
+    except Exception as e:  # noqa: BLE001 - any refusal of valid input is the finding
+        raise ContractError(f"valid input refused: {type(e).__name__}: {e}") from e
+    STATS["returned"] += 1
+    check_result(result)
+    return result
+
+
+def _cloud(n=60, seed=0):
+    return build(("cloud", "corner", n, seed, 0.1, "none", "f8", "n3", "C"))
+
+
+def _points_entries():
+    """(label, argument name, call(points)) for entry points that take an (N, 3) cloud."""
+    from scanalign import _core, cga, evaluation, features, fitting, pose, reconstruction, registration, segmentation
+    v, f = _mesh("part")
+    tgt = _cloud(80, 1)
+    return [
+        ("fit_sphere", "points", lambda p: fitting.fit_sphere(p)),
+        ("ransac_plane", "points", lambda p: segmentation.ransac_plane(p, 0.01)),
+        ("ransac_sphere", "points", lambda p: segmentation.ransac_sphere(p, 0.01)),
+        ("cga.up", "points", lambda p: cga.up(p)),
+        ("estimate_normals", "points", lambda p: features.estimate_normals(p, 0.05)),
+        ("voxel_grid", "points", lambda p: reconstruction.voxel_grid(p, 0.01)),
+        ("icp source", "source", lambda p: registration.icp(p, tgt, estimator="point_to_point")),
+        ("Icp target", "target", lambda p: registration.Icp(p, estimator="point_to_point")),
+        ("transform_points", "points", lambda p: _core.common.transform_points(np.eye(4), p)),
+        ("point_to_mesh_distance", "points", lambda p: evaluation.point_to_mesh_distance(p, v, f)),
+        ("alignment_fitness", "source", lambda p: pose.alignment_fitness(p, tgt, np.eye(4), 0.01)),
+        ("sample_mesh", "vertices", lambda p: _core.common.sample_mesh(p, np.array([[0, 1, 2]]), 10, 0)),
+    ]
+
+
+_RULE_DTYPES = ["f8", "f4", ">f8", "<f4", "f2", "g", "c16", "?", "U4", "O", "i8"]
+
+
+@target("arguments", which=st.integers(0, 11), dtype=st.sampled_from(_RULE_DTYPES))
+def dtype_rule(case):
+    """float32 / float64 (either byte order) points are accepted; float16, long double,
+    complex, bool, strings and objects are a TypeError naming the argument and the dtype
+    (README: other dtypes raise TypeError). Integer points too, except where integers are
+    documented (mesh vertices)."""
+    label, name, fn = _points_entries()[case["which"]]
+    dtype = np.dtype(case["dtype"])
+    with np.errstate(all="ignore"):
+        p = _cloud().astype(dtype) if dtype.kind != "U" else _cloud().astype("U4")
+    if dtype.kind == "f" and dtype.itemsize in (4, 8) or (dtype.kind == "i" and label == "sample_mesh"):
+        accepted(fn, p)
+    else:
+        refused(fn, p, names=(name, str(dtype)), exc=(TypeError,))
+
+
+def _numeric_entries():
+    """(label, argument name, call(value), a valid value) for scalar number arguments."""
+    from scanalign import _core, features, reconstruction, registration
+    from scanalign.reconstruction import camera
+    from scanalign.pose import model_views as cad
+    from scanalign.data import parts
+    p, tgt = _cloud(), _cloud(60, 1)
+    intr = dict(width=32, height=24, fx=30.0, fy=30.0, cx=16.0, cy=12.0)
+    return [
+        ("voxel_grid", "leaf_size", lambda x: reconstruction.voxel_grid(p, leaf_size=x), 0.01),
+        ("voxel_grid", "min_points_per_voxel", lambda x: reconstruction.voxel_grid(p, 0.01, min_points_per_voxel=x), 1),
+        ("estimate_normals", "radius", lambda x: features.estimate_normals(p, radius=x), 0.05),
+        ("estimate_normals", "min_neighbors", lambda x: features.estimate_normals(p, 0.05, min_neighbors=x), 3),
+        ("point_to_plane_lls", "degeneracy_threshold",
+         lambda x: registration.point_to_plane_lls(p, tgt, np.tile((0.0, 0.0, 1.0), (len(p), 1)), x), 1e-10),
+        ("alignment_fitness", "threshold", lambda x: _core.registration.alignment_fitness(p, tgt, np.eye(4), x), 0.01),
+        ("sample_mesh", "n_points", lambda x: parts.sample_mesh(_part(), x), 10),
+        ("Intrinsics", "width", lambda x: camera.Intrinsics(**{**intr, "width": x}), 32),
+        ("intrinsics_from_dict", "width", lambda x: camera.intrinsics_from_dict({**intr, "width": x}), 32),
+        ("intrinsics_from_dict", "fx", lambda x: camera.intrinsics_from_dict({**intr, "fx": x}), 30.0),
+        ("camera_from_dict", "height", lambda x: camera.camera_from_dict({**intr, "height": x}), 24),
+        ("view_intrinsics", "resolution", lambda x: cad.view_intrinsics(x), 40),
+    ]
+
+
+@target("arguments", which=st.integers(0, 11),
+        value=st.sampled_from(["valid", "valid", "0.01", "3", "", b"1", INF, -INF, NAN, 2**70, [1.0], None]))
+def numbers_not_strings(case):
+    """A number argument given a string is a TypeError naming it (never parsed, as float()
+    would), an infinite or huge one a ValueError or TypeError naming it (never OverflowError)."""
+    label, name, fn, valid = _numeric_entries()[case["which"]]
+    value = case["value"]
+    if isinstance(value, str) and value == "valid":
+        accepted(fn, valid)
+    elif isinstance(value, (str, bytes)):
+        refused(fn, value, names=(name,), exc=(TypeError,))
+    elif isinstance(valid, float) and isinstance(value, (int, float)):
+        call(fn, value)  # a huge or non-finite length: refused or a (useless) result, never a crash or OverflowError
+    else:
+        refused(fn, value, names=(name,))  # a count: inf, NaN, 2**70, a list or None is refused, naming it
+
+
+@target("arguments", scale=st.sampled_from([0.1, 1.0, 1e30, 1e-30, 1e18]),
+        variant=st.sampled_from(["svd", "dual_quaternion", "point_to_plane_lls", "scanalign_point_to_plane_lls"]),
+        corrupt=st.sampled_from(["none", "none", "nan_half", "huge_one"]), seed=st.integers(0, 99))
+def pcl_baselines_converge_honestly(case):
+    """A PCL baseline is never 'converged' without a correspondence at its final transform
+    (1e30 m input: fitness 0) or with a non-finite transform."""
+    from scanalign import registration
+    rng = np.random.default_rng(case["seed"])
+    with np.errstate(all="ignore"):
+        src = _cloud(200, case["seed"]) / 0.1 * case["scale"]
+        src = np.asarray(build(("cloud", "corner", 200, case["seed"], case["scale"], case["corrupt"], "f8", "n3", "C")))
+        T = rigid_from(rng, 0.03, 0.01 * case["scale"])
+        tgt = src @ T[:3, :3].T + T[:3, 3]
+    normals = np.tile((0.0, 0.0, 1.0), (len(tgt), 1))
+    r = call(registration.pcl_icp, src, np.nan_to_num(tgt, nan=np.nan, posinf=np.nan, neginf=np.nan), normals,
+             variant=case["variant"], max_correspondence_distance=0.2 * min(case["scale"] * 10, 1.0))
+    if r is not None and r.converged:
+        if r.correspondence_count == 0 or not r.fitness > 0:
+            raise ContractError(f"pcl_icp {case['variant']} converged with {r.correspondence_count} correspondences, "
+                                f"fitness {r.fitness}")
+        finite(r.T_target_source, "T_target_source")
+
+
+@target("arguments", n=st.sampled_from([0, 1, 2, 6, 50]), corrupt=st.sampled_from(["none", "nan_all", "nan_half", "inf_one"]),
+        normals=st.sampled_from(["unit", "zero", "nan"]))
+def pcl_lls_inputs(case):
+    """pcl_point_to_plane_lls: empty or all-non-finite input (no usable pair) is a ValueError,
+    as icp refuses an empty cloud; otherwise a transform (finite when 6 or more usable pairs
+    constrain it)."""
+    from scanalign import registration
+    n = case["n"]
+    src = np.asarray(build(("cloud", "corner", n, 5, 0.1, case["corrupt"], "f8", "n3", "C"))).reshape(-1, 3)
+    tgt = src + 0.001
+    nrm = {"unit": np.tile((0.0, 0.0, 1.0), (n, 1)), "zero": np.zeros((n, 3)), "nan": np.full((n, 3), NAN)}[case["normals"]]
+    usable = np.isfinite(src).all(axis=1) & np.isfinite(nrm).all(axis=1) & (np.abs(nrm).sum(axis=1) > 0)
+    if not usable.any():
+        refused(registration.pcl_point_to_plane_lls, src, tgt, nrm, names=("point-to-plane LLS",), exc=(ValueError,))
+        refused(registration.icp, src, tgt, nrm, exc=(ValueError,)) if n == 0 else None
+    else:
+        accepted(registration.pcl_point_to_plane_lls, src, tgt, nrm)
+
+
+@target("arguments", bad=st.sampled_from(["x", None, 3, {"max_iterations": 3}, "ok", "ok"]),
+        field=st.sampled_from([("max_iterations", "x"), ("max_iterations", 2**70), ("max_correspondence_distance", "0.1"),
+                               ("estimator", "nope"), ("max_iterations", 5)]))
+def icp_settings_mutation(case):
+    """Icp.settings given something else than an IcpSettings, or an IcpSettings field given a
+    value of the wrong type: a TypeError / ValueError naming it, never AttributeError or a dump."""
+    from scanalign import registration
+    icp = registration.Icp(_cloud(), estimator="point_to_point")
+    if case["bad"] == "ok":
+        s = icp.settings
+        name, value = case["field"]
+        if value == 5:
+            s.max_iterations = 5
+            icp.settings = s
+            accepted(icp.align, _cloud(60, 2))
+        else:
+            refused(setattr, s, name, value, names=(name,))
+    else:
+        refused(setattr, icp, "settings", case["bad"], names=("Icp.settings",), exc=(TypeError,))
+
+
+@target("arguments", kind=st.sampled_from(["list", "tuple_rows", "array", "list", "ragged", "strings"]))
+def icp_array_likes(case):
+    """Icp accepts any (N, 3) array-like (a list of rows) like the other entry points; a
+    ragged list or strings are a TypeError / ValueError naming the argument."""
+    from scanalign import registration
+    p = _cloud()
+    value = {"list": p.tolist(), "tuple_rows": tuple(map(tuple, p.tolist())), "array": p,
+             "ragged": [[0.0, 0.0, 0.0], [1.0, 2.0]], "strings": [["0", "0", "0"]] * 4}[case["kind"]]
+    if case["kind"] in ("ragged", "strings"):
+        refused(registration.Icp, value, estimator="point_to_point", names=("target",))
+        return
+    icp = accepted(registration.Icp, value, estimator="point_to_point")
+    accepted(icp.align, value)
+    accepted(registration.icp, value, value, estimator="point_to_point")
+
+
+def _frame():
+    from scanalign.reconstruction.camera import Frame, Intrinsics
+    d = np.full((24, 32), 0.5, np.float32)
+    d += np.linspace(0, 0.05, 32, dtype=np.float32)[None]
+    return Frame(depth=d, intrinsics=Intrinsics(32, 24, 30.0, 30.0, 16.0, 12.0), depth_scale=1.0)
+
+
+@target("arguments", weight=0.1, item=st.sampled_from(["frame", "frame", "points", "none", "str", "dict"]))
+def reconstruct_non_frames(case):
+    """reconstruct() given an iterable yielding something other than a Frame: a TypeError
+    naming frames (never AttributeError)."""
+    from scanalign.pipelines import reconstruct as pipeline
+    item = {"frame": None, "points": _cloud(), "none": None, "str": "frame.png", "dict": {"depth": None}}[case["item"]]
+    frames = [_frame(), _frame()] if case["item"] == "frame" else [_frame(), item]
+    if case["item"] == "frame":
+        accepted(pipeline.reconstruct, frames, progress=False, evaluate=False)
+    else:
+        refused(pipeline.reconstruct, frames, progress=False, evaluate=False, names=("frames",), exc=(TypeError,))
+
+
+# -- the entry points added last (issue 26): bad shapes, dtypes, NaN/inf, huge sizes -------
+_MATS = ["identity", "small", "small", "nan", "inf", "scaled", "3x4", "flat16", "complex", "list", "none", "str",
+         "int", "f2", "strings"]
+
+
+def _mat(kind, seed=0):
+    if kind == "f2":
+        return np.eye(4, dtype=np.float16)
+    if kind == "strings":
+        return np.eye(4).astype("U4")
+    return build(("transform", kind, seed))
+
+
+@target("new_entry_points", T=st.sampled_from(_MATS), points=clouds(300).wild)
+def transform_and_rigid(case):
+    from scanalign import _core
+    T = _mat(case["T"])
+    r = call(_core.common.transform_points, T, build(case["points"]))
+    if r is not None and case["T"] in ("f2", "strings", "complex"):
+        raise ContractError(f"transform_points accepted a {case['T']} T")
+    call(_core.common.rigid_problem, T)
+
+
+_VEC3 = [(1.0, 0.0, 0.5)] * 3 + [(0.0, 0.0, 0.0), (NAN, 0, 0), (INF, 0, 0), (1e300, 0, 0), (1, 2), ("1", "2", "3"),
+                                  (1j, 0, 0), None, "xyz"]
+
+
+@target("new_entry_points", eye=st.sampled_from(_VEC3), tgt=st.sampled_from([(0.0, 0.0, 0.0)] * 3 + _VEC3),
+        up=st.sampled_from([(0.0, 0.0, 1.0)] * 3 + _VEC3))
+def look_at(case):
+    from scanalign import _core
+    r = call(_core.common.look_at, case["eye"], case["tgt"], case["up"])
+    if r is not None:
+        finite(r, "look_at")
+        if any(isinstance(v, tuple) and any(isinstance(x, (str, complex)) for x in v) for v in case.values()):
+            raise ContractError(f"look_at accepted strings or complex numbers: {case}")
+
+
+@target("new_entry_points", vert=choice(["ok", "ok", "nan", "f2", "2d", "int", "strings", "empty"]),
+        faces=choice(["ok", "ok", "bad_index", "neg_index", "float", "empty"]),
+        n=counts(50, 10**12, 2**40, 2**41), seed=counts(0, -1, 2**64))
+def sample_mesh(case):
+    from scanalign import _core
+    v, f = _mesh("part")
+    v = {"ok": v, "nan": np.where(np.arange(len(v))[:, None] == 0, NAN, v), "f2": v.astype(np.float16), "2d": v[:, :2],
+         "int": np.rint(v * 100).astype(np.int64), "strings": v.astype("U6"), "empty": v[:0]}[case["vert"]]
+    f = {"ok": f, "bad_index": np.where(f == 0, 10**6, f), "neg_index": f - 1, "float": f.astype(float) + 0.5,
+         "empty": f[:0]}[case["faces"]]
+    r = call(_core.common.sample_mesh, v, f, case["n"], case["seed"])
+    if r is not None:
+        finite(r[0], "samples")
+        if case["vert"] in ("f2", "strings"):
+            raise ContractError(f"sample_mesh accepted {case['vert']} vertices")
+    s = call(_core.synthetic.sample_builtin_block, case["n"], case["seed"])
+    if s is not None:
+        finite(s[0], "block samples")
+
+
+@target("new_entry_points", src=clouds(300), tgt=clouds(300), T=st.sampled_from(_MATS), thr=numbers(0.01), threads=counts(0, 5000))
+def alignment_fitness(case):
+    from scanalign import _core
+    r = call(_core.registration.alignment_fitness, build(case["src"]), build(case["tgt"]), _mat(case["T"]), case["thr"],
+             case["threads"])
+    if r is not None:
+        finite(r[0], "fitness")
+
+
+@target("new_entry_points", T=st.sampled_from(_MATS), T2=st.sampled_from(_MATS),
+        order=st.sampled_from([1, 2, 6, 0, -1, 2**40]), axis=st.sampled_from(_VEC3))
+def symmetric_pose_error(case):
+    from scanalign import _core, grasp
+    sym = call(grasp.PartSymmetry, axis=case["axis"], order=case["order"])
+    if sym is not None:
+        r = call(_core.pose.symmetric_pose_error, _mat(case["T"]), _mat(case["T2"], 1), sym)
+        if r is not None:
+            finite(r, "symmetric pose error")
+
+
+_SCENE = ["ok"] * 3 + ["nan_vertex", "f2_vertex", "bad_T", "complex_T", "no_tuple", "bad_albedo", "strings_faces", "empty"]
+
+
+@target("new_entry_points", obj=choice(_SCENE), table=choice([None, (0.6, 0.4), (NAN, 1), (1e300, 1), "big", (1,)]),
+        light=st.sampled_from([(0.0, 0.0, 1.0), (0.0, 0.0, 0.0), (NAN, 0, 0), (1j, 0, 0), ("1", "0", "0")]),
+        ambient=numbers(0.2), depth=choice(["ok", "ok", "f2", "wrong", "nan"]), T=st.sampled_from(_MATS))
+def scene(case):
+    """compose_scene -> scene_colors -> shade_scene (the synthetic scene of a scan)."""
+    from scanalign import _core
+    from scanalign.reconstruction.camera import Intrinsics
+    v, f = _mesh("part")
+    T = np.eye(4)
+    T[2, 3] = 0.5
+    obj = {"ok": (v, f, T, (0.5, 0.5, 0.5)), "nan_vertex": (np.where(np.arange(len(v))[:, None] == 0, NAN, v), f, T, (0.5,) * 3),
+           "f2_vertex": (v.astype(np.float16), f, T, (0.5,) * 3), "bad_T": (v, f, T * 2, (0.5,) * 3),
+           "complex_T": (v, f, T + 1j, (0.5,) * 3), "no_tuple": [v, f, T, (0.5,) * 3], "bad_albedo": (v, f, T, (NAN, 0, 0)),
+           "strings_faces": (v, f.astype("U4"), T, (0.5,) * 3), "empty": (v[:0], f[:0], T, (0.5,) * 3)}[case["obj"]]
+    table = case["table"]
+    d = call(_core.synthetic.compose_scene, [obj], table, (0.0, 0.0), 0.0, (0.8, 0.8, 0.8))
+    if d is None:
+        return
+    if case["obj"] in ("f2_vertex", "complex_T", "strings_faces"):
+        raise ContractError(f"compose_scene accepted {case['obj']}")
+    c = call(_core.synthetic.scene_colors, d["normals"], d["albedo"], d["owner"], d["n_object_faces"], case["light"],
+             case["ambient"], (0.2, 0.2, 0.2))
+    if c is None:
+        return
+    K = Intrinsics(32, 24, 30.0, 30.0, 16.0, 12.0)
+    fid = np.zeros((24, 32), np.int32)
+    z = {"ok": np.full((24, 32), 0.5, np.float32), "f2": np.full((24, 32), 0.5, np.float16), "wrong": np.zeros((3, 3), np.float32),
+         "nan": np.full((24, 32), NAN, np.float32)}[case["depth"]]
+    call(_core.synthetic.shade_scene, c[0], c[1], d["n_object_faces"], fid, z, K, _mat(case["T"]), (0.0, 0.0), 0.05)
+
+
+@target("new_entry_points", vert=choice(["ok", "ok", "f4", "nan", "f2", "int", "2d"]), T=st.sampled_from(_MATS),
+        size=st.sampled_from([(32, 24), (32, 24), (1, 1), (40000, 10), (2**31 - 1, 2)]),
+        near=numbers(0.01), far=numbers(INF))
+def render_depth(case):
+    from scanalign import _core
+    from scanalign.reconstruction.camera import Intrinsics
+    v, f = _mesh("part")
+    v = {"ok": v, "f4": v.astype(np.float32), "nan": np.where(np.arange(len(v))[:, None] == 0, NAN, v),
+         "f2": v.astype(np.float16), "int": v.astype(np.int64), "2d": v[:, :2]}[case["vert"]]
+    K = call(Intrinsics, case["size"][0], case["size"][1], 30.0, 30.0, 16.0, 12.0)
+    s = call(_core.reconstruction.DepthRenderSettings, near_clip=case["near"], far_clip=case["far"])
+    if K is None or s is None:
+        return
+    T = _mat(case["T"])
+    if isinstance(T, np.ndarray) and T.shape == (4, 4) and T.dtype.kind == "f":
+        T = T.copy()
+        T[2, 3] += 0.5
+    r = call(_core.reconstruction.render_depth, v, f, K, T, s)
+    if r is not None and case["T"] in ("f2", "strings", "complex"):
+        raise ContractError(f"render_depth accepted a {case['T']} T_camera_world")
+
+
+_CHAINS = ["ok"] * 4 + ["nan", "f2", "5", "strings", "axes_zero", "axes_bad", "limits_bad", "tip_bad", "huge"]
+
+
+@target("new_entry_points", chain=choice(_CHAINS), q=choice(["ok", "ok", "batch", "nan", "five", "f2", "str", "huge_batch"]),
+        tcp=st.booleans(), threads=counts(0, 5000))
+def joint_chain_robot(case):
+    from scanalign import kinematics
+    ur5 = kinematics.ur5()
+    origins, axes = np.tile(np.eye(4), (6, 1, 1)), np.tile((0.0, 0.0, 1.0), (6, 1))
+    origins[1:, 2, 3] = 0.1
+    origins[2:, 0, 3] = 0.2
+    axes[1:3] = (0.0, 1.0, 0.0)
+    args = dict(origins=origins, axes=axes)
+    kind = case["chain"]
+    if kind == "nan":
+        args["origins"] = np.where(np.arange(4)[:, None] == 0, NAN, origins)
+    elif kind == "f2":
+        args["origins"] = origins.astype(np.float16)
+    elif kind == "5":
+        args = dict(origins=origins[:5], axes=axes[:5])
+    elif kind == "strings":
+        args["axes"] = axes.astype("U4")
+    elif kind == "axes_zero":
+        args["axes"] = np.zeros((6, 3))
+    elif kind == "axes_bad":
+        args["axes"] = axes[:, :2]
+    elif kind == "limits_bad":
+        args["limits"] = np.tile((1.0, -1.0), (6, 1))
+    elif kind == "tip_bad":
+        args["T_joint6_tip"] = np.eye(4) * 2
+    elif kind == "huge":
+        args["origins"] = origins * 1e300
+    robot = call(kinematics.Robot.from_joint_chain, **args)
+    if robot is not None and kind in ("f2", "strings"):
+        raise ContractError(f"from_joint_chain accepted {kind}")
+    robot = robot or ur5
+    q = {"ok": np.zeros(6), "batch": np.zeros((5, 6)), "nan": np.full(6, NAN), "five": np.zeros(5), "f2": np.zeros(6, np.float16),
+         "str": "home", "huge_batch": np.broadcast_to(np.zeros(6), (10**5, 6))}[case["q"]]
+    r = call(robot.joint_positions, q, tcp=case["tcp"], num_threads=case["threads"])
+    if r is not None and case["q"] in ("f2", "str"):
+        raise ContractError(f"joint_positions accepted a {case['q']} q")

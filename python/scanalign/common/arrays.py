@@ -98,9 +98,14 @@ def as_points(array: object, name: str, dtype: Optional[np.dtype] = None) -> np.
     ValueError for another shape."""
     if not isinstance(array, np.ndarray) and is_foreign(array):
         array = foreign_points(array, name)
-    a = np.asarray(array)
-    if a.dtype not in _FLOATS:
+    try:
+        a = np.asarray(array)
+    except (ValueError, TypeError) as e:  # a ragged list: numpy's message does not say which argument
+        raise ValueError(f"{name}: expected an (N, 3) array of numbers ({e})") from None
+    if a.dtype.kind != "f" or a.dtype.itemsize not in (4, 8):  # the C++ rule (cpp/python/arrays.hpp)
         raise TypeError(f"{name}: expected a float32 or float64 array, got dtype {a.dtype}")
+    if not a.dtype.isnative:  # big-endian float64 is float64: in native order for the core
+        a = a.astype(a.dtype.newbyteorder("="))
     if a.ndim != 2 or a.shape[1] != 3:
         raise ValueError(f"{name}: expected shape (N, 3), got {a.shape}")
     if dtype is not None and a.dtype != dtype:

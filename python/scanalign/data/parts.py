@@ -69,10 +69,10 @@ def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) 
     """
     m = mesh_or_vertices_faces
     mesh = m if isinstance(m, io.Mesh) else io.Mesh(*(mesh_arrays(m) or m))  # or an Open3D / trimesh mesh
-    if n_points < 0:
-        raise ValueError(f"n_points must be non-negative, got {n_points}")
-    require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
-    points, normals, _ = _core.common.sample_mesh(mesh.vertices, mesh.faces, int(n_points), seed)
+    # n_points: an integer in [0, 2^40] (checked in C++, naming it) within memory
+    if isinstance(n_points, (int, np.integer)) and not isinstance(n_points, bool) and n_points > 0:
+        require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
+    points, normals, _ = _core.common.sample_mesh(mesh.vertices, mesh.faces, n_points, seed)
     return points, normals
 
 
@@ -169,8 +169,8 @@ def builtin_object(n_points: int = 20000, seed: int = 0) -> Tuple[np.ndarray, np
         ``points (n_points, 3)`` and ``normals (n_points, 3)``, float64, metres, in the frame
         of :func:`builtin_mesh`.
     """
-    if n_points < 0:
-        raise ValueError(f"n_points must be non-negative, got {n_points}")
-    require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
-    points, normals, _ = _core.synthetic.sample_builtin_block(int(n_points), seed, 96)
+    # n_points: an integer in [0, 2^40] (checked in C++, naming it) within memory
+    if isinstance(n_points, (int, np.integer)) and not isinstance(n_points, bool) and n_points > 0:
+        require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
+    points, normals, _ = _core.synthetic.sample_builtin_block(n_points, seed, 96)
     return points, normals

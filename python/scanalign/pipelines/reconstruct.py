@@ -192,8 +192,8 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
 
     Raises:
         ValueError: bad settings, ``model_frame="base"`` without a reference pose on the
-        first frame, an item that is not a Frame, or a malformed frame (e.g. image size not
-        matching the intrinsics).
+        first frame, or a malformed frame (e.g. image size not matching the intrinsics).
+        TypeError: an item of ``frames`` that is not a Frame.
     """
     job = make_reconstruction_settings(settings, **overrides)
     model_frame, by_reference = job.model_frame, job.frame_to_model.motion_model == "reference"
@@ -210,8 +210,7 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
     try:
         for k, frame in enumerate(frames):
             if not isinstance(frame, Frame):
-                raise ValueError(f"frames[{k}]: expected a scanalign.reconstruction.camera.Frame, got "
-                                 f"{type(frame).__name__}")
+                raise TypeError(f"frames: item {k} is a {type(frame).__name__}, not a scanalign.reconstruction.camera.Frame")
             if rec is None:
                 base = frame.T_base_camera is not None and model_frame in ("auto", "base")
                 if model_frame == "base" and frame.T_base_camera is None:

@@ -140,8 +140,8 @@ def alignment_fitness(source: np.ndarray, target: np.ndarray, T_target_source: n
     """``(fitness, inlier_rmse)``: the fraction of finite source points whose nearest target
     point lies within ``threshold`` metres after ``T_target_source``, and their RMS distance (m)."""
     s, t = _pairs(source, target)
-    return _core.registration.alignment_fitness(s, t, as_transform(T_target_source, "T_target_source"), float(threshold),
-                                int(num_threads))
+    return _core.registration.alignment_fitness(s, t, as_transform(T_target_source, "T_target_source"), threshold,
+                                num_threads)
 
 
 # --- coarse alignment ---------------------------------------------------------------------------
@@ -169,7 +169,7 @@ def align_cbd(source: np.ndarray, target: np.ndarray, settings: Optional[_cbd.Cb
     if len(s) == 0 or len(t) == 0:
         raise ValueError("align_cbd: source and target must not be empty")
     st = _cbd_alignment_settings(settings, cbd_overrides, ransac)
-    st.matches_per_keypoint = int(matches_per_keypoint)
+    st.matches_per_keypoint = matches_per_keypoint
     st.hypotheses = hypotheses
     return _P.align_cbd(s, t, st)
 
@@ -319,15 +319,14 @@ def _table_settings(s: Any, method: str, max_objects: int, table_threshold: floa
                     min_cluster_size: int, viewpoint: Sequence[float], up: Optional[Sequence[float]], num_threads: int,
                     pose_kwargs: Dict[str, Any]) -> Any:
     """Fills find_objects / find_parts settings ``s``; returns the PCL settings (or None)."""
-    s.max_objects = int(max_objects)
+    s.max_objects = max_objects
     s.pose = _pose_settings(method, pose_kwargs.pop("inlier_threshold", 0.005), pose_kwargs.pop("icp_distance", 0.01),
                             pose_kwargs.pop("normal_radius", 0.005), pose_kwargs.pop("cbd_settings", None),
                             pose_kwargs.pop("ransac", None), num_threads, pose_kwargs, s.pose)
     pcl = _pcl_settings(method, pose_kwargs.pop("pcl_settings", None) or {}) if method in _PCL_METHODS else None
     t = s.table
-    t.plane.threshold, t.cluster_tolerance, t.min_cluster_size = float(table_threshold), float(cluster_tolerance), int(
-        min_cluster_size)
-    t.plane.num_threads = int(num_threads)
+    t.plane.threshold, t.cluster_tolerance, t.min_cluster_size = table_threshold, cluster_tolerance, min_cluster_size
+    t.plane.num_threads = num_threads
     t.viewpoint = np.asarray(viewpoint, dtype=np.float64)
     t.up = np.zeros(3) if up is None else np.asarray(up, dtype=np.float64)
     s.table = t

@@ -38,13 +38,13 @@ def tessellated_sphere(level: int = 1) -> Tuple[np.ndarray, np.ndarray]:
     """``(vertices (V, 3) unit length, faces (F, 3) int64)`` of an icosahedron subdivided
     ``level`` (0..6) times: 10·4^level + 2 vertices and 20·4^level faces, wound
     counter-clockwise seen from outside (level 1: the thesis's 42 viewpoints)."""
-    return _P.tessellated_sphere(int(level))
+    return _P.tessellated_sphere(level)
 
 
 def view_intrinsics(resolution: int, view_angle: float = DEFAULT_VIEW_ANGLE):
     """Square pinhole intrinsics (``PinholeIntrinsics``: width, height, fx, fy, cx, cy in
     pixels) with the field of view ``view_angle`` (rad) across ``resolution`` pixels."""
-    return _P.view_intrinsics(int(resolution), float(view_angle))
+    return _P.view_intrinsics(resolution, view_angle)
 
 
 def _mesh_arrays(mesh: object) -> Tuple[np.ndarray, np.ndarray]:
@@ -90,9 +90,9 @@ def render_views(mesh: object, *, resolution: int = 150, view_angle: float = DEF
             level or distance.
     """
     V, F = _mesh_arrays(mesh)
-    s = set_fields(ModelViewSettings(), dict(resolution=int(resolution), view_angle=float(view_angle),
-                                             level=int(level), distance=0.0 if distance is None else float(distance),
-                                             num_threads=int(num_threads)), "view")
+    s = set_fields(ModelViewSettings(), dict(resolution=resolution, view_angle=view_angle,
+                                             level=level, distance=0.0 if distance is None else distance,
+                                             num_threads=num_threads), "view")
     if center is not None:
         s.center = np.asarray(center, dtype=np.float64)
     return _P.render_model_views(V, F, s)

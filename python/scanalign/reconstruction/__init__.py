@@ -85,7 +85,7 @@ def voxel_grid(points: np.ndarray, leaf_size: float = 0.001, *, normals: Optiona
                 f"{name}: expected real ({p.shape[0]}, 3) values, got {np.asarray(a).dtype} {np.shape(a)}")
         attributes += [] if a is None else [np.asarray(a, dtype=np.float64)]
     centroids, means, counts = _core.reconstruction.voxel_grid(
-        p, float(leaf_size), np.hstack(attributes) if attributes else None, int(min_points_per_voxel))
+        p, leaf_size, np.hstack(attributes) if attributes else None, min_points_per_voxel)  # types checked in C++
     out_normals = out_colors = None
     if normals is not None:  # the mean normal re-normalised (NaN where the normals cancel)
         with np.errstate(invalid="ignore", divide="ignore"):

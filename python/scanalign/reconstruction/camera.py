@@ -51,8 +51,10 @@ def intrinsics_from_dict(d: Mapping[str, Any]) -> Intrinsics:
     if missing:
         raise ValueError(f"intrinsics: missing keys {missing}")
     dist = d.get("distortion")
-    return Intrinsics(int(d["width"]), int(d["height"]), float(d["fx"]), float(d["fy"]), float(d["cx"]),
-                      float(d["cy"]), NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
+    # No int() / float() here: the constructor checks each value and names it (a string or an
+    # infinite size is an error, not parsed or an OverflowError).
+    return Intrinsics(d["width"], d["height"], d["fx"], d["fy"], d["cx"],
+                      d["cy"], NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
 
 
 def intrinsics_preset(name: str) -> Intrinsics:
@@ -201,7 +203,7 @@ def camera_from_dict(d: Mapping[str, Any]) -> Tuple[Intrinsics, Optional[float]]
     if width is None or height is None:
         raise ValueError("camera: missing the image size (image_width and image_height, or width and height)")
     distortion = NO_DISTORTION if dist is None else _distortion5(_numbers(dist, None, "distortion_coefficients"), model)
-    return Intrinsics(int(width), int(height), float(K[0]), float(K[4]), float(K[2]), float(K[5]), distortion), scale
+    return Intrinsics(width, height, K[0], K[4], K[2], K[5], distortion), scale
 
 
 def read_camera(path: Union[str, os.PathLike]) -> Tuple[Intrinsics, Optional[float]]:

@@ -99,7 +99,7 @@ def render_depth(
     """
     K = as_intrinsics(intrinsics)
     T = as_transform(T_camera_world, "T_camera_world")  # rigidity: checked in C++, naming T_camera_world
-    settings = _core.reconstruction.DepthRenderSettings(near_clip=float(near), far_clip=float(far),
+    settings = _core.reconstruction.DepthRenderSettings(near_clip=near, far_clip=far,
                                                         cull_backfaces=bool(cull_backfaces), num_threads=num_threads)
     # Face dtype, shape and index range: checked in C++, naming faces.
     depth, face_id, cos = _core.reconstruction.render_depth(as_points(vertices, "vertices"), np.asarray(faces), K, T,

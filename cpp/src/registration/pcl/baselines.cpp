@@ -165,6 +165,10 @@ IcpResult runPcl(Registration& icp, pcl::shared_ptr<Estimator> estimator, const 
                  const IcpSettings& settings) {
   constexpr bool plane = std::is_same_v<PointT, pcl::PointNormal>;
   const Usable source = usable(source_in, {}, false), target = usable(target_in, target_normals, plane);
+  // As Icp::setTarget: a target with nothing usable is bad input, not a status.
+  if (target.size() == 0)
+    throw std::invalid_argument(plane ? "PCL ICP target: no point with finite coordinates and a valid normal"
+                                      : "PCL ICP target: no point with finite coordinates");
   // An undetermined problem is a status, not a run: too few points (3 pairs fix a rigid
   // motion; point-to-plane constrains one direction per pair, so 6), or points that do not
   // span a plane, on either side.
@@ -205,8 +209,12 @@ IcpResult runPcl(Registration& icp, pcl::shared_ptr<Estimator> estimator, const 
   const bool finite = T.allFinite() && !steps->failed();
   IcpResult result = evaluateAt(source.view(), target.view(), finite ? T : init, settings);
   result.iterations = icp.iterations();
-  result.status = finite ? fromPcl(icp.getConvergeCriteria()->getConvergenceState()) : IcpStatus::NotEnoughCorrespondences;
-  result.converged = finite && icp.hasConverged() && result.status != IcpStatus::MaxIterations &&
+  // No correspondence at the final transform (e.g. coordinates of 1e30 m, whose squared
+  // distances overflow float: PCL then meets its MSE criterion on nothing) is no convergence.
+  const bool matched = result.correspondence_count > 0 && result.T_target_source.allFinite();
+  result.status = finite && matched ? fromPcl(icp.getConvergeCriteria()->getConvergenceState())
+                                    : IcpStatus::NotEnoughCorrespondences;
+  result.converged = finite && matched && icp.hasConverged() && result.status != IcpStatus::MaxIterations &&
                      result.status != IcpStatus::NotEnoughCorrespondences;
   result.mse = 0.0;
   result.degenerate = !finite;
@@ -266,11 +274,37 @@ void checkPaired(const CloudView<float>& source, const CloudView<float>& target,
   if (source.size != target.size || normals.size != target.size)
     throw std::invalid_argument("point-to-plane LLS: source, target and normals must have the same number of rows");
 }
+
+/// The pairs PCL's LLS can use: finite source and target points with a finite, non-zero
+/// normal (a non-finite one would make the whole transform NaN). std::invalid_argument for
+/// none, as Icp::setTarget / pclIcp refuse an empty or all-non-finite cloud.
+struct UsablePairs {
+  std::vector<float> source, target, normals;
+  std::size_t size() const { return source.size() / 3; }
+};
+UsablePairs usablePairs(const CloudView<float>& source, const CloudView<float>& target,
+                        const CloudView<float>& normals) {
+  if (source.empty()) throw std::invalid_argument("point-to-plane LLS: no correspondences (empty input)");
+  UsablePairs u;
+  for (std::size_t i = 0; i < source.size; ++i) {
+    if (!source.isFinite(i) || !target.isFinite(i) || !normals.isFinite(i) || normals[i].squaredNorm() == 0.f) continue;
+    u.source.insert(u.source.end(), source.ptr(i), source.ptr(i) + 3);
+    u.target.insert(u.target.end(), target.ptr(i), target.ptr(i) + 3);
+    u.normals.insert(u.normals.end(), normals.ptr(i), normals.ptr(i) + 3);
+  }
+  if (u.size() == 0)
+    throw std::invalid_argument(
+        "point-to-plane LLS: no pair with finite coordinates and a valid (finite, non-zero) normal");
+  return u;
+}
 }  // namespace
 
-Eigen::Matrix4d pclPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
-                                   const CloudView<float>& target_normals, double* seconds) {
-  checkPaired(source, target, target_normals);
+Eigen::Matrix4d pclPointToPlaneLLS(const CloudView<float>& source_in, const CloudView<float>& target_in,
+                                   const CloudView<float>& normals_in, double* seconds) {
+  checkPaired(source_in, target_in, normals_in);
+  const UsablePairs pairs = usablePairs(source_in, target_in, normals_in);
+  const CloudView<float> source(pairs.source.data(), pairs.size()), target(pairs.target.data(), pairs.size()),
+      target_normals(pairs.normals.data(), pairs.size());
   const auto src = toCloud<pcl::PointNormal>(source, {});
   const auto tgt = toCloud<pcl::PointNormal>(target, target_normals);
   pcl::registration::TransformationEstimationPointToPlaneLLS<pcl::PointNormal, pcl::PointNormal, double> est;

@@ -29,14 +29,18 @@ const char* toString(PclIcpVariant variant);
 /// correspondence_count are evaluated at the final transform exactly as the engine does,
 /// so the two are comparable; `seconds` times PCL's setInputSource/Target + align (its
 /// k-d tree build included); `converged` follows scanalign: a criterion was met (PCL also
-/// counts reaching max_iterations as converged; status tells them apart). Normals are needed for
-/// the point-to-plane variants. Throws std::invalid_argument on bad input.
+/// counts reaching max_iterations as converged; status tells them apart), and never without a
+/// correspondence at the final transform (status NotEnoughCorrespondences). Normals are needed
+/// for the point-to-plane variants. Throws std::invalid_argument on bad input (empty clouds, a
+/// target without a finite point (with a valid normal), as Icp::setTarget).
 IcpResult pclIcp(const CloudView<float>& source, const CloudView<float>& target, const CloudView<float>& target_normals,
                  const Eigen::Matrix4d& T_target_source_init, const IcpSettings& settings, PclIcpVariant variant);
 
 /// One estimate of PCL's TransformationEstimationPointToPlaneLLS (double precision) on
 /// paired points: source[i] <-> target[i] with target_normals[i]. `seconds` (may be null)
-/// receives the time of the estimate alone, without the cloud conversion.
+/// receives the time of the estimate alone, without the cloud conversion. Pairs with a
+/// non-finite point or a non-finite or zero normal are left out; std::invalid_argument when
+/// the input is empty or no pair is left.
 Eigen::Matrix4d pclPointToPlaneLLS(const CloudView<float>& source, const CloudView<float>& target,
                                    const CloudView<float>& target_normals, double* seconds = nullptr);
 
