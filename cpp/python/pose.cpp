@@ -226,15 +226,15 @@ void bindCbd(py::module_& m) {
 }
 
 void bindMotors(py::module_& m) {
-  py::class_<MotorEstimate>(m, "MotorEstimate", "A rigid motion estimated from point pairs")
-      .def_readonly("T_target_source", &MotorEstimate::T_target_source, "(4, 4) y = R x + t")
+  py::class_<MotorEstimationResult>(m, "MotorEstimationResult", "A rigid motion estimated from point pairs")
+      .def_readonly("T_target_source", &MotorEstimationResult::T_target_source, "(4, 4) y = R x + t")
       .def_property_readonly(
-          "motor", [](const MotorEstimate& e) { return Eigen::VectorXd(e.motor); },
+          "motor", [](const MotorEstimationResult& e) { return Eigen::VectorXd(e.motor); },
           "(8,) coefficients on (1, e23, e31, e12, e1inf, e2inf, e3inf, e123inf), M ~M = 1")
-      .def_readonly("rmse", &MotorEstimate::rmse, "weighted RMS pair residual, m")
-      .def_readonly("count", &MotorEstimate::count, "pairs used")
-      .def_readonly("valid", &MotorEstimate::valid, "False for fewer than 3 pairs or collinear data")
-      .def_readonly("message", &MotorEstimate::message, "why not valid");
+      .def_readonly("rmse", &MotorEstimationResult::rmse, "weighted RMS pair residual, m")
+      .def_readonly("count", &MotorEstimationResult::count, "pairs used")
+      .def_readonly("valid", &MotorEstimationResult::valid, "False for fewer than 3 pairs or collinear data")
+      .def_readonly("message", &MotorEstimationResult::message, "why not valid");
   m.def(
       "estimate_motor",
       [](const py::array& s, const py::array& t, const py::object& w, bool normalize) {
@@ -949,8 +949,8 @@ void pickleCbdAndViews(py::module_& m) {
 }
 
 void picklePoseResults(py::module_& m) {
-  using ME = MotorEstimate;
-  pickleFields(m, "MotorEstimate", field("T_target_source", &ME::T_target_source), field("motor", &ME::motor),
+  using ME = MotorEstimationResult;
+  pickleFields(m, "MotorEstimationResult", field("T_target_source", &ME::T_target_source), field("motor", &ME::motor),
                field("rmse", &ME::rmse), field("count", &ME::count), field("valid", &ME::valid),
                field("message", &ME::message));
   using CS = CorrespondenceRansacSettings;
