@@ -297,7 +297,7 @@ def _results():
     out["pose.PoseResult"] = pr
     out["pose.PoseCandidate"] = list(pr.candidates[:3])
     src, dst = described[0].points[:200], described[0].points[:200] @ ROT[:3, :3].T + ROT[:3, 3]
-    out["pose.MotorEstimate"] = _core.pose.estimate_motor(src, dst)
+    out["pose.MotorEstimationResult"] = _core.pose.estimate_motor(src, dst)
     pairs = np.c_[np.arange(200), np.arange(200)]
     out["pose.CorrespondenceRansacResult"] = _core.pose.ransac_rigid_motion(
         src, dst, pairs, _core.pose.CorrespondenceRansacSettings())
@@ -324,9 +324,9 @@ def _results():
     found = pose.find_parts([list(described[:8])], table_scene, up=(0, 0, 1), table_threshold=0.002,
                             cluster_tolerance=0.01, num_threads=THREADS)
     assert found.detections
-    out["pose.PartDetections"] = found
+    out["pose.FindPartsResult"] = found
     out["pose.PartDetection"] = list(found.detections)
-    out["pose.ObjectPoses"] = pose.find_objects(list(described[:8]), table_scene, up=(0, 0, 1), table_threshold=0.002,
+    out["pose.FindObjectsResult"] = pose.find_objects(list(described[:8]), table_scene, up=(0, 0, 1), table_threshold=0.002,
                                                 cluster_tolerance=0.01, num_threads=THREADS)
     pcl = _core.pose.thesis_pcl_preset(_core.pose.PclDescriptor.fpfh, _core.pose.PclMatcher.prerejective)
     pcl.voxel_size, pcl.max_iterations, pcl.num_threads = 0.004, 200, THREADS
@@ -554,7 +554,7 @@ def test_python_records_holding_core_objects_pickle(instances):
                                         seconds=1.5)
     records = [
         mesh, trajectory, grasps, pick.PickSettings(planner={"min_wrist_angle": 0.1}), part_pick, model, run,
-        pick.PickResult(picks=[part_pick], points=mesh.vertices, detections=instances["pose.PartDetections"][0],
+        pick.PickResult(picks=[part_pick], points=mesh.vertices, detections=instances["pose.FindPartsResult"][0],
                         robot=kinematics.ur5(), q_current=np.zeros(6), parts=[grasps], reconstruction=run),
     ]
     for record in records:

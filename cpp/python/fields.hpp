@@ -149,7 +149,8 @@ struct Conv {
     if constexpr (std::is_enum_v<M>) {
       // A bound enum: its member, or its member's name (as config files write it).
       if (py::isinstance<py::str>(h)) {
-        const py::dict members = py::type::of<M>().attr("__members__");
+        // By typeid: py::type::of<M>() does not compile for enums (pybind11 3 casts them with its own caster).
+        const py::dict members = py::handle(py::detail::get_type_handle(typeid(M), true)).attr("__members__");
         if (!members.contains(h))
           throw py::value_error(where + ": unknown value " + shown(h) + "; expected one of " +
                                 std::string(py::str(py::list(members.attr("keys")()))));

@@ -20,8 +20,6 @@ void defineSynthetic(py::module_& m);
 void defineCga(py::module_& m);
 void defineKinematics(py::module_& m);
 void definePose(py::module_& m);
-void definePclFeatures(py::module_& m);
-void definePoseSymmetry(py::module_& m);
 void defineEvaluation(py::module_& m);
 void defineIo(py::module_& m);
 void defineCalibration(py::module_& m);
@@ -93,8 +91,6 @@ PYBIND11_MODULE(_core, m) {
   scanalign::python::defineKinematics(kinematics);
   auto pose = m.def_submodule("pose", "CBD descriptor, motor estimation, correspondence RANSAC, flag alignment");
   scanalign::python::definePose(pose);
-  scanalign::python::definePclFeatures(pose);
-  scanalign::python::definePoseSymmetry(pose);
   auto io = m.def_submodule("io", "PCD reading, LZF decompression");
   scanalign::python::defineIo(io);
   auto evaluation = m.def_submodule("evaluation", "exact point-to-mesh distance");

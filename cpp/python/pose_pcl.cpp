@@ -1,18 +1,20 @@
-// Binding of the stock PCL global-registration baselines of Kleppe's thesis (§7.6): settings
-// and result bound directly, with the thesis presets from C++.
+// Bindings of the stock PCL global-registration baselines of Kleppe's thesis (PhD thesis, NTNU
+// 2018, §7.6; scanalign/pose/pcl/): settings and result, the thesis presets, and the
+// alignment itself (NotBuiltError in a build without PCL). PoseSettings.pcl holds the same
+// settings for estimate_pose's method 'pcl'.
 #include <pybind11/eigen.h>
 
 #include <cstdint>
 #include <string>
 
 #include "arrays.hpp"
-#include "pickle.hpp"
-#include "scanalign/pose/pcl/feature_alignment.hpp"
+#include "pose.hpp"
 #include "scanalign/pose/pcl/coarse_aligner.hpp"
+#include "scanalign/pose/pcl/feature_alignment.hpp"
 
 namespace scanalign::python {
 
-void definePclFeatures(py::module_& m) {
+void bindPosePcl(py::module_& m) {
   py::enum_<PclDescriptor>(m, "PclDescriptor", "PCL descriptor of a baseline")
       .value("fpfh", PclDescriptor::FPFH, "FPFHEstimationOMP, 33 bins (Rusu 2009)")
       .value("shot", PclDescriptor::SHOT, "SHOTEstimationOMP, 352 bins (Tombari 2010)")
@@ -22,50 +24,54 @@ void definePclFeatures(py::module_& m) {
       .value("prerejective", PclMatcher::Prerejective, "SampleConsensusPrerejective (Buch 2013)")
       .value("sac_ia", PclMatcher::SacIA, "SampleConsensusInitialAlignment (Rusu 2009), FPFH only");
   using S = PclFeatureAlignmentSettings;
-  py::class_<S>(m, "PclFeatureAlignmentSettings", "A stock PCL coarse registration (metres, radians)")
-      .def(py::init<>())
-      .def_readwrite("descriptor", &S::descriptor, "PclDescriptor")
-      .def_readwrite("matcher", &S::matcher, "PclMatcher (ignored for PPF)")
-      .def_readwrite("voxel_size", &S::voxel_size, "m; VoxelGrid leaf on both clouds first (0: none)")
-      .def_readwrite("normal_radius", &S::normal_radius, "m; NormalEstimationOMP radius")
-      .def_readwrite("feature_radius", &S::feature_radius, "m; descriptor support radius")
-      .def_readwrite("shot_lrf_radius", &S::shot_lrf_radius, "m; SHOT local reference frame radius (0: feature_radius)")
-      .def_readwrite("shape_context_min_radius", &S::shape_context_min_radius, "m; 3DSC smallest shell")
-      .def_readwrite("shape_context_density_radius", &S::shape_context_density_radius, "m; 3DSC point-density radius")
-      .def_readwrite("max_iterations", &S::max_iterations,
-                     "RANSAC iterations (thesis: 1000); ValueError beyond 1000000 (PCL's loop cannot be interrupted)")
-      .def_readwrite("inlier_threshold", &S::inlier_threshold, "m; RANSAC inlier distance (thesis: 0.005)")
-      .def_readwrite("num_samples", &S::num_samples, "points per RANSAC hypothesis")
-      .def_readwrite("correspondence_randomness", &S::correspondence_randomness, "k nearest features a sample picks from")
-      .def_readwrite("similarity_threshold", &S::similarity_threshold, "prerejective edge-length similarity in [0, 1)")
-      .def_readwrite("inlier_fraction", &S::inlier_fraction, "prerejective: required inlier fraction of the source")
-      .def_readwrite("min_sample_distance", &S::min_sample_distance, "m; SAC-IA minimum distance between samples")
-      .def_readwrite("ppf_angle_step", &S::ppf_angle_step, "rad; PPF angle discretisation")
-      .def_readwrite("ppf_distance_step", &S::ppf_distance_step, "m; PPF distance step (0: 0.05 x source diameter)")
-      .def_readwrite("ppf_scene_fraction", &S::ppf_scene_fraction, "PPF: fraction of target points used as references")
-      .def_readwrite("seed", &S::seed, "seeds std::srand, which PCL's samplers use")
-      .def_readwrite("num_threads", &S::num_threads, "OpenMP threads, 0 = all cores");
-  pickleFields(m, "PclFeatureAlignmentSettings", field("descriptor", &S::descriptor), field("matcher", &S::matcher), field("voxel_size", &S::voxel_size), field("normal_radius", &S::normal_radius), field("feature_radius", &S::feature_radius), field("shot_lrf_radius", &S::shot_lrf_radius), field("shape_context_min_radius", &S::shape_context_min_radius), field("shape_context_density_radius", &S::shape_context_density_radius), field("max_iterations", &S::max_iterations), field("inlier_threshold", &S::inlier_threshold), field("num_samples", &S::num_samples), field("correspondence_randomness", &S::correspondence_randomness), field("similarity_threshold", &S::similarity_threshold), field("inlier_fraction", &S::inlier_fraction), field("min_sample_distance", &S::min_sample_distance), field("ppf_angle_step", &S::ppf_angle_step), field("ppf_distance_step", &S::ppf_distance_step), field("ppf_scene_fraction", &S::ppf_scene_fraction), field("seed", &S::seed), field("num_threads", &S::num_threads));
+  fieldsOf(py::class_<S>(m, "PclFeatureAlignmentSettings", "A stock PCL coarse registration (metres, radians)"))
+      .field("descriptor", &S::descriptor, "", "PclDescriptor")
+      .field("matcher", &S::matcher, "", "PclMatcher (ignored for PPF; sac_ia with FPFH only)")
+      .field("voxel_size", &S::voxel_size, "m", "VoxelGrid leaf on both clouds first (0: none)")
+      .field("normal_radius", &S::normal_radius, "m", "NormalEstimationOMP radius (3DSC: 0.04 in the thesis)")
+      .field("feature_radius", &S::feature_radius, "m", "descriptor support radius (3DSC: 0.04 in the thesis)")
+      .field("shot_lrf_radius", &S::shot_lrf_radius, "m", "SHOT local reference frame radius (0: feature_radius)")
+      .field("shape_context_min_radius", &S::shape_context_min_radius, "m", "3DSC smallest shell (thesis: 0.004)")
+      .field("shape_context_density_radius", &S::shape_context_density_radius, "m",
+             "3DSC point-density radius (thesis: 0.008)")
+      .field("max_iterations", &S::max_iterations, "",
+             "RANSAC iterations (thesis: 1000); ValueError beyond 1000000 (PCL's loop cannot be interrupted)")
+      .field("inlier_threshold", &S::inlier_threshold, "m", "RANSAC inlier distance (thesis: 0.005)")
+      .field("num_samples", &S::num_samples, "", "points per RANSAC hypothesis")
+      .field("correspondence_randomness", &S::correspondence_randomness, "",
+             "k nearest features a sample picks from (PCL tutorial: 5)")
+      .field("similarity_threshold", &S::similarity_threshold, "",
+             "prerejective edge-length similarity in [0, 1) (PCL tutorial: 0.9)")
+      .field("inlier_fraction", &S::inlier_fraction, "",
+             "prerejective: required inlier fraction of the source (PCL tutorial: 0.25)")
+      .field("min_sample_distance", &S::min_sample_distance, "m", "SAC-IA minimum distance between samples (0: PCL's)")
+      .field("ppf_angle_step", &S::ppf_angle_step, "rad", "PPF angle discretisation (Drost: 12 degrees)")
+      .field("ppf_distance_step", &S::ppf_distance_step, "m", "PPF distance step (0: 0.05 x source diameter)")
+      .field("ppf_scene_fraction", &S::ppf_scene_fraction, "", "PPF: fraction of target points used as references")
+      .field("seed", &S::seed, "", "seeds std::srand, which PCL's samplers use (runs are then repeatable)")
+      .field("num_threads", &S::num_threads, "", "OpenMP threads for normals and descriptors, 0 = all cores")
+      .settings();
   m.def("thesis_pcl_preset", &thesisPclPreset, py::arg("descriptor"), py::arg("matcher"),
         "the thesis's baseline settings for a descriptor (1 mm voxels, 30 mm radii, 3DSC 40 mm, 1000 iterations, 5 mm)");
+  m.def("pcl_baseline_name", &pclBaselineName, py::arg("settings"),
+        "the baseline's name as PoseResult.method reports it: 'fpfh', 'fpfh_sac_ia', 'shot', '3dsc' or 'ppf'");
   using R = PclFeatureAlignmentResult;
-  py::class_<R>(m, "PclFeatureAlignmentResult", "Outcome of a PCL baseline")
-      .def_readonly("T_target_source", &R::T_target_source, "(4, 4) maps source into target")
-      .def_property_readonly(
-          "transformation", [](const R& r) { return r.T_target_source; },
-          "T_target_source under Open3D's name (RegistrationResult.transformation)")
-      .def_readonly("converged", &R::converged, "PCL's hasConverged(): a hypothesis was accepted")
-      .def_property_readonly("found", [](const R& r) { return r.converged; }, "same as converged")
-      .def_readonly("fitness", &R::fitness, "downsampled source points within inlier_threshold of the target")
-      .def_readonly("inlier_rmse", &R::inlier_rmse, "m")
-      .def_readonly("source_points", &R::source_points, "after the voxel grid")
-      .def_readonly("target_points", &R::target_points, "after the voxel grid")
-      .def_readonly("source_descriptors", &R::source_descriptors, "finite descriptors used")
-      .def_readonly("target_descriptors", &R::target_descriptors, "finite descriptors used")
-      .def_readonly("feature_seconds", &R::feature_seconds)
-      .def_readonly("seconds", &R::seconds)
-      .def_readonly("message", &R::message, "why it failed");
-  pickleFields(m, "PclFeatureAlignmentResult", field("T_target_source", &R::T_target_source), field("converged", &R::converged), field("fitness", &R::fitness), field("inlier_rmse", &R::inlier_rmse), field("source_points", &R::source_points), field("target_points", &R::target_points), field("source_descriptors", &R::source_descriptors), field("target_descriptors", &R::target_descriptors), field("feature_seconds", &R::feature_seconds), field("seconds", &R::seconds), field("message", &R::message));
+  fieldsOf(py::class_<R>(m, "PclFeatureAlignmentResult", "Outcome of a PCL baseline"))
+      .output("T_target_source", &R::T_target_source, "m", "(4, 4) maps source into target")
+      .derived("transformation", [](const R& r) { return r.T_target_source; }, "m",
+               "T_target_source under Open3D's name (RegistrationResult.transformation)")
+      .output("converged", &R::converged, "", "PCL's hasConverged(): a hypothesis was accepted")
+      .derived("found", [](const R& r) { return r.converged; }, "", "same as converged")
+      .output("fitness", &R::fitness, "", "downsampled source points within inlier_threshold of the target")
+      .output("inlier_rmse", &R::inlier_rmse, "m", "RMS distance of those inliers (0 when none)")
+      .output("source_points", &R::source_points, "", "after the voxel grid")
+      .output("target_points", &R::target_points, "", "after the voxel grid")
+      .output("source_descriptors", &R::source_descriptors, "", "finite descriptors used")
+      .output("target_descriptors", &R::target_descriptors, "", "finite descriptors used")
+      .output("feature_seconds", &R::feature_seconds, "s", "voxel grid, normals and descriptors of both clouds")
+      .output("seconds", &R::seconds, "s", "whole call")
+      .output("message", &R::message, "", "why it failed")
+      .result();
   m.def(
       "pcl_feature_alignment",
       [](const py::array& source, const py::array& target, const S& settings) {

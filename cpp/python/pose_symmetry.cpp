@@ -12,6 +12,7 @@
 
 #include "field_access.hpp"
 #include "fields.hpp"
+#include "pose.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/pose/part_symmetry.hpp"
 
@@ -29,7 +30,7 @@ Eigen::Isometry3d rigid(py::handle x, const std::string& name) {
 
 }  // namespace
 
-void definePoseSymmetry(py::module_& m) {
+void bindPoseSymmetry(py::module_& m) {
   using S = PartSymmetry;
   fieldsOf(py::class_<S>(m, "PartSymmetry",
                          "A part's rotational symmetry in its model frame: it looks the same after a rotation by "

@@ -8,7 +8,8 @@
 
 #include <Eigen/Geometry>
 
-#include "scanalign/pose/pose_estimation.hpp"
+#include "scanalign/common/build_info.hpp"
+#include "scanalign/pose/part_identification.hpp"
 #include "scanalign/synthetic/builtin_part.hpp"
 
 namespace {
@@ -91,7 +92,7 @@ TEST(FindParts, NamesEachPartAndItsPoseAndRefusesAClusterOfNoPart) {
     scene.add(Eigen::Vector3d(0.12, -0.12, 0.02) + 0.02 * Eigen::Vector3d(r * std::cos(phi), r * std::sin(phi), z));
   }
   FindPartsSettings s = tableSettings();
-  const PartDetections out = findParts(models, sym, scene.cloud(), s, upperViews(models[0]));
+  const FindPartsResult out = findParts(models, sym, scene.cloud(), s, upperViews(models[0]));
   ASSERT_EQ(out.detections.size(), 3u);
   std::vector<bool> seen(names.size(), false);
   for (const PartDetection& d : out.detections) {
@@ -124,7 +125,7 @@ TEST(FindParts, TwoCopiesOfThePartAreAmbiguousButTheStandoffsSymmetricPosesAreNo
     TableScene scene;
     const auto dense = views("block", 150);
     scene.place(dense[viewFrom(dense, T_block.linear().transpose() * camera)], T_block);
-    const PartDetections out = findParts({block, block}, {}, scene.cloud(), s, upperViews(block));
+    const FindPartsResult out = findParts({block, block}, {}, scene.cloud(), s, upperViews(block));
     ASSERT_EQ(out.detections.size(), 1u);
     const PartDetection& d = out.detections[0];
     EXPECT_EQ(d.status, DetectionStatus::Ambiguous) << d.message;
@@ -136,7 +137,7 @@ TEST(FindParts, TwoCopiesOfThePartAreAmbiguousButTheStandoffsSymmetricPosesAreNo
   scene.place(dense[viewFrom(dense, T_standoff.linear().transpose() * camera)], T_standoff);
   PartSymmetry six;
   six.order = 6;
-  const PartDetections out = findParts({standoff}, {six}, scene.cloud(), s, upperViews(standoff));
+  const FindPartsResult out = findParts({standoff}, {six}, scene.cloud(), s, upperViews(standoff));
   ASSERT_EQ(out.detections.size(), 1u);
   const PartDetection& d = out.detections[0];
   EXPECT_EQ(d.status, DetectionStatus::Found) << d.message;
@@ -173,6 +174,26 @@ TEST(FindParts, RefusesBadInput) {
   }
   // A table without objects: no detection, no error.
   EXPECT_TRUE(findParts({standoff}, {}, scene.cloud(), s).detections.empty());
+  // A coarse method that cannot run is refused before any work, objects or not.
+  FindPartsSettings external = s;
+  external.pose.method = CoarseMethod::External;
+  EXPECT_THROW(findParts({standoff}, {}, scene.cloud(), external), std::invalid_argument);  // no aligner
+  if (!builtWithPcl()) {
+    FindPartsSettings pcl = s;
+    pcl.pose.method = CoarseMethod::Pcl;
+    EXPECT_THROW(findParts({standoff}, {}, scene.cloud(), pcl), NotBuiltError);
+  }
+}
+
+TEST(FindParts, DefaultSettingsRenderViewsAt100PixelsWithOneHypothesisPerView) {
+  const FindPartsSettings s;
+  const PoseSettings pose;
+  EXPECT_EQ(s.pose.views.resolution, 100);  // as accurate as 150 on the built-in parts, 2-3x faster
+  EXPECT_EQ(pose.views.resolution, 150);    // estimatePose's own default is left alone
+  EXPECT_EQ(s.pose.cbd.hypotheses, 1);
+  EXPECT_EQ(pose.cbd.hypotheses, 3);
+  EXPECT_EQ(s.pose.method, CoarseMethod::Cbd);
+  EXPECT_EQ(s.pose.cbd.cbd.min_neighbors, 0);  // the rest is estimatePose's default
 }
 
 }  // namespace

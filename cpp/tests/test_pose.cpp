@@ -70,14 +70,14 @@ TEST(MotorEstimation, ExactOnNoiseFreePairsAndEqualToSvdOnNoisyOnes) {  // paper
     std::vector<double> y = transformed(x, T);
     const CloudView<double> xs(x.data(), 40), ys(y.data(), 40);
     for (bool normalize : {true, false}) {
-      const MotorEstimate m = estimateMotor(xs, ys, nullptr, normalize);
+      const MotorEstimationResult m = estimateMotor(xs, ys, nullptr, normalize);
       ASSERT_TRUE(m.valid);
       EXPECT_LT((m.T_target_source - T).cwiseAbs().maxCoeff(), 1e-9) << "trial " << trial;
       EXPECT_NEAR(m.motor.head<4>().norm(), 1.0, 1e-12);
     }
     for (double& v : y) v += 0.003 * n(g);
-    const MotorEstimate a = estimateMotor(xs, ys), b = estimateRigidSvd(xs, ys);
-    const MotorEstimate c = estimateMotor(xs, ys, nullptr, false);
+    const MotorEstimationResult a = estimateMotor(xs, ys), b = estimateRigidSvd(xs, ys);
+    const MotorEstimationResult c = estimateMotor(xs, ys, nullptr, false);
     EXPECT_LT((a.T_target_source - b.T_target_source).cwiseAbs().maxCoeff(), 1e-9);
     EXPECT_LT((c.T_target_source - b.T_target_source).cwiseAbs().maxCoeff(), 1e-9);
     EXPECT_NEAR(a.rmse, b.rmse, 1e-12);
@@ -97,8 +97,8 @@ TEST(MotorEstimation, WeightsActLikeDuplicatedPairsAndDegenerateInputIsReported)
       xd.insert(xd.end(), x.begin() + 3 * i, x.begin() + 3 * i + 3);
       yd.insert(yd.end(), y.begin() + 3 * i, y.begin() + 3 * i + 3);
     }
-  const MotorEstimate a = estimateMotor({x.data(), 10}, {y.data(), 10}, w.data());
-  const MotorEstimate b = estimateMotor({xd.data(), xd.size() / 3}, {yd.data(), yd.size() / 3});
+  const MotorEstimationResult a = estimateMotor({x.data(), 10}, {y.data(), 10}, w.data());
+  const MotorEstimationResult b = estimateMotor({xd.data(), xd.size() / 3}, {yd.data(), yd.size() / 3});
   EXPECT_LT((a.T_target_source - b.T_target_source).cwiseAbs().maxCoeff(), 1e-9);
   const std::vector<double> line = {0, 0, 0, 1, 0, 0, 2, 0, 0, 3, 0, 0};
   EXPECT_FALSE(estimateMotor({line.data(), 4}, {line.data(), 4}).valid);

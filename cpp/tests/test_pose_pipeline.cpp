@@ -9,6 +9,9 @@
 
 #include <Eigen/Geometry>
 
+#include "scanalign/common/build_info.hpp"
+#include "scanalign/pose/find_objects.hpp"
+#include "scanalign/pose/pcl/coarse_aligner.hpp"
 #include "scanalign/pose/pose_estimation.hpp"
 
 namespace {
@@ -76,25 +79,37 @@ TEST(ModelViews, PointsLieOnTheBlockFaceTheirCameraAndReproject) {
   EXPECT_THROW(scanalign::renderModelViews(b.vertices(), b.F.data(), b.F.size() / 3, s), std::invalid_argument);
 }
 
-TEST(PoseEstimation, RecoversAKnownPoseOfAViewAndRefusesBadInput) {
-  // Two blocks (an L-shaped part: no rotation maps it onto itself).
-  Block a;
-  std::vector<double> V = a.V;
-  std::vector<std::int32_t> F = a.F;
-  for (int k = 0; k < 8; ++k) V.insert(V.end(), {k & 1 ? 0.02 : 0.0, k & 2 ? 0.04 : 0.0, k & 4 ? 0.05 : 0.02});
-  for (std::size_t i = 0; i < a.F.size(); ++i) F.push_back(a.F[i] + 8);
-  scanalign::ModelViewSettings vs;
-  vs.resolution = 120;
-  const auto views = scanalign::renderModelViews(CloudView<double>(V.data(), V.size() / 3), F.data(), F.size() / 3, vs);
-  const Eigen::Affine3d T_true = Eigen::Translation3d(-0.05, 0.03, 0.4) * Eigen::AngleAxisd(2.1, Eigen::Vector3d(1, 1, -0.5).normalized());
-  std::mt19937 rng(7);
-  std::normal_distribution<double> noise(0.0, 5e-5);
+// Two blocks (an L-shaped part: no rotation maps it onto itself), its views at 120 pixels,
+// and what view 9 saw placed at a known pose with 0.05 mm noise.
+struct LPartScene {
+  std::vector<scanalign::ModelView> views;
+  Eigen::Affine3d T_true = Eigen::Translation3d(-0.05, 0.03, 0.4) * Eigen::AngleAxisd(2.1, Eigen::Vector3d(1, 1, -0.5).normalized());
   std::vector<double> scene;
-  for (std::size_t i = 0; i < views[9].size(); ++i) {
-    const Eigen::Vector3d p = T_true * Eigen::Vector3d(&views[9].points[3 * i]);
-    scene.insert(scene.end(), {p.x() + noise(rng), p.y() + noise(rng), p.z() + noise(rng)});
+  LPartScene() {
+    Block a;
+    std::vector<double> V = a.V;
+    std::vector<std::int32_t> F = a.F;
+    for (int k = 0; k < 8; ++k) V.insert(V.end(), {k & 1 ? 0.02 : 0.0, k & 2 ? 0.04 : 0.0, k & 4 ? 0.05 : 0.02});
+    for (std::size_t i = 0; i < a.F.size(); ++i) F.push_back(a.F[i] + 8);
+    scanalign::ModelViewSettings vs;
+    vs.resolution = 120;
+    views = scanalign::renderModelViews(CloudView<double>(V.data(), V.size() / 3), F.data(), F.size() / 3, vs);
+    std::mt19937 rng(7);
+    std::normal_distribution<double> noise(0.0, 5e-5);
+    for (std::size_t i = 0; i < views[9].size(); ++i) {
+      const Eigen::Vector3d p = T_true * Eigen::Vector3d(&views[9].points[3 * i]);
+      scene.insert(scene.end(), {p.x() + noise(rng), p.y() + noise(rng), p.z() + noise(rng)});
+    }
   }
-  const CloudView<double> sv(scene.data(), scene.size() / 3);
+  CloudView<double> cloud() const { return {scene.data(), scene.size() / 3}; }
+};
+
+TEST(PoseEstimation, RecoversAKnownPoseOfAViewAndRefusesBadInput) {
+  const LPartScene l;
+  const auto& views = l.views;
+  const Eigen::Affine3d& T_true = l.T_true;
+  const std::vector<double>& scene = l.scene;
+  const CloudView<double> sv = l.cloud();
   const scanalign::PoseResult r = scanalign::estimatePose(views, sv, {}, {9, 20, 33});
   ASSERT_TRUE(r.found) << r.message;
   EXPECT_EQ(r.view, 9);
@@ -116,6 +131,108 @@ TEST(PoseEstimation, RecoversAKnownPoseOfAViewAndRefusesBadInput) {
   scanalign::PoseSettings external;
   external.method = scanalign::CoarseMethod::External;
   EXPECT_THROW(scanalign::estimatePose(views, sv, external, {9}), std::invalid_argument);  // no aligner
+}
+
+TEST(FindObjects, SegmentsTheTableAndEstimatesThePoseOfEachCluster) {
+  // The L part's scene in front of a table 0.5 m from the camera (2 mm grid), which the part
+  // does not touch: one cluster, whose pose is estimatePose's on the cluster's points.
+  const LPartScene l;
+  std::vector<double> scene = l.scene;
+  for (double x = -0.2; x <= 0.2; x += 0.002)
+    for (double y = -0.2; y <= 0.2; y += 0.002) scene.insert(scene.end(), {x, y, 0.5});
+  scanalign::FindObjectsSettings s;
+  s.table.cluster_tolerance = 0.01;
+  s.table.min_cluster_size = 200;
+  const CloudView<double> cloud(scene.data(), scene.size() / 3);
+  const scanalign::FindObjectsResult out = scanalign::findObjects(l.views, cloud, s, {9, 20, 33});
+  ASSERT_TRUE(out.table.success());
+  ASSERT_EQ(out.poses.size(), 1u);
+  ASSERT_EQ(out.table.objects[0].size(), l.scene.size() / 3);  // every point of the part, none of the table
+  const scanalign::PoseResult& r = out.poses[0];
+  ASSERT_TRUE(r.found) << r.message;
+  const Eigen::Matrix3d dR = r.T_scene_model.topLeftCorner<3, 3>().transpose() * l.T_true.linear();
+  EXPECT_LT(Eigen::AngleAxisd(dR).angle(), 0.5 * M_PI / 180);
+  EXPECT_LT((r.T_scene_model.topRightCorner<3, 1>() - l.T_true.translation()).norm(), 0.001);
+  std::vector<double> object;
+  for (std::uint32_t i : out.table.objects[0]) object.insert(object.end(), cloud.ptr(i), cloud.ptr(i) + 3);
+  const scanalign::PoseResult alone =
+      scanalign::estimatePose(l.views, CloudView<double>(object.data(), object.size() / 3), s.pose, {9, 20, 33});
+  EXPECT_LT((alone.T_scene_model - r.T_scene_model).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_EQ(alone.view, r.view);
+  // An external method without its aligner is refused before the table is segmented.
+  s.pose.method = scanalign::CoarseMethod::External;
+  EXPECT_THROW(scanalign::findObjects(l.views, cloud, s), std::invalid_argument);
+}
+
+// The visible cap of a 100 x 60 x 40 mm ellipsoid with two bumps of different sizes (model
+// frame, m; examples/cpp/04_cad_pose.cpp) as one model view, and the same surface at a known
+// pose with 0.02 mm noise. PCL orients both clouds' normals towards the origin, so the pose
+// keeps the origin under the cap (a turn and a displacement of a few centimetres).
+struct BumpyCapScene {
+  std::vector<scanalign::ModelView> views{1};
+  Eigen::Affine3d T_true = Eigen::Translation3d(0.01, -0.02, 0.015) * Eigen::AngleAxisd(2.0, Eigen::Vector3d(1, -2, 0.5).normalized());
+  std::vector<double> scene;
+  BumpyCapScene() {
+    scanalign::ModelView& v = views[0];
+    for (int i = 0; i < 100; ++i)
+      for (int j = 0; j < 200; ++j) {
+        const double th = M_PI * (i + 0.5) / 100, ph = 2 * M_PI * j / 200;
+        const double r = 1.0 + 0.3 * std::exp(-8 * ((th - 1.0) * (th - 1.0) + (ph - 1.0) * (ph - 1.0))) +
+                         0.15 * std::exp(-30 * ((th - 1.2) * (th - 1.2) + (ph - 3.0) * (ph - 3.0)));
+        const double z = 0.02 * r * std::cos(th);
+        if (z < -0.004) continue;  // the underside is not seen
+        v.points.insert(v.points.end(), {0.05 * r * std::sin(th) * std::cos(ph), 0.03 * r * std::sin(th) * std::sin(ph), z});
+      }
+    v.normals.assign(v.points.size(), 0.0);  // not used by the PCL baselines, nor by ICP (scene normals)
+    std::mt19937 rng(1);
+    std::normal_distribution<double> noise(0.0, 2e-5);
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const Eigen::Vector3d p = T_true * Eigen::Vector3d(&v.points[3 * i]);
+      scene.insert(scene.end(), {p.x() + noise(rng), p.y() + noise(rng), p.z() + noise(rng)});
+    }
+  }
+  CloudView<double> cloud() const { return {scene.data(), scene.size() / 3}; }
+};
+
+TEST(PoseEstimation, PclMethodWithTheFpfhPresetRecoversAKnownPoseOrIsNotBuilt) {
+  // The stock PCL baseline chosen by the settings alone (no aligner passed): the thesis's FPFH
+  // preset (prerejective RANSAC), then scanalign's ICP; the truth is the pose the scene was
+  // made with.
+  const BumpyCapScene l;
+  scanalign::PoseSettings s;
+  s.method = scanalign::CoarseMethod::Pcl;
+  EXPECT_EQ(s.pcl.descriptor, scanalign::PclDescriptor::FPFH);  // the default baseline
+  s.pcl = scanalign::thesisPclPreset(scanalign::PclDescriptor::FPFH);
+  s.pcl.voxel_size = 0.003;  // 3 mm instead of 1 mm, to keep the test short (as tests/test_pose.py)
+  s.pcl.num_threads = 2;
+  if (!scanalign::builtWithPcl()) {
+    EXPECT_THROW(scanalign::estimatePose(l.views, l.cloud(), s), scanalign::NotBuiltError);
+    return;
+  }
+  const scanalign::PoseResult r = scanalign::estimatePose(l.views, l.cloud(), s);
+  ASSERT_TRUE(r.found) << r.message;
+  EXPECT_EQ(r.method, "fpfh");
+  EXPECT_EQ(r.view, 0);
+  const Eigen::Matrix3d dR = r.T_scene_model.topLeftCorner<3, 3>().transpose() * l.T_true.linear();
+  EXPECT_LT(Eigen::AngleAxisd(dR).angle(), 0.5 * M_PI / 180);
+  EXPECT_LT((r.T_scene_model.topRightCorner<3, 1>() - l.T_true.translation()).norm(), 0.001);
+  EXPECT_GT(r.fitness, 0.95);
+  EXPECT_GT(r.coverage, 0.95);
+}
+
+TEST(PoseEstimation, SettingsHoldTheViewsAndNameThePclBaseline) {
+  const scanalign::PoseSettings s;
+  EXPECT_EQ(s.views.resolution, 150);  // as Python's estimate_pose renders a mesh
+  EXPECT_EQ(s.views.level, 1);         // the thesis's 42 views
+  EXPECT_STREQ(scanalign::toString(scanalign::CoarseMethod::Pcl), "pcl");
+  using scanalign::PclDescriptor;
+  using scanalign::PclMatcher;
+  using scanalign::thesisPclPreset;
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::FPFH)), "fpfh");
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::FPFH, PclMatcher::SacIA)), "fpfh_sac_ia");
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::SHOT)), "shot");
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::ShapeContext3D)), "3dsc");
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::PPF, PclMatcher::SacIA)), "ppf");
 }
 
 }  // namespace

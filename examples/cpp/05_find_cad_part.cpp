@@ -10,7 +10,7 @@
 
 #include <Eigen/Geometry>
 
-#include <scanalign/pose/pose_estimation.hpp>
+#include <scanalign/pose/find_objects.hpp>
 
 namespace {
 
@@ -32,10 +32,10 @@ int main() {
   addBox(V, F, {-0.040, -0.025, 0.000}, {0.040, 0.025, 0.020});
   addBox(V, F, {0.000, -0.025, 0.020}, {0.030, -0.005, 0.045});
   addBox(V, F, {-0.030, 0.010, 0.020}, {-0.020, 0.020, 0.030});
-  scanalign::ModelViewSettings vs;
-  vs.resolution = 120;
-  const std::vector<scanalign::ModelView> views =
-      scanalign::renderModelViews(scanalign::CloudView<double>(V.data(), V.size() / 3), F.data(), F.size() / 3, vs);
+  scanalign::FindObjectsSettings fs;
+  fs.pose.views.resolution = 120;       // pixels: how the views below are rendered
+  const std::vector<scanalign::ModelView> views = scanalign::renderModelViews(
+      scanalign::CloudView<double>(V.data(), V.size() / 3), F.data(), F.size() / 3, fs.pose.views);
   std::printf("model: %zu views, view 5 has %zu points\n", views.size(), views[5].size());
 
   // The scan (camera frame): what view 5 saw, placed at a known pose with 0.1 mm noise, on a
@@ -52,11 +52,10 @@ int main() {
   for (double x = -0.2; x <= 0.2; x += 0.002)
     for (double y = -0.2; y <= 0.2; y += 0.002) scene.insert(scene.end(), {x, y, 0.62 + noise(rng)});
 
-  scanalign::FindObjectsSettings fs;
   fs.table.plane.threshold = 0.005;     // m
   fs.table.cluster_tolerance = 0.01;    // m
   fs.table.min_cluster_size = 200;
-  const scanalign::ObjectPoses found = scanalign::findObjects(
+  const scanalign::FindObjectsResult found = scanalign::findObjects(
       views, scanalign::CloudView<double>(scene.data(), scene.size() / 3), fs);
   std::printf("table: %s, %zu object(s), %.2f s\n", found.table.success() ? "found" : "missing",
               found.table.objects.size(), found.seconds);

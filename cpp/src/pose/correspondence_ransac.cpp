@@ -117,7 +117,7 @@ CorrespondenceRansacResult ransacRigidMotion(const CloudView<double>& source, co
         xi.insert(xi.end(), xs[k].data(), xs[k].data() + 3);
         yi.insert(yi.end(), ys[k].data(), ys[k].data() + 3);
       }
-    const MotorEstimate m = estimateMotor(CloudView<double>(xi.data(), xi.size() / 3),
+    const MotorEstimationResult m = estimateMotor(CloudView<double>(xi.data(), xi.size() / 3),
                                           CloudView<double>(yi.data(), yi.size() / 3));
     if (!m.valid || countInliers(m.T_target_source) < countInliers(T)) break;
     T = m.T_target_source;

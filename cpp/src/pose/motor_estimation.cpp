@@ -171,10 +171,10 @@ Eigen::Matrix4d motorToMatrix(const Vector8d& motor) {
   return cga::Motor::fromMultivector(cga::translator(t) * R, 1e-6).matrix();
 }
 
-MotorEstimate estimateMotor(const CloudView<double>& source, const CloudView<double>& target, const double* weights,
-                            bool normalize) {
+MotorEstimationResult estimateMotor(const CloudView<double>& source, const CloudView<double>& target,
+                                    const double* weights, bool normalize) {
   checkInputs(source, target, weights, "estimateMotor");
-  MotorEstimate out;
+  MotorEstimationResult out;
   const Prepared p = prepare(source, target, weights, out.message);
   out.count = p.count;
   if (p.count < 3) return out;
@@ -206,10 +206,10 @@ MotorEstimate estimateMotor(const CloudView<double>& source, const CloudView<dou
   return out;
 }
 
-MotorEstimate estimateRigidSvd(const CloudView<double>& source, const CloudView<double>& target,
-                               const double* weights) {
+MotorEstimationResult estimateRigidSvd(const CloudView<double>& source, const CloudView<double>& target,
+                                       const double* weights) {
   checkInputs(source, target, weights, "estimateRigidSvd");
-  MotorEstimate out;
+  MotorEstimationResult out;
   const Prepared p = prepare(source, target, weights, out.message);
   out.count = p.count;
   if (p.count < 3) return out;

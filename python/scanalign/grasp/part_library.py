@@ -117,7 +117,7 @@ def build_part_library(parts: Sequence[Any], *, resolution: int = 100, progress:
     from tqdm.auto import tqdm
 
 
-    settings, _ = pose.find_parts_settings(**pose_settings)  # validates the keywords before any work
+    settings = pose.find_parts_settings(**pose_settings)  # validates the keywords before any work
     out: Dict[str, LibraryPart] = {}
     for source in tqdm(list(parts), desc="part library", unit="part", disable=not progress):
         part = load_part(source)

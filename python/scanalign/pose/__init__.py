@@ -41,16 +41,16 @@ from scanalign.pose import model_views as cad
 from scanalign.features import estimate_normals
 
 __all__ = [
-    "MotorEstimate", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag", "FlagAlignmentResult",
-    "PclFeatureAlignmentResult", "PoseSettings", "PoseResult", "PoseCandidate", "ObjectPoses", "DetectionStatus",
-    "PartDetection", "PartDetections", "find_parts", "find_parts_settings",
+    "MotorEstimationResult", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag", "FlagAlignmentResult",
+    "PclFeatureAlignmentResult", "PoseSettings", "PoseResult", "PoseCandidate", "FindObjectsResult", "DetectionStatus",
+    "PartDetection", "FindPartsResult", "find_parts", "find_parts_settings",
     "estimate_motor", "estimate_rigid_svd", "motor_to_matrix", "ransac_rigid_motion", "align_cbd",
     "normal_line_flag", "align_flags", "pcl_feature_alignment", "alignment_fitness", "estimate_pose",
     "find_objects", "METHODS", "THESIS_PCL_PRESET",
 ]
 
 _P = _core.pose
-MotorEstimate = _P.MotorEstimate
+MotorEstimationResult = _P.MotorEstimationResult
 CorrespondenceRansacResult = _P.CorrespondenceRansacResult
 CbdAlignmentResult = _P.CbdAlignmentResult
 NormalLineFlag = _P.NormalLineFlag
@@ -59,10 +59,10 @@ PclFeatureAlignmentResult = _P.PclFeatureAlignmentResult
 PoseSettings = _P.PoseSettings
 PoseResult = _P.PoseResult
 PoseCandidate = _P.PoseCandidate
-ObjectPoses = _P.ObjectPoses
+FindObjectsResult = _P.FindObjectsResult
 DetectionStatus = _P.DetectionStatus
 PartDetection = _P.PartDetection
-PartDetections = _P.PartDetections
+FindPartsResult = _P.FindPartsResult
 
 Method = Literal["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags"]
 METHODS: Tuple[str, ...] = ("cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags")
@@ -87,7 +87,7 @@ def _pairs(source: object, target: object) -> Tuple[np.ndarray, np.ndarray]:
 
 
 def estimate_motor(source: np.ndarray, target: np.ndarray, weights: Optional[np.ndarray] = None, *,
-                   normalize: bool = True) -> MotorEstimate:
+                   normalize: bool = True) -> MotorEstimationResult:
     """Valkenburg-Dorst motor from pairs ``source[i] <-> target[i]`` ((N, 3) each, metres;
     paper 5, (36)-(44)): the unit motor maximising ``Σ w_k ⟨M̃ Y_k M X_k⟩``, optionally
     weighted; ``normalize`` centres and scales first (only rounding changes). ``valid`` is
@@ -97,7 +97,7 @@ def estimate_motor(source: np.ndarray, target: np.ndarray, weights: Optional[np.
     return _P.estimate_motor(s, t, weights, bool(normalize))
 
 
-def estimate_rigid_svd(source: np.ndarray, target: np.ndarray, weights: Optional[np.ndarray] = None) -> MotorEstimate:
+def estimate_rigid_svd(source: np.ndarray, target: np.ndarray, weights: Optional[np.ndarray] = None) -> MotorEstimationResult:
     """Kabsch/Umeyama (SVD) estimate from the same pairs: the oracle of :func:`estimate_motor`."""
     s, t = _pairs(source, target)
     return _P.estimate_rigid_svd(s, t, weights)
@@ -218,8 +218,9 @@ def pcl_feature_alignment(source: np.ndarray, target: np.ndarray, method: str = 
 
 # --- pipeline -----------------------------------------------------------------------------------
 
-def _model_views(model: object, resolution: int, num_threads: int) -> Tuple[List[Any], bool]:
-    """The model as views: rendered from a mesh (or mesh file), given views, or one cloud."""
+def _model_views(model: object, views: Any) -> Tuple[List[Any], bool]:
+    """The model as views: rendered from a mesh (or mesh file) with ``views`` (the
+    ``ModelViewSettings`` of the pose settings), given views, or one cloud."""
     if isinstance(model, list) and model and all(isinstance(v, cad.ModelView) for v in model):
         return model, False
     if isinstance(model, (str, Path)):
@@ -230,7 +231,7 @@ def _model_views(model: object, resolution: int, num_threads: int) -> Tuple[List
             raise ValueError("model: empty cloud")
         n = estimate_normals(p, radius=0.005, viewpoint=p.mean(axis=0) + np.array([0, 0, 1.0]))
         return [cad.ModelView(p, n)], True
-    return cad.render_views(model, resolution=resolution, num_threads=num_threads), False
+    return _P.render_model_views(*cad._mesh_arrays(model), views), False
 
 
 class _Progress:
@@ -252,17 +253,25 @@ class _Progress:
 
 def _pose_settings(method: str, inlier_threshold: float, icp_distance: float, normal_radius: float,
                    cbd_settings: Optional[_cbd.CbdSettings], ransac: Optional[Dict[str, Any]], num_threads: int,
-                   cbd_overrides: Dict[str, object], base: Any = None) -> Any:
+                   cbd_overrides: Dict[str, object], base: Any = None, *, resolution: Optional[int] = None,
+                   pcl_overrides: Optional[Dict[str, object]] = None) -> Any:
     """PoseSettings from these values over ``base`` (the defaults of the C++ struct that holds
-    them, e.g. ``FindPartsSettings.pose``; a fresh ``PoseSettings`` when None)."""
+    them, e.g. ``FindPartsSettings.pose``; a fresh ``PoseSettings`` when None). A PCL method
+    (``"fpfh"``...) is ``method="pcl"`` with ``pcl`` its thesis preset and ``pcl_overrides``;
+    ``resolution`` (None: the base's) and ``num_threads`` also set how a mesh is rendered
+    (``views``)."""
     limits = {k: cbd_overrides.pop(k) for k in ("min_fitness", "min_coverage") if k in cbd_overrides}
     hypotheses = cbd_overrides.pop("hypotheses", None)
     if method not in METHODS:
         raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
     cbd_overrides.setdefault("min_neighbors", 0)  # automatic: scan density varies
-    s = set_fields(_P.PoseSettings() if base is None else base, dict(method=method if method in ("cbd", "flags") else "external",
+    s = set_fields(_P.PoseSettings() if base is None else base, dict(method=method if method in ("cbd", "flags") else "pcl",
                                            inlier_threshold=inlier_threshold, icp_distance=icp_distance,
                                            normal_radius=normal_radius, num_threads=num_threads, **limits), "pose")
+    if method in _PCL_METHODS:
+        s.pcl = _pcl_settings(method, pcl_overrides or {})
+    set_fields(s.views, dict(num_threads=num_threads) if resolution is None else
+               dict(resolution=int(resolution), num_threads=num_threads), "view")
     s.cbd = _cbd_alignment_settings(cbd_settings, cbd_overrides, ransac, s.cbd)
     if hypotheses is not None:
         c = s.cbd
@@ -303,13 +312,11 @@ def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", v
         one's fitness or coverage is below ``min_fitness`` / ``min_coverage``.
     """
     settings = _pose_settings(method, inlier_threshold, icp_distance, normal_radius, cbd_settings, ransac, num_threads,
-                              cbd_overrides)
-    pcl = _pcl_settings(method, pcl_settings or {}) if method in _PCL_METHODS else None
-    model_views, is_cloud = _model_views(model, resolution, num_threads)
+                              cbd_overrides, resolution=resolution, pcl_overrides=pcl_settings)
+    model_views, is_cloud = _model_views(model, settings.views)
     scene = as_points(scene, "scene", np.dtype(np.float64))
-    r = _P.estimate_pose(model_views, scene, settings, [int(i) for i in views or []], pcl,
+    r = _P.estimate_pose(model_views, scene, settings, [int(i) for i in views or []],
                          _Progress(f"pose ({method})", True) if progress else None)
-    r.method = method
     if is_cloud:
         r.view = None
     return r
@@ -317,27 +324,27 @@ def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", v
 
 def _table_settings(s: Any, method: str, max_objects: int, table_threshold: float, cluster_tolerance: float,
                     min_cluster_size: int, viewpoint: Sequence[float], up: Optional[Sequence[float]], num_threads: int,
-                    pose_kwargs: Dict[str, Any]) -> Any:
-    """Fills find_objects / find_parts settings ``s``; returns the PCL settings (or None)."""
-    s.max_objects = max_objects
+                    resolution: int, pose_kwargs: Dict[str, Any]) -> None:
+    """Fills find_objects / find_parts settings ``s``."""
+    s.max_objects = int(max_objects)
+    pcl_overrides = pose_kwargs.pop("pcl_settings", None)
     s.pose = _pose_settings(method, pose_kwargs.pop("inlier_threshold", 0.005), pose_kwargs.pop("icp_distance", 0.01),
                             pose_kwargs.pop("normal_radius", 0.005), pose_kwargs.pop("cbd_settings", None),
-                            pose_kwargs.pop("ransac", None), num_threads, pose_kwargs, s.pose)
-    pcl = _pcl_settings(method, pose_kwargs.pop("pcl_settings", None) or {}) if method in _PCL_METHODS else None
+                            pose_kwargs.pop("ransac", None), num_threads, pose_kwargs, s.pose, resolution=resolution,
+                            pcl_overrides=pcl_overrides)
     t = s.table
     t.plane.threshold, t.cluster_tolerance, t.min_cluster_size = table_threshold, cluster_tolerance, min_cluster_size
     t.plane.num_threads = num_threads
     t.viewpoint = np.asarray(viewpoint, dtype=np.float64)
     t.up = np.zeros(3) if up is None else np.asarray(up, dtype=np.float64)
     s.table = t
-    return pcl
 
 
 def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", max_objects: int = 5,
                  table_threshold: float = 0.005, cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
                  viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
                  progress: bool = False, resolution: int = 150, views: Optional[Sequence[int]] = None,
-                 num_threads: int = 0, **pose_kwargs: Any) -> ObjectPoses:
+                 num_threads: int = 0, **pose_kwargs: Any) -> FindObjectsResult:
     """Poses of a part in a table scene (paper 3 / paper 5 pipeline): RANSAC table plane in
     CGA, remove it and everything below it, Euclidean clusters, then the pose per cluster as
     :func:`estimate_pose` (at most ``max_objects``, largest first).
@@ -350,18 +357,20 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
         **pose_kwargs: the other keywords of :func:`estimate_pose`.
 
     Returns:
-        :class:`ObjectPoses` (``poses``, ``objects`` as index arrays, the table ``plane``).
+        :class:`FindObjectsResult` (``poses``, ``objects`` as index arrays, the table ``plane``).
     """
     s = _P.FindObjectsSettings()
-    pcl = _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
-                          num_threads, pose_kwargs)
+    _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
+                    num_threads, resolution, pose_kwargs)
     pts = as_points(scene, "scene", np.dtype(np.float64))
-    model_views, is_cloud = _model_views(model, resolution, num_threads)
-    found = _P.find_objects(model_views, pts, s, [int(i) for i in views or []], pcl, _Progress(f"pose ({method})", True) if progress else None)
-    for r in found.poses:
-        r.method = method
-        if is_cloud:
+    model_views, is_cloud = _model_views(model, s.pose.views)
+    found = _P.find_objects(model_views, pts, s, [int(i) for i in views or []],
+                            _Progress(f"pose ({method})", True) if progress else None)
+    if is_cloud:  # a model cloud has no views to name
+        poses = found.poses
+        for r in poses:
             r.view = None
+        found.poses = poses
     return found
 
 
@@ -376,7 +385,7 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
                voxel_size: float = 0.0, score_tie: float = 0.01, polish_distance: float = 0.003,
                max_table_penetration: float = 0.005, surface_polish: bool = True, cbd_radius_fraction: float = 0.0,
                min_surface_coverage: float = 0.97,
-               **pose_kwargs: Any) -> PartDetections:
+               **pose_kwargs: Any) -> FindPartsResult:
     """Which of several known parts lies in each object cluster of a table scene, and its
     pose: the table and clusters as :func:`find_objects` (segmented once), then every part's
     views aligned to each cluster (its normals and descriptors computed once), the best part
@@ -423,41 +432,40 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
         other keywords: as :func:`find_objects` (``views`` applies to every part).
 
     Returns:
-        :class:`PartDetections`: per cluster a :class:`PartDetection` (``status``, ``part``,
+        :class:`FindPartsResult`: per cluster a :class:`PartDetection` (``status``, ``part``,
         ``pose``, runner-up, ``indices``, ``parts``: the :class:`PoseResult` of every part).
     """
     if isinstance(models, (str, bytes)) or not isinstance(models, Sequence) or len(models) == 0:
         raise ValueError("models: expected a non-empty list with one model per part")
-    s, pcl = find_parts_settings(
+    s = find_parts_settings(
         method=method, max_objects=max_objects, table_threshold=table_threshold, cluster_tolerance=cluster_tolerance,
         min_cluster_size=min_cluster_size, viewpoint=viewpoint, up=up, num_threads=num_threads,
         ambiguity_margin=ambiguity_margin, ambiguity_rmse_ratio=ambiguity_rmse_ratio, same_pose_angle=same_pose_angle,
         same_pose_distance=same_pose_distance,
         max_size_ratio=max_size_ratio, min_size_ratio=min_size_ratio, voxel_size=voxel_size, score_tie=score_tie,
         polish_distance=polish_distance, max_table_penetration=max_table_penetration, surface_polish=surface_polish,
-        cbd_radius_fraction=cbd_radius_fraction, min_surface_coverage=min_surface_coverage, **pose_kwargs)
+        cbd_radius_fraction=cbd_radius_fraction, min_surface_coverage=min_surface_coverage, resolution=resolution,
+        **pose_kwargs)
     pts = as_points(scene, "scene", np.dtype(np.float64))
-    model_views = [_model_views(m, resolution, num_threads)[0] for m in models]
-    found = _P.find_parts(model_views, pts, s, None if symmetries is None else list(symmetries),
-                          [int(i) for i in views or []], pcl, _Progress(f"parts ({method})", True) if progress else None)
-    for d in found.detections:
-        d.pose.method = method
-    return found
+    model_views = [_model_views(m, s.pose.views)[0] for m in models]
+    return _P.find_parts(model_views, pts, s, None if symmetries is None else list(symmetries),
+                         [int(i) for i in views or []], _Progress(f"parts ({method})", True) if progress else None)
 
 
 def find_parts_settings(*, method: Method = "cbd", max_objects: int = 5, table_threshold: float = 0.005,
                         cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
                         viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
-                        num_threads: int = 0, **keywords: Any) -> Tuple[Any, Any]:
-    """``(FindPartsSettings, PCL settings or None)`` that :func:`find_parts` builds from these
-    keywords (its own, same defaults): e.g. to describe part views once with
+                        num_threads: int = 0, resolution: Optional[int] = None, **keywords: Any) -> Any:
+    """The ``FindPartsSettings`` that :func:`find_parts` builds from these keywords (its own,
+    same defaults; a PCL method's settings in ``pose.pcl``, ``resolution`` None: the struct's
+    ``pose.views.resolution``): e.g. to describe part views once with
     ``_core.pose.part_pose_settings`` (see :mod:`scanalign.grasp.part_library`)."""
     names = ("ambiguity_margin", "ambiguity_rmse_ratio", "same_pose_angle", "same_pose_distance", "max_size_ratio", "min_size_ratio",
              "voxel_size", "score_tie", "polish_distance", "max_table_penetration", "surface_polish",
              "cbd_radius_fraction", "min_surface_coverage")
     fields = {k: keywords.pop(k) for k in names if k in keywords}
     s = _P.FindPartsSettings()
-    pcl = _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
-                          num_threads, keywords)
+    _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
+                    num_threads, resolution, keywords)
     set_fields(s, fields, "find_parts")
-    return s, pcl
+    return s

@@ -26,7 +26,7 @@
 
 namespace scanalign {
 
-struct MotorEstimate {
+struct MotorEstimationResult {
   Eigen::Matrix4d T_target_source = Eigen::Matrix4d::Identity();  ///< y ≈ R x + t
   /// The motor M = T R on (1, e23, e31, e12, e1∞, e2∞, e3∞, e123∞) with M M̃ = 1, acting as
   /// Y = M X M̃ on conformal points (thesis ch. 4, motors).
@@ -42,12 +42,12 @@ struct MotorEstimate {
 /// before forming Q (the estimator is equivariant, so the result is the same up to rounding;
 /// normalising keeps Q well conditioned for data far from the origin). Needs 3 non-collinear
 /// pairs. Throws std::invalid_argument for mismatched sizes, non-finite points or bad weights.
-MotorEstimate estimateMotor(const CloudView<double>& source, const CloudView<double>& target,
-                            const double* weights = nullptr, bool normalize = true);
+MotorEstimationResult estimateMotor(const CloudView<double>& source, const CloudView<double>& target,
+                                    const double* weights = nullptr, bool normalize = true);
 
 /// Kabsch/SVD estimate from the same pairs (the oracle of the motor estimator; also used inside RANSAC).
-MotorEstimate estimateRigidSvd(const CloudView<double>& source, const CloudView<double>& target,
-                               const double* weights = nullptr);
+MotorEstimationResult estimateRigidSvd(const CloudView<double>& source, const CloudView<double>& target,
+                                       const double* weights = nullptr);
 
 /// 4x4 rigid transform of an 8-coefficient motor (basis as above), normalised first.
 Eigen::Matrix4d motorToMatrix(const Eigen::Matrix<double, 8, 1>& motor);

@@ -1,7 +1,9 @@
-// PCL baselines as a coarse aligner. See pcl_coarse_aligner.hpp.
+// PCL baselines as a coarse aligner. See coarse_aligner.hpp.
 #include "scanalign/pose/pcl/coarse_aligner.hpp"
 
 #include <vector>
+
+#include "scanalign/common/build_info.hpp"
 
 namespace scanalign {
 
@@ -28,6 +30,17 @@ CoarseAligner pclCoarseAligner(const PclFeatureAlignmentSettings& settings) {
     out.message = r.message;
     return out;
   };
+}
+
+std::string pclBaselineName(const PclFeatureAlignmentSettings& settings) {
+  const bool sac_ia = settings.matcher == PclMatcher::SacIA && settings.descriptor != PclDescriptor::PPF;
+  return std::string(toString(settings.descriptor)) + (sac_ia ? "_sac_ia" : "");
+}
+
+void requirePclBaselines(const PclFeatureAlignmentSettings& settings) {
+  // Without PCL, pclFeatureAlignment is the stub of common/without_pcl.cpp: it throws the
+  // build's NotBuiltError (naming the baseline and the CMake option) whatever its input.
+  if (!builtWithPcl()) pclFeatureAlignment(CloudView<float>(), CloudView<float>(), settings);
 }
 
 }  // namespace scanalign

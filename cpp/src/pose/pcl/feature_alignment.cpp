@@ -587,3 +587,8 @@ PclFeatureAlignmentResult pclFeatureAlignment(const CloudView<float>& source, co
 }
 
 }  // namespace scanalign
+
+// Named by scanalign::pcl's interface link option (CMakeLists.txt): every program that links
+// scanalign::pcl takes this file, whose pclFeatureAlignment replaces the core's weak fallback
+// (feature_alignment_unlinked.cpp) even where only the core's estimatePose refers to it.
+extern "C" void scanalign_link_pcl_feature_alignment() {}
