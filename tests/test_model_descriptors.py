@@ -25,7 +25,7 @@ def scene():
 
 
 def settings(**cbd):
-    return pose._pose_settings("cbd", 0.005, 0.01, 0.005, None, None, 1, dict(cbd))
+    return pose.pose_task_settings(pose.PoseSettings, method="cbd", num_threads=1, **cbd)
 
 
 def test_described_views_give_the_same_pose(scene):

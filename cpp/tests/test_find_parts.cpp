@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include "scanalign/common/build_info.hpp"
+#include "scanalign/pose/find_objects.hpp"
 #include "scanalign/pose/part_identification.hpp"
 #include "scanalign/synthetic/builtin_part.hpp"
 
@@ -193,6 +194,14 @@ TEST(FindParts, DefaultSettingsRenderViewsAt100PixelsWithOneHypothesisPerView) {
   EXPECT_EQ(s.pose.cbd.hypotheses, 1);
   EXPECT_EQ(pose.cbd.hypotheses, 3);
   EXPECT_EQ(s.pose.method, CoarseMethod::Cbd);
+  // The table of a pose search: the values the Python API used to restate, now the struct's.
+  const FindObjectsSettings objects;
+  for (const TableSegmentationSettings& t : {s.table, objects.table}) {
+    EXPECT_EQ(t.plane.threshold, 0.005);
+    EXPECT_EQ(t.cluster_tolerance, 0.01);
+    EXPECT_EQ(t.min_cluster_size, 200u);
+  }
+  EXPECT_EQ(TableSegmentationSettings().cluster_tolerance, 0.02);  // segmentTable's own default is left alone
   EXPECT_EQ(s.pose.cbd.cbd.min_neighbors, 0);  // the rest is estimatePose's default
 }
 

@@ -20,6 +20,7 @@ from scipy.spatial.transform import Rotation
 from scanalign import pose
 from scanalign.pose import model_views as cad
 from scanalign.data import downloads as datasets
+from scanalign.viz.reports import write_pose_outputs
 
 
 def main() -> int:

@@ -26,16 +26,18 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-from scanalign import _core, io, kinematics as kin, pose as _pose, synthetic
-from scanalign.cli import config as _cfg
+from scanalign import _core, datasets, io, synthetic
+from scanalign import kinematics as kin
+from scanalign import pose as _pose
 from scanalign.cli.settings import Alias, Command, add_settings_options, dump, resolve, write_effective
 from scanalign.common import rigid as se3
+from scanalign.common.settings import to_dict
 from scanalign.data import parts
-from scanalign import datasets
 from scanalign.datasets import tum
 from scanalign.features import NormalEstimationSettings, estimate_normals
-from scanalign.pipelines import batch, pick as _pick
-from scanalign.pipelines.reconstruct import model_mesh_distance, reconstruct, write_joints_csv
+from scanalign.pipelines import batch
+from scanalign.pipelines import pick as _pick
+from scanalign.pipelines.reconstruct import DEMO_SETTINGS, model_mesh_distance, reconstruct, write_joints_csv
 from scanalign.reconstruction import ReconstructionSettings
 from scanalign.registration import Box, IcpSettings, icp, pcl_icp
 from scanalign.synthetic.cell import pick_cell, score_picks
@@ -196,12 +198,35 @@ RECONSTRUCT = Command(ReconstructionSettings, (
           help="the eye-in-hand paper's box rejector values"),
     Alias("--threads", _F + "num_threads", "registration"),
 ))
-#: The demo's preset over ReconstructionSettings: it keeps the workspace around the part
-#: (20 x 20 cm in the camera's view) and uses 10 mm normals (with SR300-like noise, 5 mm
-#: normals measured 12 mm ATE against 4 mm); its simulated SR300 noise also calls for the
-#: bilateral depth filter (ATE 12.6 -> 4.1 mm).
-DEMO_PRESET = {"filter_depth": True, "frame_to_model": {"crop_box": (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0),
-                                                        "normal_radius": 0.01}}
+
+
+def _pose_method(name: str) -> dict:
+    """--method: the coarse method as fields of the pose settings (a PCL baseline: method pcl
+    and the thesis's preset of that baseline)."""
+    return to_dict(_pose.pose_task_settings(_pose.PoseSettings, method=name))
+
+
+_P = "pose."
+#: The pose command's settings: FindObjectsSettings (table, clusters, the pose per cluster).
+POSE = Command(_core.pose.FindObjectsSettings, (
+    Alias("--method", "pose", choices=list(_pose.METHODS), value=_pose_method,
+          help="coarse alignment: cbd (the thesis's curvature-based descriptor), flags, or a stock PCL baseline "
+               "(fpfh, fpfh_sac_ia, shot, 3dsc, ppf: method pcl with the thesis's preset); default cbd"),
+    Alias("--cbd-radius", _P + "cbd.cbd.radius", help="CBD neighbourhood radius (about 0.015 for scans with ~1-2 mm "
+                                                      "noise)"),
+    Alias("--resolution", _P + "views.resolution"),
+    Alias("--inlier-threshold", _P + "inlier_threshold"),
+    Alias("--icp-distance", _P + "icp_distance"),
+    Alias("--up", "table.up", nargs=3, metavar=("X", "Y", "Z"),
+          help="table normal direction (0 0 0: towards the camera at the origin)"),
+    Alias("--table-threshold", "table.plane.threshold"),
+    Alias("--cluster-tolerance", "table.cluster_tolerance"),
+    Alias("--max-objects", "max_objects"),
+))
+
+
+#: The pick command's settings: PickSettings (reconstruction, find_parts, views, planner).
+PICK = Command(_pick.PickSettings)
 
 
 def _register_root() -> dict:
@@ -383,16 +408,12 @@ def pose_command(args: argparse.Namespace) -> int:
         raise FileNotFoundError(f"{scene_path}: no such scene file")
     scene, _ = io.read_cloud(scene_path)
     scene = scene[np.all(np.isfinite(scene), axis=1)]
-    kw = dict(method=args.method, views=args.views, resolution=args.resolution,
-              inlier_threshold=args.inlier_threshold, icp_distance=args.icp_distance, progress=not args.quiet)
-    if args.method == "cbd":
-        kw["radius"] = args.cbd_radius
+    settings = args.settings
     if args.no_segment:
-        results = [_pose.estimate_pose(mesh, scene, **kw)]
+        results = [_pose.estimate_pose(mesh, scene, settings.pose, views=args.views, progress=not args.quiet)]
         objects = [np.arange(len(scene))]
     else:
-        found = _pose.find_objects(mesh, scene, max_objects=args.max_objects, table_threshold=args.table_threshold,
-                                   cluster_tolerance=args.cluster_tolerance, up=args.up, **kw)
+        found = _pose.find_objects(mesh, scene, settings, views=args.views, progress=not args.quiet)
         results, objects = found.poses, found.objects
         if not results:
             print("scanalign pose: no object cluster above the table", file=sys.stderr)
@@ -431,7 +452,7 @@ def _matrix_file(path: Optional[str], what: str) -> Optional[np.ndarray]:
 def pick_command(args: argparse.Namespace) -> int:
     """``scanalign pick``: scan -> part poses -> grasps -> joint targets; exit status 1 when
     nothing can be picked."""
-    s = _pick.PickSettings()
+    s = getattr(args, "settings", None)  # the demo (scanalign demo --pick) uses the defaults
     truth = None
     if args.demo:
         cell = pick_cell(args.robot or "ur5", noise=args.noise, seed=args.seed)
@@ -479,6 +500,8 @@ def _add_pick_options(p: argparse.ArgumentParser, demo: bool) -> None:
     p.add_argument("--no-plots", action="store_true", help="do not write pick.png")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     _add_view_options(p)
+    if not demo:
+        add_settings_options(p, PICK)
 
 
 def batch_command(args: argparse.Namespace) -> int:
@@ -515,23 +538,19 @@ def _record_config(sub, args: argparse.Namespace, rc: int) -> int:
     """Writes the settings a run used beside its outputs (``config.yaml`` in ``--out``;
     ``register``: ``NAME.config.yaml`` beside ``--out NAME.ply``, none without ``--out``);
     returns ``rc``."""
-    if args.command not in SETTINGSCOMMANDS or not args.out:
+    if args.command not in COMMANDS or not args.out:
         return rc
     out = Path(args.out)
     path = out.with_suffix(".config.yaml") if args.command == "register" else out / "config.yaml"
-    if hasattr(args, "settings"):
-        inputs = [a for a in (getattr(args, "source", None), getattr(args, "target", None)) if a]
-        write_effective(args.command, args.settings, args, inputs, path)
-    else:
-        _cfg.write_effective(sub.choices[args.command], args.command, args, path)
+    inputs = [a for a in (getattr(args, "source", None), getattr(args, "target", None)) if a]
+    write_effective(args.command, args.settings, args, inputs, path)
     if args.command != "register" and not getattr(args, "quiet", False):  # register's stdout is JSON
         print(f"  wrote {path} (the settings of this run: --config {path} repeats it)")
     return rc
 
 
 #: The commands whose settings are C++ structs (``--config``, ``--set``, ``dump-config``).
-COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER}
-SETTINGSCOMMANDS = ("reconstruct", "pose", "pick", "register")
+COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER, "pose": POSE, "pick": PICK}
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -609,23 +628,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "and a PNG overlay per object. Exit status 1 when nothing is found.")
     p.add_argument("--model", required=True, help="CAD mesh: STL, PLY, OFF or OBJ (metres, or see --model-scale)")
     p.add_argument("--scene", required=True, help="scan: PCD or PLY, metres, camera frame")
-    p.add_argument("--method", default="cbd", choices=["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags"],
-                   help="coarse alignment (default cbd)")
-    p.add_argument("--cbd-radius", type=float, default=0.0063,
-                   help="CBD neighbourhood radius, m (thesis 0.0063; about 0.015 for scans with ~1-2 mm noise)")
     p.add_argument("--model-scale", type=float, default=1.0, help="multiply the model's coordinates (0.001: mm)")
     p.add_argument("--views", type=int, nargs="+", help="only these of the 42 views (default all)")
-    p.add_argument("--resolution", type=int, default=150, help="model view size, pixels (150)")
     p.add_argument("--no-segment", action="store_true", help="the scene is one object: skip table and clusters")
-    p.add_argument("--up", type=float, nargs=3, metavar=("X", "Y", "Z"), help="table normal direction (default: "
-                                                                           "towards the camera at the origin)")
-    p.add_argument("--table-threshold", type=float, default=0.005, help="table plane inlier distance, m (0.005)")
-    p.add_argument("--cluster-tolerance", type=float, default=0.01, help="object cluster distance, m (0.01)")
-    p.add_argument("--max-objects", type=int, default=5, help="largest clusters matched (5)")
-    p.add_argument("--inlier-threshold", type=float, default=0.005, help="fitness distance, m (0.005)")
-    p.add_argument("--icp-distance", type=float, default=0.01, help="ICP correspondence distance, m (0.01)")
     p.add_argument("--out", default="scanalign-pose", help="output folder (scanalign-pose)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_settings_options(p, POSE)
     p = sub.add_parser("batch", help="run a manifest of reconstruction, pose and pick jobs (process pool or Ray)",
                        description="Runs every job of MANIFEST (YAML or CSV, see docs/batch.md) on a local process "
                                    "pool or a Ray cluster, with the part library built once and shared, and writes "
@@ -642,30 +650,24 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--no-plots", action="store_true", help="skip results.png")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p = sub.add_parser("dump-config", help="print every setting of a command with its default and unit (YAML)",
-                       description="Prints every setting of COMMAND as YAML, with its default and a comment "
-                                   "giving the option, unit and meaning. Edit it and pass it back with "
-                                   "'scanalign COMMAND ... --config FILE'; flags given on the command line override "
-                                   "the file. Every run of these commands writes the settings it used beside its "
-                                   "outputs (config.yaml in --out; register: NAME.config.yaml beside --out).")
-    p.add_argument("config_command", metavar="COMMAND", choices=SETTINGSCOMMANDS,
-                   help="one of " + ", ".join(SETTINGSCOMMANDS))
-    for name in _cfg.COMMANDS:
-        _cfg.add_config_option(sub.choices[name], name)
-    try:  # --config FILE: the file's settings become the command's defaults
-        _cfg.use_config_file(sub, sys.argv[1:] if argv is None else argv)
-    except _cfg.ConfigFileError as e:
-        print(f"scanalign {e.command}: error: {e}", file=sys.stderr)
-        return 2
+                       description="Prints every field of the C++ settings structs COMMAND uses as nested YAML, "
+                                   "with its default and a comment giving its unit and meaning. Edit it and pass it "
+                                   "back with 'scanalign COMMAND ... --config FILE'; flags and --set PATH=VALUE given "
+                                   "on the command line override the file. Every run of these commands writes the "
+                                   "settings it used beside its outputs (config.yaml in --out; register: "
+                                   "NAME.config.yaml beside --out).")
+    p.add_argument("config_command", metavar="COMMAND", choices=tuple(COMMANDS),
+                   help="one of " + ", ".join(COMMANDS))
     args = parser.parse_args(argv)
     try:
         if args.command == "dump-config":
             name = args.config_command
-            command = COMMANDS.get(name)
-            print(dump(name, command.root()) if command else _cfg.dump(sub.choices[name], name), end="")
+            command = COMMANDS[name]
+            print(dump(name, command.root()), end="")
             return 0
         if args.command in COMMANDS or args.command == "demo":
             args.settings = resolve(COMMANDS.get(args.command, RECONSTRUCT), args,
-                                    DEMO_PRESET if args.command == "demo" else None)
+                                    DEMO_SETTINGS if args.command == "demo" else None)
         if args.command == "batch":
             return batch_command(args)
         if args.command == "ik":

@@ -62,6 +62,8 @@ def _help(root: Any, alias: Alias) -> str:
     unit, doc = next(((f[1], f[2]) for f in type(owner).__fields__ if f[0] == name), ("", ""))
     default = schema.get_path(root, alias.path)
     text = alias.help or doc
+    if schema.is_struct(default) and schema.field_names(default):  # an alias that sets several fields
+        return f"{text} (--set {alias.path}.FIELD=VALUE)".replace("%", "%%")
     return f"{text}{', ' + unit if unit else ''} (default {_shown(default)}; --set {alias.path})".replace("%", "%%")
 
 

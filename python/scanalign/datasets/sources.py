@@ -41,12 +41,16 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from scanalign.reconstruction.camera import INTRINSICS_PRESETS, Frame, Intrinsics, read_camera, sequence_index
+from scanalign.datasets.tum import CAMERA_FILE_NAMES, load_image
 from scanalign.evaluation.trajectory import Trajectory, associate_timestamps, matrix_from_quaternion
-from scanalign.datasets import tum
-from scanalign.reconstruction.camera import camera_from_dict
-from scanalign.datasets.tum import CAMERA_FILE_NAMES
-from scanalign.datasets.tum import load_image
+from scanalign.reconstruction.camera import (
+    INTRINSICS_PRESETS,
+    Frame,
+    Intrinsics,
+    camera_from_dict,
+    read_camera,
+    sequence_index,
+)
 
 __all__ = ["BagSequence", "ImageFolderSequence", "is_bag", "is_image_folder", "DEPTH_ENCODINGS",
            "COLOR_ENCODINGS"]

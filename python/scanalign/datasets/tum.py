@@ -39,9 +39,22 @@ from typing import Any, Callable, Dict, Iterable, Iterator, List, Optional, Tupl
 import numpy as np
 from PIL import Image
 
-from scanalign.reconstruction.camera import INTRINSICS_PRESETS, Frame, Intrinsics, camera_from_dict, read_camera_file, sequence_index
-from scanalign.evaluation.trajectory import (Trajectory, TumFormatError, associate_timestamps, read_tum_rows, time_order,
-                         write_tum_trajectory)
+from scanalign.evaluation.trajectory import (
+    Trajectory,
+    TumFormatError,
+    associate_timestamps,
+    read_tum_rows,
+    time_order,
+    write_tum_trajectory,
+)
+from scanalign.reconstruction.camera import (
+    INTRINSICS_PRESETS,
+    Frame,
+    Intrinsics,
+    camera_from_dict,
+    read_camera_file,
+    sequence_index,
+)
 
 __all__ = ["TumSequence", "TumFormatError", "write_tum_sequence", "is_tum_folder", "read_timestamp_list",
            "TUM_DEPTH_SCALE", "CAMERA_FILE_NAMES"]

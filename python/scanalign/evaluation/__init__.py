@@ -23,10 +23,15 @@ from typing import Any, Dict, Optional, Tuple, Union
 import numpy as np
 
 from scanalign import _core
+from scanalign._core.evaluation import ErrorStats
 from scanalign.common import rigid as se3
 from scanalign.common.arrays import mesh_arrays
-from scanalign._core.evaluation import ErrorStats
-from scanalign.evaluation.mesh_distance import MeshDistanceIndex, MeshDistanceStats, mesh_distance_stats, point_to_mesh_distance
+from scanalign.evaluation.mesh_distance import (
+    MeshDistanceIndex,
+    MeshDistanceStats,
+    mesh_distance_stats,
+    point_to_mesh_distance,
+)
 from scanalign.evaluation.trajectory import Trajectory, associate_timestamps
 
 __all__ = ["umeyama_alignment", "associate", "ErrorStats", "AteResult", "RpeResult",

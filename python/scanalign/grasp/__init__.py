@@ -21,9 +21,8 @@ from typing import Any, List, Optional, Sequence
 
 import numpy as np
 
-from scanalign import _core
-from scanalign.common.settings import set_fields
-from scanalign import kinematics
+from scanalign import _core, kinematics
+from scanalign.common.settings import with_overrides
 
 __all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCandidate", "GraspPlanResult",
            "PartGrasps", "plan_grasp", "read_part_grasps", "write_part_grasps", "symmetric_pose_error"]
@@ -42,14 +41,16 @@ symmetric_pose_error = _core.pose.symmetric_pose_error
 
 def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmetry: Optional[PartSymmetry] = None,
                gripper: Optional[Gripper] = None, table_plane: Sequence[float] = (0.0, 0.0, 1.0, 0.0),
-               q_current: Optional[Sequence[float]] = None, **settings: Any) -> GraspPlanResult:
+               q_current: Optional[Sequence[float]] = None, settings: Optional[GraspPlannerSettings] = None,
+               **overrides: Any) -> GraspPlanResult:
     """Joint targets to pick a part at ``T_base_model`` (4x4, m, base frame).
 
     ``robot``: a :class:`scanalign.kinematics.Robot` (its ``T_base_dh0`` places it in the
     cell; its tool is replaced by ``gripper.T_flange_tcp``) or a name. ``symmetry``: default
     none; ``gripper``: default :meth:`Gripper.parallel_jaw`; ``table_plane``: (nx, ny, nz, d),
     unit normal pointing up, ``n.p + d = 0`` in the base frame; ``q_current``: joints now (rad,
-    default zeros); ``settings``: fields of :class:`GraspPlannerSettings` by name.
+    default zeros); ``settings``: a :class:`GraspPlannerSettings` (default its C++ defaults),
+    ``overrides`` its fields by name.
     Raises ValueError / TypeError naming the argument or field.
     """
     if isinstance(robot, str):
@@ -58,7 +59,7 @@ def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmet
                              (gripper, "gripper", Gripper)):
         if value is not None and not isinstance(value, cls):
             raise TypeError(f"{name}: expected {cls.__name__}, got {type(value).__name__}")
-    s = set_fields(GraspPlannerSettings(), settings, "plan_grasp")
+    s = with_overrides(GraspPlannerSettings, settings, overrides, "plan_grasp")
     if isinstance(grasps, Grasp) or not all(isinstance(g, Grasp) for g in grasps):
         raise TypeError("grasps: expected a list of scanalign.grasp.Grasp")
     return _G.plan_grasp(robot, T_base_model, list(grasps), PartSymmetry() if symmetry is None else symmetry,

@@ -21,16 +21,16 @@ import os
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Mapping, Sequence, Union
+from typing import Any, Dict, List, Optional, Sequence, Union
 
 import numpy as np
+from tqdm.auto import tqdm
 
-from scanalign import __version__, io
+from scanalign import __version__, io, pose
 from scanalign._core import pose as _P
-from scanalign import pose
-from scanalign.pose import model_views as cad
-from scanalign.grasp.parts import load_part
 from scanalign.grasp import PartSymmetry
+from scanalign.grasp.parts import load_part
+from scanalign.pose import model_views as cad
 
 __all__ = ["FORMAT_VERSION", "LibraryPart", "PartLibrary", "build_part_library", "load_part_library"]
 
@@ -98,14 +98,15 @@ class PartLibrary:
         return path
 
 
-def build_part_library(parts: Sequence[Any], *, resolution: int = 100, progress: bool = False,
+def build_part_library(parts: Sequence[Any], *, resolution: Optional[int] = None, progress: bool = False,
                        **pose_settings: Any) -> PartLibrary:
     """Renders and describes each part once.
 
     Args:
         parts: what :func:`scanalign.grasp.parts.load_part` takes: part files (JSON / YAML), built-in
             part names (``"block"``, ``"bracket"``, ``"standoff"``) or ``PartGrasps``.
-        resolution: view size, pixels (as ``find_parts``).
+        resolution: view size, pixels (None: ``FindPartsSettings.pose.views.resolution``, as
+            ``find_parts`` renders).
         progress: a progress bar over the parts on stderr.
         pose_settings: keywords of :func:`scanalign.pose.find_parts` (``inlier_threshold``,
             ``radius``, ``cbd_radius_fraction``...), the ones the pose jobs will use; default
@@ -114,10 +115,9 @@ def build_part_library(parts: Sequence[Any], *, resolution: int = 100, progress:
     Raises:
         ValueError: an unknown part, a malformed mesh, or bad settings.
     """
-    from tqdm.auto import tqdm
-
-
-    settings = pose.find_parts_settings(**pose_settings)  # validates the keywords before any work
+    # validates the keywords before any work
+    settings = pose.pose_task_settings(pose.FindPartsSettings, **pose_settings)
+    resolution = settings.pose.views.resolution if resolution is None else resolution
     out: Dict[str, LibraryPart] = {}
     for source in tqdm(list(parts), desc="part library", unit="part", disable=not progress):
         part = load_part(source)

@@ -39,53 +39,29 @@ from typing import Any, Dict, List, Optional, Sequence, Union
 
 import numpy as np
 
-from scanalign.common.rigid import transform_points
-from scanalign import grasp as _grasp, io
-from scanalign.grasp.parts import load_part
+from scanalign import _core, datasets, io, pose
+from scanalign import grasp as _grasp
 from scanalign.common import rigid as se3
 from scanalign.common.arrays import as_points, foreign_kind
+from scanalign.common.rigid import transform_points
+from scanalign.common.settings import is_struct, with_overrides
+from scanalign.data.parts import sample_mesh
+from scanalign.grasp.parts import load_part
 from scanalign.kinematics import Robot
 from scanalign.pipelines import reconstruct as pipeline
-from scanalign import datasets
-from scanalign import pose
 from scanalign.pose import model_views as cad
-from scanalign.data.parts import sample_mesh
 
 __all__ = ["PickSettings", "PartPick", "PickResult", "pick", "scan_model", "plan_picks", "read_joint_log",
            "placed_parts", "print_picks"]
 
 
 
-@dataclass
-class PickSettings:
-    """Settings of :func:`pick` (units beside each field).
-
-    The reconstruction starts every frame from the robot's pose, which is within the robot's
-    accuracy and the hand-eye error (about a millimetre) of the truth, so ICP only needs a
-    short correspondence distance; a long one lets the table plane's noise drag a frame
-    sideways (the table dominates the points and constrains nothing in its own plane).
-    """
-
-    pixel_stride: int = 2               #: use every n-th depth pixel (2: a quarter of them)
-    icp_distance: float = 0.003         #: reconstruction ICP max correspondence distance, m
-    voxel: float = 0.001                #: model voxel grid edge, m (the eye-in-hand paper: 1 mm)
-    max_depth: float = 1.0              #: farthest depth used, m
-    table_threshold: float = 0.004      #: table plane inlier distance, m
-    cluster_tolerance: float = 0.01     #: object cluster distance, m
-    min_cluster_size: int = 300         #: smallest object cluster, points
-    max_objects: int = 10               #: clusters matched, largest first
-    cluster_voxel: float = 0.001        #: each cluster reduced to one point per voxel before its pose, m
-    #: CBD neighbourhood per part: max(6.3 mm, this x the part's size). Merged scans with
-    #: millimetre noise need a neighbourhood well above the noise on large parts (12.5 mm on
-    #: the block) and a small one on small parts (6.3 mm on the standoff); see
-    #: :func:`scanalign.pose.find_parts`.
-    cbd_radius_fraction: float = 0.15
-    #: Model views matched: "upper" (the views from above the part's own xy plane: the part
-    #: rests on its base, z up in the CAD frame, as parts on a table usually do; 2.5 times
-    #: faster than all 42) or "all" (any orientation).
-    views: str = "upper"
-    pose: Dict[str, Any] = field(default_factory=dict)     #: keywords of :func:`scanalign.pose.find_parts`
-    planner: Dict[str, Any] = field(default_factory=dict)  #: fields of :class:`scanalign.grasp.GraspPlannerSettings`
+#: Settings of :func:`pick` (the C++ struct, every field with its unit and meaning:
+#: ``help(PickSettings)``, ``scanalign dump-config pick``): ``reconstruction``
+#: (``ReconstructionSettings``: the scan in the base frame, every frame from the robot's pose,
+#: 3 mm ICP distance), ``find_parts`` (``FindPartsSettings``: table, clusters, part poses),
+#: ``views`` (``"upper"`` or ``"all"``) and ``planner`` (``GraspPlannerSettings``).
+PickSettings = _core.grasp.PickSettings
 
 
 @dataclass
@@ -254,7 +230,7 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
     :class:`scanalign.pipelines.reconstruct.ReconstructionResult` built in the base frame, a PLY / PCD
     cloud file or an (N, 3) array already in the base frame (or an Open3D / trimesh cloud).
     ``on_frame``: the per-frame hook of :func:`scanalign.pipelines.reconstruct.reconstruct`."""
-    s = settings or PickSettings()
+    s = with_overrides(PickSettings, settings, (), "pick")
     if isinstance(scene, pipeline.ReconstructionResult):
         return np.asarray(scene.model.points, dtype=np.float64), scene
     if isinstance(scene, (str, Path)) and not datasets.is_recording(scene):
@@ -272,9 +248,7 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
         raise ValueError("robot: the arm that moved the camera is needed to place the frames")
     log = read_joint_log(joints) if joints is not None else None
     placed = _frames_with_robot_poses(list(frames), robot, se3.require_rigid(T_flange_camera, "T_flange_camera"), log)
-    rec = pipeline.reconstruct(placed, model_frame="base", initial_guess="reference", pixel_stride=s.pixel_stride,
-                               max_depth=s.max_depth, model_voxel_size=s.voxel, progress=progress,
-                               icp=dict(max_correspondence_distance=s.icp_distance), on_frame=on_frame)
+    rec = pipeline.reconstruct(placed, s.reconstruction, progress=progress, on_frame=on_frame)
     return np.asarray(rec.model.points, dtype=np.float64), rec
 
 
@@ -288,11 +262,13 @@ def _table_plane(detections: Any) -> np.ndarray:
 
 
 def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: Any = None,
-               q_current: Optional[Sequence[float]] = None, planner: Optional[Dict[str, Any]] = None) -> List[PartPick]:
+               q_current: Optional[Sequence[float]] = None, planner: Any = None) -> List[PartPick]:
     """Grasp planning for every detection of :func:`scanalign.pose.find_parts` (poses in the
     base frame): a :class:`PartPick` per detection, then a ``not_found`` one per part that
     no cluster matched. ``robot`` is placed in the base frame; ``q_current`` (rad) defaults
-    to the zero joints."""
+    to the zero joints; ``planner``: a ``GraspPlannerSettings`` (or a dict of its fields)."""
+    planner = planner if planner is None or is_struct(planner) else with_overrides(
+        _grasp.GraspPlannerSettings, None, planner, "planner")
     q0 = np.zeros(6) if q_current is None else np.asarray(q_current, dtype=np.float64)
     plane = _table_plane(detections)
     out: List[PartPick] = []
@@ -305,7 +281,7 @@ def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: An
         if det.status.name == "found":
             pp.plan = _grasp.plan_grasp(robot, pp.T_base_model, part.grasps, symmetry=part.symmetry,
                                         gripper=gripper or part.gripper, table_plane=plane, q_current=q0,
-                                        **(planner or {}))
+                                        settings=planner)
             pp.status, pp.message = ("picked", "") if pp.plan.found else ("no_grasp", pp.plan.message)
         out.append(pp)
     seen = {parts[d.part].name for d in detections.detections if d.status.name != "not_found"}
@@ -322,7 +298,7 @@ def _parts(parts: Sequence[Any]) -> List[Any]:
 def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: Optional[np.ndarray] = None,
          T_flange_camera: Optional[np.ndarray] = None, joints: Optional[Union[str, Path]] = None, gripper: Any = None,
          q_current: Optional[Sequence[float]] = None, settings: Optional[PickSettings] = None,
-         progress: bool = True, library: Any = None, viewer: Any = None) -> PickResult:
+         progress: bool = True, library: Any = None, viewer: Any = None, **overrides: Any) -> PickResult:
     """Scan, find every known part, and plan the joint targets to pick each one.
 
     Args:
@@ -340,7 +316,8 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
         gripper: a :class:`scanalign.grasp.Gripper` (default each part file's, else
             :meth:`Gripper.parallel_jaw`).
         q_current: (6,) the robot's joints now, rad (default the scan's last joints, else 0).
-        settings: :class:`PickSettings`.
+        settings: :data:`PickSettings` (default its C++ defaults); keyword ``overrides`` name
+            its fields, nested as dicts (``find_parts={"max_objects": 3}``, ``views="all"``).
         progress: progress bars on stderr.
         library: a :class:`scanalign.grasp.part_library.PartLibrary`: the views of the parts it
             holds are taken from it instead of rendered (their descriptors are recomputed
@@ -356,7 +333,7 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
             a malformed part file, frames without joints, a non-rigid transform.
         TypeError: an unknown robot type.
     """
-    s = settings or PickSettings()
+    s = with_overrides(PickSettings, settings, overrides, "pick")
     t0 = time.perf_counter()
     part_list = _parts(parts)
     if robot is None:
@@ -377,16 +354,11 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     if len(points) == 0:
         raise ValueError("the scene has no points")
     t1 = time.perf_counter()
-    if s.views not in ("upper", "all"):
-        raise ValueError(f"settings.views must be 'upper' or 'all', got {s.views!r}")
     directions, _ = cad.tessellated_sphere(1)
     views = [i for i, d in enumerate(directions) if d[2] > 0] if s.views == "upper" else None
     models = [library[p.name].views if library is not None and p.name in library else p.mesh for p in part_list]
-    detections = pose.find_parts(models, points, symmetries=[p.symmetry for p in part_list],
-                                 up=(0.0, 0.0, 1.0), table_threshold=s.table_threshold,
-                                 cluster_tolerance=s.cluster_tolerance, min_cluster_size=s.min_cluster_size,
-                                 max_objects=s.max_objects, voxel_size=s.cluster_voxel, views=views,
-                                 progress=progress, **{"cbd_radius_fraction": s.cbd_radius_fraction, **s.pose})
+    detections = pose.find_parts(models, points, s.find_parts, symmetries=[p.symmetry for p in part_list],
+                                 views=views, progress=progress)
     t2 = time.perf_counter()
     if q_current is None:
         q_last = getattr(scene, "joints", None)

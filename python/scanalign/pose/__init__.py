@@ -25,25 +25,32 @@ Frames and units: metres and radians. Every transform is ``T_target_source``
 
 from __future__ import annotations
 
-import math
 import sys
 from pathlib import Path
 from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from scanalign import _core
-from scanalign.pose import cbd as _cbd
+from scanalign import _core, io
 from scanalign.common.arrays import as_points, as_transform, foreign_kind
-from scanalign.common.settings import fields_of, set_fields
-from scanalign import io
-from scanalign.pose import model_views as cad
+from scanalign.common.settings import (
+    UnknownSettingError,
+    field_names,
+    fields_of,
+    is_struct,
+    set_fields,
+    set_path,
+    with_overrides,
+)
 from scanalign.features import estimate_normals
+from scanalign.pose import cbd as _cbd
+from scanalign.pose import model_views as cad
 
 __all__ = [
     "MotorEstimationResult", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag", "FlagAlignmentResult",
     "PclFeatureAlignmentResult", "PoseSettings", "PoseResult", "PoseCandidate", "FindObjectsResult", "DetectionStatus",
-    "PartDetection", "FindPartsResult", "find_parts", "find_parts_settings",
+    "PartDetection", "FindPartsResult", "FindPartsSettings", "find_parts", "pose_task_settings", "POSE_KEYWORDS",
+    "TABLE_KEYWORDS",
     "estimate_motor", "estimate_rigid_svd", "motor_to_matrix", "ransac_rigid_motion", "align_cbd",
     "normal_line_flag", "align_flags", "pcl_feature_alignment", "alignment_fitness", "estimate_pose",
     "find_objects", "METHODS", "THESIS_PCL_PRESET",
@@ -57,6 +64,7 @@ NormalLineFlag = _P.NormalLineFlag
 FlagAlignmentResult = _P.FlagAlignmentResult
 PclFeatureAlignmentResult = _P.PclFeatureAlignmentResult
 PoseSettings = _P.PoseSettings
+FindPartsSettings = _P.FindPartsSettings
 PoseResult = _P.PoseResult
 PoseCandidate = _P.PoseCandidate
 FindObjectsResult = _P.FindObjectsResult
@@ -251,100 +259,102 @@ class _Progress:
             self.bar.close()
 
 
-def _pose_settings(method: str, inlier_threshold: float, icp_distance: float, normal_radius: float,
-                   cbd_settings: Optional[_cbd.CbdSettings], ransac: Optional[Dict[str, Any]], num_threads: int,
-                   cbd_overrides: Dict[str, object], base: Any = None, *, resolution: Optional[int] = None,
-                   pcl_overrides: Optional[Dict[str, object]] = None) -> Any:
-    """PoseSettings from these values over ``base`` (the defaults of the C++ struct that holds
-    them, e.g. ``FindPartsSettings.pose``; a fresh ``PoseSettings`` when None). A PCL method
-    (``"fpfh"``...) is ``method="pcl"`` with ``pcl`` its thesis preset and ``pcl_overrides``;
-    ``resolution`` (None: the base's) and ``num_threads`` also set how a mesh is rendered
-    (``views``)."""
-    limits = {k: cbd_overrides.pop(k) for k in ("min_fitness", "min_coverage") if k in cbd_overrides}
-    hypotheses = cbd_overrides.pop("hypotheses", None)
-    if method not in METHODS:
-        raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
-    cbd_overrides.setdefault("min_neighbors", 0)  # automatic: scan density varies
-    s = set_fields(_P.PoseSettings() if base is None else base, dict(method=method if method in ("cbd", "flags") else "pcl",
-                                           inlier_threshold=inlier_threshold, icp_distance=icp_distance,
-                                           normal_radius=normal_radius, num_threads=num_threads, **limits), "pose")
-    if method in _PCL_METHODS:
-        s.pcl = _pcl_settings(method, pcl_overrides or {})
-    set_fields(s.views, dict(num_threads=num_threads) if resolution is None else
-               dict(resolution=int(resolution), num_threads=num_threads), "view")
-    s.cbd = _cbd_alignment_settings(cbd_settings, cbd_overrides, ransac, s.cbd)
-    if hypotheses is not None:
-        c = s.cbd
-        c.hypotheses = hypotheses
-        s.cbd = c
+#: Short keywords of :func:`estimate_pose`, :func:`find_objects` and :func:`find_parts`: field
+#: paths under the pose settings (``PoseSettings``) and, for the two table searches, under
+#: their settings struct. Any other field is given by its own name (``icp_distance``,
+#: ``max_objects``, ``min_surface_coverage``) or nested (``pose={"cbd": {"hypotheses": 2}}``);
+#: a field of ``CbdSettings`` (``radius``, ``gamma``, ...) sets the pose's CBD descriptor.
+POSE_KEYWORDS = {"resolution": "views.resolution", "hypotheses": "cbd.hypotheses", "ransac": "cbd.ransac",
+                 "cbd_settings": "cbd.cbd", "matches_per_keypoint": "cbd.matches_per_keypoint", "pcl_settings": "pcl"}
+TABLE_KEYWORDS = {"table_threshold": "table.plane.threshold", "cluster_tolerance": "table.cluster_tolerance",
+                  "min_cluster_size": "table.min_cluster_size", "viewpoint": "table.viewpoint", "up": "table.up"}
+_CBD_FIELDS = frozenset(field_names(_cbd.CbdSettings))
+
+
+def _path(s: Any, key: str, pose: str) -> str:
+    """The field path of an override ``key`` under settings ``s`` whose pose settings are at ``pose``."""
+    if key in field_names(s):
+        return key
+    if key in TABLE_KEYWORDS and hasattr(s, "table"):
+        return TABLE_KEYWORDS[key]
+    if key in field_names(PoseSettings):
+        return pose + key
+    if key in POSE_KEYWORDS:
+        return pose + POSE_KEYWORDS[key]
+    if key in _CBD_FIELDS:
+        return pose + "cbd.cbd." + key
+    known = sorted({*field_names(s), *(TABLE_KEYWORDS if hasattr(s, "table") else ()), *field_names(PoseSettings),
+                    *POSE_KEYWORDS, *_CBD_FIELDS})
+    raise UnknownSettingError(f"{key}: unknown pose setting; known: {', '.join(known)}")
+
+
+def pose_task_settings(cls: type, settings: Any = None, **overrides: Any) -> Any:
+    """A copy of ``settings`` (a ``cls``: :class:`PoseSettings`, ``FindObjectsSettings`` or
+    ``FindPartsSettings``; default its C++ defaults) with ``overrides`` applied: field names
+    (nested as dicts), the short keywords of :data:`POSE_KEYWORDS` and :data:`TABLE_KEYWORDS`,
+    ``method`` (``"cbd"``, ``"flags"``, ``"pcl"`` or a PCL baseline of :data:`METHODS`, which
+    sets ``method="pcl"`` and ``pcl`` to its :data:`THESIS_PCL_PRESET`) and ``num_threads``
+    (every step's). Raises UnknownSettingError / TypeError / ValueError naming the field."""
+    s = with_overrides(cls, settings, (), "pose")
+    pose = "" if cls is PoseSettings else "pose."
+    method = overrides.pop("method", None)
+    if method is not None:
+        if method not in METHODS and method != "pcl":
+            raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
+        set_path(s, pose + "method", method if method in ("cbd", "flags", "pcl") else "pcl")
+        if method in _PCL_METHODS:
+            set_path(s, pose + "pcl", _pcl_preset(method))
+    threads = overrides.pop("num_threads", None)
+    if threads is not None:
+        for path in (pose + "num_threads", pose + "views.num_threads", "table.plane.num_threads"):
+            if path != "table.plane.num_threads" or hasattr(s, "table"):
+                set_path(s, path, threads)
+    # whole structs first (cbd_settings=CbdSettings(...)), then the fields that refine them
+    for key, value in sorted(overrides.items(), key=lambda kv: not is_struct(kv[1])):
+        set_path(s, _path(s, key, pose), value)
     return s
 
 
-def estimate_pose(model: object, scene: np.ndarray, *, method: Method = "cbd", views: Optional[Sequence[int]] = None,
-                  resolution: int = 150, inlier_threshold: float = 0.005, icp_distance: float = 0.01,
-                  normal_radius: float = 0.005, cbd_settings: Optional[_cbd.CbdSettings] = None,
-                  ransac: Optional[Dict[str, Any]] = None, pcl_settings: Optional[Dict[str, Any]] = None,
-                  progress: bool = False, num_threads: int = 0, **cbd_overrides: object) -> PoseResult:
+def _method_name(pose_settings: Any) -> str:
+    return pose_settings.method.name if hasattr(pose_settings.method, "name") else str(pose_settings.method)
+
+
+def estimate_pose(model: object, scene: np.ndarray, settings: Optional[PoseSettings] = None, *,
+                  views: Optional[Sequence[int]] = None, progress: bool = False, **overrides: Any) -> PoseResult:
     """Pose of ``model`` in one object cloud: coarse alignment of every model view (or the
     model cloud) to the object, ICP refinement (point-to-plane, scanalign's engine), and the
     candidate with the best score ``2 fitness coverage / (fitness + coverage)``.
 
     Args:
         model: a mesh (:class:`scanalign.io.Mesh`, ``(vertices, faces)`` or a mesh file path;
-            metres) rendered from the 42 vertices of a tessellated sphere, the list of
-            :class:`scanalign.pose.model_views.ModelView` that :func:`scanalign.pose.model_views.render_views` returned
-            (rendered once, reused across objects), or an (N, 3) cloud.
+            metres) rendered from the 42 vertices of a tessellated sphere with
+            ``settings.views``, the list of :class:`scanalign.pose.model_views.ModelView` that
+            :func:`scanalign.pose.model_views.render_views` returned (rendered once, reused
+            across objects), or an (N, 3) cloud.
         scene: (M, 3) the object's points in the scene (camera) frame, metres.
-        method: coarse method, one of :data:`METHODS` (``"cbd"`` default).
+        settings: :class:`PoseSettings` (default its C++ defaults: CBD, 5 mm inlier
+            threshold, 10 mm ICP distance, 150-pixel views); keyword ``overrides`` as
+            :func:`pose_task_settings` takes them (``method="fpfh"``, ``icp_distance=0.02``,
+            ``resolution=100``, ``radius=0.012`` for the CBD neighbourhood, ...).
         views: subset of view indices to try (default all 42).
-        resolution: model view image size, pixels (thesis: 90 to 400).
-        inlier_threshold: metres, for fitness and coverage (thesis: 5 mm).
-        icp_distance: ICP max correspondence distance, metres.
-        normal_radius: scene normal radius for point-to-plane ICP and flags, metres.
-        cbd_settings / **cbd_overrides: CBD settings (``min_neighbors`` defaults to 0 here:
-            automatic, since scan density varies); also ``min_fitness`` / ``min_coverage`` (0.5)
-            and ``hypotheses`` (3: RANSAC poses per view, see :func:`align_cbd`).
-        ransac: RANSAC keywords for CBD; ``pcl_settings``: PCL baseline overrides.
         progress: print a progress bar over the views on stderr.
 
     Returns:
         :class:`PoseResult`: ``found`` False with a message when no view aligned or the best
         one's fitness or coverage is below ``min_fitness`` / ``min_coverage``.
     """
-    settings = _pose_settings(method, inlier_threshold, icp_distance, normal_radius, cbd_settings, ransac, num_threads,
-                              cbd_overrides, resolution=resolution, pcl_overrides=pcl_settings)
-    model_views, is_cloud = _model_views(model, settings.views)
+    s = pose_task_settings(PoseSettings, settings, **overrides)
+    model_views, is_cloud = _model_views(model, s.views)
     scene = as_points(scene, "scene", np.dtype(np.float64))
-    r = _P.estimate_pose(model_views, scene, settings, [int(i) for i in views or []],
-                         _Progress(f"pose ({method})", True) if progress else None)
+    r = _P.estimate_pose(model_views, scene, s, [int(i) for i in views or []],
+                         _Progress(f"pose ({_method_name(s)})", True) if progress else None)
     if is_cloud:
         r.view = None
     return r
 
 
-def _table_settings(s: Any, method: str, max_objects: int, table_threshold: float, cluster_tolerance: float,
-                    min_cluster_size: int, viewpoint: Sequence[float], up: Optional[Sequence[float]], num_threads: int,
-                    resolution: int, pose_kwargs: Dict[str, Any]) -> None:
-    """Fills find_objects / find_parts settings ``s``."""
-    s.max_objects = int(max_objects)
-    pcl_overrides = pose_kwargs.pop("pcl_settings", None)
-    s.pose = _pose_settings(method, pose_kwargs.pop("inlier_threshold", 0.005), pose_kwargs.pop("icp_distance", 0.01),
-                            pose_kwargs.pop("normal_radius", 0.005), pose_kwargs.pop("cbd_settings", None),
-                            pose_kwargs.pop("ransac", None), num_threads, pose_kwargs, s.pose, resolution=resolution,
-                            pcl_overrides=pcl_overrides)
-    t = s.table
-    t.plane.threshold, t.cluster_tolerance, t.min_cluster_size = table_threshold, cluster_tolerance, min_cluster_size
-    t.plane.num_threads = num_threads
-    t.viewpoint = np.asarray(viewpoint, dtype=np.float64)
-    t.up = np.zeros(3) if up is None else np.asarray(up, dtype=np.float64)
-    s.table = t
-
-
-def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", max_objects: int = 5,
-                 table_threshold: float = 0.005, cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
-                 viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
-                 progress: bool = False, resolution: int = 150, views: Optional[Sequence[int]] = None,
-                 num_threads: int = 0, **pose_kwargs: Any) -> FindObjectsResult:
+def find_objects(model: object, scene: np.ndarray, settings: Optional[Any] = None, *,
+                 views: Optional[Sequence[int]] = None, progress: bool = False, **overrides: Any) -> FindObjectsResult:
     """Poses of a part in a table scene (paper 3 / paper 5 pipeline): RANSAC table plane in
     CGA, remove it and everything below it, Euclidean clusters, then the pose per cluster as
     :func:`estimate_pose` (at most ``max_objects``, largest first).
@@ -352,20 +362,19 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
     Args:
         model: as :func:`estimate_pose` (a mesh is rendered once for all objects).
         scene: (N, 3) scan in the camera frame, metres.
-        table_threshold, cluster_tolerance: metres; min_cluster_size: points.
-        viewpoint / up: orient the table normal (camera centre, or an "up" vector).
-        **pose_kwargs: the other keywords of :func:`estimate_pose`.
+        settings: ``FindObjectsSettings`` (``table``, ``max_objects``, ``pose``); keyword
+            ``overrides`` as :func:`pose_task_settings` takes them (``table_threshold``,
+            ``cluster_tolerance`` m, ``min_cluster_size``, ``viewpoint`` / ``up`` to orient the
+            table normal, and every keyword of :func:`estimate_pose`).
 
     Returns:
         :class:`FindObjectsResult` (``poses``, ``objects`` as index arrays, the table ``plane``).
     """
-    s = _P.FindObjectsSettings()
-    _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
-                    num_threads, resolution, pose_kwargs)
+    s = pose_task_settings(_P.FindObjectsSettings, settings, **overrides)
     pts = as_points(scene, "scene", np.dtype(np.float64))
     model_views, is_cloud = _model_views(model, s.pose.views)
     found = _P.find_objects(model_views, pts, s, [int(i) for i in views or []],
-                            _Progress(f"pose ({method})", True) if progress else None)
+                            _Progress(f"pose ({_method_name(s.pose)})", True) if progress else None)
     if is_cloud:  # a model cloud has no views to name
         poses = found.poses
         for r in poses:
@@ -374,62 +383,29 @@ def find_objects(model: object, scene: np.ndarray, *, method: Method = "cbd", ma
     return found
 
 
-def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optional[Sequence[Any]] = None,
-               method: Method = "cbd", max_objects: int = 5, table_threshold: float = 0.005,
-               cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
-               viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
-               progress: bool = False, resolution: int = 100, views: Optional[Sequence[int]] = None,
-               num_threads: int = 0, ambiguity_margin: float = 0.02, ambiguity_rmse_ratio: float = 1.5,
-               same_pose_angle: float = math.radians(5),
-               same_pose_distance: float = 0.005, max_size_ratio: float = 1.5, min_size_ratio: float = 0.5,
-               voxel_size: float = 0.0, score_tie: float = 0.01, polish_distance: float = 0.003,
-               max_table_penetration: float = 0.005, surface_polish: bool = True, cbd_radius_fraction: float = 0.0,
-               min_surface_coverage: float = 0.97,
-               **pose_kwargs: Any) -> FindPartsResult:
+def find_parts(models: Sequence[object], scene: np.ndarray, settings: Optional[FindPartsSettings] = None, *,
+               symmetries: Optional[Sequence[Any]] = None, views: Optional[Sequence[int]] = None,
+               progress: bool = False, **overrides: Any) -> FindPartsResult:
     """Which of several known parts lies in each object cluster of a table scene, and its
     pose: the table and clusters as :func:`find_objects` (segmented once), then every part's
     views aligned to each cluster (its normals and descriptors computed once), the best part
     by score, and a :class:`DetectionStatus`: ``found``, ``not_found`` (no part passes
     ``min_fitness`` / ``min_coverage``) or ``ambiguous`` (a runner-up -- another part, or a
-    pose of the same part that its symmetry does not make equivalent -- scores at least
-    ``(1 - ambiguity_margin)`` x the best with an inlier RMSE at most ``ambiguity_rmse_ratio``
-    x the best's).
+    pose of the same part that its symmetry does not make equivalent -- scores nearly as well;
+    see ``FindPartsSettings.ambiguity_margin``).
 
     Args:
         models: one model per part, each as :func:`estimate_pose` takes it (a mesh, its
-            rendered views, or a cloud); render meshes once with :func:`scanalign.pose.model_views.render_views`
-            when calling repeatedly.
+            rendered views, or a cloud); render meshes once with
+            :func:`scanalign.pose.model_views.render_views` when calling repeatedly.
         scene: (N, 3) scan, metres (camera or base frame; ``T_scene_model`` is in that frame).
+        settings: :class:`FindPartsSettings` (default its C++ defaults; every field with its
+            unit and meaning: ``help(FindPartsSettings)``, ``scanalign dump-config pose``);
+            keyword ``overrides`` as :func:`pose_task_settings` takes them (``max_objects=3``,
+            ``up=(0, 0, 1)``, ``cbd_radius_fraction=0.15``, ``method="fpfh"``, ...).
         symmetries: one ``PartSymmetry`` (``axis``, ``point`` m, ``order``; e.g. from
             :data:`scanalign.data.parts.BUILTIN_PARTS`) or None per part; default none symmetric.
-        ambiguity_margin / ambiguity_rmse_ratio: a runner-up makes the detection ambiguous if it
-            scores at least ``(1 - ambiguity_margin)`` x the best and its inlier RMSE is at most
-            ``ambiguity_rmse_ratio`` x the best's (0: no RMSE test).
-        same_pose_angle / same_pose_distance: rad / m; two poses of one part closer than both
-            (over its symmetry) are the same pose, never a runner-up.
-        max_size_ratio / min_size_ratio: skip a part, before any alignment, for a cluster
-            larger than ``max_size_ratio`` x the part's size or smaller than ``min_size_ratio`` x
-            its smallest view (sizes: largest extent along the principal axes; 0 = no bound).
-        score_tie: candidates of the best part within this of its best score are ties, the
-            smallest inlier RMSE wins (scores saturate when the noise is far below
-            ``inlier_threshold``).
-        polish_distance: m; the reported pose is refined again by ICP with this
-            correspondence distance and a tight stop (0: no polish).
-        voxel_size: m; each cluster is reduced to one point per voxel before its pose (0: all).
-        max_table_penetration: m; poses that put the part's surface further below the table
-            plane are dropped (a resting part cannot be in the table; ``math.inf``: no check).
-        surface_polish: refine the reported pose against the part's whole surface (every
-            view merged): each cluster point onto the model, within ``polish_distance``.
-        cbd_radius_fraction: CBD radius per part, ``max(radius, fraction x part size)`` (the
-            part's views together; 0: the fixed ``radius``; 0.15 suits merged scans of parts
-            of 3 to 10 cm). Tied to the part, its view descriptors are computed once
-            (:mod:`scanalign.grasp.part_library`).
-        min_surface_coverage: fraction of a cluster's points within ``polish_distance`` of
-            the part's whole surface a detection needs (0.97; 0: no check): rejects another
-            part or a part of another size whose view alone still scores well.
-        resolution: model view size, pixels (100 here: as accurate as 150 on the built-in
-            parts, 2 to 3 times faster; see docs/api/pose.md).
-        other keywords: as :func:`find_objects` (``views`` applies to every part).
+        views: view indices tried for every part (default all 42).
 
     Returns:
         :class:`FindPartsResult`: per cluster a :class:`PartDetection` (``status``, ``part``,
@@ -437,35 +413,9 @@ def find_parts(models: Sequence[object], scene: np.ndarray, *, symmetries: Optio
     """
     if isinstance(models, (str, bytes)) or not isinstance(models, Sequence) or len(models) == 0:
         raise ValueError("models: expected a non-empty list with one model per part")
-    s = find_parts_settings(
-        method=method, max_objects=max_objects, table_threshold=table_threshold, cluster_tolerance=cluster_tolerance,
-        min_cluster_size=min_cluster_size, viewpoint=viewpoint, up=up, num_threads=num_threads,
-        ambiguity_margin=ambiguity_margin, ambiguity_rmse_ratio=ambiguity_rmse_ratio, same_pose_angle=same_pose_angle,
-        same_pose_distance=same_pose_distance,
-        max_size_ratio=max_size_ratio, min_size_ratio=min_size_ratio, voxel_size=voxel_size, score_tie=score_tie,
-        polish_distance=polish_distance, max_table_penetration=max_table_penetration, surface_polish=surface_polish,
-        cbd_radius_fraction=cbd_radius_fraction, min_surface_coverage=min_surface_coverage, resolution=resolution,
-        **pose_kwargs)
+    s = pose_task_settings(FindPartsSettings, settings, **overrides)
     pts = as_points(scene, "scene", np.dtype(np.float64))
     model_views = [_model_views(m, s.pose.views)[0] for m in models]
     return _P.find_parts(model_views, pts, s, None if symmetries is None else list(symmetries),
-                         [int(i) for i in views or []], _Progress(f"parts ({method})", True) if progress else None)
-
-
-def find_parts_settings(*, method: Method = "cbd", max_objects: int = 5, table_threshold: float = 0.005,
-                        cluster_tolerance: float = 0.01, min_cluster_size: int = 200,
-                        viewpoint: Sequence[float] = (0.0, 0.0, 0.0), up: Optional[Sequence[float]] = None,
-                        num_threads: int = 0, resolution: Optional[int] = None, **keywords: Any) -> Any:
-    """The ``FindPartsSettings`` that :func:`find_parts` builds from these keywords (its own,
-    same defaults; a PCL method's settings in ``pose.pcl``, ``resolution`` None: the struct's
-    ``pose.views.resolution``): e.g. to describe part views once with
-    ``_core.pose.part_pose_settings`` (see :mod:`scanalign.grasp.part_library`)."""
-    names = ("ambiguity_margin", "ambiguity_rmse_ratio", "same_pose_angle", "same_pose_distance", "max_size_ratio", "min_size_ratio",
-             "voxel_size", "score_tie", "polish_distance", "max_table_penetration", "surface_polish",
-             "cbd_radius_fraction", "min_surface_coverage")
-    fields = {k: keywords.pop(k) for k in names if k in keywords}
-    s = _P.FindPartsSettings()
-    _table_settings(s, method, max_objects, table_threshold, cluster_tolerance, min_cluster_size, viewpoint, up,
-                    num_threads, resolution, keywords)
-    set_fields(s, fields, "find_parts")
-    return s
+                         [int(i) for i in views or []],
+                         _Progress(f"parts ({_method_name(s.pose)})", True) if progress else None)

@@ -16,13 +16,13 @@ y down, z along the optical axis) into the model frame. The rendering runs in C+
 
 from __future__ import annotations
 
-from typing import List, Optional, Sequence, Tuple
+from typing import Any, List, Optional, Tuple
 
 import numpy as np
 
 from scanalign import _core
 from scanalign.common.arrays import mesh_arrays
-from scanalign.common.settings import set_fields
+from scanalign.common.settings import with_overrides
 
 __all__ = ["tessellated_sphere", "ModelView", "ModelViewSettings", "render_views", "view_intrinsics",
            "DEFAULT_VIEW_ANGLE"]
@@ -64,21 +64,16 @@ def _mesh_arrays(mesh: object) -> Tuple[np.ndarray, np.ndarray]:
     return np.ascontiguousarray(V, dtype=np.float64), F.astype(np.int64)
 
 
-def render_views(mesh: object, *, resolution: int = 150, view_angle: float = DEFAULT_VIEW_ANGLE, level: int = 1,
-                 distance: Optional[float] = None, center: Optional[Sequence[float]] = None,
-                 num_threads: int = 0) -> List[ModelView]:
+def render_views(mesh: object, settings: Optional[ModelViewSettings] = None, **overrides: Any) -> List[ModelView]:
     """The partial clouds of a model seen from the vertices of a tessellated sphere.
 
     Args:
         mesh: a :class:`scanalign.io.Mesh`, ``(vertices (V, 3), faces (F, 3))`` or an Open3D /
             trimesh triangle mesh, metres, in the model frame.
-        resolution: image width and height, pixels (the thesis uses 90 to 400).
-        view_angle: field of view, rad (PCL's default 57 degrees).
-        level: subdivisions of the icosahedron; 1 gives the thesis's 42 views.
-        distance: camera distance from ``center``, m. Default: the smallest distance at which
-            the model's bounding sphere fills at most 90 % of the field of view.
-        center: what the cameras look at, model frame (m); default the bounding-box centre.
-        num_threads: rasteriser threads (0 = all cores).
+        settings: ``ModelViewSettings`` (default its C++ defaults: 150-pixel images, PCL's
+            57-degree field of view, the thesis's 42 views, automatic distance and centre);
+            keyword ``overrides`` name its fields (``resolution``, ``view_angle`` rad,
+            ``level``, ``distance`` m, ``center`` m, ``num_threads``).
 
     Returns:
         One :class:`ModelView` per sphere vertex, in the order of :func:`tessellated_sphere`
@@ -90,9 +85,4 @@ def render_views(mesh: object, *, resolution: int = 150, view_angle: float = DEF
             level or distance.
     """
     V, F = _mesh_arrays(mesh)
-    s = set_fields(ModelViewSettings(), dict(resolution=resolution, view_angle=view_angle,
-                                             level=level, distance=0.0 if distance is None else distance,
-                                             num_threads=num_threads), "view")
-    if center is not None:
-        s.center = np.asarray(center, dtype=np.float64)
-    return _P.render_model_views(V, F, s)
+    return _P.render_model_views(V, F, with_overrides(ModelViewSettings, settings, overrides, "view"))

@@ -30,9 +30,9 @@ import numpy as np
 from scanalign import _core
 from scanalign.common.arrays import as_points, as_transform
 from scanalign.common.settings import field_names, set_fields, update, with_overrides
-from scanalign.reconstruction.camera import Frame, Intrinsics
 from scanalign.evaluation.trajectory import Trajectory
 from scanalign.io import write_ply
+from scanalign.reconstruction.camera import Frame, Intrinsics
 
 __all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "undistorted_rays", "frame_to_cloud", "BilateralFilterSettings",
            "bilateral_filter_depth",

@@ -42,11 +42,18 @@ from __future__ import annotations
 from scanalign.data.parts import builtin_mesh, normalize_mesh
 from scanalign.reconstruction.rendering import RenderResult, look_at, render_depth
 from scanalign.synthetic.config import SyntheticConfig, builtin_scan
-from scanalign.synthetic.trajectories import DEFAULT_ROBOT_HEIGHT, attach_robot, robot_mount
 from scanalign.synthetic.noise import NOISE_PRESETS, SensorNoise
 from scanalign.synthetic.scan import SyntheticScan, render_scan
 from scanalign.synthetic.scene import Scene, SceneObject
-from scanalign.synthetic.trajectories import DEFAULT_T_FLANGE_CAMERA, ScanTrajectory, hemisphere_trajectory, loop_trajectory
+from scanalign.synthetic.trajectories import (
+    DEFAULT_ROBOT_HEIGHT,
+    DEFAULT_T_FLANGE_CAMERA,
+    ScanTrajectory,
+    attach_robot,
+    hemisphere_trajectory,
+    loop_trajectory,
+    robot_mount,
+)
 
 __all__ = [
     "RenderResult", "render_depth", "look_at", "builtin_mesh", "normalize_mesh", "SceneObject", "Scene",

@@ -31,11 +31,10 @@ import numpy as np
 
 from scanalign.common import rigid as se3
 from scanalign.grasp import symmetric_pose_error
-from scanalign.synthetic.trajectories import robot_mount
+from scanalign.grasp.parts import load_part
 from scanalign.synthetic.scan import SyntheticScan, render_scan
 from scanalign.synthetic.scene import Scene
-from scanalign.synthetic.trajectories import loop_trajectory
-from scanalign.grasp.parts import load_part
+from scanalign.synthetic.trajectories import loop_trajectory, robot_mount
 
 __all__ = ["CELL_MOUNTS", "CELL_SCAN_ARCS", "DEFAULT_PLACEMENTS", "PickCell", "pick_cell", "score_picks"]
 

@@ -12,11 +12,11 @@ import numpy as np
 
 from scanalign import _core, io
 from scanalign.common import rigid as se3
-from scanalign.reconstruction.camera import Frame, Intrinsics
-from scanalign.reconstruction import depth_to_cloud
 from scanalign.common.arrays import require_memory
-from scanalign.reconstruction.rendering import as_intrinsics
 from scanalign.evaluation.trajectory import Trajectory
+from scanalign.reconstruction import depth_to_cloud
+from scanalign.reconstruction.camera import Frame, Intrinsics
+from scanalign.reconstruction.rendering import as_intrinsics
 from scanalign.synthetic.noise import SensorNoise, as_noise
 from scanalign.synthetic.scene import Scene
 from scanalign.synthetic.trajectories import ScanTrajectory

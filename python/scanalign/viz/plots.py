@@ -16,8 +16,8 @@ from typing import Any, Dict, Mapping, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from scanalign.evaluation.trajectory import Trajectory
 from scanalign.evaluation import absolute_trajectory_error
+from scanalign.evaluation.trajectory import Trajectory
 from scanalign.pipelines.pick import placed_parts
 
 __all__ = ["plot_batch", "plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory",

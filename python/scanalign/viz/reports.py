@@ -10,9 +10,9 @@ from typing import Any, Dict, Optional, Union
 
 import numpy as np
 
-from scanalign.common.rigid import transform_points
 from scanalign import io
 from scanalign.common.arrays import as_points, foreign_kind
+from scanalign.common.rigid import transform_points
 from scanalign.data.parts import sample_mesh
 from scanalign.kinematics import Robot
 from scanalign.pipelines.batch import BatchResult

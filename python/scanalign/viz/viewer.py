@@ -30,6 +30,7 @@ import os
 from typing import Any, List, Optional, Union
 
 import numpy as np
+
 from scanalign.common.rigid import transform_points
 from scanalign.kinematics import Robot
 

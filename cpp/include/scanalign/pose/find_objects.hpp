@@ -16,7 +16,7 @@
 namespace scanalign {
 
 struct FindObjectsSettings {
-  TableSegmentationSettings table;  ///< table plane and object clusters (m)
+  TableSegmentationSettings table = objectTableSettings();  ///< table plane and object clusters (m)
   std::size_t max_objects = 5;      ///< clusters tried, largest first
   PoseSettings pose;                ///< per cluster, as estimatePose
 };

@@ -33,7 +33,7 @@ enum class DetectionStatus {
 const char* toString(DetectionStatus status);
 
 struct FindPartsSettings {
-  TableSegmentationSettings table;  ///< table plane and object clusters (m)
+  TableSegmentationSettings table = objectTableSettings();  ///< table plane and object clusters (m)
   std::size_t max_objects = 5;      ///< clusters tried, largest first
   /// Per cluster and part, as estimatePose, but one RANSAC hypothesis per view
   /// (cbd.hypotheses = 1): every view of every part already brings its own hypothesis, and

@@ -39,6 +39,18 @@ struct TableSegmentationSettings {
 /// that is not finite and > 0, or not 1 <= min_cluster_size <= max_cluster_size.
 void validate(const TableSegmentationSettings& settings);
 
+/// The table settings of a pose search in a table scene (findObjects, findParts): a 5 mm
+/// plane threshold (the thesis's Delta for depth-camera scans of a table), 10 mm between
+/// points of one object, at least 200 points per object (smaller clusters are noise or
+/// fragments too small for a descriptor match).
+inline TableSegmentationSettings objectTableSettings() {
+  TableSegmentationSettings s;
+  s.plane.threshold = 0.005;
+  s.cluster_tolerance = 0.01;
+  s.min_cluster_size = 200;
+  return s;
+}
+
 struct TableSegmentationResult {
   RansacStatus status = RansacStatus::kTooFewPoints;  ///< of the plane RANSAC
   RansacResult<PlaneModel> plane;  ///< normal oriented up / towards the viewpoint; inliers index the input

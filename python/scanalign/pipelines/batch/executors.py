@@ -25,9 +25,9 @@ import platform
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
-from scanalign.pipelines.batch.jobs import Job, empty_record, run_job
-from scanalign.grasp.part_library import load_part_library
 import scanalign
+from scanalign.grasp.part_library import load_part_library
+from scanalign.pipelines.batch.jobs import Job, empty_record, run_job
 
 __all__ = ["EXECUTORS", "LocalExecutor", "RayExecutor", "crashed_record"]
 

@@ -34,31 +34,28 @@ from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
-from scanalign.pipelines.reconstruct import model_mesh_distance, reconstruct
-from scanalign.synthetic import SyntheticConfig
-from scanalign.datasets import open_source
-from scanalign.grasp.parts import load_part
-from scanalign.pose.model_views import tessellated_sphere
+
 from scanalign import io, pose, reconstruction
-from scanalign.grasp import symmetric_pose_error
-from scanalign.synthetic.cell import pick_cell
 from scanalign.common import rigid as se3
+from scanalign.datasets import open_source
+from scanalign.grasp import symmetric_pose_error
+from scanalign.grasp.parts import load_part
 from scanalign.pipelines import pick
+from scanalign.common.settings import with_overrides
+from scanalign.pipelines.pick import PickSettings
+from scanalign.pipelines.reconstruct import DEMO_SETTINGS, model_mesh_distance, reconstruct
+from scanalign.reconstruction import make_reconstruction_settings
+from scanalign.pose.model_views import tessellated_sphere
+from scanalign.synthetic import SyntheticConfig
 from scanalign.synthetic.cell import pick_cell, score_picks
 
-__all__ = ["DEFAULT_PARTS", "Job", "KINDS", "LIBRARY_SETTINGS", "POSE_SETTINGS", "RECORD_FIELDS",
-           "SYNTHETIC_RECONSTRUCTION", "TEXT_FIELDS", "empty_record", "run_job"]
+__all__ = ["DEFAULT_PARTS", "Job", "KINDS", "LIBRARY_SETTINGS", "PICK_SETTINGS", "RECORD_FIELDS", "TEXT_FIELDS",
+           "empty_record", "run_job"]
 
 KINDS = ("reconstruct", "pose", "pick")
 #: Parts of the built-in cell, used by pose and pick jobs that name none.
 DEFAULT_PARTS = ("block", "bracket", "standoff")
 _DEFAULT_FRAMES = {"reconstruct": 36, "pose": 4, "pick": 24}
-#: Reconstruction settings of synthetic scans, as ``scanalign demo``: the workspace around
-#: the part (camera frame, m), 10 mm normals and the bilateral depth filter, which its
-#: SR300-like noise calls for. A job's ``settings`` override them.
-SYNTHETIC_RECONSTRUCTION = {"crop_box": (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0), "normal_radius": 0.01,
-                            "depth_filter": "default"}
-
 #: Columns every record has, in table order (metrics not applying to a kind are NaN).
 RECORD_FIELDS = (
     "id", "kind", "source", "robot", "noise", "seed", "frames", "status", "error", "attempts", "seconds",
@@ -87,11 +84,13 @@ def empty_record(job: "Job") -> Dict[str, Any]:
     return record
 
 
+#: The settings of pose jobs (its ``find_parts``) and pick jobs: the pick pipeline's, so that
+#: a pose job measures what a pick finds. A job's ``settings`` override them.
+PICK_SETTINGS = PickSettings()
 #: find_parts keywords of the part library and of every pose and pick job: the pick
-#: pipeline's CBD radius per part (:attr:`scanalign.pipelines.pick.PickSettings.cbd_radius_fraction`).
-LIBRARY_SETTINGS = {"cbd_radius_fraction": 0.15}
-#: The rest of a pose job's find_parts keywords (as the pick pipeline's; ``settings`` override).
-POSE_SETTINGS = {"up": (0.0, 0.0, 1.0), "table_threshold": 0.004, "min_cluster_size": 300, "voxel_size": 0.001}
+#: pipeline's CBD radius per part (``PickSettings.find_parts.cbd_radius_fraction``), which the
+#: view descriptors depend on.
+LIBRARY_SETTINGS = {"cbd_radius_fraction": PICK_SETTINGS.find_parts.cbd_radius_fraction}
 
 
 @dataclass(frozen=True)
@@ -107,10 +106,13 @@ class Job:
         robot, noise, seed: the synthetic scan: robot name, sensor noise preset, noise seed.
         frames: synthetic views (0: 36 for reconstruct, 4 for pose, 24 for pick).
         parts: part names (built-in) or part files (pose, pick); default :data:`DEFAULT_PARTS`.
-        settings: keywords of the kind's function (``reconstruct``: of
-            :func:`scanalign.pipelines.reconstruct.reconstruct`; ``pose``: of :func:`scanalign.pose.find_parts`;
-            ``pick``: fields of :class:`scanalign.pipelines.pick.PickSettings`, plus ``joints``,
-            ``hand_eye``, ``robot_base`` files for a real scan).
+        settings: the kind's settings, as its command's config file nests them (``scanalign
+            dump-config reconstruct|pose|pick``): ``reconstruct``: ``ReconstructionSettings``
+            fields over :data:`scanalign.pipelines.reconstruct.DEMO_SETTINGS` for synthetic
+            scans; ``pose``: ``FindPartsSettings`` fields (or the short keywords of
+            :func:`scanalign.pose.find_parts`) over the pick pipeline's; ``pick``:
+            ``PickSettings`` fields, plus ``joints``, ``hand_eye``, ``robot_base`` files for a
+            real scan).
         save: a folder to write the job's outputs into (model, trajectories, picks), or "".
     """
 
@@ -185,8 +187,8 @@ def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
         frames: Any = scan.frames
     else:
         frames = open_source(job.source)  # a TUM folder, a ROS bag or a folder of PNGs + camera file
-    settings = {**(SYNTHETIC_RECONSTRUCTION if job.synthetic else {}), **job.settings}
-    result = reconstruct(frames, progress=False, **settings)
+    result = reconstruct(frames, make_reconstruction_settings(DEMO_SETTINGS if job.synthetic else None),
+                         progress=False, **job.settings)
     s = result.summary()
     out = {"frames": s["frames"], "merged": s["merged"], "model_points": s["model_points"],
            "seconds_per_frame": s["seconds_per_frame_median"]}
@@ -225,8 +227,8 @@ def _pose(job: Job, library: Any) -> Dict[str, Any]:
     else:
         points, _ = io.read_cloud(job.source)
         points = points[np.isfinite(points).all(axis=1)]
-    kw = {**POSE_SETTINGS, "views": _upper_views(), **LIBRARY_SETTINGS, **job.settings}
-    detections = pose.find_parts(models, points, symmetries=symmetries, **kw)
+    detections = pose.find_parts(models, points, PICK_SETTINGS.find_parts, symmetries=symmetries,
+                                 views=_upper_views(), **job.settings)
     found = [d for d in detections.detections if d.status.name == "found"]
     detail: Dict[str, Dict[str, Any]] = {n: {"status": "not_found"} for n in names}
     for d in found:
@@ -254,8 +256,7 @@ def _matrix(settings: Dict[str, Any], key: str) -> Optional[np.ndarray]:
 def _pick(job: Job, library: Any) -> Dict[str, Any]:
     settings = dict(job.settings)
     files = {k: settings.pop(k, None) for k in ("joints", "hand_eye", "robot_base")}
-    settings.setdefault("cbd_radius_fraction", LIBRARY_SETTINGS["cbd_radius_fraction"])
-    s = pick.PickSettings(**settings)
+    s = with_overrides(PickSettings, PICK_SETTINGS, settings, "pick job")
     truth: Dict[str, np.ndarray] = {}
     if job.synthetic:
         cell = pick_cell(job.robot, noise=job.noise, seed=job.seed, n_frames=job.n_frames)

@@ -23,10 +23,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Union
 
-from scanalign.pipelines.batch.executors import EXECUTORS, LocalExecutor, RayExecutor, Runner
-from scanalign.pipelines.batch.jobs import COUNT_FIELDS, KINDS, LIBRARY_SETTINGS, RECORD_FIELDS, TEXT_FIELDS, Job, run_job
 from scanalign.grasp.part_library import build_part_library, load_part_library
 from scanalign.io import atomic_open
+from scanalign.pipelines.batch.executors import EXECUTORS, LocalExecutor, RayExecutor, Runner
+from scanalign.pipelines.batch.jobs import (
+    COUNT_FIELDS,
+    KINDS,
+    LIBRARY_SETTINGS,
+    RECORD_FIELDS,
+    TEXT_FIELDS,
+    Job,
+    run_job,
+)
 
 __all__ = ["BatchResult", "read_manifest", "run_batch"]
 
