@@ -241,11 +241,14 @@ void bindResults(py::module_& m) {
 
 }  // namespace
 
+void bindPickSettings(py::module_& m);  // grasp_pick_settings.cpp
+
 void defineGrasp(py::module_& m) {
   bindGrasp(m);
   bindGripper(m);
   bindSettings(m);
   bindResults(m);
+  bindPickSettings(m);
   m.def(
       "plan_grasp",
       [](const Robot& robot, const py::object& T_base_model, const std::vector<Grasp>& grasps,
