@@ -106,15 +106,15 @@ def _another(value, doc: str):
     if isinstance(value, bool):
         return not value
     if isinstance(value, int):
-        return value + 1
+        return value - 1 if value >= 2**62 else value + 1  # "no limit" defaults sit at the type's maximum
     if isinstance(value, float):
         if not math.isfinite(value):
             return 1.0
         return 0.5 if value == 0 else value * (0.5 if 0 < value <= 1 else 1.5)
     if isinstance(value, str):
         return next(c for c in _choices(doc) if c != value)
-    if value is None:  # an optional box
-        return [-1.0, 1.0, -1.0, 1.0, 0.0, 2.0]
+    if value is None:  # an optional box, or an optional point
+        return [0.01, 0.02, 0.03] if doc.startswith("(3,)") else [-1.0, 1.0, -1.0, 1.0, 0.0, 2.0]
     if isinstance(value, list):
         return [v + 0.25 for v in value]
     raise AssertionError(f"no test value for {value!r}")
@@ -126,7 +126,8 @@ def test_a_value_in_a_config_file_reaches_the_cpp_struct_for_every_field(command
     defaults = spec.root()
     checked = 0
     for path, _, doc, value in schema.leaves(defaults):
-        new = _another(value, doc)
+        members = getattr(type(schema.get_path(defaults, path)), "__members__", None)
+        new = next(m for m in members if m != value) if members else _another(value, doc)
         nested: dict = {}
         node = nested
         *parents, last = path.split(".")

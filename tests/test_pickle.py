@@ -553,7 +553,7 @@ def test_python_records_holding_core_objects_pickle(instances):
                                         settings=_changed(_core.reconstruction.ReconstructionSettings()),
                                         seconds=1.5)
     records = [
-        mesh, trajectory, grasps, pick.PickSettings(planner={"min_wrist_angle": 0.1}), part_pick, model, run,
+        mesh, trajectory, grasps, pick.PickSettings(planner=G.GraspPlannerSettings(min_wrist_angle=0.1)), part_pick, model, run,
         pick.PickResult(picks=[part_pick], points=mesh.vertices, detections=instances["pose.FindPartsResult"][0],
                         robot=kinematics.ur5(), q_current=np.zeros(6), parts=[grasps], reconstruction=run),
     ]

@@ -196,6 +196,9 @@ def _dump(root: Root, indent: int, comments: bool) -> list:
     lines = []
     for name, value in _items(root):
         unit, doc = docs.get(name, ("", type(value).__name__ if is_struct(value) else ""))
+        members = getattr(type(value), "__members__", None)
+        if members is not None and not is_struct(value):  # a py::enum_ field: say what it takes
+            doc = f"{doc}; one of: {', '.join(members)}"
         if comments and doc:
             text = (f"[{unit}] " if unit else "") + doc
             lines += [f"{pad}# {line}" for line in textwrap.wrap(text, max(40, 96 - len(pad)), break_on_hyphens=False)]

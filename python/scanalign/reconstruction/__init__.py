@@ -29,15 +29,14 @@ import numpy as np
 
 from scanalign import _core
 from scanalign.common.arrays import as_points, as_transform
-from scanalign.common.settings import field_names, set_fields, update, with_overrides
+from scanalign.common.settings import field_names, update, with_overrides
 from scanalign.evaluation.trajectory import Trajectory
 from scanalign.io import write_ply
 from scanalign.reconstruction.camera import Frame, Intrinsics
 
-__all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "undistorted_rays", "frame_to_cloud", "BilateralFilterSettings",
-           "bilateral_filter_depth",
-           "FrameToModelSettings", "ReconstructionSettings", "make_reconstruction_settings", "FrameResult", "Model", "Reconstructor",
-           "REGISTRATION_METHODS"]
+__all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "undistorted_rays", "frame_to_cloud", "DepthToCloudSettings",
+           "BilateralFilterSettings", "bilateral_filter_depth", "FrameToModelSettings", "ReconstructionSettings",
+           "make_reconstruction_settings", "FrameResult", "Model", "Reconstructor", "REGISTRATION_METHODS"]
 
 
 @dataclass(frozen=True)
@@ -117,9 +116,11 @@ def undistorted_rays(intrinsics: Intrinsics) -> np.ndarray:
     return np.stack(np.broadcast_arrays(u[None, :], v[:, None]), axis=-1)
 
 
-def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[np.ndarray] = None,
-                   depth_scale: float = 0.001, min_depth: float = 0.1, max_depth: float = 2.0, stride: int = 1,
-                   return_pixels: bool = False):
+DepthToCloudSettings = _core.reconstruction.DepthToCloudSettings
+
+
+def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, settings: Optional[DepthToCloudSettings] = None, *,
+                   rgb: Optional[np.ndarray] = None, return_pixels: bool = False, **overrides: Any):
     """Back-projects a depth image into a cloud in the camera frame.
 
     ``p = (z (u - cx) / fx, z (v - cy) / fy, z)`` for every valid pixel ``(u, v)``
@@ -133,10 +134,10 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[n
         depth: (H, W) uint16 in units of ``depth_scale`` metres, or float32/float64 in
             metres. (H, W) must equal ``intrinsics.shape``.
         intrinsics: intrinsics of the depth image (with its lens distortion, if any).
+        settings: ``DepthToCloudSettings`` (default its C++ defaults); keyword ``overrides``
+            name its fields: ``depth_scale`` (metres per unit of an integer image; TUM:
+            1/5000), ``min_depth`` / ``max_depth`` (valid range along z, m), ``stride``.
         rgb: optional (H, W, 3) uint8 colour image registered to the depth image.
-        depth_scale: metres per unit of an integer image (1e-3: millimetres; TUM: 1/5000).
-        min_depth, max_depth: valid depth range along z, metres.
-        stride: use every ``stride``-th pixel in both directions.
         return_pixels: also return the flat pixel index ``row * W + column`` of each point.
 
     Returns:
@@ -149,8 +150,7 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, *, rgb: Optional[n
     """
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.reconstruction.camera.Intrinsics")
-    s = set_fields(_core.reconstruction.DepthToCloudSettings(), dict(
-        depth_scale=float(depth_scale), min_depth=float(min_depth), max_depth=float(max_depth), stride=stride), "depth")
+    s = with_overrides(DepthToCloudSettings, settings, overrides, "depth")
     points, colors, pixels = _core.reconstruction.depth_to_cloud(np.asarray(depth), intrinsics, s, rgb)
     return (points, colors, pixels) if return_pixels else (points, colors)
 
@@ -184,11 +184,11 @@ def bilateral_filter_depth(depth: np.ndarray, settings: Optional[BilateralFilter
                                                        num_threads=num_threads)
 
 
-def frame_to_cloud(frame: Frame, *, min_depth: float = 0.1, max_depth: float = 2.0, stride: int = 1):
+def frame_to_cloud(frame: Frame, settings: Optional[DepthToCloudSettings] = None, **overrides: Any):
     """:func:`depth_to_cloud` of a :class:`scanalign.reconstruction.camera.Frame` (its depth scale and
     colour image). Returns ``(points, colors)``."""
-    return depth_to_cloud(frame.depth, frame.intrinsics, rgb=frame.rgb, depth_scale=frame.depth_scale,
-                          min_depth=min_depth, max_depth=max_depth, stride=stride)
+    return depth_to_cloud(frame.depth, frame.intrinsics, settings, rgb=frame.rgb,
+                          **{**overrides, "depth_scale": frame.depth_scale})
 
 
 FrameToModelSettings = _core.reconstruction.FrameToModelSettings
