@@ -187,8 +187,8 @@ def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
         frames: Any = scan.frames
     else:
         frames = open_source(job.source)  # a TUM folder, a ROS bag or a folder of PNGs + camera file
-    result = reconstruct(frames, make_reconstruction_settings(DEMO_SETTINGS if job.synthetic else None),
-                         progress=False, **job.settings)
+    base = make_reconstruction_settings(**DEMO_SETTINGS) if job.synthetic else None
+    result = reconstruct(frames, base, progress=False, **job.settings)
     s = result.summary()
     out = {"frames": s["frames"], "merged": s["merged"], "model_points": s["model_points"],
            "seconds_per_frame": s["seconds_per_frame_median"]}
