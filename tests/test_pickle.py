@@ -115,7 +115,7 @@ def _round_trip(obj):
 ROT = np.array([[0.0, -1.0, 0.0, 0.1], [1.0, 0.0, 0.0, 0.2], [0.0, 0.0, 1.0, 0.3], [0.0, 0.0, 0.0, 1.0]])
 OTHER = {
     "estimator": "point_to_point", "robust_kernel": "huber", "search": "left_balanced_kdtree",
-    "motion_model": "reference", "shape": "capsule", "name": "changed", "method": "flags",
+    "shape": "capsule", "name": "changed", "method": "flags",
     "model_frame": "camera", "registration": "pcl_svd",
     "box": _core.registration.Box(-0.1, 0.1, -0.2, 0.2, 0.0, 1.0), "crop_box": _core.registration.Box(-1, 1, -1, 1, 0, 2),
     "center": np.array([0.01, 0.02, 0.03]), "T_model_grasp": ROT, "T_flange_tcp": ROT, "T_scene_model": ROT,
@@ -123,10 +123,16 @@ OTHER = {
     "capsule_a": np.array([0.0, 0.0, 0.01]), "capsule_b": np.array([0.0, 0.0, 0.12]),
 }
 
+# Choices among names whose default may be any of them (PickSettings: motion model
+# 'reference'): the first that differs.
+CHOICES = {"motion_model": ("reference", "previous"), "views": ("all", "upper")}
+
 
 def _other(name, value):
     if hasattr(type(value), "__members__"):  # pybind11 enum
         return next(m for m in type(value).__members__.values() if m != value)
+    if isinstance(value, str) and name in CHOICES:
+        return next(c for c in CHOICES[name] if c != value)
     if name in OTHER:
         return OTHER[name]
     if isinstance(value, bool):
@@ -160,6 +166,24 @@ def _changed(obj):
 def _sensor_noise():
     return _core.synthetic.SensorNoise(name="n", axial_sigma_ref=0.001, z_ref=0.7, depth_unit=1e-4, min_range=0.2,
                                        max_range=3.0, grazing_cos=0.1, edge_threshold=0.05, edge_width=2, dropout=0.01)
+
+
+def _pick_settings():
+    """PickSettings validates when unpickled (validate() is a member): every field changed,
+    then the two combinations the generic change makes invalid set back (a robust kernel
+    needs the point-to-plane estimator; max_cluster_size at least min_cluster_size)."""
+    s = _changed(_core.grasp.PickSettings())
+    r = s.reconstruction
+    f = r.frame_to_model
+    icp = f.icp
+    icp.robust_kernel = "none"
+    f.icp, r.frame_to_model, s.reconstruction = icp, f, r
+    p = s.find_parts
+    t = p.table
+    t.max_cluster_size = 100000
+    p.table, s.find_parts = t, p
+    s.validate()
+    return s
 
 
 # ----------------------------------------------------------------------------- real runs
@@ -371,6 +395,7 @@ def _all_instances():
             continue
         instances.setdefault(key, []).append(_changed(default))
     instances["synthetic.SensorNoise"] = [_sensor_noise()]
+    instances["grasp.PickSettings"] = [_pick_settings()]
     instances["reconstruction.PinholeIntrinsics"] = [_core.reconstruction.PinholeIntrinsics(64, 48, 50.5, 51.5, 31.2, 23.9)]
     return instances
 
