@@ -7,6 +7,7 @@
 #include <random>
 
 #include <gtest/gtest.h>
+#include <Eigen/Geometry>  // cross()
 
 #include "scanalign/cga/multivector.hpp"
 #include "scanalign/cga/objects.hpp"

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 #include <string>
+#include <Eigen/Geometry>  // cross()
 
 namespace scanalign {
 

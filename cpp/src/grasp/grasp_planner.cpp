@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <stdexcept>
 #include <string>
+#include <Eigen/Geometry>  // cross()
 
 #include "scanalign/common/rigid.hpp"
 

@@ -8,6 +8,7 @@
 #include <limits>
 
 #include <omp.h>
+#include <Eigen/Geometry>  // cross()
 
 #include "scanalign/cga/vector5.hpp"
 #include "scanalign/common/rigid.hpp"

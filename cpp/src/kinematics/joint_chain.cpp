@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 #include <vector>
+#include <Eigen/Geometry>  // cross()
 
 #include "scanalign/common/rigid.hpp"
 

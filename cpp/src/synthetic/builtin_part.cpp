@@ -7,6 +7,7 @@
 #include <numeric>
 #include <stdexcept>
 #include <string>
+#include <Eigen/Geometry>  // cross()
 
 namespace scanalign {
 

@@ -5,6 +5,7 @@
 #include <limits>
 #include <stdexcept>
 #include <string>
+#include <Eigen/Geometry>  // cross()
 
 #include "scanalign/common/morton_order.hpp"
 #include "scanalign/common/rigid.hpp"
