@@ -62,6 +62,6 @@ def open_source(source: PathLike, *, synthetic_overrides: Optional[dict] = None,
         return ImageFolderSequence(p, **options)
     if not p.exists():
         raise FileNotFoundError(f"{source}: no such folder or file")
-    raise ValueError(f"{source}: expected a TUM RGB-D folder (depth.txt), a ROS bag (.bag, .mcap, .db3 or a ROS 2 "
-                     "bag folder with metadata.yaml), a folder of depth/*.png with a camera file, a synthetic config "
-                     "(.json/.yaml) or 'builtin'")
+    raise ValueError(f"{source}: not a recording: expected a TUM RGB-D folder (depth.txt), a ROS bag (.bag, .mcap, "
+                     ".db3 or a ROS 2 bag folder with metadata.yaml), a folder of depth/*.png with a camera file, a "
+                     "synthetic config (.json/.yaml) or 'builtin'")

@@ -1,34 +1,11 @@
-"""Frame sources: RGB-D recordings as sequences of :class:`scanalign.reconstruction.camera.Frame`.
+"""Recordings other than TUM folders as sequences of
+:class:`scanalign.reconstruction.camera.Frame` (``len``, indexing, iteration; images decoded
+when a frame is requested), opened by :func:`scanalign.datasets.open_source`:
 
-:func:`scanalign.datasets.open_source` opens whatever a recording is and returns a sequence
-of frames (``len``, indexing, iteration; images decoded when a frame is requested) that
-:func:`scanalign.pipelines.reconstruct.reconstruct` and the pick pipeline read:
-
-- a TUM RGB-D folder (``depth.txt``): :class:`scanalign.datasets.tum.TumSequence`;
-- a ROS 1 ``.bag`` (RealSense ``.bag`` recordings included), a ROS 2 bag folder
-  (``metadata.yaml``) or a single ``.mcap`` / ``.db3`` file: :class:`BagSequence`, read with
-  the pure-Python ``rosbags`` package (``pip install 'scanalign[ros]'``), no ROS install;
+- a ROS 1 ``.bag`` (RealSense recordings included), a ROS 2 bag folder (``metadata.yaml``) or a
+  single ``.mcap`` / ``.db3`` file: :class:`BagSequence`, read with the pure-Python ``rosbags``
+  package (``pip install 'scanalign[ros]'``), no ROS install;
 - a folder of PNG images with a camera file: :class:`ImageFolderSequence`.
-
-Bags: the depth stream is a ``sensor_msgs/Image`` topic (``16UC1`` / ``mono16`` in units
-of ``depth_scale`` m, by default 1 mm as RealSense and the ROS drivers write, or ``32FC1``
-metres), found by message type and encoding unless named; colour (``rgb8``, ``bgr8``,
-``rgba8``, ``bgra8``) is used when its images have the depth images' size (registered, e.g.
-RealSense ``aligned_depth_to_color``) and paired by header timestamp; the intrinsics and the
-lens distortion come from the ``sensor_msgs/CameraInfo`` topic nearest the depth topic. The
-robot's ``sensor_msgs/JointState`` messages (``/joint_states``) give each frame's
-``meta["joints"]`` (linear interpolation at the depth timestamp), and ``/tf`` + ``/tf_static``
-give ``T_base_camera`` (the chain from ``base_frame`` to the depth image's frame, each moving
-link interpolated linearly / spherically) when they connect the two.
-
-Example::
-
-    from scanalign.datasets import open_source
-    from scanalign.pipelines.reconstruct import reconstruct
-
-    frames = open_source("scan.bag")                 # or a ROS 2 folder, .mcap, PNG folder, TUM folder
-    print(frames)                                    # the topics it chose
-    result = reconstruct(frames)
 """
 
 from __future__ import annotations
@@ -41,16 +18,18 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from scanalign.datasets.tum import CAMERA_FILE_NAMES, load_image
-from scanalign.evaluation.trajectory import Trajectory, associate_timestamps, matrix_from_quaternion
-from scanalign.reconstruction.camera import (
-    INTRINSICS_PRESETS,
-    Frame,
-    Intrinsics,
-    camera_from_dict,
-    read_camera,
-    sequence_index,
+from scanalign import _core
+from scanalign.datasets.tum import (
+    bracket,
+    camera_argument,
+    check_number,
+    check_selection,
+    load_image,
+    pair_frames,
+    resolve_camera,
 )
+from scanalign.evaluation.trajectory import Trajectory, matrix_from_quaternion
+from scanalign.reconstruction.camera import Frame, camera_from_dict, sequence_index
 
 __all__ = ["BagSequence", "ImageFolderSequence", "is_bag", "is_image_folder", "DEPTH_ENCODINGS",
            "COLOR_ENCODINGS"]
@@ -104,38 +83,6 @@ def is_image_folder(path: Any) -> bool:
         return False
 
 
-def _resolve_intrinsics(intrinsics: Any) -> Tuple[Optional[Intrinsics], Optional[float]]:
-    """An Intrinsics, a preset name or a camera file (and its depth_scale); None passes."""
-    if intrinsics is None or isinstance(intrinsics, Intrinsics):
-        return intrinsics, None
-    if isinstance(intrinsics, str) and intrinsics in INTRINSICS_PRESETS:
-        return INTRINSICS_PRESETS[intrinsics], None
-    if isinstance(intrinsics, (str, os.PathLike)):
-        if not Path(intrinsics).is_file():
-            raise ValueError(f"intrinsics {os.fspath(intrinsics)!r} is neither a preset {sorted(INTRINSICS_PRESETS)} "
-                             "nor an existing camera file")
-        return read_camera(intrinsics)
-    raise TypeError(f"intrinsics must be an Intrinsics, a preset name, a camera file path or None, "
-                    f"got {type(intrinsics).__name__}")
-
-
-def _check_selection(start: Any, stride: Any, limit: Any) -> None:
-    for name, v, low in (("stride", stride, 1), ("start", start, 0), ("limit", 0 if limit is None else limit, 0)):
-        if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
-            raise TypeError(f"{name} must be an integer{' or None' * (name == 'limit')}, got {v!r}")
-        if v < low:
-            raise ValueError(f"{name} must be >= {low}, got {v}")
-
-
-def _check_scale(depth_scale: Any) -> Optional[float]:
-    if depth_scale is None:
-        return None
-    if isinstance(depth_scale, bool) or not isinstance(depth_scale, (int, float, np.number)) or not (
-            math.isfinite(float(depth_scale)) and 0 < float(depth_scale) <= 1):
-        raise ValueError(f"depth_scale must be in (0, 1] metres per unit, got {depth_scale!r}")
-    return float(depth_scale)
-
-
 def _field(msg: Any, *names: str) -> Any:
     """A message field under its ROS 2 name or its ROS 1 one (``k`` / ``K``)."""
     for n in names:
@@ -182,9 +129,10 @@ class BagSequence:
     On construction the bag's topics are chosen and every depth, colour, joint-state and tf
     message's timestamp is read; images are decoded when a frame is requested. Frames are the
     depth images in header-timestamp order; with colour, each is paired with a colour image
-    within ``max_time_difference`` (:func:`scanalign.evaluation.trajectory.associate_timestamps`, each
-    image used once) and depth images without a partner are dropped (counted in
-    :attr:`dropped_depth_frames`). Then ``start``, ``stride``, ``limit`` select frames.
+    within ``max_time_difference`` as in :class:`~scanalign.datasets.tum.TumSequence` (depth
+    images without a partner are dropped, counted in :attr:`dropped_depth_frames`). Then
+    ``start``, ``stride``, ``limit`` select frames. Each frame's joints and pose are
+    interpolated at its depth timestamp when the bag is opened.
 
     Args:
         path: a ROS 1 ``.bag``, a ROS 2 bag folder, or a ROS 2 ``.mcap`` / ``.db3`` file.
@@ -244,18 +192,15 @@ class BagSequence:
         self.path = Path(path)
         if not self.path.exists():
             raise FileNotFoundError(f"{self.path}: no such bag")
-        _check_selection(start, stride, limit)
-        for name, v in (("max_time_difference", max_time_difference), ("max_joint_gap", max_joint_gap),
-                        ("max_tf_gap", max_tf_gap)):
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0 (s), got {v!r}")
+        check_selection(start, stride, limit)
+        max_dt, max_joint_gap, max_tf_gap = (check_number(name, v, "a finite number >= 0 (s)") for name, v in (
+            ("max_time_difference", max_time_difference), ("max_joint_gap", max_joint_gap), ("max_tf_gap", max_tf_gap)))
         self.notes: List[str] = []
         self._reader = None
-        self._max_joint_gap, self._max_tf_gap = float(max_joint_gap), float(max_tf_gap)
         ros1 = self.path.suffix.lower() == ".bag"
-        self._typestore = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
         try:
-            reader = AnyReader([self.path], default_typestore=self._typestore)
+            reader = AnyReader([self.path], default_typestore=get_typestore(Stores.ROS1_NOETIC if ros1 else
+                                                                             Stores.ROS2_HUMBLE))
             reader.open()
         except ImportError:
             raise
@@ -263,8 +208,12 @@ class BagSequence:
             raise ValueError(f"{self.path}: not a readable ROS bag ({type(e).__name__}: {e})") from None
         self._reader = reader
         try:
-            self._index(depth_topic, color_topic, camera_info_topic, intrinsics, depth_scale, joint_states_topic,
-                        joint_names, tf, base_frame, camera_frame, float(max_time_difference), start, stride, limit)
+            self._index(depth_topic, color_topic, camera_info_topic, intrinsics, depth_scale, camera_frame, max_dt,
+                        start, stride, limit)
+            t = np.array([self._depth[d][0] for d, _ in self._frames], dtype=np.int64)  # header times, ns
+            self._joints = self._read_joints(joint_states_topic, joint_names, t, max_joint_gap * 1e9)
+            self.base_frame = None
+            self._poses = self._read_tf(base_frame, t, max_tf_gap * 1e9) if tf else [None] * len(t)
         except BaseException:
             self.close()
             raise
@@ -299,8 +248,8 @@ class BagSequence:
             raise self._error(f"{what} topic {given!r}: {found}; {msgtype} topics: {sorted(topics) or 'none'}")
         return topics[given]
 
-    def _index(self, depth_topic, color_topic, info_topic, intrinsics, depth_scale, joints_topic, joint_names, tf,
-               base_frame, camera_frame, max_dt, start, stride, limit) -> None:
+    def _index(self, depth_topic, color_topic, info_topic, intrinsics, depth_scale, camera_frame, max_dt, start,
+               stride, limit) -> None:
         images = self._topics(_IMAGE)
         firsts = {t: self._first(c) for t, c in images.items()}
         firsts = {t: m for t, m in firsts.items() if m is not None}
@@ -364,7 +313,7 @@ class BagSequence:
         # Camera.
         self.camera_info_topic = None
         infos = self._topics(_INFO)
-        given, file_scale = _resolve_intrinsics(intrinsics)
+        given, file_scale, _ = camera_argument(intrinsics)
         if given is None:
             if info_topic is not None:
                 conn = self._pick_topic(info_topic, _INFO, "camera_info")
@@ -394,10 +343,10 @@ class BagSequence:
         self.intrinsics = given
 
         # Depth scale: argument, camera file, RealSense's "Depth Units" option, 1 mm.
-        scale = _check_scale(depth_scale)
-        if scale is None and file_scale is not None:
-            scale = _check_scale(file_scale)
-        if scale is None:
+        scale = depth_scale if depth_scale is not None else file_scale
+        if scale is not None:
+            scale = check_number("depth_scale", scale, "in (0, 1] metres per unit", strict=True, high=1)
+        else:
             units = [c for t, c in self._topics(_FLOAT32).items() if t.lower().endswith("depth units/value")]
             if units:
                 units.sort(key=lambda c: -_common_prefix(c.topic, depth_topic))
@@ -418,41 +367,12 @@ class BagSequence:
         di, ci = np.arange(len(d_ts)), None
         if self._color:
             c_ts = _seconds(np.array([s for s, _, _ in self._color], dtype=np.int64))
-            pairs = associate_timestamps(d_ts, c_ts, max_dt)
-            if len(pairs) == 0:
-                raise self._error(f"no depth image of {depth_topic} has a colour image of {self.color_topic} within "
-                                  f"max_time_difference={max_dt} s")
-            di, ci = pairs[:, 0], pairs[:, 1]
+            di, ci = pair_frames(d_ts, c_ts, max_dt, self.path, f" of {depth_topic} ({self.color_topic})").T
         self.dropped_depth_frames = int(len(d_ts) - len(di))
         keep = np.arange(len(di))[start::stride][:limit]
         self._frames = [(int(di[k]), None if ci is None else int(ci[k])) for k in keep]
         self.timestamps = d_ts[[d for d, _ in self._frames]] if self._frames else np.zeros(0)
         self.camera_frame = camera_frame or first.header.frame_id or None
-
-        # Robot joints.
-        self.joint_states_topic, self.joint_names = None, None
-        self._joint_t = np.zeros(0, dtype=np.int64)
-        if joints_topic is not False:
-            states = self._topics(_JOINTS)
-            if joints_topic is not None:
-                conn = self._pick_topic(joints_topic, _JOINTS, "joint_states")
-            elif "/joint_states" in states:
-                conn = states["/joint_states"]
-            elif len(states) == 1:
-                conn = next(iter(states.values()))
-            else:
-                conn = None
-                if states:
-                    self.notes.append(f"several JointState topics {sorted(states)}: none used; pass "
-                                      "joint_states_topic=")
-            if conn is not None:
-                self._read_joints(conn, joint_names)
-
-        # Poses from tf.
-        self.base_frame = None
-        self._tf_chain: List[Tuple[str, str]] = []
-        if tf:
-            self._read_tf(base_frame)
 
     def _stamps(self, conn: Any) -> List[Tuple[int, int, int]]:
         """(header stamp ns, bag time ns, ordinal among the messages at that bag time), sorted
@@ -467,9 +387,21 @@ class BagSequence:
             raise self._error(f"topic {conn.topic}: two images with the same header timestamp")
         return sorted(out)
 
-    def _read_joints(self, conn: Any, joint_names: Optional[Sequence[str]]) -> None:
+    def _read_joints(self, topic: Any, joint_names: Optional[Sequence[str]], t: np.ndarray,
+                     max_gap: float) -> List[Optional[np.ndarray]]:
+        """Per frame (header times ``t``, ns), the joints interpolated linearly, or None."""
+        self.joint_states_topic, self.joint_names = None, None
+        states = {} if topic is False else self._topics(_JOINTS)
+        if topic is not None and topic is not False:
+            conn = self._pick_topic(topic, _JOINTS, "joint_states")
+        elif "/joint_states" in states or len(states) == 1:
+            conn = states.get("/joint_states") or next(iter(states.values()))
+        else:
+            if states:
+                self.notes.append(f"several JointState topics {sorted(states)}: none used; pass joint_states_topic=")
+            return [None] * len(t)
         times, rows, names = [], [], None if joint_names is None else [str(n) for n in joint_names]
-        for c, t, raw in self._reader.messages(connections=[conn]):
+        for c, bag_t, raw in self._reader.messages(connections=[conn]):
             m = self._deserialize(raw, c)
             msg_names = [str(n) for n in m.name]
             if names is None:
@@ -481,23 +413,29 @@ class BagSequence:
                 raise self._error(f"topic {conn.topic}: a JointState with {len(msg_names)} names and {len(pos)} "
                                   "positions")
             stamp = _stamp_ns(m)
-            times.append(stamp if stamp > 0 else t)
+            times.append(stamp if stamp > 0 else bag_t)
             rows.append(pos[[msg_names.index(n) for n in names]])
         if not rows:
             self.notes.append(f"{conn.topic}: no joint states" + (f" with all of {names}" if names else ""))
-            return
-        order = np.argsort(np.array(times, dtype=np.int64), kind="stable")
-        self._joint_t = np.array(times, dtype=np.int64)[order]
-        self._joint_q = np.stack(rows)[order]
+            return [None] * len(t)
         self.joint_states_topic, self.joint_names = conn.topic, names
+        order = np.argsort(np.array(times, dtype=np.int64), kind="stable")
+        ok, lo, hi, w = bracket(np.array(times, dtype=np.int64)[order], t, max_gap)
+        q = np.stack(rows)[order]
+        out: List[Optional[np.ndarray]] = [None] * len(t)
+        for k, row in zip(ok, (1 - w)[:, None] * q[lo] + w[:, None] * q[hi]):
+            out[k] = row
+        return out
 
-    def _read_tf(self, base_frame: Optional[str]) -> None:
+    def _read_tf(self, base_frame: Optional[str], t: np.ndarray, max_gap: float) -> List[Optional[np.ndarray]]:
+        """Per frame (header times ``t``, ns), ``T_base_camera`` along the tf chain (each moving
+        link interpolated, a static one as last published), or None."""
         edges: Dict[str, Dict[str, Any]] = {}  # child -> {parent, static, samples [(t, T)]}
         for topic, static in (("/tf_static", True), ("/tf", False)):
             conn = self._topics(_TF).get(topic)
             if conn is None:
                 continue
-            for c, t, raw in self._reader.messages(connections=[conn]):
+            for c, bag_t, raw in self._reader.messages(connections=[conn]):
                 for ts in self._deserialize(raw, c).transforms:
                     child, parent = ts.child_frame_id.lstrip("/"), ts.header.frame_id.lstrip("/")
                     e = edges.setdefault(child, {"parent": parent, "static": static, "samples": []})
@@ -508,9 +446,9 @@ class BagSequence:
                     T[:3, :3] = matrix_from_quaternion(np.array([q.x, q.y, q.z, q.w], dtype=np.float64))
                     T[:3, 3] = (r.x, r.y, r.z)
                     stamp = _stamp_ns(ts)
-                    e["samples"].append((stamp if stamp > 0 else t, T))
+                    e["samples"].append((stamp if stamp > 0 else bag_t, T))
         if not edges or self.camera_frame is None:
-            return
+            return [None] * len(t)
         camera = self.camera_frame.lstrip("/")
         chain, frame = [], camera
         while frame in edges and frame != base_frame and len(chain) <= len(edges):
@@ -520,48 +458,22 @@ class BagSequence:
             raise self._error(f"tf: no chain from base_frame {base_frame!r} to the camera frame {camera!r}")
         if not chain:
             self.notes.append(f"tf: the camera frame {camera!r} is not in the tf tree: no poses")
-            return
+            return [None] * len(t)
         self.base_frame = frame
-        self._tf_edges = []
+        poses, covered = np.tile(np.eye(4), (len(t), 1, 1)), np.ones(len(t), dtype=bool)
         for child in reversed(chain):  # base -> camera
-            e = edges[child]
-            s = sorted(e["samples"], key=lambda x: x[0])
-            traj = Trajectory(_seconds(np.array([x[0] for x in s], dtype=np.int64)), np.stack([x[1] for x in s]))
-            # A static link (tf_static) holds whatever was published last, at any time.
-            self._tf_edges.append((e["static"], traj, np.array([x[0] for x in s], dtype=np.int64)))
-        self._tf_chain = [(edges[c]["parent"], c) for c in reversed(chain)]
-
-    # -- frames ----------------------------------------------------------------------------
-
-    def _interp_joints(self, t: int) -> Optional[np.ndarray]:
-        ts = self._joint_t
-        if ts.size == 0:
-            return None
-        k = int(np.searchsorted(ts, t))
-        if k < ts.size and ts[k] == t:
-            return self._joint_q[k].copy()
-        if k == 0 or k == ts.size or (ts[k] - ts[k - 1]) * 1e-9 > self._max_joint_gap:
-            return None
-        w = (t - ts[k - 1]) / (ts[k] - ts[k - 1])
-        return (1 - w) * self._joint_q[k - 1] + w * self._joint_q[k]
-
-    def _pose(self, t: int) -> Optional[np.ndarray]:
-        if not self._tf_chain:
-            return None
-        T = np.eye(4)
-        for constant, traj, ns in self._tf_edges:
-            if constant:
-                T = T @ traj.poses[-1]
+            s = sorted(edges[child]["samples"], key=lambda x: x[0])
+            ns = np.array([x[0] for x in s], dtype=np.int64)
+            P = Trajectory(_seconds(ns), np.stack([x[1] for x in s])).poses  # checked finite
+            if edges[child]["static"]:  # a tf_static link holds whatever was published last, at any time
+                poses = poses @ P[-1]
                 continue
-            k = int(np.searchsorted(ns, t))
-            if k < ns.size and ns[k] == t:
-                E = traj.poses[k]
-            elif k == 0 or k == ns.size or (ns[k] - ns[k - 1]) * 1e-9 > self._max_tf_gap:
-                return None
-            else:
-                E = traj.interpolate([_seconds(t)], max_gap=np.inf).poses[0]
-            T = T @ E
-        return T
+            ok, lo, hi, w = bracket(ns, t, max_gap)
+            E = np.tile(np.eye(4), (len(t), 1, 1))
+            E[ok] = _core.evaluation.interpolate_poses(P[lo], P[hi], w)
+            covered &= np.isin(np.arange(len(t)), ok)
+            poses = poses @ E
+        return [T if c else None for T, c in zip(poses, covered)]
 
     def _message(self, conn: Any, entry: Tuple[int, int, int]) -> Any:
         _, t, n = entry
@@ -613,11 +525,12 @@ class BagSequence:
         if c is not None:
             rgb = self._image(self._message(self._color_conn, self._color[c]), self.color_topic, False)
             meta["rgb_timestamp"] = _seconds(self._color[c][0])
-        q = self._interp_joints(entry[0])
-        if q is not None:
-            meta["joints"], meta["joint_names"] = q, list(self.joint_names)
+        if self._joints[k] is not None:
+            meta["joints"], meta["joint_names"] = self._joints[k].copy(), list(self.joint_names)
+        pose = self._poses[k]
         return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
-                     timestamp=_seconds(entry[0]), T_base_camera=self._pose(entry[0]), index=k, meta=meta)
+                     timestamp=_seconds(entry[0]), T_base_camera=None if pose is None else pose.copy(), index=k,
+                     meta=meta)
 
     def __iter__(self) -> Iterator[Frame]:
         for k in range(len(self)):
@@ -647,7 +560,7 @@ class BagSequence:
     def __repr__(self) -> str:
         return (f"BagSequence({os.fspath(self.path)!r}, frames={len(self)}, depth={self.depth_topic}, "
                 f"color={self.color_topic}, camera_info={self.camera_info_topic}, joints={self.joint_states_topic}, "
-                f"tf={f'{self.base_frame}->{self.camera_frame}' if self._tf_chain else None}, "
+                f"tf={f'{self.base_frame}->{self.camera_frame}' if self.base_frame else None}, "
                 f"intrinsics={self.intrinsics}, depth_scale={self.depth_scale})")
 
 
@@ -658,9 +571,8 @@ class ImageFolderSequence:
     """RGB-D frames from a folder of images and a camera file::
 
         folder/
-            camera.yaml        # a camera file: scanalign's keys, a ROS camera_info YAML or an
-                               #   OpenCV calibration YAML (distortion included); or camera.json,
-                               #   intrinsics.yaml, ... (scanalign.datasets.tum.CAMERA_FILE_NAMES)
+            camera.yaml        # a camera file (any layout of read_camera, distortion included),
+                               #   or camera.json, intrinsics.yaml, ... (tum.CAMERA_FILE_NAMES)
             depth/*.png        # 16-bit depth, units of depth_scale m (0 = no measurement)
             rgb/*.png          # optional colour (or color/, colour/; PNG or JPEG), registered
 
@@ -671,9 +583,9 @@ class ImageFolderSequence:
 
     Args:
         folder: the folder. intrinsics: overrides the camera file (an :class:`Intrinsics`,
-            a preset name, a camera file). depth_scale: metres per depth unit; default: the
-            camera file's ``depth_scale``, else 0.001 (millimetres).
-        frame_rate: frames per second when the names are not times (30).
+            a preset name, a camera file). depth_scale: metres per depth unit, in (0, 1];
+            default: the camera file's ``depth_scale``, else 0.001 (millimetres).
+        frame_rate: frames per second when the names are not times.
         start, stride, limit: frame selection after pairing.
 
     Raises:
@@ -687,24 +599,10 @@ class ImageFolderSequence:
         self.folder = Path(folder)
         if not is_image_folder(self.folder):
             raise FileNotFoundError(f"{self.folder}: no depth/ folder of PNG images")
-        _check_selection(start, stride, limit)
-        if not (frame_rate > 0 and math.isfinite(frame_rate)):
-            raise ValueError(f"frame_rate must be a positive number of frames per second, got {frame_rate!r}")
-        given, file_scale = _resolve_intrinsics(intrinsics)
-        self.camera_file = None
-        if given is None or (depth_scale is None and file_scale is None):
-            found = [self.folder / n for n in CAMERA_FILE_NAMES if (self.folder / n).is_file()]
-            if len(found) > 1:
-                raise ValueError(f"{self.folder}: more than one camera file {[p.name for p in found]}; keep one")
-            if found:
-                cam, scale = read_camera(found[0])
-                if given is None:
-                    given, self.camera_file = cam, found[0]
-                file_scale = scale if file_scale is None else file_scale
-            elif given is None:
-                raise ValueError(f"{self.folder}: no camera file ({', '.join(CAMERA_FILE_NAMES)}); pass intrinsics=")
-        self.intrinsics = given
-        self.depth_scale = _check_scale(depth_scale) or _check_scale(file_scale) or 0.001
+        check_selection(start, stride, limit)
+        check_number("frame_rate", frame_rate, "a positive number of frames per second", strict=True)
+        self.intrinsics, self.depth_scale, self.camera_file = resolve_camera(self.folder, intrinsics, depth_scale,
+                                                                             0.001, max_scale=1)
         depth = sorted(f for f in (self.folder / "depth").iterdir() if f.suffix.lower() == ".png")
         color_dir = next((self.folder / n for n in _COLOR_DIRS if (self.folder / n).is_dir()), None)
         color = [] if color_dir is None else sorted(
@@ -716,21 +614,16 @@ class ImageFolderSequence:
             depth, d_t = [depth[k] for k in od], d_t[od]
             color, c_t = [color[k] for k in oc], c_t[oc]
         pairs: List[Tuple[int, Optional[int]]] = [(k, None) for k in range(len(depth))]
-        if color:
-            if numeric:
-                p = associate_timestamps(d_t, c_t, float(max_time_difference))
-                pairs = [(int(a), int(b)) for a, b in p]
-            elif {f.stem for f in depth} == {f.stem for f in color}:
-                by = {f.stem: k for k, f in enumerate(color)}
-                pairs = [(k, by[f.stem]) for k, f in enumerate(depth)]
-            elif len(depth) == len(color):
-                pairs = [(k, k) for k in range(len(depth))]
-            else:
-                raise ValueError(f"{self.folder}: cannot pair {len(depth)} depth images with {len(color)} colour "
-                                 f"images in {color_dir.name}/ (name them by timestamp or with equal names)")
-            if not pairs:
-                raise ValueError(f"{self.folder}: no depth image has a colour image within max_time_difference="
-                                 f"{max_time_difference} s")
+        if color and numeric:
+            pairs = [(int(a), int(b)) for a, b in pair_frames(d_t, c_t, float(max_time_difference), self.folder)]
+        elif color and {f.stem for f in depth} == {f.stem for f in color}:
+            by = {f.stem: k for k, f in enumerate(color)}
+            pairs = [(k, by[f.stem]) for k, f in enumerate(depth)]
+        elif color and len(depth) == len(color):
+            pairs = [(k, k) for k in range(len(depth))]
+        elif color:
+            raise ValueError(f"{self.folder}: cannot pair {len(depth)} depth images with {len(color)} colour "
+                             f"images in {color_dir.name}/ (name them by timestamp or with equal names)")
         self.dropped_depth_frames = len(depth) - len(pairs)
         pairs = pairs[start::stride][:limit]
         self.depth_files = [depth[a] for a, _ in pairs]
@@ -749,22 +642,12 @@ class ImageFolderSequence:
 
     def __getitem__(self, i: int) -> Frame:
         k = sequence_index(i, len(self), "ImageFolderSequence")
-
-        def check(path: Path):
-            def f(im: Any) -> None:
-                if (im.size[1], im.size[0]) != self.intrinsics.shape:
-                    raise ValueError(f"{path}: a {im.size[0]}x{im.size[1]} image, the camera is "
-                                     f"{self.intrinsics.width}x{self.intrinsics.height}")
-            return f
-
-        d = self.depth_files[k]
-        depth = load_image(d, "depth", check(d))
+        depth = load_image(self.depth_files[k], "depth", self.intrinsics)
+        meta: Dict[str, Any] = {"depth_file": os.fspath(self.depth_files[k]), "rgb_file": None}
         rgb = None
-        meta: Dict[str, Any] = {"depth_file": os.fspath(d), "rgb_file": None}
         if self.rgb_files is not None:
-            c = self.rgb_files[k]
-            rgb = load_image(c, "colour", check(c))
-            meta["rgb_file"] = os.fspath(c)
+            rgb = load_image(self.rgb_files[k], "colour", self.intrinsics)
+            meta["rgb_file"] = os.fspath(self.rgb_files[k])
         return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
                      timestamp=float(self.timestamps[k]), index=k, meta=meta)
 
