@@ -4,6 +4,7 @@ of a model (ambiguous), the standoff's symmetric poses (not ambiguous), and bad 
 
 import functools
 import math
+import types
 
 import numpy as np
 import pytest
@@ -153,7 +154,7 @@ def test_find_parts_refuses_bad_input():
     with pytest.raises(TypeError, match="symmetries"):
         pose.find_parts([block], cloud, symmetries=[object()], **KW)
     with pytest.raises(ValueError, match="symmetries\\[0\\]"):
-        pose.find_parts([block], cloud, symmetries=[parts._Symmetry(np.zeros(3), np.zeros(3), 2)], **KW)
+        pose.find_parts([block], cloud, symmetries=[types.SimpleNamespace(axis=np.zeros(3), point=np.zeros(3), order=2)], **KW)
     with pytest.raises(ValueError, match="ambiguity_margin"):
         pose.find_parts([block], cloud, ambiguity_margin=1.5, **KW)
     with pytest.raises(ValueError, match="voxel_size"):

@@ -1,34 +1,21 @@
-"""Test data: real scans and CAD meshes downloaded from Debian packages and PyPI, and cached.
+"""Test data: real scans and CAD meshes from Debian packages and PyPI, downloaded once and cached.
 
-Debian packages are fetched with ``apt-get download`` (no root needed, nothing installed) and
-unpacked with ``dpkg-deb -x`` into the cache, ``$SCANALIGN_DATA`` if set, else
-``~/.cache/scanalign``: ``<cache>/debs/`` (the .deb files, downloaded once),
-``<cache>/packages/<package>/usr/...`` (unpacked) and ``<cache>/cgal_meshes/`` (meshes taken
-from CGAL's data.tar.gz the first time each is asked for).
+The cache is ``$SCANALIGN_DATA`` if set, else ``~/.cache/scanalign``: ``debs/`` and ``sdists/``
+(the pinned files), ``packages/<package>/`` (``.deb`` files unpacked with ``dpkg-deb -x``),
+``cgal_meshes/`` and ``small_gicp_data/`` (files taken from the archives on first use).
 
-- ``libcgal-demo``: CGAL's example data, whose ``data/meshes/`` holds about 140 meshes
-  (``fandisk``, ``bunny00``, ``rotor``, ``pinion``, ``anchor``, ``joint``, ``couplingdown``,
-  ``part``, ``spool``, ...), in arbitrary units (mostly about 1 unit across).
-- ``python3-pcl``: PCL tutorial clouds (``table_scene_lms400``, ``milk``, ``bun0``, ...), in metres.
-- PyPI: :func:`small_gicp_lidar_pair`, the outdoor LiDAR pair with its reference pose shipped
-  in the ``small_gicp`` 1.0.1 source distribution (``pip download`` into ``<cache>/sdists/``,
-  its ``data/`` unpacked into ``<cache>/small_gicp_data/``).
+- ``libcgal-demo``: about 140 CGAL example meshes (``fandisk``, ``bunny00``, ``rotor``, ...), in
+  arbitrary units (mostly about 1 unit across);
+- ``python3-pcl``: PCL tutorial clouds (``table_scene_lms400``, ``milk``, ``bun0``, ...), in metres;
+- PyPI: :func:`small_gicp_lidar_pair`, from the ``small_gicp`` 1.0.1 source distribution.
 
-``python -m scanalign.data fetch`` downloads everything ahead of time; nothing else
-downloads. The loaders (:func:`load_cgal_mesh`, :func:`load_pcl_cloud`,
-:func:`small_gicp_lidar_pair`, ...) read the cache and raise :class:`DatasetUnavailableError`
-naming that command when a file is missing.
-
-Integrity: every fetched file (the two ``.deb`` files and the sdist, listed in
-:data:`PINNED_FILES` with the address it comes from) is checked against the sha256 pinned
-here, after a download, when taken from the offline folder, when unpacked and on every
-``fetch``; a mismatch raises :class:`DatasetIntegrityError` naming the file and both hashes.
-
-Offline: put the pinned files (from the addresses in :data:`PINNED_FILES`, e.g. downloaded
-on another machine) into a folder and point ``$SCANALIGN_OFFLINE_DATA`` at it, or drop them
-into ``<cache>/debs/`` and ``<cache>/sdists/``; they are verified and used without a download.
-
-The built-in part and mesh sampling live in :mod:`scanalign.data.parts` (no download).
+Only ``python -m scanalign.data fetch`` (:func:`fetch_all`, :func:`fetch_small_gicp`) downloads
+(``apt-get download``, ``pip download``); a loader whose file is missing raises
+:class:`DatasetUnavailableError` naming that command. Every file of :data:`PINNED_FILES` is
+checked against its sha256 after a download, when taken from the offline folder
+(``$SCANALIGN_OFFLINE_DATA``, or dropped into ``debs/`` / ``sdists/``), when unpacked and on
+every ``fetch``; a mismatch raises :class:`DatasetIntegrityError` naming the file and both
+hashes. See docs/testing.md.
 """
 
 from __future__ import annotations
@@ -143,35 +130,32 @@ def verify_file(path: Path, key: str, what: str | None = None, advice: str | Non
     return path
 
 
-def _offline_hint(key: str, folder: Path) -> str:
-    pin = PINNED_FILES[key]
-    offline = offline_dir()
+def _offline_hint(key: str) -> str:
+    pin, offline = PINNED_FILES[key], offline_dir()
     where = f"${OFFLINE_ENV} ({offline})" if offline else f"a folder named by ${OFFLINE_ENV}"
-    return f"put {pin.filename} (from {pin.url}, sha256 {pin.sha256}) into {where} or {folder}"
+    return f"put {pin.filename} (from {pin.url}, sha256 {pin.sha256}) into {where} or {_folder(key)}"
 
 
-def _how_to_supply(key: str, folder: Path) -> str:
-    pin = PINNED_FILES[key]
-    return f"run `{FETCH_COMMAND}` (it runs `{pin.fetched_with}`), or, offline, {_offline_hint(key, folder)}"
+def _how_to_supply(key: str) -> str:
+    return f"run `{FETCH_COMMAND}` (it runs `{PINNED_FILES[key].fetched_with}`), or, offline, {_offline_hint(key)}"
 
 
-def _missing(key: str, folder: Path) -> DatasetUnavailableError:
-    return DatasetUnavailableError(f"{PINNED_FILES[key].filename} ({key} test data) is not in the data cache "
-                                   f"{cache_dir()}; {_how_to_supply(key, folder)}")
+def _folder(key: str) -> Path:
+    """Where the cache keeps the pinned file of ``key``."""
+    return cache_dir() / ("sdists" if key == SMALL_GICP else "debs")
 
 
-def _pinned_file(key: str, folder: Path, download) -> Path:
-    """The pinned file of ``key`` in ``folder`` (cache), verified. Absent: copied (verified)
-    from the offline folder if it is there, else downloaded when ``download`` is a function
-    (it gets a scratch folder and returns the downloaded file), else DatasetUnavailableError."""
-    pin = PINNED_FILES[key]
+def _pinned_file(key: str, download: bool) -> Path:
+    """The pinned file of ``key`` in the cache, verified. Absent: copied (verified) from the
+    offline folder if it is there, else (``download``) fetched, else DatasetUnavailableError."""
+    pin, folder = PINNED_FILES[key], _folder(key)
     target = folder / pin.filename
     if target.exists():
         return verify_file(target, key)
-    offline = offline_dir()
-    supplied = offline / pin.filename if offline else None
-    if supplied is None and download is None:
-        raise _missing(key, folder)
+    supplied = offline_dir() / pin.filename if offline_dir() else None
+    if not download and not (supplied and supplied.exists()):
+        raise DatasetUnavailableError(f"{pin.filename} ({key} test data) is not in the data cache {cache_dir()}; "
+                                      f"{_how_to_supply(key)}")
     folder.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=folder) as scratch:
         # Copy or download into a scratch folder so that only a verified, whole file lands.
@@ -180,10 +164,8 @@ def _pinned_file(key: str, folder: Path, download) -> Path:
             fetched = Path(scratch) / pin.filename
             shutil.copyfile(supplied, fetched)
             verify_file(fetched, key, f"{pin.filename} copied from {supplied}", "the copy failed: try again")
-        elif download is None:
-            raise _missing(key, folder)
         else:
-            fetched = download(Path(scratch))
+            fetched = _pip_download(Path(scratch)) if key == SMALL_GICP else _apt_download(key, Path(scratch))
             verify_file(fetched, key, f"{pin.filename} as downloaded by `{pin.fetched_with}`",
                         "the download was not kept: a corrupt download or a mirror serving another file")
         os.replace(fetched, target)
@@ -195,7 +177,7 @@ def _pinned_file(key: str, folder: Path, download) -> Path:
 
 def _run(command: list[str], cwd: Path, package: str) -> None:
     """Run a packaging command, turning every failure into DatasetUnavailableError."""
-    manual = f"run `sudo apt-get update` first, then {_how_to_supply(package, cache_dir() / 'debs')}"
+    manual = f"run `sudo apt-get update` first, then {_how_to_supply(package)}"
     if shutil.which(command[0]) is None:
         raise DatasetUnavailableError(f"`{command[0]}` is not available, so {package} cannot be fetched. On a "
                                       f"Debian/Ubuntu machine, {manual}.")
@@ -207,46 +189,43 @@ def _run(command: list[str], cwd: Path, package: str) -> None:
                                       f"{' | '.join(detail)}. To fix, {manual}.") from exc
 
 
-def _apt_download(package: str):
-    """A download function for :func:`_pinned_file`: ``apt-get download`` of the pinned version."""
+def _apt_download(package: str, scratch: Path) -> Path:
+    """``apt-get download`` of the pinned version into ``scratch``."""
     pin = PINNED_FILES[package]
-
-    def download(scratch: Path) -> Path:
-        _run(pin.fetched_with.split(), scratch, package)
-        downloaded = scratch / pin.filename
-        if not downloaded.exists():
-            raise DatasetUnavailableError(f"`{pin.fetched_with}` produced no {pin.filename}; "
-                                          f"{_how_to_supply(package, cache_dir() / 'debs')}")
-        return downloaded
-
-    return download
+    _run(pin.fetched_with.split(), scratch, package)
+    downloaded = scratch / pin.filename
+    if not downloaded.exists():
+        raise DatasetUnavailableError(f"`{pin.fetched_with}` produced no {pin.filename}; {_how_to_supply(package)}")
+    return downloaded
 
 
-def _deb_file(package: str, download: bool) -> Path:
-    """The package's pinned ``.deb`` in ``<cache>/debs``, verified; taken from the offline
-    folder, or (``download``) fetched with ``apt-get download``, if absent."""
-    return _pinned_file(package, cache_dir() / "debs", _apt_download(package) if download else None)
+def _unpacked(root: Path, key: str, download: bool) -> bool:
+    """Whether ``root`` holds what was unpacked from the pinned file of ``key``: its marker
+    holds that file's sha256 (a tree unpacked from another file is unpacked again)."""
+    marker, expected = root / _COMPLETE_MARKER, PINNED_FILES[key].sha256
+    if not marker.exists():
+        return False
+    recorded = marker.read_text().strip()
+    cached = _folder(key) / PINNED_FILES[key].filename
+    if recorded == expected:
+        if download and cached.exists():
+            verify_file(cached, key)  # ``fetch`` checks the cached file again
+        return True
+    if not recorded and cached.exists():
+        # Unpacked by an older scanalign (empty marker): kept if its file is the pinned one.
+        verify_file(cached, key)
+        marker.write_text(expected + "\n")
+        return True
+    return False
 
 
 def _package_root(package: str, download: bool = False) -> Path:
-    """The unpacked package tree (``dpkg-deb -x``) of the verified pinned ``.deb``. Its
-    marker holds the .deb's sha256: a tree unpacked from another file is unpacked again."""
+    """The unpacked package tree (``dpkg-deb -x``) of the verified pinned ``.deb``."""
     root = cache_dir() / "packages" / package
-    marker = root / _COMPLETE_MARKER
-    expected = PINNED_FILES[package].sha256
-    if marker.exists():
-        recorded = marker.read_text().strip()
-        cached = cache_dir() / "debs" / PINNED_FILES[package].filename
-        if recorded == expected:
-            if download and cached.exists():
-                verify_file(cached, package)  # ``fetch`` checks the cached file again
-            return root
-        if not recorded and cached.exists():
-            # Unpacked by an older scanalign (empty marker): kept if its .deb is the pinned one.
-            verify_file(cached, package)
-            marker.write_text(expected + "\n")
-            return root
-    deb = _deb_file(package, download)
+    if _unpacked(root, package, download):
+        return root
+    deb = _pinned_file(package, download)
+    expected, marker = PINNED_FILES[package].sha256, root / _COMPLETE_MARKER
     root.parent.mkdir(parents=True, exist_ok=True)
     # Unpack beside the target and rename, so a crash never leaves a half tree behind.
     scratch = Path(tempfile.mkdtemp(prefix=f".{package}-", dir=root.parent))
@@ -270,12 +249,27 @@ def _write_atomic(path: Path, data: bytes) -> None:
         fh.write(data)
 
 
+def _extract(tarball: Path, members: dict[str, Path]) -> None:
+    """Writes the regular files ``members`` (name in the .tar.gz -> target) of ``tarball``,
+    each atomically, reading the archive once and only as far as needed."""
+    left = dict(members)
+    try:
+        with tarfile.open(tarball, "r|gz") as tar:
+            for member in tar:
+                if member.name in left and member.isfile():
+                    _write_atomic(left.pop(member.name), tar.extractfile(member).read())
+                    if not left:
+                        return
+    except (tarfile.TarError, OSError, EOFError) as exc:  # cannot happen with the pinned hash
+        raise DatasetUnavailableError(f"{tarball} is not a readable tarball ({exc}); delete {cache_dir()}") from exc
+    raise DatasetUnavailableError(f"{tarball} has no {', '.join(left)}; delete {cache_dir()}")
+
+
 def fetch_all() -> list[Path]:
-    """Downloads (or takes from the offline folder) and unpacks both data packages,
-    verifying each ``.deb`` against its pinned sha256 (also when already cached); returns
-    the unpacked package folders (``libcgal-demo``, ``python3-pcl``). Raises
-    DatasetUnavailableError when ``apt-get``/``dpkg-deb`` are missing or fail,
-    DatasetIntegrityError on a hash mismatch. :func:`fetch_small_gicp` fetches the sdist."""
+    """Downloads (or takes from the offline folder) and unpacks both Debian packages, each
+    ``.deb`` verified (also when already cached); returns the unpacked package folders.
+    Raises DatasetUnavailableError when ``apt-get``/``dpkg-deb`` are missing or fail,
+    DatasetIntegrityError on a hash mismatch."""
     return [_package_root(CGAL_PACKAGE, download=True), _package_root(PCL_PACKAGE, download=True)]
 
 
@@ -295,9 +289,9 @@ def _cgal_tar_members() -> list[str]:
         return names_file.read_text().split("\n")
     tarball = _package_root(CGAL_PACKAGE) / _CGAL_TARBALL
     with tarfile.open(tarball, "r:gz") as tar:
-        names = sorted(m.name[len(_CGAL_MESH_PREFIX):] for m in tar.getmembers()
-                       if m.isfile() and m.name.startswith(_CGAL_MESH_PREFIX)
-                       and "/" not in m.name[len(_CGAL_MESH_PREFIX):] and Path(m.name).suffix.lower() in _MESH_EXTENSIONS)
+        names = sorted(name for m in tar.getmembers() if m.isfile() and m.name.startswith(_CGAL_MESH_PREFIX)
+                       and "/" not in (name := m.name[len(_CGAL_MESH_PREFIX):])
+                       and Path(name).suffix.lower() in _MESH_EXTENSIONS)
     _write_atomic(names_file, "\n".join(names).encode())
     return names
 
@@ -323,18 +317,9 @@ def cgal_mesh_path(name: str) -> Path:
         raise _unknown("CGAL mesh", name, cgal_mesh_names(), "cgal_mesh_names")
     filename = candidates[0]
     target = cache_dir() / "cgal_meshes" / filename
-    if target.exists():
-        return target
-    tarball = _package_root(CGAL_PACKAGE) / _CGAL_TARBALL
-    wanted = _CGAL_MESH_PREFIX + filename
-    with tarfile.open(tarball, "r|gz") as tar:  # stream: stop at the member we want
-        for member in tar:
-            if member.name == wanted:
-                source = tar.extractfile(member)
-                assert source is not None  # members were filtered to regular files
-                _write_atomic(target, source.read())
-                return target
-    raise DatasetUnavailableError(f"{tarball} has no member {wanted}; delete {cache_dir()}")
+    if not target.exists():
+        _extract(_package_root(CGAL_PACKAGE) / _CGAL_TARBALL, {_CGAL_MESH_PREFIX + filename: target})
+    return target
 
 
 def load_cgal_mesh(name: str) -> io.Mesh:
@@ -377,15 +362,13 @@ def load_pcl_cloud(name: str) -> np.ndarray:
 # --------------------------------------------------------------------------- small_gicp LiDAR pair
 
 SMALL_GICP_SDIST = PINNED_FILES[SMALL_GICP].filename
-_SMALL_GICP_REQUIREMENT = "small_gicp==1.0.1"
 _SMALL_GICP_DATA = ("source.ply", "target.ply", "T_target_source.txt")
 
 
 def _pip_download(scratch: Path) -> Path:
-    """A download function for :func:`_pinned_file`: small_gicp's source distribution from
-    PyPI with ``pip download`` (no build, no install)."""
-    base = [sys.executable, "-m", "pip", "download", "--no-deps", "--no-binary", ":all:", "--disable-pip-version-check",
-            _SMALL_GICP_REQUIREMENT]
+    """small_gicp's source distribution from PyPI with ``pip download`` (no build, no install)."""
+    command = PINNED_FILES[SMALL_GICP].fetched_with
+    base = [sys.executable, "-m", *command.split(), "--disable-pip-version-check"]
     errors = []
     # pip prepares the sdist's metadata even for a download; --no-build-isolation does
     # that with the scikit-build-core already installed (no extra download). Without it
@@ -403,61 +386,26 @@ def _pip_download(scratch: Path) -> Path:
             if (scratch / SMALL_GICP_SDIST).exists():
                 return scratch / SMALL_GICP_SDIST
             errors.append(f"pip saved no {SMALL_GICP_SDIST}")
-    raise DatasetUnavailableError(f"`pip download {_SMALL_GICP_REQUIREMENT}` (source distribution) failed: "
+    raise DatasetUnavailableError(f"`{command}` (source distribution) failed: "
                                   f"{'; '.join(errors)}. To fix, check network access to PyPI, or, offline, "
-                                  f"{_offline_hint(SMALL_GICP, cache_dir() / 'sdists')}")
-
-
-def _small_gicp_sdist(download: bool = False) -> Path:
-    """small_gicp's source distribution in ``<cache>/sdists``, verified; taken from the
-    offline folder, or (``download``) fetched from PyPI, if absent."""
-    return _pinned_file(SMALL_GICP, cache_dir() / "sdists", _pip_download if download else None)
+                                  f"{_offline_hint(SMALL_GICP)}")
 
 
 def _small_gicp_data_dir(download: bool = False) -> Path:
     """``<cache>/small_gicp_data`` holding small_gicp's ``data/`` LiDAR pair, unpacked from
-    the verified sdist (its marker holds the sdist's sha256)."""
+    the verified sdist."""
     root = cache_dir() / "small_gicp_data"
-    marker = root / _COMPLETE_MARKER
-    expected = PINNED_FILES[SMALL_GICP].sha256
-    if marker.exists():
-        recorded = marker.read_text().strip()
-        cached = cache_dir() / "sdists" / SMALL_GICP_SDIST
-        if recorded == expected:
-            if download and cached.exists():
-                verify_file(cached, SMALL_GICP)
-            return root
-        if not recorded and cached.exists():  # unpacked by an older scanalign
-            verify_file(cached, SMALL_GICP)
-            marker.write_text(expected + "\n")
-            return root
-    sdist = _small_gicp_sdist(download)
+    if _unpacked(root, SMALL_GICP, download):
+        return root
     prefix = SMALL_GICP_SDIST[: -len(".tar.gz")] + "/data/"
-    found = {}
-    try:
-        with tarfile.open(sdist, "r:gz") as tar:
-            for member in tar:
-                name = member.name[len(prefix):] if member.name.startswith(prefix) else None
-                if name in _SMALL_GICP_DATA and member.isfile():
-                    source = tar.extractfile(member)
-                    assert source is not None
-                    found[name] = source.read()
-    except (tarfile.TarError, OSError, EOFError) as exc:  # cannot happen with the pinned hash
-        raise DatasetUnavailableError(f"{sdist} is not a readable tarball ({exc})")
-    missing = [name for name in _SMALL_GICP_DATA if name not in found]
-    if missing:
-        raise DatasetUnavailableError(f"{sdist} has no {', '.join(prefix + m for m in missing)}")
-    for name, data in found.items():
-        _write_atomic(root / name, data)
-    _write_atomic(marker, (expected + "\n").encode())
+    _extract(_pinned_file(SMALL_GICP, download), {prefix + name: root / name for name in _SMALL_GICP_DATA})
+    _write_atomic(root / _COMPLETE_MARKER, (PINNED_FILES[SMALL_GICP].sha256 + "\n").encode())
     return root
 
 
 def fetch_small_gicp() -> Path:
-    """Downloads (or takes from the offline folder) small_gicp's sdist, verifies it against
-    its pinned sha256 (also when already cached) and unpacks its LiDAR pair; returns
-    ``<cache>/small_gicp_data``. Raises DatasetUnavailableError when pip fails,
-    DatasetIntegrityError on a hash mismatch."""
+    """As :func:`fetch_all`, for small_gicp's sdist (with ``pip download``); returns
+    ``<cache>/small_gicp_data``, where its LiDAR pair is unpacked."""
     return _small_gicp_data_dir(download=True)
 
 
@@ -466,13 +414,9 @@ def small_gicp_lidar_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ``(source (N, 3), target (M, 3), T_target_source (4, 4))``, float64, metres.
 
     Two downsampled outdoor LiDAR scans (about 70k points each, about 60 x 40 x 12 m) and the
-    ``T_target_source`` shipped with them in the ``small_gicp`` 1.0.1 source distribution on
-    PyPI (``data/source.ply``, ``data/target.ply``, ``data/T_target_source.txt``), fetched by
-    ``python -m scanalign.data fetch`` (or :func:`fetch_small_gicp`) with ``pip download
-    --no-deps --no-binary :all:`` into ``<cache>/sdists/`` (nothing is built or installed),
-    its ``data/`` unpacked into ``<cache>/small_gicp_data/``. The file
-    stores the pose with 6 significant digits; its rotation is projected onto the nearest
-    rotation matrix (a change below 1e-6), so the result is exactly rigid. Raises
+    pose shipped with them in the ``small_gicp`` 1.0.1 sdist (``data/``). The file stores the
+    pose with 6 significant digits; its rotation is projected onto the nearest rotation
+    matrix (a change below 1e-6), so the result is exactly rigid. Raises
     DatasetUnavailableError (naming the fetch command) when the sdist has not been fetched.
     """
     root = _small_gicp_data_dir()

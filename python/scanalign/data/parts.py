@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, Dict, NamedTuple, Tuple, Union
+from typing import Any, Dict, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -44,6 +44,14 @@ from scanalign.common.arrays import mesh_arrays, require_memory
 __all__ = ["builtin_mesh", "builtin_object", "sample_mesh", "normalize_mesh", "BUILTIN_PARTS"]
 
 MeshLike = Union[io.Mesh, Tuple[npt.ArrayLike, npt.ArrayLike]]
+
+
+def _require_memory(n_points: Any) -> None:
+    """Refuses an ``n_points`` the memory cannot hold (points, normals and the draws); the
+    rest (an integer in [0, 2^40]) is checked in C++, naming it."""
+    if isinstance(n_points, (int, np.integer)) and not isinstance(n_points, bool) and n_points > 0:
+        require_memory(160.0 * n_points, f"n_points = {n_points}")
+
 
 def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
     """Samples points uniformly per unit area on a triangle mesh's surface.
@@ -69,9 +77,7 @@ def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) 
     """
     m = mesh_or_vertices_faces
     mesh = m if isinstance(m, io.Mesh) else io.Mesh(*(mesh_arrays(m) or m))  # or an Open3D / trimesh mesh
-    # n_points: an integer in [0, 2^40] (checked in C++, naming it) within memory
-    if isinstance(n_points, (int, np.integer)) and not isinstance(n_points, bool) and n_points > 0:
-        require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
+    _require_memory(n_points)
     points, normals, _ = _core.common.sample_mesh(mesh.vertices, mesh.faces, n_points, seed)
     return points, normals
 
@@ -99,34 +105,16 @@ def normalize_mesh(mesh: io.Mesh, size: float) -> io.Mesh:
     return io.Mesh((v - offset) * (size / extent), mesh.faces.copy())
 
 
-class _Symmetry(NamedTuple):
-    """A part's rotational symmetry (the fields of ``_core.pose.PartSymmetry``), used while
-    that class is not bound."""
-    axis: np.ndarray
-    point: np.ndarray
-    order: int
-
-
-def _symmetry(name: str) -> Any:
-    axis, point, order = _core.synthetic.builtin_part_symmetry(name)
-    cls = getattr(getattr(_core, "pose", None), "PartSymmetry", None)
-    if cls is None:
-        return _Symmetry(axis, point, order)
-    s = cls()
-    s.axis, s.point, s.order = axis, point, order
-    return s
-
-
 #: Each built-in part's name and rotational symmetry in its model frame (``PartSymmetry``:
 #: ``axis``, ``point`` m, ``order``): block 1, bracket 1, standoff 6 about z through the origin.
-BUILTIN_PARTS: Dict[str, Any] = {name: _symmetry(name) for name in _core.synthetic.BUILTIN_PART_NAMES}
+BUILTIN_PARTS: Dict[str, Any] = {name: _core.pose.PartSymmetry(*_core.synthetic.builtin_part_symmetry(name))
+                                 for name in _core.synthetic.BUILTIN_PART_NAMES}
 
 
 @functools.lru_cache(maxsize=8)
-def _builtin(segments: int, name: str = "block") -> Tuple[io.Mesh, np.ndarray]:
-    """The part's mesh and, per face, the surface it lies on (0 plane, 1 cylinder, 2 sphere, as in C++)."""
-    vertices, faces, surface = _core.synthetic.builtin_part_mesh(segments, name)
-    return io.Mesh(vertices, faces), surface
+def _builtin(segments: int, name: str) -> io.Mesh:
+    vertices, faces, _ = _core.synthetic.builtin_part_mesh(segments, name)  # _: each face's surface kind
+    return io.Mesh(vertices, faces)
 
 
 def builtin_mesh(segments: int = 96, name: str = "block") -> io.Mesh:
@@ -148,7 +136,7 @@ def builtin_mesh(segments: int = 96, name: str = "block") -> io.Mesh:
         raise ValueError(f"segments must be an integer >= 8, got {segments}")
     if name not in BUILTIN_PARTS:
         raise ValueError(f"name: expected one of {sorted(BUILTIN_PARTS)}, got {name!r}")
-    m, _ = _builtin(int(segments), name)  # C++ raises ValueError for segments < 8
+    m = _builtin(int(segments), name)  # C++ raises ValueError for segments < 8
     return io.Mesh(m.vertices.copy(), m.faces.copy())
 
 
@@ -169,8 +157,6 @@ def builtin_object(n_points: int = 20000, seed: int = 0) -> Tuple[np.ndarray, np
         ``points (n_points, 3)`` and ``normals (n_points, 3)``, float64, metres, in the frame
         of :func:`builtin_mesh`.
     """
-    # n_points: an integer in [0, 2^40] (checked in C++, naming it) within memory
-    if isinstance(n_points, (int, np.integer)) and not isinstance(n_points, bool) and n_points > 0:
-        require_memory(160.0 * n_points, f"n_points = {n_points}")  # points, normals and the draws
+    _require_memory(n_points)
     points, normals, _ = _core.synthetic.sample_builtin_block(n_points, seed, 96)
     return points, normals
