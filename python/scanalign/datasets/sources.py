@@ -20,11 +20,11 @@ import numpy as np
 
 from scanalign import _core
 from scanalign.datasets.tum import (
+    ImageFileSequence,
     bracket,
     camera_argument,
     check_number,
     check_selection,
-    load_image,
     pair_frames,
     resolve_camera,
 )
@@ -238,10 +238,8 @@ class BagSequence:
             raise self._error(f"topic {conn.topic}: cannot decode a {conn.msgtype} message ({type(e).__name__}: "
                               f"{e})") from None
 
-    def _pick_topic(self, given: Any, msgtype: str, what: str) -> Optional[Any]:
+    def _pick_topic(self, given: Any, msgtype: str, what: str) -> Any:
         topics = self._topics(msgtype)
-        if given is None:
-            return None
         if given not in topics:
             other = [c.msgtype for c in self._reader.connections if c.topic == given]
             found = f"it is a {other[0]}" if other else "no such topic"
@@ -279,7 +277,6 @@ class BagSequence:
             depth_conn = images[depth_topic]
         first = firsts[depth_topic]
         self.depth_topic = depth_topic
-        self._depth_dtype, self._float_depth = DEPTH_ENCODINGS[first.encoding]
         size = (int(first.width), int(first.height))
 
         # Colour.
@@ -567,7 +564,7 @@ class BagSequence:
 _NUMBER = re.compile(r"[-+]?(\d+(\.\d*)?|\.\d+)")
 
 
-class ImageFolderSequence:
+class ImageFolderSequence(ImageFileSequence):
     """RGB-D frames from a folder of images and a camera file::
 
         folder/
@@ -636,24 +633,6 @@ class ImageFolderSequence:
             return np.array([int(f.stem) * 1e-9 if "." not in f.stem and abs(int(f.stem)) > 10**15 else float(f.stem)
                              for f in files])
         return np.arange(len(files), dtype=np.float64) / frame_rate
-
-    def __len__(self) -> int:
-        return len(self.depth_files)
-
-    def __getitem__(self, i: int) -> Frame:
-        k = sequence_index(i, len(self), "ImageFolderSequence")
-        depth = load_image(self.depth_files[k], "depth", self.intrinsics)
-        meta: Dict[str, Any] = {"depth_file": os.fspath(self.depth_files[k]), "rgb_file": None}
-        rgb = None
-        if self.rgb_files is not None:
-            rgb = load_image(self.rgb_files[k], "colour", self.intrinsics)
-            meta["rgb_file"] = os.fspath(self.rgb_files[k])
-        return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
-                     timestamp=float(self.timestamps[k]), index=k, meta=meta)
-
-    def __iter__(self) -> Iterator[Frame]:
-        for k in range(len(self)):
-            yield self[k]
 
     def __repr__(self) -> str:
         return (f"ImageFolderSequence({os.fspath(self.folder)!r}, frames={len(self)}, "

@@ -23,7 +23,7 @@ import math
 import os
 import re
 from pathlib import Path
-from typing import Any, Iterable, Iterator, List, Optional, Tuple, Union
+from typing import Any, Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 from PIL import Image
@@ -232,6 +232,41 @@ def bracket(ts: np.ndarray, t: np.ndarray, max_gap: float) -> Tuple[np.ndarray, 
     return ok, lo, hi, np.where(gap > 0, (t[ok] - ts[lo]) / np.where(gap > 0, gap, 1), 0.0)
 
 
+class ImageFileSequence:
+    """Frames from image files: ``depth_files``, ``rgb_files`` (or None) and ``timestamps``
+    (s) per frame, decoded and checked (:func:`load_image`) when a frame is requested."""
+
+    depth_files: List[Path]
+    rgb_files: Optional[List[Path]]
+    timestamps: np.ndarray
+    intrinsics: Intrinsics
+    depth_scale: float
+
+    def _meta(self, k: int) -> Dict[str, Any]:
+        return {}
+
+    def _pose(self, k: int) -> Optional[np.ndarray]:
+        return None
+
+    def __len__(self) -> int:
+        return len(self.depth_files)
+
+    def __getitem__(self, i: int) -> Frame:
+        k = sequence_index(i, len(self), type(self).__name__)
+        depth = load_image(self.depth_files[k], "depth", self.intrinsics)
+        meta = {"depth_file": str(self.depth_files[k]), "rgb_file": None, **self._meta(k)}
+        rgb = None
+        if self.rgb_files is not None:
+            rgb = load_image(self.rgb_files[k], "colour", self.intrinsics)
+            meta["rgb_file"] = str(self.rgb_files[k])
+        return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
+                     timestamp=float(self.timestamps[k]), T_base_camera=self._pose(k), index=k, meta=meta)
+
+    def __iter__(self) -> Iterator[Frame]:
+        for k in range(len(self)):
+            yield self[k]
+
+
 # --------------------------------------------------------------------------- TUM folders
 
 
@@ -251,7 +286,7 @@ def read_timestamp_list(path: PathLike) -> Tuple[np.ndarray, List[str], List[int
     return values[order, 0], [names[k] for k in order], lines[order].tolist()
 
 
-class TumSequence:
+class TumSequence(ImageFileSequence):
     """An RGB-D sequence in the TUM RGB-D benchmark layout, read lazily (PNGs are decoded
     when a frame is requested).
 
@@ -286,6 +321,11 @@ class TumSequence:
         (the whole time-sorted ground-truth :class:`Trajectory`, or None); per selected frame:
         timestamps ((N,) float64 s), depth_files, rgb_timestamps and rgb_files (None when
         depth-only).
+
+    Frames: ``depth`` (H, W) uint16 in units of :attr:`depth_scale` m (0 = no measurement),
+    ``rgb`` (H, W, 3) uint8 or None, ``timestamp`` the depth timestamp, ``T_base_camera`` the
+    interpolated ground truth or None; ``meta``: ``depth_file``, ``rgb_file``,
+    ``rgb_timestamp``, ``source_index`` (position among all associated frames), ``sequence``.
 
     The lists, the existence of every selected image and the headers of the first frame's
     images are checked on construction; every frame's images again when loaded.
@@ -359,34 +399,12 @@ class TumSequence:
                                         "does not exist")
         return [self.folder / names[k] for k in keep]
 
-    def __len__(self) -> int:
-        return int(self.timestamps.shape[0])
+    def _meta(self, k: int) -> Dict[str, Any]:
+        return {"source_index": int(self._source_index[k]), "sequence": self.name,
+                "rgb_timestamp": None if self.rgb_timestamps is None else float(self.rgb_timestamps[k])}
 
-    def __getitem__(self, i: int) -> Frame:
-        """Frame ``i`` (negative indices count from the end), PNGs decoded now.
-
-        ``depth`` is (H, W) uint16 in units of :attr:`depth_scale` metres (0 = no
-        measurement), ``rgb`` (H, W, 3) uint8 or None, ``timestamp`` the depth timestamp
-        (s), ``T_base_camera`` the interpolated ground-truth pose or None, ``index`` = i.
-        ``meta`` holds ``depth_file``, ``rgb_file``, ``rgb_timestamp``, ``source_index``
-        (position among all associated frames, before start/stride/limit), ``sequence``.
-        """
-        k = sequence_index(i, len(self), "TumSequence")
-        meta = {"depth_file": str(self.depth_files[k]), "source_index": int(self._source_index[k]),
-                "sequence": self.name, "rgb_file": None, "rgb_timestamp": None}
-        depth = load_image(self.depth_files[k], "depth", self.intrinsics)
-        rgb = None
-        if self.rgb_files is not None:
-            rgb = load_image(self.rgb_files[k], "colour", self.intrinsics)
-            meta.update(rgb_file=str(self.rgb_files[k]), rgb_timestamp=float(self.rgb_timestamps[k]))
-        pose = self._poses[k]
-        return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
-                     timestamp=float(self.timestamps[k]), T_base_camera=None if pose is None else pose.copy(),
-                     index=k, meta=meta)
-
-    def __iter__(self) -> Iterator[Frame]:
-        for k in range(len(self)):
-            yield self[k]
+    def _pose(self, k: int) -> Optional[np.ndarray]:
+        return None if self._poses[k] is None else self._poses[k].copy()
 
     def poses(self) -> List[Optional[np.ndarray]]:
         """Per frame, the interpolated ground-truth ``T_world_camera`` (4x4) or None."""
