@@ -64,8 +64,7 @@ def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) 
     Args:
         mesh_or_vertices_faces: a :class:`scanalign.io.Mesh`, ``(vertices (V, 3), faces (F, 3))`` or an
             Open3D / trimesh triangle mesh.
-        n_points: number of points (>= 0).
-        seed: random seed; equal seeds give equal samples.
+        n_points: number of points (>= 0). seed: equal seeds give equal samples.
 
     Returns:
         ``points (n_points, 3)`` float64 in the mesh's unit, and ``normals (n_points, 3)``
@@ -141,22 +140,10 @@ def builtin_mesh(segments: int = 96, name: str = "block") -> io.Mesh:
 
 
 def builtin_object(n_points: int = 20000, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
-    """Samples the built-in part's surface: the mesh of :func:`builtin_mesh`, its curved
-    faces projected onto the exact cylinder and sphere.
-
-    Only the exposed surface is sampled: the six box faces (the top one minus the footprints
-    of the boss and the cap), the boss side and top disc, and the cap. The density is
-    uniform per unit area, normals are outward unit vectors (exact ones on the curved
-    surfaces), and the points come in random order.
-
-    Args:
-        n_points: number of points (>= 0).
-        seed: random seed; equal seeds give identical output.
-
-    Returns:
-        ``points (n_points, 3)`` and ``normals (n_points, 3)``, float64, metres, in the frame
-        of :func:`builtin_mesh`.
-    """
+    """Samples the block's exposed surface as :func:`sample_mesh` samples the mesh of
+    :func:`builtin_mesh`, with the points and normals of the curved faces projected onto the
+    exact cylinder and sphere: ``points, normals (n_points, 3)``, float64, metres, outward
+    unit normals, in random order; equal seeds give identical output."""
     _require_memory(n_points)
     points, normals, _ = _core.synthetic.sample_builtin_block(n_points, seed, 96)
     return points, normals

@@ -1,8 +1,5 @@
-"""Recordings as sequences of frames: one factory, :func:`open_source`, for every recording a
-command, a batch job or a pipeline reads, as kiss-icp's ``datasets/`` does: a TUM RGB-D folder
-(:mod:`.tum`), a ROS 1 / ROS 2 bag or a folder of depth/colour PNGs (:mod:`.sources`), a
-synthetic-scan config file or ``"builtin"`` (:mod:`scanalign.synthetic`).
-"""
+"""Recordings as sequences of frames: :func:`open_source` opens every recording a command, a
+batch job or a pipeline reads."""
 
 from __future__ import annotations
 

@@ -327,18 +327,15 @@ class TumSequence(ImageFileSequence):
     interpolated ground truth or None; ``meta``: ``depth_file``, ``rgb_file``,
     ``rgb_timestamp``, ``source_index`` (position among all associated frames), ``sequence``.
 
-    The lists, the existence of every selected image and the headers of the first frame's
-    images are checked on construction; every frame's images again when loaded.
-
-    Raises:
+    Raises (the lists, every selected image's existence and the first frame's image headers
+    are checked on construction, every frame's images when loaded):
         FileNotFoundError: no such folder, no ``depth.txt``, or a listed image is missing.
-        NotADirectoryError: ``folder`` is a file.
-        TypeError: a non-integer ``stride``, ``start`` or ``limit``, an ``intrinsics`` of
-            another type.
-        ValueError: a bad ``stride``, ``start``, ``limit``, ``depth_scale``, time bound.
-        TumFormatError (a ValueError): a malformed list or camera file, no intrinsics, an
-            image that is unreadable, not 16-bit (depth), or of the wrong size, no depth
-            image with a colour partner; the message names the file and, for lists, the line.
+        NotADirectoryError: ``folder`` is a file. TypeError: a non-integer ``stride``,
+            ``start`` or ``limit``, an ``intrinsics`` of another type.
+        ValueError: a bad ``stride``, ``start``, ``limit``, ``depth_scale``, time bound;
+            TumFormatError (a ValueError, naming the file and line): a malformed list or camera
+            file, no intrinsics, an unreadable, non-16-bit (depth) or wrongly sized image, no
+            depth image with a colour partner.
     """
 
     def __init__(self, folder: PathLike, intrinsics: Union[Intrinsics, str, "os.PathLike[str]", None] = None,
