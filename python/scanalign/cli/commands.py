@@ -131,6 +131,20 @@ def _robot_note(scan) -> str:
             f"poses from its forward kinematics)")
 
 
+def _add_output_options(g, out: str, plots: Optional[str], quiet: str = "no progress bar") -> None:
+    g.add_argument("--out", default=out, help=f"output folder (default: {out})")
+    if plots:
+        g.add_argument("--no-plots", action="store_true", help=f"do not write {plots}")
+    g.add_argument("--quiet", action="store_true", help=quiet)
+
+
+def _add_synthetic_options(g) -> None:
+    g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
+    g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
+    g.add_argument("--seed", type=int, help="random seed of the sensor noise (builtin: 0)")
+    _add_robot_options(g)
+
+
 def _add_robot_options(g) -> None:
     g.add_argument("--robot", help="robot arm that moves the camera: ur5 (default), ur3, ur10, ur3e, ur5e, ur10e, "
                                    "kr6_r900_sixx, or 'none' (the planned camera poses, no arm). An arm's joints "
@@ -289,16 +303,10 @@ def _print_summary(summary: dict, paths: dict) -> None:
 
 def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> None:
     g = p.add_argument_group("output")
-    g.add_argument("--out", default=out_default, help=f"output folder (default: {out_default})")
-    g.add_argument("--no-plots", action="store_true", help="do not write trajectory.png / frames.png")
+    _add_output_options(g, out_default, "trajectory.png / frames.png", quiet="print nothing but errors")
     g.add_argument("--no-progress", action="store_true", help="no progress bar")
-    g.add_argument("--quiet", action="store_true", help="print nothing but errors")
     _add_view_options(g)
-    g = p.add_argument_group("synthetic scans (builtin or a config file)")
-    g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
-    g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
-    g.add_argument("--seed", type=int, help="random seed of the sensor noise (builtin: 0)")
-    _add_robot_options(g)
+    _add_synthetic_options(p.add_argument_group("synthetic scans (builtin or a config file)"))
     g = p.add_argument_group("real sequences (TUM RGB-D folder)")
     g.add_argument("--intrinsics", help="intrinsics preset (tum_fr1, tum_fr2, tum_fr3, tum_default, sr300, d435) or "
                                         "a JSON/YAML file with width height fx fy cx cy (pixels); default: the "
@@ -468,9 +476,7 @@ def _add_pick_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="demo: noise seed (0)")
     p.add_argument("--q-current", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
                    help="the robot's joints now, rad (default: the scan's last)")
-    p.add_argument("--out", default="scanalign-pick", help="output folder (scanalign-pick)")
-    p.add_argument("--no-plots", action="store_true", help="do not write pick.png")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_output_options(p, "scanalign-pick", "pick.png", quiet="no progress bars")
     _add_view_options(p)
     add_settings_options(p, PICK)
 
@@ -543,21 +549,18 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="print the version and whether the PCL baselines are built, then exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     p = sub.add_parser("demo", help="reconstruct a built-in synthetic eye-in-hand scan (no download needed)",
-                       description="Renders a built-in synthetic scan (a camera on the hand of a UR5 circling a "
-                                   "part on a table, SR300-like noise; the reference poses are the robot's forward "
-                                   "kinematics), reconstructs it frame-to-model and writes model.ply, "
-                                   "trajectory.txt, reference.txt, frames.csv, joints.csv, report.json, "
-                                   "trajectory.png and frames.png.")
+                       description="Renders a built-in synthetic scan (a camera on a UR5's hand circling a part, "
+                                   "SR300-like noise, reference poses from forward kinematics), reconstructs it and "
+                                   "writes model.ply, trajectory.txt, reference.txt, frames.csv, joints.csv, "
+                                   "report.json, trajectory.png and frames.png.")
     _add_reconstruct_options(p, "scanalign-demo")
     p.add_argument("--pick", action="store_true", help="instead: the pick demo (as 'scanalign pick --demo')")
     p = sub.add_parser("pick", help="scan, find the known parts, plan grasps and joint targets to pick them",
-                       description="Reconstructs the scan in the robot's base frame (each frame placed by the "
-                                   "robot's forward kinematics and the hand-eye transform, refined by ICP), finds "
-                                   "each known part (table plane, clusters, CBD + ICP) and plans its grasp: every "
-                                   "grasp, symmetric copy and IK branch, rejected with a reason (unreachable, joint "
-                                   "limits, singularity, gripper below the table, branch change on the approach) or "
-                                   "ranked by joint motion. Writes picks.json, joints.csv, scene.ply and pick.png. "
-                                   "Exit status 1 when nothing can be picked.")
+                       description="Reconstructs the scan in the robot's base frame (frames placed by forward "
+                                   "kinematics and the hand-eye transform, refined by ICP), finds each known part "
+                                   "and plans its grasp: every grasp, symmetric copy and IK branch, rejected with a "
+                                   "reason or ranked by joint motion. Writes picks.json, joints.csv, scene.ply and "
+                                   "pick.png. Exit status 1 when nothing can be picked.")
     _add_pick_options(p)
     p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder, a ROS bag, a PNG folder or a synthetic scan",
                        description="Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper) of SOURCE: "
@@ -571,10 +574,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder")
     p.add_argument("config", help="synthetic config file (.json/.yaml) or 'builtin'")
     p.add_argument("out", help="output folder")
-    p.add_argument("--frames", type=int, help="builtin: number of frames (36)")
-    p.add_argument("--noise", help="builtin: noise preset (sr300)")
-    p.add_argument("--seed", type=int, help="builtin: random seed (0)")
-    _add_robot_options(p)
+    _add_synthetic_options(p)
     p = sub.add_parser("register", help="ICP between two clouds (PCD or PLY, metres)")
     p.add_argument("source", help="source cloud (its camera frame)")
     p.add_argument("target", help="target cloud (the model frame); normals are estimated if absent")
@@ -611,8 +611,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--model-scale", type=float, default=1.0, help="multiply the model's coordinates (0.001: mm)")
     p.add_argument("--views", type=int, nargs="+", help="only these of the 42 views (default all)")
     p.add_argument("--no-segment", action="store_true", help="the scene is one object: skip table and clusters")
-    p.add_argument("--out", default="scanalign-pose", help="output folder (scanalign-pose)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_output_options(p, "scanalign-pose", None)
     add_settings_options(p, POSE)
     p = sub.add_parser("batch", help="run a manifest of reconstruction, pose and pick jobs (process pool or Ray)",
                        description="Runs every job of MANIFEST (YAML or CSV, see docs/batch.md) on a local process "
@@ -626,9 +625,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--workers", type=int, help="parallel jobs (default: cores / --threads-per-job)")
     p.add_argument("--threads-per-job", type=int, default=1, help="OpenMP threads (and Ray CPUs) per job (1)")
     p.add_argument("--retries", type=int, default=1, help="times a failed or crashed job is tried again (1)")
-    p.add_argument("--out", default="scanalign-batch", help="output folder (scanalign-batch)")
-    p.add_argument("--no-plots", action="store_true", help="skip results.png")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_output_options(p, "scanalign-batch", "results.png")
     p = sub.add_parser("dump-config", help="print every setting of a command with its default and unit (YAML)",
                        description="Prints every field of the C++ settings structs COMMAND uses as nested YAML, "
                                    "with its default, unit and meaning. Pass an edited copy back with 'scanalign "

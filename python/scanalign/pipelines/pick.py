@@ -24,6 +24,7 @@ import json
 import math
 import sys
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Union
@@ -108,14 +109,13 @@ class PickResult:
 
     Attributes:
         picks: one :class:`PartPick` per detected part, then one per known part not found.
-        points: (N, 3) the scene in the base frame (the reconstruction's model), metres.
+        points: (N, 3) the scene in the base frame, metres.
         detections: the :func:`scanalign.pose.find_parts` result (table plane, clusters).
         robot: the picking robot (placed in the base frame, its tool the gripper's TCP).
         q_current: (6,) the joints the motion cost was measured from, rad.
-        parts: the parts as loaded (:func:`load_part`), in the order given.
+        parts: the parts as loaded, in the order given.
         seconds: wall time per stage (``scan``, ``detect``, ``plan``, ``total``).
-        reconstruction: the :class:`scanalign.pipelines.reconstruct.ReconstructionResult` when frames were
-            reconstructed, else None.
+        reconstruction: the :class:`ReconstructionResult` when frames were reconstructed.
     """
 
     picks: List[PartPick]
@@ -258,10 +258,9 @@ def _table_plane(detections: Any) -> np.ndarray:
 
 def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: Any = None,
                q_current: Optional[Sequence[float]] = None, planner: Any = None) -> List[PartPick]:
-    """Grasp planning for every detection of :func:`scanalign.pose.find_parts` (poses in the
-    base frame): a :class:`PartPick` per detection, then a ``not_found`` one per part that
-    no cluster matched. ``robot`` is placed in the base frame; ``q_current`` (rad) defaults
-    to the zero joints; ``planner``: a ``GraspPlannerSettings`` (or a dict of its fields)."""
+    """A :class:`PartPick` per detection of :func:`scanalign.pose.find_parts` (base frame),
+    then a ``not_found`` one per part no cluster matched. ``q_current`` (rad) defaults to
+    zeros; ``planner``: a ``GraspPlannerSettings`` or a dict of its fields."""
     planner = planner if planner is None or is_struct(planner) else with_overrides(
         _grasp.GraspPlannerSettings, None, planner, "planner")
     q0 = np.zeros(6) if q_current is None else np.asarray(q_current, dtype=np.float64)
@@ -311,23 +310,19 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
 
     Args:
         scene: what :func:`scan_model` takes.
-        parts: part files (JSON / YAML, see :func:`scanalign.grasp.read_part_grasps`),
-            built-in part names ("block", "bracket", "standoff") or
-            :class:`scanalign.grasp.PartGrasps`: each a CAD mesh, its grasps and symmetry.
+        parts: part files (JSON / YAML: mesh, grasps, symmetry), built-in part names ("block",
+            "bracket", "standoff") or :class:`scanalign.grasp.PartGrasps`.
         robot: a :class:`scanalign.kinematics.Robot` or a name; default the synthetic scan's.
         T_base_robot: (4, 4) where the robot's own base sits in the base frame (robot base ->
             base, m); default the robot as given (or the synthetic scan's mount).
         T_flange_camera: (4, 4) the hand-eye calibration (camera -> flange, m); default the
             synthetic scan's (see :func:`scanalign.calibration.calibrate_hand_eye`).
         joints: a joint log for a TUM folder (:func:`read_joint_log`).
-        gripper: a :class:`scanalign.grasp.Gripper` (default each part file's, else
-            :meth:`Gripper.parallel_jaw`).
+        gripper: a :class:`scanalign.grasp.Gripper` (default each part file's).
         q_current: (6,) the robot's joints now, rad (default the scan's last joints, else 0).
         settings: :data:`PickSettings` (default its C++ defaults); keyword ``overrides`` name
             its fields, nested as dicts (``find_parts={"max_objects": 3}``, ``views="all"``).
-        progress: progress bars on stderr.
-        library: a :class:`scanalign.grasp.part_library.PartLibrary`: the views of the parts it
-            holds are taken from it instead of rendered.
+        library: a :class:`scanalign.grasp.part_library.PartLibrary` whose views replace rendering.
         viewer: a :class:`scanalign.viz.viewer.Viewer`: the scan streamed while it is
             reconstructed (drawn with the picking robot unless the viewer has one), then the result.
 
@@ -408,8 +403,6 @@ def print_picks(result: PickResult, file: Any = sys.stdout) -> None:
         elif p.message:
             print(f"{'':11}{p.message}", file=file)
         if p.plan is not None:
-            reasons: Dict[str, int] = {}
-            for c in p.plan.candidates:
-                reasons[c.reason] = reasons.get(c.reason, 0) + 1
+            reasons = Counter(c.reason for c in p.plan.candidates)
             print(f"{'':11}candidates: " + ", ".join(f"{n} {r}" for r, n in sorted(reasons.items())), file=file)
     print(" ".join(f"{k} {v:.2f} s" for k, v in result.seconds.items()), file=file)

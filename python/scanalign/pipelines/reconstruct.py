@@ -109,10 +109,7 @@ class ReconstructionResult:
             self.reference.write_tum(paths["reference"], header="reference: T_base_camera (camera -> robot base frame)")
         cols = [k for k in FrameResult().to_dict() if k != "T_model_camera"]
         with atomic_open(paths["frames"], "w", newline="", encoding="utf-8") as f:
-            w = csv.writer(f)
-            w.writerow(cols)
-            for r in self.records:
-                w.writerow([getattr(r, c) for c in cols])
+            csv.writer(f).writerows([cols] + [[getattr(r, c) for c in cols] for r in self.records])
         if self.joints is not None:
             paths["joints"] = out / "joints.csv"
             write_joints_csv(paths["joints"], [r.index for r in self.records], [r.timestamp for r in self.records],
@@ -242,9 +239,8 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
     if rec is None:
         raise ValueError("no frames to reconstruct")
     with_ref = [r for r in rec.records if r.merged and r.index in ref_of]
-    reference = None
-    if with_ref:
-        reference = Trajectory(np.array([r.timestamp for r in with_ref]), np.array([ref_of[r.index] for r in with_ref]))
+    reference = Trajectory(np.array([r.timestamp for r in with_ref]),
+                           np.array([ref_of[r.index] for r in with_ref])) if with_ref else None
     result = ReconstructionResult(model=rec.model, records=rec.records, estimate=rec.trajectory, reference=reference,
                                   T_model_camera0=rec.T_model_camera0, settings=job,
                                   seconds=time.perf_counter() - t_start)

@@ -33,9 +33,7 @@ _worker_library: Any = None  # the part library of this worker process (local po
 
 def crashed_record(job: Job, message: str) -> Dict[str, Any]:
     """The record of a job whose worker died."""
-    record = empty_record(job)
-    record.update(status="crashed", error=message)
-    return record
+    return {**empty_record(job), "status": "crashed", "error": message}
 
 
 def _limit_threads(threads: int) -> None:
