@@ -1,23 +1,11 @@
-"""The ``scanalign`` command line.
-
-  scanalign demo               reconstruct a built-in synthetic eye-in-hand scan (no download)
-  scanalign reconstruct SRC    reconstruct a TUM RGB-D folder or a synthetic-scan config
-  scanalign synth CONFIG DIR   render a synthetic scan into a TUM RGB-D folder
-  scanalign register SRC TGT   ICP between two point-cloud files (PCD or PLY)
-  scanalign register-demo      one simulated frame registered by scanalign and stock PCL
-  scanalign pick --demo        scan a built-in cell, find its parts, plan grasps and joint targets
-  scanalign demo --pick        the same
-  scanalign ik                 all analytic IK solutions of a tool pose
-  scanalign pose SCAN          find a CAD part in a scan
-  scanalign batch MANIFEST     run many jobs on a process pool or a Ray cluster
-  scanalign dump-config CMD    every setting of a command with its default and unit (for --config)
-
-Units: metres, radians, seconds. Run ``scanalign COMMAND --help`` for every option.
+"""The ``scanalign`` command line: one sub-command per job, listed by ``scanalign --help``
+(``scanalign COMMAND --help``: its options). Units: metres, radians, seconds.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import time
@@ -46,6 +34,12 @@ from scanalign.viz.reports import save_report, write_pose_outputs
 from scanalign.viz.viewer import Viewer
 
 
+def _icp_record(r: Any) -> dict:
+    """An ICP result as JSON: status, convergence, scores (m) and ``T_target_source``."""
+    return dict(status=r.status, converged=bool(r.converged), iterations=r.iterations, fitness=r.fitness,
+                inlier_rmse_m=r.inlier_rmse, T_target_source=r.T_target_source.tolist(), seconds=r.seconds)
+
+
 def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
     """Runs the two-cloud registration demo; returns the report written to ``out/report.json``."""
     if not (np.isfinite(noise) and noise >= 0):
@@ -59,8 +53,7 @@ def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
     # A new frame: the camera moved by T_model_camera; the frame sees part of the object
     # (one side cut away) with depth noise, in its own camera frame.
     T_model_camera = se3.rigid((0.3, 1.0, 0.2), np.deg2rad(4.0), (0.012, -0.008, 0.006))
-    visible = model[model[:, 0] > -0.02]
-    frame = (np.linalg.inv(T_model_camera) @ np.c_[visible, np.ones(len(visible))].T).T[:, :3]
+    frame = se3.transform_points(np.linalg.inv(T_model_camera), model[model[:, 0] > -0.02])
     frame = frame + rng.normal(0.0, noise, frame.shape)
 
     print(f"model: {len(model)} points, frame: {len(frame)} points, depth noise {noise * 1000:.2f} mm")
@@ -75,19 +68,14 @@ def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
         r = fn()
         wall = time.perf_counter() - t0
         rot, trans = se3.pose_error(r.T_target_source, T_model_camera)
-        runs[name] = dict(status=r.status, converged=bool(r.converged), iterations=r.iterations,
-                          fitness=r.fitness, inlier_rmse_m=r.inlier_rmse, rotation_error_rad=rot,
-                          translation_error_m=trans, seconds=wall, T_target_source=r.T_target_source.tolist())
+        runs[name] = {**_icp_record(r), "seconds": wall, "rotation_error_rad": rot, "translation_error_m": trans}
         print(f"  {name:24s} {r.status:24s} it={r.iterations:3d}  rot err {np.rad2deg(rot):.4f} deg  "
               f"trans err {trans * 1000:.3f} mm  rmse {r.inlier_rmse * 1000:.3f} mm  {wall * 1000:.1f} ms")
     speedup = runs["pcl_point_to_plane_lls"]["seconds"] / runs["scanalign"]["seconds"]
     print(f"  scanalign is {speedup:.1f}x faster than PCL IterativeClosestPointWithNormals here")
-    T = np.asarray(runs["scanalign"]["T_target_source"])
-    aligned = (T @ np.c_[frame, np.ones(len(frame))].T).T[:, :3]
-    io.write_ply(out / "model.ply", model, normals=model_normals,
-                 colors=np.tile(np.array([[180, 180, 180]], np.uint8), (len(model), 1)))
-    io.write_ply(out / "frame_aligned.ply", aligned,
-                 colors=np.tile(np.array([[230, 80, 40]], np.uint8), (len(aligned), 1)))
+    aligned = se3.transform_points(np.asarray(runs["scanalign"]["T_target_source"]), frame)
+    io.write_ply(out / "model.ply", model, normals=model_normals, colors=np.full((len(model), 3), 180, np.uint8))
+    io.write_ply(out / "frame_aligned.ply", aligned, colors=np.tile(np.uint8([230, 80, 40]), (len(aligned), 1)))
     report = dict(T_model_camera_true=T_model_camera.tolist(), runs=runs, speedup_vs_pcl_lls=speedup)
     (out / "report.json").write_text(json.dumps(report, indent=2))
     print(f"wrote {out / 'model.ply'}, {out / 'frame_aligned.ply'} (open both in a viewer) and {out / 'report.json'}")
@@ -101,25 +89,30 @@ def register(args: argparse.Namespace) -> int:
     tgt, tgt_normals = io.read_cloud(Path(args.target))
     if tgt_normals is None or not np.isfinite(tgt_normals).any():
         tgt_normals = estimate_normals(tgt, settings=settings["normals"])
-    try:
-        init = np.loadtxt(args.init).reshape(4, 4) if args.init else None
-    except (ValueError, OSError) as e:
-        raise ValueError(f"--init {args.init}: expected a text file holding a 4x4 matrix ({e})") from None
+    init = _pick.read_transform(args.init, "--init", rigid=False) if args.init else None
     r = icp(src, tgt, tgt_normals, init, settings=settings["icp"])
-    result = dict(status=r.status, converged=bool(r.converged), iterations=r.iterations, fitness=r.fitness,
-                  inlier_rmse_m=r.inlier_rmse, T_target_source=r.T_target_source.tolist(), seconds=r.seconds)
-    print(json.dumps(result, indent=2))
+    print(json.dumps(_icp_record(r), indent=2))
     if args.out:
-        aligned = (r.T_target_source @ np.c_[src, np.ones(len(src))].T).T[:, :3]
+        aligned = se3.transform_points(r.T_target_source, src)
         io.write_ply(Path(args.out), aligned[np.all(np.isfinite(aligned), axis=1)])
     return 0 if r.converged else 2
 
 
+def _synthetic_overrides(args: argparse.Namespace) -> dict:
+    """SyntheticConfig fields from --frames, --noise, --seed, --robot and --robot-base."""
+    out = {"n_frames": args.frames, "noise": args.noise, "seed": args.seed}
+    if args.robot is not None:
+        out["robot"] = args.robot
+    if args.robot_base is not None:
+        names = ("robot_x", "robot_y", "robot_z", "robot_roll", "robot_pitch", "robot_yaw")
+        out.update(zip(names, (float(v) for v in args.robot_base)))
+    return out
+
+
 def _load_source(source: str, args: argparse.Namespace) -> tuple:
-    """Frames and, for synthetic scans, the scan (for its mesh) from a SOURCE argument
+    """(frames, the synthetic scan or None, a description) of a SOURCE argument
     (:func:`scanalign.datasets.open_source`)."""
-    overrides = {"n_frames": args.frames, "noise": args.noise, "seed": args.seed, **_robot_overrides(args)}
-    src = datasets.open_source(source, synthetic_overrides=overrides, intrinsics=args.intrinsics,
+    src = datasets.open_source(source, synthetic_overrides=_synthetic_overrides(args), intrinsics=args.intrinsics,
                                depth_scale=args.depth_scale, start=args.start, stride=args.frame_stride,
                                limit=args.limit)
     if isinstance(src, synthetic.SyntheticScan):
@@ -130,17 +123,6 @@ def _load_source(source: str, args: argparse.Namespace) -> tuple:
     return src, None, f"{what} {source}"
 
 
-def _robot_overrides(args: argparse.Namespace) -> dict:
-    """SyntheticConfig fields from --robot / --robot-base (only those given)."""
-    out: dict = {}
-    if getattr(args, "robot", None) is not None:
-        out["robot"] = args.robot
-    if getattr(args, "robot_base", None) is not None:
-        names = ("robot_x", "robot_y", "robot_z", "robot_roll", "robot_pitch", "robot_yaw")
-        out.update(zip(names, (float(v) for v in args.robot_base)))
-    return out
-
-
 def _robot_note(scan) -> str:
     if scan.robot is None:
         return " (camera poses as planned, no robot)"
@@ -149,16 +131,29 @@ def _robot_note(scan) -> str:
             f"poses from its forward kinematics)")
 
 
+def _add_output_options(g, out: str, plots: Optional[str], quiet: str = "no progress bar") -> None:
+    g.add_argument("--out", default=out, help=f"output folder (default: {out})")
+    if plots:
+        g.add_argument("--no-plots", action="store_true", help=f"do not write {plots}")
+    g.add_argument("--quiet", action="store_true", help=quiet)
+
+
+def _add_synthetic_options(g) -> None:
+    g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
+    g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
+    g.add_argument("--seed", type=int, help="random seed of the sensor noise (builtin: 0)")
+    _add_robot_options(g)
+
+
 def _add_robot_options(g) -> None:
-    g.add_argument("--robot", help="robot arm that moves the camera: ur5 (default), another name known to "
-                                   "scanalign.kinematics (ur3, ur10, ur3e, ur5e, ur10e, kr6_r900_sixx), or 'none' "
-                                   "for the planned camera poses without an arm. With an arm, its joints come "
-                                   "from inverse kinematics (closest to the previous frame, radians, written to "
-                                   "joints.csv) and the reference poses from its forward kinematics")
+    g.add_argument("--robot", help="robot arm that moves the camera: ur5 (default), ur3, ur10, ur3e, ur5e, ur10e, "
+                                   "kr6_r900_sixx, or 'none' (the planned camera poses, no arm). An arm's joints "
+                                   "come from IK (closest to the previous frame, rad, written to joints.csv), the "
+                                   "reference poses from its forward kinematics")
     g.add_argument("--robot-base", type=float, nargs=6, metavar=("X", "Y", "Z", "ROLL", "PITCH", "YAW"),
-                   help="where the robot's base frame sits in the scene: position in metres and roll, pitch, yaw "
-                        "in radians (R = Rz(yaw) Ry(pitch) Rx(roll)); default: hanging 0.9 m above the object, "
-                        "i.e. OBJECT_X OBJECT_Y 0.9 3.141592653589793 0 0")
+                   help="the robot's base frame in the scene: position (m), roll, pitch, yaw (rad; R = Rz(yaw) "
+                        "Ry(pitch) Rx(roll)); default 0.9 m above the object, hanging: OBJECT_X OBJECT_Y 0.9 "
+                        "3.141592653589793 0 0")
 
 
 def _box(values: Any) -> Any:
@@ -244,12 +239,16 @@ REGISTER = Command(_register_root, (
           help="box rejector in the source camera frame"),
 ))
 
+#: The commands whose settings are C++ structs (``--config``, ``--set``, ``dump-config``).
+COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER, "pose": POSE, "pick": PICK}
 
-def _viewer(args: argparse.Namespace):
-    """The rerun live view of ``--view`` / ``--view-save FILE.rrd``, or None."""
-    if not (getattr(args, "view", False) or getattr(args, "view_save", None)):
-        return None
-    return Viewer(spawn=bool(getattr(args, "view", False)), save=getattr(args, "view_save", None))
+
+def _viewer(args: argparse.Namespace) -> Any:
+    """The rerun live view of ``--view`` / ``--view-save FILE.rrd`` as a context manager
+    (yielding None without either)."""
+    if not (args.view or args.view_save):
+        return contextlib.nullcontext()
+    return Viewer(spawn=args.view, save=args.view_save)
 
 
 def _add_view_options(g) -> None:
@@ -258,31 +257,27 @@ def _add_view_options(g) -> None:
     g.add_argument("--view-save", metavar="FILE.rrd", help="save the rerun recording of the run to this file")
 
 
-def _run_reconstruction(source: str, args: argparse.Namespace) -> dict:
+def reconstruct_command(args: argparse.Namespace) -> int:
+    """``scanalign demo`` / ``reconstruct``: reconstruct SOURCE, write the outputs, print a summary."""
     t0 = time.perf_counter()
-    frames, scan, what = _load_source(source, args)
+    frames, scan, what = _load_source("builtin" if args.command == "demo" else args.source, args)
     load_seconds = time.perf_counter() - t0
     if not args.quiet:
         n = len(frames) if hasattr(frames, "__len__") else "?"
         print(f"scanalign: reconstructing {what}: {n} frames"
               + (f" (rendered in {load_seconds:.2f} s)" if scan is not None else ""))
-    view = _viewer(args)
-    try:
+    with _viewer(args) as view:
         result = reconstruct(frames, args.settings, progress=not (args.no_progress or args.quiet),
                              on_frame=None if view is None else view.on_frame)
         if view is not None:
             view.log_reconstruction(result)
-    finally:
-        if view is not None:
-            view.close()
     if scan is not None:
         result.metrics["model_to_mesh_m"] = model_mesh_distance(result, scan.mesh.vertices, scan.mesh.faces)
         result.metrics["render_seconds"] = load_seconds
     paths = save_report(result, args.out, plots_too=not args.no_plots)
-    summary = result.summary()
     if not args.quiet:
-        _print_summary(summary, paths)
-    return summary
+        _print_summary(result.summary(), paths)
+    return 0
 
 
 def _print_summary(summary: dict, paths: dict) -> None:
@@ -308,16 +303,10 @@ def _print_summary(summary: dict, paths: dict) -> None:
 
 def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> None:
     g = p.add_argument_group("output")
-    g.add_argument("--out", default=out_default, help=f"output folder (default: {out_default})")
-    g.add_argument("--no-plots", action="store_true", help="do not write trajectory.png / frames.png")
+    _add_output_options(g, out_default, "trajectory.png / frames.png", quiet="print nothing but errors")
     g.add_argument("--no-progress", action="store_true", help="no progress bar")
-    g.add_argument("--quiet", action="store_true", help="print nothing but errors")
     _add_view_options(g)
-    g = p.add_argument_group("synthetic scans (builtin or a config file)")
-    g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
-    g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
-    g.add_argument("--seed", type=int, help="random seed of the sensor noise (builtin: 0)")
-    _add_robot_options(g)
+    _add_synthetic_options(p.add_argument_group("synthetic scans (builtin or a config file)"))
     g = p.add_argument_group("real sequences (TUM RGB-D folder)")
     g.add_argument("--intrinsics", help="intrinsics preset (tum_fr1, tum_fr2, tum_fr3, tum_default, sr300, d435) or "
                                         "a JSON/YAML file with width height fx fy cx cy (pixels); default: the "
@@ -331,8 +320,7 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
 
 def synth(args: argparse.Namespace) -> int:
     """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder."""
-    overrides = {"n_frames": args.frames, "noise": args.noise, "seed": args.seed, **_robot_overrides(args)}
-    scan = datasets.open_source(args.config, synthetic_overrides=overrides)
+    scan = datasets.open_source(args.config, synthetic_overrides=_synthetic_overrides(args))
     if not isinstance(scan, synthetic.SyntheticScan):
         raise ValueError(f"{args.config}: expected a synthetic config file (.json/.yaml) or 'builtin'")
     folder = tum.write_tum_sequence(args.out, scan.frames, intrinsics=scan.intrinsics,
@@ -393,27 +381,26 @@ def ik_command(args: argparse.Namespace) -> int:
     return 0 if len(sol) else 1
 
 
+def _existing(path: str, what: str) -> Path:
+    if not Path(path).exists():
+        raise FileNotFoundError(f"{path}: no such {what} file")
+    return Path(path)
+
+
 def pose_command(args: argparse.Namespace) -> int:
     """``scanalign pose``: find a CAD part in a scan; exit status 1 when no object is found."""
     if not (np.isfinite(args.model_scale) and args.model_scale > 0):
         raise ValueError(f"--model-scale must be a finite factor > 0, got {args.model_scale}")
-    model_path = Path(args.model)
-    if not model_path.exists():
-        raise FileNotFoundError(f"{model_path}: no such model file")
-    mesh = io.read_mesh(model_path)
+    mesh = io.read_mesh(_existing(args.model, "model"))
     if args.model_scale != 1.0:
         mesh = io.Mesh(np.asarray(mesh.vertices) * args.model_scale, mesh.faces)
-    scene_path = Path(args.scene)
-    if not scene_path.exists():
-        raise FileNotFoundError(f"{scene_path}: no such scene file")
-    scene, _ = io.read_cloud(scene_path)
+    scene, _ = io.read_cloud(_existing(args.scene, "scene"))
     scene = scene[np.all(np.isfinite(scene), axis=1)]
-    settings = args.settings
     if args.no_segment:
-        results = [_pose.estimate_pose(mesh, scene, settings.pose, views=args.views, progress=not args.quiet)]
+        results = [_pose.estimate_pose(mesh, scene, args.settings.pose, views=args.views, progress=not args.quiet)]
         objects = [np.arange(len(scene))]
     else:
-        found = _pose.find_objects(mesh, scene, settings, views=args.views, progress=not args.quiet)
+        found = _pose.find_objects(mesh, scene, args.settings, views=args.views, progress=not args.quiet)
         results, objects = found.poses, found.objects
         if not results:
             print("scanalign pose: no object cluster above the table", file=sys.stderr)
@@ -421,38 +408,23 @@ def pose_command(args: argparse.Namespace) -> int:
     out.mkdir(parents=True, exist_ok=True)
     report = []
     for k, (r, idx) in enumerate(zip(results, objects)):
-        entry = r.as_dict()
-        entry["object"] = k
-        entry["object_points"] = int(len(idx))
-        if r.found:
-            paths = write_pose_outputs(mesh, scene, r, out / f"object{k}", object_indices=idx)
-            entry.update({key: str(v) for key, v in paths.items()})
-        report.append(entry)
-        state = "found" if r.found else "not found"
-        print(f"object {k} ({len(idx)} points): {state} with {r.method}, view {r.view}, fitness {r.fitness:.3f}, "
-              f"coverage {r.coverage:.3f}, inlier RMSE {1000 * r.inlier_rmse:.3f} mm, {r.seconds:.2f} s"
-              + ("" if r.found else f" ({r.message})"))
+        report.append({**r.as_dict(), "object": k, "object_points": int(len(idx))})
+        print(f"object {k} ({len(idx)} points): {'found' if r.found else 'not found'} with {r.method}, view "
+              f"{r.view}, fitness {r.fitness:.3f}, coverage {r.coverage:.3f}, inlier RMSE "
+              f"{1000 * r.inlier_rmse:.3f} mm, {r.seconds:.2f} s" + ("" if r.found else f" ({r.message})"))
         if r.found:
             print("  T_scene_model =\n" + np.array2string(np.asarray(r.T_scene_model), precision=6,
                                                            suppress_small=True, prefix="  "))
+            paths = write_pose_outputs(mesh, scene, r, out / f"object{k}", object_indices=idx)
+            report[-1].update({key: str(v) for key, v in paths.items()})
     (out / "poses.json").write_text(json.dumps(report, indent=2))
     print(f"wrote {out / 'poses.json'}")
     return 0 if any(r.found for r in results) else 1
 
 
-def _matrix_file(path: Optional[str], what: str) -> Optional[np.ndarray]:
-    if path is None:
-        return None
-    try:
-        return se3.require_rigid(np.loadtxt(path, ndmin=2), what)
-    except (OSError, ValueError) as e:
-        raise ValueError(f"{what} {path}: expected a text file holding a rigid 4x4 matrix ({e})") from None
-
-
 def pick_command(args: argparse.Namespace) -> int:
     """``scanalign pick``: scan -> part poses -> grasps -> joint targets; exit status 1 when
     nothing can be picked."""
-    s = getattr(args, "settings", None)  # the demo (scanalign demo --pick) uses the defaults
     truth = None
     if args.demo:
         cell = pick_cell(args.robot or "ur5", noise=args.noise, seed=args.seed)
@@ -463,14 +435,12 @@ def pick_command(args: argparse.Namespace) -> int:
         if args.scene is None or not args.parts or args.robot is None:
             raise ValueError("give --scene, --parts and --robot (or --demo)")
         scene, parts, robot = args.scene, args.parts, args.robot
-        T_base_robot, T_fc = _matrix_file(args.robot_base, "--robot-base"), _matrix_file(args.hand_eye, "--hand-eye")
-    view = _viewer(args)
-    try:
+        T_base_robot = _pick.read_transform(args.robot_base, "--robot-base")
+        T_fc = _pick.read_transform(args.hand_eye, "--hand-eye")
+    with _viewer(args) as view:  # the demo (scanalign demo --pick) has no settings: the defaults
         result = _pick.pick(scene, parts, robot, T_base_robot=T_base_robot, T_flange_camera=T_fc, joints=args.joints,
-                            q_current=args.q_current, settings=s, progress=not args.quiet, viewer=view)
-    finally:
-        if view is not None:
-            view.close()
+                            q_current=args.q_current, settings=getattr(args, "settings", None),
+                            progress=not args.quiet, viewer=view)
     _pick.print_picks(result)
     if truth is not None:
         for name, e in score_picks(result, truth).items():
@@ -481,27 +451,34 @@ def pick_command(args: argparse.Namespace) -> int:
     return 0 if any(p.status == "picked" for p in result.picks) else 1
 
 
-def _add_pick_options(p: argparse.ArgumentParser, demo: bool) -> None:
-    if not demo:
-        p.add_argument("--demo", action="store_true", help="the built-in cell (a UR5 or the KR6, three parts)")
-        p.add_argument("--scene", help="TUM RGB-D folder (with --joints), or a PLY / PCD cloud in the base frame")
-        p.add_argument("--parts", nargs="+", help="part files (JSON / YAML: mesh, grasps, symmetry) or built-in "
-                                                  "part names (block, bracket, standoff)")
-        p.add_argument("--joints", help="joint log of the scan (index,timestamp,q1..q6; as 'scanalign synth' writes)")
-        p.add_argument("--hand-eye", help="text file: T_flange_camera, 4x4 (camera -> flange, m)")
-        p.add_argument("--robot-base", help="text file: T_base_robot, 4x4 (robot base -> cell base, m)")
+def demo_command(args: argparse.Namespace) -> int:
+    """``scanalign demo``: the built-in reconstruction, or with ``--pick`` the pick demo."""
+    if not args.pick:
+        return reconstruct_command(args)
+    ns = argparse.Namespace(demo=True, robot=args.robot, noise=args.noise or "sr300", seed=args.seed or 0,
+                            q_current=None, out=args.out if args.out != "scanalign-demo" else "scanalign-pick",
+                            no_plots=args.no_plots, quiet=args.quiet, joints=None,
+                            view=args.view, view_save=args.view_save)
+    return pick_command(ns)
+
+
+def _add_pick_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--demo", action="store_true", help="the built-in cell (a UR5 or the KR6, three parts)")
+    p.add_argument("--scene", help="TUM RGB-D folder (with --joints), or a PLY / PCD cloud in the base frame")
+    p.add_argument("--parts", nargs="+", help="part files (JSON / YAML: mesh, grasps, symmetry) or built-in "
+                                              "part names (block, bracket, standoff)")
+    p.add_argument("--joints", help="joint log of the scan (index,timestamp,q1..q6; as 'scanalign synth' writes)")
+    p.add_argument("--hand-eye", help="text file: T_flange_camera, 4x4 (camera -> flange, m)")
+    p.add_argument("--robot-base", help="text file: T_base_robot, 4x4 (robot base -> cell base, m)")
     p.add_argument("--robot", help="the arm: ur5, kr6_r900_sixx, ... (demo: ur5)")
     p.add_argument("--noise", default="sr300", choices=["sr300", "zivid", "d435", "none"],
                    help="demo: sensor noise preset (sr300)")
     p.add_argument("--seed", type=int, default=0, help="demo: noise seed (0)")
     p.add_argument("--q-current", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
                    help="the robot's joints now, rad (default: the scan's last)")
-    p.add_argument("--out", default="scanalign-pick", help="output folder (scanalign-pick)")
-    p.add_argument("--no-plots", action="store_true", help="do not write pick.png")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    _add_output_options(p, "scanalign-pick", "pick.png", quiet="no progress bars")
     _add_view_options(p)
-    if not demo:
-        add_settings_options(p, PICK)
+    add_settings_options(p, PICK)
 
 
 def batch_command(args: argparse.Namespace) -> int:
@@ -534,7 +511,7 @@ def _version_line() -> str:
     return f"scanalign {_core.__version__} ({pcl})"
 
 
-def _record_config(sub, args: argparse.Namespace, rc: int) -> int:
+def _record_config(args: argparse.Namespace, rc: int) -> int:
     """Writes the settings a run used beside its outputs (``config.yaml`` in ``--out``;
     ``register``: ``NAME.config.yaml`` beside ``--out NAME.ply``, none without ``--out``);
     returns ``rc``."""
@@ -544,13 +521,25 @@ def _record_config(sub, args: argparse.Namespace, rc: int) -> int:
     path = out.with_suffix(".config.yaml") if args.command == "register" else out / "config.yaml"
     inputs = [a for a in (getattr(args, "source", None), getattr(args, "target", None)) if a]
     write_effective(args.command, args.settings, args, inputs, path)
-    if args.command != "register" and not getattr(args, "quiet", False):  # register's stdout is JSON
+    if args.command != "register" and not args.quiet:  # register's stdout is JSON
         print(f"  wrote {path} (the settings of this run: --config {path} repeats it)")
     return rc
 
 
-#: The commands whose settings are C++ structs (``--config``, ``--set``, ``dump-config``).
-COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER, "pose": POSE, "pick": PICK}
+def _dump_config(args: argparse.Namespace) -> int:
+    print(dump(args.config_command, COMMANDS[args.config_command].root()), end="")
+    return 0
+
+
+def _register_demo(args: argparse.Namespace) -> int:
+    register_demo(Path(args.out), seed=args.seed, noise=args.noise)
+    return 0
+
+
+#: What each command runs: ``(args) -> exit status``.
+HANDLERS = {"demo": demo_command, "pick": pick_command, "reconstruct": reconstruct_command, "synth": synth,
+            "register": register, "register-demo": _register_demo, "ik": ik_command, "pose": pose_command,
+            "batch": batch_command, "dump-config": _dump_config}
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -560,41 +549,32 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help="print the version and whether the PCL baselines are built, then exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     p = sub.add_parser("demo", help="reconstruct a built-in synthetic eye-in-hand scan (no download needed)",
-                       description="Renders a built-in synthetic scan (a camera on the hand of a UR5 circling a "
-                                   "part on a table, SR300-like noise; the reference poses are the robot's forward "
-                                   "kinematics), reconstructs it frame-to-model and writes model.ply, "
-                                   "trajectory.txt, reference.txt, frames.csv, joints.csv, report.json, "
-                                   "trajectory.png and frames.png.")
+                       description="Renders a built-in synthetic scan (a camera on a UR5's hand circling a part, "
+                                   "SR300-like noise, reference poses from forward kinematics), reconstructs it and "
+                                   "writes model.ply, trajectory.txt, reference.txt, frames.csv, joints.csv, "
+                                   "report.json, trajectory.png and frames.png.")
     _add_reconstruct_options(p, "scanalign-demo")
-    # The demo keeps the workspace around the part (20 x 20 cm in the camera's view) and uses
-    # 10 mm normals: with SR300-like noise, 5 mm normals measured 12 mm ATE against 4 mm.
-    # Its simulated SR300 noise also calls for the bilateral depth filter (ATE 12.6 -> 4.1 mm).
     p.add_argument("--pick", action="store_true", help="instead: the pick demo (as 'scanalign pick --demo')")
     p = sub.add_parser("pick", help="scan, find the known parts, plan grasps and joint targets to pick them",
-                       description="Reconstructs the scan in the robot's base frame (every frame placed by the "
-                                   "robot's forward kinematics and the hand-eye transform, refined by ICP), finds "
-                                   "each known part (table plane, clusters, CBD + ICP), and plans each part's grasp: "
-                                   "every grasp, symmetric copy and IK branch, rejected with a reason (unreachable, "
-                                   "joint limits, singularity, gripper below the table, branch change on the "
-                                   "approach) or ranked by joint motion. Writes picks.json, joints.csv, scene.ply "
-                                   "and pick.png. Exit status 1 when nothing can be picked.")
-    _add_pick_options(p, demo=False)
+                       description="Reconstructs the scan in the robot's base frame (frames placed by forward "
+                                   "kinematics and the hand-eye transform, refined by ICP), finds each known part "
+                                   "and plans its grasp: every grasp, symmetric copy and IK branch, rejected with a "
+                                   "reason or ranked by joint motion. Writes picks.json, joints.csv, scene.ply and "
+                                   "pick.png. Exit status 1 when nothing can be picked.")
+    _add_pick_options(p)
     p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder, a ROS bag, a PNG folder or a synthetic scan",
-                       description="Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper) of SOURCE: a folder in the "
-                                   "TUM RGB-D layout (depth/, rgb/, depth.txt, rgb.txt, optional groundtruth.txt), "
-                                   "a ROS 1 .bag or ROS 2 bag (depth, colour, camera_info, /joint_states, /tf; "
-                                   "RealSense recordings too), a folder of PNG depth and colour images with a camera "
-                                   "YAML, a synthetic-scan config (.json/.yaml), or 'builtin'. Writes the same outputs as "
-                                   "'scanalign demo'.")
+                       description="Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper) of SOURCE: "
+                                   "a TUM RGB-D folder (depth/, rgb/, depth.txt, rgb.txt, optional "
+                                   "groundtruth.txt), a ROS 1 .bag or ROS 2 bag (depth, colour, camera_info, "
+                                   "/joint_states, /tf; RealSense recordings too), a folder of PNG depth and colour "
+                                   "images with a camera YAML, a synthetic-scan config (.json/.yaml), or 'builtin'. "
+                                   "Writes the outputs of 'scanalign demo'.")
     p.add_argument("source", help="TUM RGB-D folder, ROS bag, PNG folder, synthetic config file, or 'builtin'")
     _add_reconstruct_options(p, "scanalign-out")
     p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder")
     p.add_argument("config", help="synthetic config file (.json/.yaml) or 'builtin'")
     p.add_argument("out", help="output folder")
-    p.add_argument("--frames", type=int, help="builtin: number of frames (36)")
-    p.add_argument("--noise", help="builtin: noise preset (sr300)")
-    p.add_argument("--seed", type=int, help="builtin: random seed (0)")
-    _add_robot_options(p)
+    _add_synthetic_options(p)
     p = sub.add_parser("register", help="ICP between two clouds (PCD or PLY, metres)")
     p.add_argument("source", help="source cloud (its camera frame)")
     p.add_argument("target", help="target cloud (the model frame); normals are estimated if absent")
@@ -612,8 +592,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--robot", default="ur5", help="ur5 (default), ur3, ur10, ur3e, ur5e, ur10e, ur5_thesis, "
                                                   "kr6_r900_sixx")
     p.add_argument("--pose", type=float, nargs=6, metavar=("X", "Y", "Z", "RX", "RY", "RZ"),
-                   help="tool pose in the robot base frame: position in metres and rotation vector (axis times "
-                        "angle) in radians, as a UR controller shows it")
+                   help="tool pose in the robot base frame: position (m) and rotation vector (axis times angle, "
+                        "rad), as a UR controller shows it")
     p.add_argument("--joints", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
                    help="use the pose of these joint values (radians, forward kinematics)")
     p.add_argument("--closest", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
@@ -631,12 +611,11 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--model-scale", type=float, default=1.0, help="multiply the model's coordinates (0.001: mm)")
     p.add_argument("--views", type=int, nargs="+", help="only these of the 42 views (default all)")
     p.add_argument("--no-segment", action="store_true", help="the scene is one object: skip table and clusters")
-    p.add_argument("--out", default="scanalign-pose", help="output folder (scanalign-pose)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_output_options(p, "scanalign-pose", None)
     add_settings_options(p, POSE)
     p = sub.add_parser("batch", help="run a manifest of reconstruction, pose and pick jobs (process pool or Ray)",
                        description="Runs every job of MANIFEST (YAML or CSV, see docs/batch.md) on a local process "
-                                   "pool or a Ray cluster, with the part library built once and shared, and writes "
+                                   "pool or a Ray cluster, the part library built once and shared; writes "
                                    "results.csv, results.parquet, summary.json and results.png into --out. A re-run "
                                    "with the same --out skips the jobs already done. Exit status 1 when a job failed.")
     p.add_argument("manifest", help="manifest file (.yaml/.yml or .csv)")
@@ -646,51 +625,21 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--workers", type=int, help="parallel jobs (default: cores / --threads-per-job)")
     p.add_argument("--threads-per-job", type=int, default=1, help="OpenMP threads (and Ray CPUs) per job (1)")
     p.add_argument("--retries", type=int, default=1, help="times a failed or crashed job is tried again (1)")
-    p.add_argument("--out", default="scanalign-batch", help="output folder (scanalign-batch)")
-    p.add_argument("--no-plots", action="store_true", help="skip results.png")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_output_options(p, "scanalign-batch", "results.png")
     p = sub.add_parser("dump-config", help="print every setting of a command with its default and unit (YAML)",
                        description="Prints every field of the C++ settings structs COMMAND uses as nested YAML, "
-                                   "with its default and a comment giving its unit and meaning. Edit it and pass it "
-                                   "back with 'scanalign COMMAND ... --config FILE'; flags and --set PATH=VALUE given "
-                                   "on the command line override the file. Every run of these commands writes the "
-                                   "settings it used beside its outputs (config.yaml in --out; register: "
-                                   "NAME.config.yaml beside --out).")
+                                   "with its default, unit and meaning. Pass an edited copy back with 'scanalign "
+                                   "COMMAND ... --config FILE'; flags and --set PATH=VALUE override the file. Every "
+                                   "run of these commands writes the settings it used beside its outputs "
+                                   "(config.yaml in --out; register: NAME.config.yaml beside --out).")
     p.add_argument("config_command", metavar="COMMAND", choices=tuple(COMMANDS),
                    help="one of " + ", ".join(COMMANDS))
     args = parser.parse_args(argv)
     try:
-        if args.command == "dump-config":
-            name = args.config_command
-            command = COMMANDS[name]
-            print(dump(name, command.root()), end="")
-            return 0
         if args.command in COMMANDS or args.command == "demo":
             args.settings = resolve(COMMANDS.get(args.command, RECONSTRUCT), args,
                                     DEMO_SETTINGS if args.command == "demo" else None)
-        if args.command == "batch":
-            return batch_command(args)
-        if args.command == "ik":
-            return ik_command(args)
-        if args.command == "pose":
-            return _record_config(sub, args, pose_command(args))
-        if args.command == "pick":
-            return _record_config(sub, args, pick_command(args))
-        if args.command == "demo" and args.pick:
-            ns = argparse.Namespace(demo=True, robot=args.robot, noise=args.noise or "sr300", seed=args.seed or 0,
-                                    q_current=None, out=args.out if args.out != "scanalign-demo" else "scanalign-pick",
-                                    no_plots=args.no_plots, quiet=args.quiet, joints=None,
-                                    view=args.view, view_save=args.view_save)
-            return pick_command(ns)
-        if args.command in ("demo", "reconstruct"):
-            _run_reconstruction("builtin" if args.command == "demo" else args.source, args)
-            return _record_config(sub, args, 0) if args.command == "reconstruct" else 0
-        if args.command == "synth":
-            return synth(args)
-        if args.command == "register-demo":
-            register_demo(Path(args.out), seed=args.seed, noise=args.noise)
-            return 0
-        return _record_config(sub, args, register(args))
+        return _record_config(args, HANDLERS[args.command](args))
     except (ValueError, TypeError, OSError, RuntimeError, ImportError) as e:  # OSError: unreadable input, unwritable output
         print(f"scanalign {args.command}: error: {e}", file=sys.stderr)
         return 2

@@ -1,18 +1,9 @@
-"""The settings of the ``scanalign`` commands: one schema from the C++ structs to the command line.
-
-A command's settings are a *root* (:mod:`scanalign.common.settings`): the C++ settings struct
-of its task (``reconstruct``: ``ReconstructionSettings``; ``pick``: ``PickSettings``; ...), or a
-few structs side by side. The values come, each overriding the one before, from:
-
-1. the structs' C++ defaults (and a command's preset, e.g. ``demo``'s workspace crop);
-2. ``--config FILE``: a nested YAML / JSON file of fields (``dump-config COMMAND`` writes one);
-3. the command's own flags for common settings (``--max-distance``: an alias of
-   ``frame_to_model.icp.max_correspondence_distance``), whose help, unit and default come from
-   the field;
-4. ``--set PATH=VALUE`` (repeatable), for any field.
-
-Flags are otherwise for inputs and outputs. The settings a run used are written beside its
-outputs (``config.yaml``); ``--config`` on that file repeats the run.
+"""The settings of the ``scanalign`` commands: a *root* of C++ structs
+(:mod:`scanalign.common.settings`) set, each overriding the one before, from the structs'
+C++ defaults (and a command's preset), ``--config FILE`` (nested YAML / JSON, as
+``dump-config COMMAND`` writes it), the command's alias flags (``--max-distance``: help, unit
+and default from the field) and ``--set PATH=VALUE``. The settings a run used are written
+beside its outputs (``config.yaml``); ``--config`` on that file repeats the run.
 """
 
 from __future__ import annotations
@@ -30,10 +21,9 @@ __all__ = ["Alias", "Command", "add_settings_options", "resolve", "dump", "write
 
 @dataclass(frozen=True)
 class Alias:
-    """A flag that sets one field: ``--max-distance 0.03`` = ``--set
-    frame_to_model.icp.max_correspondence_distance=0.03``. ``value`` turns what argparse
-    parsed into the field's value (e.g. a preset name into a Box); ``flag`` is the value a
-    flag without argument stores (``--no-require-convergence``: False)."""
+    """A flag that sets the field at ``path``. ``value`` turns what argparse parsed into the
+    field's value (e.g. a preset name into a Box); ``flag`` is the value a flag without
+    argument stores (``--no-require-convergence``: False)."""
 
     option: str
     path: str

@@ -1,18 +1,12 @@
-"""From scan to grasp to joint targets: the cell pipeline that joins reconstruction, part
-pose and inverse kinematics (the two source works' system: the eye-in-hand paper, Comput.
-Electron. Agric. 180 (2021) 105929, Algorithm 1, and Kleppe, PhD thesis, NTNU 2018, ch. 6-7
-and Paper 1).
+"""From scan to grasp to joint targets: reconstruction, part pose and inverse kinematics
+joined (the eye-in-hand paper, Comput. Electron. Agric. 180 (2021) 105929, Algorithm 1, and
+Kleppe, PhD thesis, NTNU 2018, ch. 6-7 and Paper 1). :func:`pick` runs the stages in order:
 
-Stages (each a function, :func:`pick` runs them in order):
-
-1. :func:`scan_model`: the scene in the robot's base frame: RGB-D frames with the joints the
-   robot reported are reconstructed frame-to-model, each frame starting from the robot's
-   pose ``T_base_camera = FK(q) T_flange_camera``; or an existing cloud / reconstruction.
-2. :func:`scanalign.pose.find_parts`: table plane and object clusters (CGA RANSAC), the pose
-   ``T_base_model`` of each known part per cluster (CBD + ICP), with fitness, coverage and an
-   "ambiguous" status.
-3. :func:`plan_picks`: per found part, every grasp (and its symmetric copies) and IK branch,
-   rejected with a reason or ranked by joint motion (:func:`scanalign.grasp.plan_grasp`).
+1. :func:`scan_model`: the scene in the robot's base frame (frames placed at
+   ``T_base_camera = FK(q) T_flange_camera``, reconstructed), or an existing cloud;
+2. :func:`scanalign.pose.find_parts`: table, clusters and each known part's ``T_base_model``;
+3. :func:`plan_picks`: per found part, every grasp, symmetric copy and IK branch, rejected with
+   a reason or ranked by joint motion (:func:`scanalign.grasp.plan_grasp`).
 
 Frames (``T_a_b`` maps b-coordinates into a; metres, radians)::
 
@@ -20,9 +14,6 @@ Frames (``T_a_b`` maps b-coordinates into a; metres, radians)::
     base --T_base_model--> model --T_model_grasp--> tcp                 (part, grasp)
     flange --T_flange_tcp--> tcp                                        (gripper)
     so the flange target is T_base_flange = T_base_model T_model_grasp inv(T_flange_tcp).
-
-Everything numeric runs in C++; this module orders the stages, converts inputs and writes
-the outputs (``picks.json``, ``joints.csv``, ``scene.ply``, ``pick.png``).
 """
 
 from __future__ import annotations
@@ -33,6 +24,7 @@ import json
 import math
 import sys
 import time
+from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Union
@@ -52,15 +44,10 @@ from scanalign.pipelines import reconstruct as pipeline
 from scanalign.pose import model_views as cad
 
 __all__ = ["PickSettings", "PartPick", "PickResult", "pick", "scan_model", "plan_picks", "read_joint_log",
-           "placed_parts", "print_picks"]
+           "read_transform", "part_models", "upper_views", "placed_parts", "print_picks"]
 
-
-
-#: Settings of :func:`pick` (the C++ struct, every field with its unit and meaning:
-#: ``help(PickSettings)``, ``scanalign dump-config pick``): ``reconstruction``
-#: (``ReconstructionSettings``: the scan in the base frame, every frame from the robot's pose,
-#: 3 mm ICP distance), ``find_parts`` (``FindPartsSettings``: table, clusters, part poses),
-#: ``views`` (``"upper"`` or ``"all"``) and ``planner`` (``GraspPlannerSettings``).
+#: Settings of :func:`pick` (``scanalign dump-config pick`` lists every field): ``reconstruction``,
+#: ``find_parts``, ``views`` (``"upper"`` or ``"all"``) and ``planner``.
 PickSettings = _core.grasp.PickSettings
 
 
@@ -75,8 +62,7 @@ class PartPick:
             parts scored alike: not picked), ``"not_found"`` (the part is not in the scene).
         message: why, in words.
         T_base_model: (4, 4) the part's pose (model -> base), or None.
-        fitness, coverage: the pose's scores (fraction of model points on the object and of
-            object points explained).
+        fitness, coverage: the pose's scores.
         plan: the :class:`scanalign.grasp.GraspPlanResult` (every candidate with its reason).
     """
 
@@ -123,14 +109,13 @@ class PickResult:
 
     Attributes:
         picks: one :class:`PartPick` per detected part, then one per known part not found.
-        points: (N, 3) the scene in the base frame (the reconstruction's model), metres.
+        points: (N, 3) the scene in the base frame, metres.
         detections: the :func:`scanalign.pose.find_parts` result (table plane, clusters).
         robot: the picking robot (placed in the base frame, its tool the gripper's TCP).
         q_current: (6,) the joints the motion cost was measured from, rad.
-        parts: the parts as loaded (:func:`load_part`), in the order given.
+        parts: the parts as loaded, in the order given.
         seconds: wall time per stage (``scan``, ``detect``, ``plan``, ``total``).
-        reconstruction: the :class:`scanalign.pipelines.reconstruct.ReconstructionResult` when frames were
-            reconstructed, else None.
+        reconstruction: the :class:`ReconstructionResult` when frames were reconstructed.
     """
 
     picks: List[PartPick]
@@ -150,11 +135,9 @@ class PickResult:
                                        for k, d in enumerate(self.detections.detections) if d.status.name == "not_found"]}
 
     def save(self, out_dir: Union[str, Path]) -> Dict[str, Path]:
-        """Writes ``picks.json`` (every part, its pose, the chosen grasp, joint targets and every
-        rejected candidate with its reason), ``joints.csv`` (the joint path of each chosen
-        approach, pre-grasp to grasp, rad), ``scene.ply`` (the scene, grey, with each placed
-        part's surface coloured); :func:`scanalign.viz.reports.save_report` adds ``pick.png`` (the
-        arm at each grasp over the scene). Returns the paths written."""
+        """Writes ``picks.json`` (every part, its pose, chosen grasp, joint targets and rejected
+        candidates with their reasons), ``joints.csv`` (each chosen approach's joint path, rad)
+        and ``scene.ply`` (the scene, each placed part coloured); returns their paths."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = {"picks": out / "picks.json", "joints": out / "joints.csv", "scene": out / "scene.ply"}
@@ -188,6 +171,19 @@ def read_joint_log(path: Union[str, Path]) -> Dict[float, np.ndarray]:
             raise ValueError(f"{path}, line {n}: non-finite or missing joint values")
         out[t] = q
     return out
+
+
+def read_transform(path: Optional[Union[str, Path]], what: str, rigid: bool = True) -> Optional[np.ndarray]:
+    """A 4x4 matrix from a text file, checked to be rigid unless ``rigid`` is False (None
+    for no path); ValueError naming ``what`` and the file otherwise."""
+    if path is None:
+        return None
+    try:
+        m = np.loadtxt(path, ndmin=2)
+        return se3.require_rigid(m, what) if rigid else m.reshape(4, 4)
+    except (OSError, ValueError) as e:
+        kind = "rigid 4x4" if rigid else "4x4"
+        raise ValueError(f"{what} {path}: expected a text file holding a {kind} matrix ({e})") from None
 
 
 def _robot(robot: Any, T_base_robot: Optional[np.ndarray]) -> Any:
@@ -225,10 +221,9 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
 
     ``scene`` is a :class:`scanalign.synthetic.SyntheticScan` (its robot and hand-eye
     transform are used unless given), a list of :class:`scanalign.reconstruction.camera.Frame`
-    or a recording :func:`scanalign.datasets.open_source` reads (a TUM RGB-D folder, a ROS bag,
-    an image folder; with ``joints``, a joint log, unless the frames carry their joints), a
-    :class:`scanalign.pipelines.reconstruct.ReconstructionResult` built in the base frame, a PLY / PCD
-    cloud file or an (N, 3) array already in the base frame (or an Open3D / trimesh cloud).
+    or a recording :func:`scanalign.datasets.open_source` reads (with ``joints``, a joint log,
+    unless the frames carry their joints), a :class:`ReconstructionResult` built in the base
+    frame, or a PLY / PCD file, (N, 3) array, Open3D or trimesh cloud in the base frame.
     ``on_frame``: the per-frame hook of :func:`scanalign.pipelines.reconstruct.reconstruct`."""
     s = with_overrides(PickSettings, settings, (), "pick")
     if isinstance(scene, pipeline.ReconstructionResult):
@@ -263,10 +258,9 @@ def _table_plane(detections: Any) -> np.ndarray:
 
 def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: Any = None,
                q_current: Optional[Sequence[float]] = None, planner: Any = None) -> List[PartPick]:
-    """Grasp planning for every detection of :func:`scanalign.pose.find_parts` (poses in the
-    base frame): a :class:`PartPick` per detection, then a ``not_found`` one per part that
-    no cluster matched. ``robot`` is placed in the base frame; ``q_current`` (rad) defaults
-    to the zero joints; ``planner``: a ``GraspPlannerSettings`` (or a dict of its fields)."""
+    """A :class:`PartPick` per detection of :func:`scanalign.pose.find_parts` (base frame),
+    then a ``not_found`` one per part no cluster matched. ``q_current`` (rad) defaults to
+    zeros; ``planner``: a ``GraspPlannerSettings`` or a dict of its fields."""
     planner = planner if planner is None or is_struct(planner) else with_overrides(
         _grasp.GraspPlannerSettings, None, planner, "planner")
     q0 = np.zeros(6) if q_current is None else np.asarray(q_current, dtype=np.float64)
@@ -289,6 +283,19 @@ def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: An
     return out
 
 
+def upper_views() -> List[int]:
+    """The tessellated-sphere views seen from above (``PickSettings.views == "upper"``)."""
+    directions, _ = cad.tessellated_sphere(1)
+    return [i for i, d in enumerate(directions) if d[2] > 0]
+
+
+def part_models(parts: Sequence[Any], library: Any = None) -> List[Any]:
+    """What :func:`scanalign.pose.find_parts` matches per part: its described views from
+    ``library`` (a :class:`scanalign.grasp.part_library.PartLibrary`) when it holds them, else
+    its mesh."""
+    return [library[p.name].views if library is not None and p.name in library else p.mesh for p in parts]
+
+
 def _parts(parts: Sequence[Any]) -> List[Any]:
     if isinstance(parts, (str, Path)) or not parts:
         raise ValueError("parts: give a list of at least one part (a part file, a built-in part name or a PartGrasps)")
@@ -302,31 +309,22 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     """Scan, find every known part, and plan the joint targets to pick each one.
 
     Args:
-        scene: what :func:`scan_model` takes (frames with robot joints, a TUM folder with a
-            joint log, a synthetic scan, a reconstruction or a cloud in the base frame).
-        parts: part files (JSON / YAML, see :func:`scanalign.grasp.read_part_grasps`),
-            built-in part names ("block", "bracket", "standoff") or
-            :class:`scanalign.grasp.PartGrasps`: each a CAD mesh, its grasps and symmetry.
+        scene: what :func:`scan_model` takes.
+        parts: part files (JSON / YAML: mesh, grasps, symmetry), built-in part names ("block",
+            "bracket", "standoff") or :class:`scanalign.grasp.PartGrasps`.
         robot: a :class:`scanalign.kinematics.Robot` or a name; default the synthetic scan's.
         T_base_robot: (4, 4) where the robot's own base sits in the base frame (robot base ->
             base, m); default the robot as given (or the synthetic scan's mount).
         T_flange_camera: (4, 4) the hand-eye calibration (camera -> flange, m); default the
             synthetic scan's (see :func:`scanalign.calibration.calibrate_hand_eye`).
         joints: a joint log for a TUM folder (:func:`read_joint_log`).
-        gripper: a :class:`scanalign.grasp.Gripper` (default each part file's, else
-            :meth:`Gripper.parallel_jaw`).
+        gripper: a :class:`scanalign.grasp.Gripper` (default each part file's).
         q_current: (6,) the robot's joints now, rad (default the scan's last joints, else 0).
         settings: :data:`PickSettings` (default its C++ defaults); keyword ``overrides`` name
             its fields, nested as dicts (``find_parts={"max_objects": 3}``, ``views="all"``).
-        progress: progress bars on stderr.
-        library: a :class:`scanalign.grasp.part_library.PartLibrary`: the views of the parts it
-            holds are taken from it instead of rendered (their descriptors are recomputed
-            when ``cbd_radius_fraction`` makes the CBD radius depend on the cluster).
-        viewer: a :class:`scanalign.viz.viewer.Viewer`: the scan streamed while it is reconstructed
-            (the arm drawn is the picking robot unless the viewer has one), then the result.
-
-    Returns:
-        :class:`PickResult` (``save(out_dir)`` writes the files).
+        library: a :class:`scanalign.grasp.part_library.PartLibrary` whose views replace rendering.
+        viewer: a :class:`scanalign.viz.viewer.Viewer`: the scan streamed while it is
+            reconstructed (drawn with the picking robot unless the viewer has one), then the result.
 
     Raises:
         ValueError: an empty scene or part list, a part larger than the robot's workspace,
@@ -354,11 +352,9 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     if len(points) == 0:
         raise ValueError("the scene has no points")
     t1 = time.perf_counter()
-    directions, _ = cad.tessellated_sphere(1)
-    views = [i for i, d in enumerate(directions) if d[2] > 0] if s.views == "upper" else None
-    models = [library[p.name].views if library is not None and p.name in library else p.mesh for p in part_list]
-    detections = pose.find_parts(models, points, s.find_parts, symmetries=[p.symmetry for p in part_list],
-                                 views=views, progress=progress)
+    detections = pose.find_parts(part_models(part_list, library), points, s.find_parts,
+                                 symmetries=[p.symmetry for p in part_list],
+                                 views=upper_views() if s.views == "upper" else None, progress=progress)
     t2 = time.perf_counter()
     if q_current is None:
         q_last = getattr(scene, "joints", None)
@@ -407,8 +403,6 @@ def print_picks(result: PickResult, file: Any = sys.stdout) -> None:
         elif p.message:
             print(f"{'':11}{p.message}", file=file)
         if p.plan is not None:
-            reasons: Dict[str, int] = {}
-            for c in p.plan.candidates:
-                reasons[c.reason] = reasons.get(c.reason, 0) + 1
+            reasons = Counter(c.reason for c in p.plan.candidates)
             print(f"{'':11}candidates: " + ", ".join(f"{n} {r}" for r, n in sorted(reasons.items())), file=file)
     print(" ".join(f"{k} {v:.2f} s" for k, v in result.seconds.items()), file=file)

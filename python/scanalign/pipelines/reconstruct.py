@@ -1,11 +1,7 @@
-"""The reconstruction job end to end: frames in, model + trajectory + report out.
-
-:func:`reconstruct` runs :class:`scanalign.reconstruction.Reconstructor` over a sequence of
-:class:`scanalign.reconstruction.camera.Frame` (a synthetic scan, a TUM RGB-D folder, any iterable) with a
-progress bar and evaluates the estimated trajectory against the frames' reference poses
-(``Frame.T_base_camera``, e.g. the robot's forward kinematics and hand-eye calibration) when
-they have them; :meth:`ReconstructionResult.save` writes the model, trajectories, per-frame
-table, report and plots.
+"""The reconstruction job: :func:`reconstruct` runs a
+:class:`scanalign.reconstruction.Reconstructor` over frames and evaluates the trajectory
+against their reference poses (``Frame.T_base_camera``); :meth:`ReconstructionResult.save`
+writes the model, trajectories, per-frame table and report.
 """
 
 from __future__ import annotations
@@ -39,9 +35,8 @@ from scanalign.reconstruction.camera import Frame
 __all__ = ["DEMO_SETTINGS", "ReconstructionResult", "reconstruct", "write_joints_csv"]
 
 #: ``ReconstructionSettings`` fields for the built-in synthetic scans (``scanalign demo``, batch
-#: jobs on synthetic scans): the workspace around the part (20 x 20 cm in the camera's view),
-#: 10 mm normals (with SR300-like noise, 5 mm normals measured 12 mm ATE against 4 mm) and the
-#: bilateral depth filter (ATE 12.6 -> 4.1 mm).
+#: jobs): the workspace around the part (20 x 20 cm), 10 mm normals (5 mm: 12 mm ATE against 4
+#: mm with SR300-like noise) and the bilateral depth filter (ATE 12.6 -> 4.1 mm).
 DEMO_SETTINGS = {"filter_depth": True, "frame_to_model": {"crop_box": (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0),
                                                           "normal_radius": 0.01}}
 
@@ -54,16 +49,14 @@ class ReconstructionResult:
         model: the accumulated model (model frame).
         records: one :class:`FrameResult` per input frame, skipped ones included.
         estimate: estimated ``T_model_camera`` of the merged frames.
-        reference: reference ``T_base_camera`` of the merged frames that have one, or
-            None when the frames carry no reference poses.
+        reference: reference ``T_base_camera`` of the merged frames that have one, or None.
         T_model_camera0: pose given to the first frame (identity, or the first frame's
             reference pose when the model is built in the base frame).
-        settings: the :class:`ReconstructionSettings` used (``registration``: its method).
-        metrics: ATE / RPE / timing summary (see :meth:`summary`).
+        settings: the :class:`ReconstructionSettings` used.
+        metrics: ATE / RPE summary (see :meth:`summary`).
         seconds: wall time of the whole run (frame loading included).
-        joints: (len(records), 6) robot joints (rad) of every input frame, in the order of
-            :attr:`records`, from ``Frame.meta["joints"]`` (NaN rows for frames without);
-            None when no frame has joints.
+        joints: (len(records), 6) robot joints (rad) of every input frame from
+            ``Frame.meta["joints"]`` (NaN rows for frames without); None when no frame has any.
         robot: the robot's name from ``Frame.meta["robot"]``, or None.
     """
 
@@ -82,13 +75,10 @@ class ReconstructionResult:
     def skipped(self) -> List[FrameResult]:
         return [r for r in self.records if not r.merged]
 
-    def per_frame_seconds(self) -> np.ndarray:
-        """Wall time per merged frame after the first (registration included), seconds."""
-        return np.array([r.total_seconds for r in self.records if r.status == "registered"])
-
     def summary(self) -> Dict[str, Any]:
-        """JSON-able summary: counts, timings, model size, ATE/RPE when a reference exists."""
-        t = self.per_frame_seconds()
+        """JSON-able summary: counts, seconds per registered frame, model size, ATE/RPE when
+        a reference exists."""
+        t = np.array([r.total_seconds for r in self.records if r.status == "registered"])
         out: Dict[str, Any] = {
             "frames": len(self.records),
             "merged": sum(r.merged for r in self.records),
@@ -109,8 +99,7 @@ class ReconstructionResult:
 
     def save(self, out_dir: Union[str, Path]) -> Dict[str, Path]:
         """Writes model.ply, trajectory.txt, reference.txt (when known), frames.csv,
-        joints.csv (when the frames carry robot joints) and report.json into ``out_dir``
-        (:func:`scanalign.viz.reports.save_report` adds the figures). Returns the paths written."""
+        joints.csv (with robot joints) and report.json into ``out_dir``; returns their paths."""
         (out := Path(out_dir)).mkdir(parents=True, exist_ok=True)
         paths = {"model": out / "model.ply", "trajectory": out / "trajectory.txt", "frames": out / "frames.csv"}
         self.model.write_ply(paths["model"])
@@ -120,10 +109,7 @@ class ReconstructionResult:
             self.reference.write_tum(paths["reference"], header="reference: T_base_camera (camera -> robot base frame)")
         cols = [k for k in FrameResult().to_dict() if k != "T_model_camera"]
         with atomic_open(paths["frames"], "w", newline="", encoding="utf-8") as f:
-            w = csv.writer(f)
-            w.writerow(cols)
-            for r in self.records:
-                w.writerow([getattr(r, c) for c in cols])
+            csv.writer(f).writerows([cols] + [[getattr(r, c) for c in cols] for r in self.records])
         if self.joints is not None:
             paths["joints"] = out / "joints.csv"
             write_joints_csv(paths["joints"], [r.index for r in self.records], [r.timestamp for r in self.records],
@@ -150,9 +136,8 @@ class ReconstructionResult:
 
 def write_joints_csv(path: Union[str, Path], indices: Iterable[int], timestamps: Iterable[float],
                      joints: np.ndarray) -> Path:
-    """Writes a joint trajectory as CSV: header ``index,timestamp,q1,...,q6``, then one row
-    per frame (timestamp in seconds, joints in radians, 17 significant digits so the values
-    read back exactly; empty cells for unknown joints)."""
+    """Writes a joint trajectory as CSV ``index,timestamp,q1,...,q6`` (seconds, radians; 17
+    significant digits, so the values read back exactly; empty cells for unknown joints)."""
     q = np.asarray(joints, dtype=np.float64)
     with atomic_open(path, "w", newline="", encoding="utf-8") as f:
         w = csv.writer(f)
@@ -184,22 +169,15 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
     Args:
         frames: the captures, in order (a list, a synthetic scan's frames, a TUM sequence).
         settings: :class:`scanalign.reconstruction.ReconstructionSettings` (default: its C++
-            defaults: which pixels, the depth filter, ``frame_to_model`` with motion model
-            ``constant_velocity``, ``model_frame``, ``registration``); keyword ``overrides``
-            as :func:`scanalign.reconstruction.make_reconstruction_settings` takes them
-            (``pixel_stride=2``, ``crop_box=(...)``, ``icp=dict(...)``, ``model_frame="base"``,
-            ``initial_guess="reference"``, ``depth_filter="default"``). With motion model
-            ``reference`` each frame starts from the robot's reference motion since the last
-            merged frame applied to its estimate (odometry-aided tracking; needs reference
-            poses on every frame).
+            defaults); keyword ``overrides`` as
+            :func:`scanalign.reconstruction.make_reconstruction_settings` takes them. With
+            motion model ``reference`` each frame starts from the robot's reference motion
+            since the last merged frame (needs reference poses on every frame).
         progress: show a progress bar (True), none (False), or a callable per record.
         evaluate: compute ATE/RPE against the reference poses when available; when that
             fails (a reference that never moves), ``metrics["evaluation_error"]`` says why.
         on_frame: called after each frame with ``(frame, record, reconstructor)`` (e.g.
-            :meth:`scanalign.viz.viewer.Viewer.on_frame`: ``reconstructor.model`` is the model so far).
-
-    Returns:
-        :class:`ReconstructionResult`.
+            :meth:`scanalign.viz.viewer.Viewer.on_frame`).
 
     Raises:
         ValueError: bad settings, ``model_frame="base"`` without a reference pose on the
@@ -261,9 +239,8 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
     if rec is None:
         raise ValueError("no frames to reconstruct")
     with_ref = [r for r in rec.records if r.merged and r.index in ref_of]
-    reference = None
-    if with_ref:
-        reference = Trajectory(np.array([r.timestamp for r in with_ref]), np.array([ref_of[r.index] for r in with_ref]))
+    reference = Trajectory(np.array([r.timestamp for r in with_ref]),
+                           np.array([ref_of[r.index] for r in with_ref])) if with_ref else None
     result = ReconstructionResult(model=rec.model, records=rec.records, estimate=rec.trajectory, reference=reference,
                                   T_model_camera0=rec.T_model_camera0, settings=job,
                                   seconds=time.perf_counter() - t_start)
@@ -279,8 +256,7 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
 
 
 def trajectory_metrics(estimate: Trajectory, reference: Trajectory) -> Dict[str, Any]:
-    """ATE (after rigid alignment) and RPE (1-frame) of matching trajectories, metres /
-    degrees, as a JSON-able dict."""
+    """ATE (after rigid alignment) and RPE (1-frame) of matching trajectories (m, degrees)."""
     ate = absolute_trajectory_error(estimate, reference)
     rpe = relative_pose_error(estimate, reference, delta=1)
 
@@ -292,12 +268,9 @@ def trajectory_metrics(estimate: Trajectory, reference: Trajectory) -> Dict[str,
 
 
 def model_mesh_distance(result: ReconstructionResult, vertices_base: np.ndarray, faces: np.ndarray) -> Dict[str, float]:
-    """Distance of the reconstructed model to the true surface (synthetic scans).
-
-    The model is mapped into the base frame of the mesh with ``T_base_model``: identity
-    when the model was built in the base frame, else the first merged frame's reference
-    pose composed with its model pose. Returns mean, median, p95, max and rmse (metres).
-    """
+    """Distance of the reconstructed model to the true surface (synthetic scans): mean,
+    median, p95, max and rmse (m). The model is mapped into the mesh's base frame by the first
+    merged frame's reference pose and model pose (identity when built in the base frame)."""
     T_base_model = np.eye(4)
     merged = [r for r in result.records if r.merged]
     if result.reference is not None and merged:

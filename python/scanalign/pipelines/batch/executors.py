@@ -1,19 +1,11 @@
 """Where batch jobs run: a local process pool, or a Ray cluster.
 
-Both executors take jobs and yield ``(job, record)`` as jobs finish, in any order. Each job
-runs with ``threads_per_job`` OpenMP threads (set through ``threadpoolctl`` in the worker,
-the same count the scheduler reserves), so workers never oversubscribe cores. The part
-library reaches each worker once: the local pool loads its ``.npz`` in every worker process
-at start-up; Ray puts the loaded library in the object store once and every task gets a
-reference to it.
-
-A worker that dies (a crash in native code, the OOM killer) must not take the batch with it:
-
-* local: the pool breaks and every job in flight gets ``BrokenProcessPool``. Those jobs are
-  run again one at a time in a fresh single-process pool, so the job that really crashes is
-  the one that breaks that pool: it gets the record ``status="crashed"``, the others run.
-* Ray: the task's ``ray.get`` raises (``WorkerCrashedError``, ``RayTaskError``); its record
-  says ``crashed`` with Ray's message, and the cluster replaces the worker.
+Both yield ``(job, record)`` as jobs finish, in any order; each job runs with
+``threads_per_job`` OpenMP threads (the count the scheduler reserves). The part library
+reaches each worker once (local: loaded from its ``.npz`` at worker start-up; Ray: put in the
+object store once). A worker that dies (a native crash, the OOM killer) does not end the
+batch: the local pool's jobs in flight are run again one at a time, so only the job that
+breaks a pool of its own is recorded ``crashed``; a Ray task whose ``ray.get`` raises is.
 """
 
 from __future__ import annotations
@@ -41,9 +33,7 @@ _worker_library: Any = None  # the part library of this worker process (local po
 
 def crashed_record(job: Job, message: str) -> Dict[str, Any]:
     """The record of a job whose worker died."""
-    record = empty_record(job)
-    record.update(status="crashed", error=message)
-    return record
+    return {**empty_record(job), "status": "crashed", "error": message}
 
 
 def _limit_threads(threads: int) -> None:
@@ -109,10 +99,9 @@ def _run_ray(job: Job, library: Any, threads: int, runner: Runner) -> Dict[str, 
 
 
 class RayExecutor:
-    """Tasks on a Ray cluster: ``ray.init()`` starts a local instance (``workers`` CPUs)
-    when ``address`` is None, else connects to the cluster at ``address`` (``"auto"``, or
-    ``"ray://host:10001"``). Each task reserves ``threads_per_job`` CPUs; ``workers`` caps
-    the tasks in flight (None: as many as the cluster's CPUs take)."""
+    """Tasks on the Ray cluster at ``address`` (None: a local instance of ``workers`` x
+    ``threads_per_job`` CPUs), each reserving ``threads_per_job`` CPUs; ``workers`` caps the
+    tasks in flight (None: as many as the cluster's CPUs take)."""
 
     def __init__(self, address: Optional[str] = None, workers: Optional[int] = None, threads_per_job: int = 1):
         try:
@@ -121,7 +110,7 @@ class RayExecutor:
             raise ImportError("the ray executor needs Ray: pip install 'scanalign[ray]' (or pip install ray)") from None
         self.ray = ray
         self.threads = threads_per_job
-        self.workers = workers  # at most this many tasks in flight (None: as many as the cluster takes)
+        self.workers = workers
         self._started = not ray.is_initialized()
         if self._started:
             kw: Dict[str, Any] = dict(include_dashboard=False, log_to_driver=False, configure_logging=False)

@@ -1,24 +1,17 @@
-"""Batch jobs: a small serialisable description in, a plain result record out.
+"""Batch jobs: a small serialisable :class:`Job` in, one flat record of numbers and strings out.
 
-A :class:`Job` says what to run (``kind``), on which input (``source``: ``"synthetic"`` for
-the built-in cell rendered from ``robot``, ``noise``, ``seed``, ``frames``, or a file or
-folder) and with which settings. :func:`run_job` is a pure function of the job and the
-part library: no globals, no files written unless ``save`` names a folder, and every error
-caught into the record (``status`` ``"failed"`` and ``error``) so one bad input never stops
-a batch. Records hold numbers and strings only, one flat dict per job, ready for a table.
+:func:`run_job` is a pure function of the job and the part library: it writes files only
+into ``save`` and catches every error into the record (``status`` ``"failed"``, ``error``),
+so one bad input never stops a batch. Kinds:
 
-Kinds:
-
-* ``reconstruct``: frame-to-model reconstruction (:func:`scanalign.pipelines.reconstruct.reconstruct`) of
-  a synthetic scan (:class:`scanalign.synthetic.SyntheticConfig`: ``frames``, ``noise``,
-  ``seed``, ``robot``) or a recording (TUM RGB-D folder, ROS bag, PNG folder); ATE/RPE against the reference poses, and the
-  model's distance to the true surface for synthetic scans.
-* ``pose``: parts in a scan (:func:`scanalign.pose.find_parts` with the library's described
-  views): a cloud file (PLY/PCD, base frame) or the built-in pick cell seen from ``frames``
-  viewpoints merged with the robot's exact poses; pose errors against the cell's truth.
-* ``pick``: scan, part poses, grasps and joint targets (:func:`scanalign.pipelines.pick.pick`) on the
-  built-in cell, or on a TUM folder with ``joints``, ``hand_eye`` and ``robot_base`` files
-  in ``settings``; grasp and pose errors against the cell's truth.
+* ``reconstruct`` (:func:`scanalign.pipelines.reconstruct.reconstruct`) of a synthetic scan or
+  a recording: ATE/RPE against the reference poses, and for synthetic scans the model's
+  distance to the true surface;
+* ``pose``: :func:`scanalign.pose.find_parts` on a cloud file (base frame) or the built-in
+  pick cell seen from ``frames`` viewpoints; pose errors against the cell's truth;
+* ``pick`` (:func:`scanalign.pipelines.pick.pick`) on the built-in cell, or on a TUM folder
+  with ``joints``, ``hand_eye`` and ``robot_base`` files in ``settings``; grasp and pose
+  errors against the cell's truth.
 """
 
 from __future__ import annotations
@@ -29,23 +22,21 @@ import os
 import platform
 import time
 import traceback
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Tuple
 
 import numpy as np
 
 from scanalign import io, pose, reconstruction
-from scanalign.common import rigid as se3
+from scanalign.common.settings import with_overrides
 from scanalign.datasets import open_source
 from scanalign.grasp import symmetric_pose_error
 from scanalign.grasp.parts import load_part
 from scanalign.pipelines import pick
-from scanalign.common.settings import with_overrides
-from scanalign.pipelines.pick import PickSettings
+from scanalign.pipelines.pick import PickSettings, part_models, read_transform, upper_views
 from scanalign.pipelines.reconstruct import DEMO_SETTINGS, model_mesh_distance, reconstruct
 from scanalign.reconstruction import make_reconstruction_settings
-from scanalign.pose.model_views import tessellated_sphere
 from scanalign.synthetic import SyntheticConfig
 from scanalign.synthetic.cell import pick_cell, score_picks
 
@@ -84,12 +75,11 @@ def empty_record(job: "Job") -> Dict[str, Any]:
     return record
 
 
-#: The settings of pose jobs (its ``find_parts``) and pick jobs: the pick pipeline's, so that
-#: a pose job measures what a pick finds. A job's ``settings`` override them.
+#: The settings of pose jobs (its ``find_parts``) and pick jobs, so that a pose job measures
+#: what a pick finds; a job's ``settings`` override them.
 PICK_SETTINGS = PickSettings()
-#: find_parts keywords of the part library and of every pose and pick job: the pick
-#: pipeline's CBD radius per part (``PickSettings.find_parts.cbd_radius_fraction``), which the
-#: view descriptors depend on.
+#: find_parts keywords of the part library and every pose and pick job: the pick pipeline's
+#: CBD radius per part, which the view descriptors depend on.
 LIBRARY_SETTINGS = {"cbd_radius_fraction": PICK_SETTINGS.find_parts.cbd_radius_fraction}
 
 
@@ -101,18 +91,14 @@ class Job:
         id: unique name in the batch (the resume key).
         kind: ``"reconstruct"``, ``"pose"`` or ``"pick"``.
         source: ``"synthetic"`` or a path: a recording (TUM RGB-D folder, ROS bag or PNG folder:
-            reconstruct; TUM folder: pick), a PLY or
-            PCD cloud in the robot's base frame, metres (pose).
+            reconstruct; TUM folder: pick), a PLY or PCD cloud in the base frame, m (pose).
         robot, noise, seed: the synthetic scan: robot name, sensor noise preset, noise seed.
         frames: synthetic views (0: 36 for reconstruct, 4 for pose, 24 for pick).
         parts: part names (built-in) or part files (pose, pick); default :data:`DEFAULT_PARTS`.
-        settings: the kind's settings, as its command's config file nests them (``scanalign
-            dump-config reconstruct|pose|pick``): ``reconstruct``: ``ReconstructionSettings``
-            fields over :data:`scanalign.pipelines.reconstruct.DEMO_SETTINGS` for synthetic
-            scans; ``pose``: ``FindPartsSettings`` fields (or the short keywords of
-            :func:`scanalign.pose.find_parts`) over the pick pipeline's; ``pick``:
-            ``PickSettings`` fields, plus ``joints``, ``hand_eye``, ``robot_base`` files for a
-            real scan).
+        settings: fields over the kind's settings, nested as ``scanalign dump-config`` prints
+            them: ``ReconstructionSettings`` (over ``DEMO_SETTINGS`` for synthetic scans),
+            ``FindPartsSettings`` (pose; or :func:`scanalign.pose.find_parts`'s keywords) or
+            ``PickSettings`` (plus ``joints``, ``hand_eye``, ``robot_base`` files of a real scan).
         save: a folder to write the job's outputs into (model, trajectories, picks), or "".
     """
 
@@ -152,18 +138,12 @@ class Job:
     def part_names(self) -> Tuple[str, ...]:
         return self.parts or DEFAULT_PARTS
 
-    def as_dict(self) -> Dict[str, Any]:
-        return asdict(self)
-
 
 def run_job(job: Job, library: Any = None) -> Dict[str, Any]:
-    """Runs one job and returns its record (every field of :data:`RECORD_FIELDS`).
-
-    Never raises for a failing job: the record's ``status`` is ``"ok"`` or ``"failed"``
-    with ``error`` (exception type, message and the innermost frame). ``library``: a
-    :class:`scanalign.grasp.part_library.PartLibrary` holding the job's parts (pose and pick
-    jobs; without one, or for a part it lacks, the views are rendered and described here).
-    """
+    """Runs one job and returns its record (every field of :data:`RECORD_FIELDS`); never
+    raises: a failing job's record says ``"failed"`` with ``error`` (exception type, message,
+    innermost frame). ``library``: a :class:`scanalign.grasp.part_library.PartLibrary` with
+    the job's parts (without one, or for a part it lacks, the views are described here)."""
     record = empty_record(job)
     record.update(status="ok", worker=f"{platform.node()}:{os.getpid()}")
     t0 = time.perf_counter()
@@ -203,32 +183,35 @@ def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
     return out
 
 
-def _models(names: Sequence[str], library: Any) -> Tuple[List[Any], List[Any], List[Any]]:
-    """(part definitions, views or meshes, symmetries) of the named parts."""
-    parts = [load_part(n) for n in names]
-    models = [library[p.name].views if library is not None and p.name in library else p.mesh for p in parts]
-    return parts, models, [p.symmetry for p in parts]
+def _cell(job: Job) -> Any:
+    return pick_cell(job.robot, noise=job.noise, seed=job.seed, n_frames=job.n_frames)
 
 
-def _upper_views() -> List[int]:
-    directions, _ = tessellated_sphere(1)
-    return [i for i, d in enumerate(directions) if d[2] > 0]
+def _scores(detail: Dict[str, Dict[str, Any]], **fields: Any) -> Dict[str, Any]:
+    """``fields``, the per-part ``detail`` as JSON and the largest pose and TCP errors in it."""
+    out = {**fields, "detail": json.dumps(detail)}
+    for key in ("pose_m", "pose_deg", "tcp_m", "tcp_deg"):
+        errors = [d[key] for d in detail.values() if key in d]
+        if errors:
+            what, unit = key.split("_")
+            out[f"{what}_error_max_{unit}"] = max(errors)
+    return out
 
 
 def _pose(job: Job, library: Any) -> Dict[str, Any]:
     names = job.part_names
-    parts, models, symmetries = _models(names, library)
+    parts = [load_part(n) for n in names]
     truth: Dict[str, np.ndarray] = {}
     if job.synthetic:
-        cell = pick_cell(job.robot, noise=job.noise, seed=job.seed, n_frames=job.n_frames)
+        cell = _cell(job)
         truth = cell.truth
         points = np.concatenate([cell.scan.points(i, in_base=True) for i in range(len(cell.scan))])
         points = reconstruction.voxel_grid(points, 0.001).points  # one point per mm voxel, as a merged scan
     else:
         points, _ = io.read_cloud(job.source)
         points = points[np.isfinite(points).all(axis=1)]
-    detections = pose.find_parts(models, points, PICK_SETTINGS.find_parts, symmetries=symmetries,
-                                 views=_upper_views(), **job.settings)
+    detections = pose.find_parts(part_models(parts, library), points, PICK_SETTINGS.find_parts,
+                                 symmetries=[p.symmetry for p in parts], views=upper_views(), **job.settings)
     found = [d for d in detections.detections if d.status.name == "found"]
     detail: Dict[str, Dict[str, Any]] = {n: {"status": "not_found"} for n in names}
     for d in found:
@@ -237,20 +220,12 @@ def _pose(job: Job, library: Any) -> Dict[str, Any]:
         if name in truth:
             rot, dist = symmetric_pose_error(np.asarray(d.pose.T_scene_model), truth[name], parts[d.part].symmetry)
             detail[name].update(pose_m=dist, pose_deg=math.degrees(rot))
-    errors = [v for v in detail.values() if "pose_m" in v]
-    out: Dict[str, Any] = {"parts": len(names), "found": len({d.part for d in found}), "detail": json.dumps(detail),
-                           "fitness_min": min((d.pose.fitness for d in found), default=math.nan)}
-    if errors:
-        out.update(pose_error_max_m=max(e["pose_m"] for e in errors),
-                   pose_error_max_deg=max(e["pose_deg"] for e in errors))
+    out = _scores(detail, parts=len(names), found=len({d.part for d in found}),
+                  fitness_min=min((d.pose.fitness for d in found), default=math.nan))
     if job.save:
         Path(job.save).mkdir(parents=True, exist_ok=True)
         io.write_ply(Path(job.save) / "scene.ply", points)
     return out
-
-
-def _matrix(settings: Dict[str, Any], key: str) -> Optional[np.ndarray]:
-    return None if settings.get(key) is None else se3.require_rigid(np.loadtxt(settings[key], ndmin=2), key)
 
 
 def _pick(job: Job, library: Any) -> Dict[str, Any]:
@@ -259,23 +234,21 @@ def _pick(job: Job, library: Any) -> Dict[str, Any]:
     s = with_overrides(PickSettings, PICK_SETTINGS, settings, "pick job")
     truth: Dict[str, np.ndarray] = {}
     if job.synthetic:
-        cell = pick_cell(job.robot, noise=job.noise, seed=job.seed, n_frames=job.n_frames)
-        scene, parts, robot, truth = cell.scan, [p.name for p in cell.parts], cell.robot, cell.truth
-        result = pick.pick(scene, parts, robot, settings=s, progress=False, library=library)
+        cell = _cell(job)
+        truth = cell.truth
+        result = pick.pick(cell.scan, [p.name for p in cell.parts], cell.robot, settings=s, progress=False,
+                           library=library)
     else:
         result = pick.pick(job.source, list(job.part_names), job.robot, joints=files["joints"],
-                           T_flange_camera=_matrix(files, "hand_eye"), T_base_robot=_matrix(files, "robot_base"),
+                           T_flange_camera=read_transform(files["hand_eye"], "hand_eye"),
+                           T_base_robot=read_transform(files["robot_base"], "robot_base"),
                            settings=s, progress=False, library=library)
     errors = score_picks(result, truth) if truth else {}
     found = [p for p in result.picks if p.status in ("picked", "no_grasp")]
     detail = {p.part: {"status": p.status, **errors.get(p.part, {})} for p in result.picks}
-    out: Dict[str, Any] = {"parts": len(result.parts), "found": len(found), "detail": json.dumps(detail),
-                           "picked": sum(p.status == "picked" for p in result.picks),
-                           "fitness_min": min((p.fitness for p in found), default=math.nan)}
-    if errors:
-        e = errors.values()
-        out.update(pose_error_max_m=max(v["pose_m"] for v in e), pose_error_max_deg=max(v["pose_deg"] for v in e),
-                   tcp_error_max_m=max(v["tcp_m"] for v in e), tcp_error_max_deg=max(v["tcp_deg"] for v in e))
+    out = _scores(detail, parts=len(result.parts), found=len(found),
+                  picked=sum(p.status == "picked" for p in result.picks),
+                  fitness_min=min((p.fitness for p in found), default=math.nan))
     if job.save:
         result.save(job.save)
     return out

@@ -1,14 +1,7 @@
-"""A batch: read the manifest, build the part library once, run the jobs on an executor,
-journal each record as it arrives (resume), and write one results table.
-
-Output folder:
-
-* ``records.jsonl``: one JSON record per finished job attempt, appended as jobs finish; a
-  re-run with the same folder skips the jobs recorded ``ok`` (resume after an interruption).
-* ``results.csv`` and ``results.parquet`` (pyarrow): the last record of every job, in
-  manifest order; ``summary.json``; ``results.png``: the metrics' distributions.
-* ``parts.npz``: the part library (:mod:`scanalign.grasp.part_library`), reused when it holds the
-  parts with the same settings.
+"""A batch: read the manifest, build the part library once (``parts.npz``), run the jobs on
+an executor, journal each record as it arrives (``records.jsonl``: a re-run with the same
+folder skips the jobs recorded ``ok``), and write ``results.csv``, ``results.parquet``
+(pyarrow) and ``summary.json``: the last record of every job, in manifest order.
 """
 
 from __future__ import annotations
@@ -17,8 +10,10 @@ import csv
 import itertools
 import json
 import math
+import statistics
 import sys
 import time
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Dict, List, Optional, Sequence, Union
@@ -87,13 +82,10 @@ def _csv_entries(path: Path) -> List[Dict[str, Any]]:
 
 
 def read_manifest(path: Union[str, Path]) -> List[Job]:
-    """The jobs of a manifest file (format in docs/batch.md).
-
-    YAML: ``jobs:`` a list of job mappings (the fields of :class:`Job`, plus ``seeds``: a
-    count or a list that repeats the job once per seed, ids suffixed ``-s<seed>``), and an
-    optional ``defaults:`` mapping applied to every job. CSV: one job per row, a header
-    naming the fields; ``parts`` separated by ``;``, ``settings`` as JSON. Relative paths
-    are relative to the manifest's folder.
+    """The jobs of a manifest file (format in docs/batch.md): YAML (``jobs:``, optional
+    ``defaults:``; ``seeds`` repeats a job per seed, ids suffixed ``-s<seed>``) or CSV (a
+    header naming the fields; ``parts`` separated by ``;``, ``settings`` as JSON). Relative
+    paths are relative to the manifest's folder.
 
     Raises:
         ValueError: unreadable or malformed manifest, an unknown field or kind, or two jobs
@@ -138,12 +130,6 @@ class BatchResult:
     skipped: int
     executor: str
 
-    def counts(self) -> Dict[str, int]:
-        out: Dict[str, int] = {}
-        for r in self.records:
-            out[r["status"]] = out.get(r["status"], 0) + 1
-        return out
-
 
 def _journal(out: Path) -> Dict[str, Dict[str, Any]]:
     """Last record per job id from records.jsonl (a torn last line is ignored)."""
@@ -160,8 +146,7 @@ def _journal(out: Path) -> Dict[str, Dict[str, Any]]:
 
 
 def _end_torn_line(journal: Any) -> None:
-    """Starts a new line when an interrupted run left a record half written: the next record
-    must not be glued to it (the torn line is then ignored by _journal)."""
+    """Ends the half-written record an interrupted run left, so that _journal skips it."""
     if journal.tell() > 0:
         journal.seek(journal.tell() - 1)
         if journal.read(1) != "\n":
@@ -199,25 +184,20 @@ def _executor(name: str, workers: Optional[int], address: Optional[str], threads
 def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "local", workers: Optional[int] = None,
               address: Optional[str] = None, threads_per_job: int = 1, retries: int = 1, progress: bool = True,
               runner: Runner = run_job) -> BatchResult:
-    """Runs the jobs and writes the results table into ``out``.
+    """Runs the jobs (ids unique) and writes the results table into ``out``; the jobs an
+    earlier run recorded ``ok`` there are skipped (resume).
 
     Args:
-        jobs: from :func:`read_manifest` (or built in code); ids unique.
-        out: output folder; when it holds a journal from an earlier run, the jobs recorded
-            ``ok`` there are skipped (resume).
         executor: ``"local"`` (a process pool) or ``"ray"``.
         workers: local: processes (default cores / threads_per_job); ray: at most this many
-            jobs at once (default: as many as the cluster's CPUs take; without an address the
-            local instance gets workers x threads_per_job CPUs).
+            jobs at once (default: as the cluster's CPUs take).
         address: Ray cluster address (``"auto"``, ``"ray://head:10001"``); None starts a
             local Ray instance.
         threads_per_job: OpenMP threads of each job, and CPUs it reserves (Ray).
         retries: times a failed or crashed job is tried again (0: none).
-        progress: a progress bar over jobs on stderr.
-        runner: the function each job runs, ``(job, library) -> record`` (default
-            :func:`run_job`): a module-level function (it is sent to the workers by
-            reference), e.g. for job kinds of your own; its records should carry the fields
-            of :data:`RECORD_FIELDS` (missing ones are left empty in the table).
+        runner: ``(job, library) -> record`` (default :func:`run_job`), a module-level
+            function (sent to the workers by reference); fields of :data:`RECORD_FIELDS` it
+            leaves out are empty in the table.
 
     Raises:
         ValueError: bad arguments or duplicate job ids. A failing job never raises: its
@@ -298,8 +278,8 @@ def _write_tables(records: List[Dict[str, Any]], out: Path) -> Dict[str, Path]:
 
 
 def _median(values: List[float]) -> float:
-    v = sorted(x for x in values if isinstance(x, (int, float)) and math.isfinite(x))
-    return v[len(v) // 2] if len(v) % 2 else (v[len(v) // 2 - 1] + v[len(v) // 2]) / 2 if v else math.nan
+    v = [x for x in values if isinstance(x, (int, float)) and math.isfinite(x)]
+    return statistics.median(v) if v else math.nan
 
 
 def summarize(result: BatchResult) -> Dict[str, Any]:
@@ -315,7 +295,7 @@ def summarize(result: BatchResult) -> Dict[str, Any]:
                 m = _median([r.get(key) for r in rs])
                 if math.isfinite(m):
                     kinds[kind][key + "_median"] = m
-    return {"jobs": len(result.records), "status": result.counts(), "skipped_as_done": result.skipped,
+    return {"jobs": len(result.records), "status": dict(Counter(r["status"] for r in result.records)), "skipped_as_done": result.skipped,
             "wall_seconds": result.seconds, "executor": result.executor,
             "jobs_per_minute": 60 * (len(result.records) - result.skipped) / result.seconds if result.seconds else None,
             "job_seconds_total": sum(r["seconds"] for r in ran), "kinds": kinds,
