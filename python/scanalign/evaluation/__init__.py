@@ -1,18 +1,9 @@
-"""Trajectory and reconstruction accuracy: ATE, RPE, cloud-to-mesh distance.
+"""Trajectory and reconstruction accuracy: ATE, RPE (Sturm et al., "A Benchmark for the
+Evaluation of RGB-D SLAM Systems", IROS 2012), cloud-to-mesh distance.
 
-ATE and RPE are those of Sturm, Engelhard, Endres, Burgard and Cremers, "A Benchmark for the
-Evaluation of RGB-D SLAM Systems", IROS 2012 (Sturm et al. 2012 below).
-
-Conventions (see the package README): metres, radians for inputs; a pose ``T_world_camera``
-maps camera coordinates into the trajectory's world frame.  Error statistics report
-translations in metres and rotations in **degrees** (like the TUM benchmark tools and
-``evo``'s ``rotation_angle_deg``).
-
-:func:`absolute_trajectory_error` (ATE, after a least-squares alignment, Horn 1987 /
-Umeyama 1991) and :func:`relative_pose_error` (RPE) equal ``evo``'s APE
-(``PoseRelation.translation_part``) and RPE; :func:`point_to_mesh_distance` and
-:func:`mesh_distance_stats` (exact cloud-to-mesh distances) come from
-:mod:`scanalign.evaluation.mesh_distance`.
+Inputs in metres and radians; a pose ``T_world_camera`` maps camera coordinates into the
+trajectory's world frame.  Error statistics report translations in metres and rotations in
+**degrees** (as the TUM tools and ``evo``, whose APE ``translation_part`` and RPE these equal).
 """
 
 from __future__ import annotations
@@ -46,8 +37,8 @@ def _as_trajectory(x: TrajectoryLike, name: str) -> Trajectory:
         return x
     a = np.asarray(x, dtype=np.float64)
     if a.ndim != 3 or a.shape[1:] != (4, 4):
-        raise TypeError(f"{name}: expected a Trajectory or an (N, 4, 4) array of poses, got {type(x).__name__}"
-                        f"{' of shape ' + str(a.shape) if hasattr(a, 'shape') else ''}")
+        raise TypeError(f"{name}: expected a Trajectory or an (N, 4, 4) array of poses, got "
+                        f"{type(x).__name__} of shape {a.shape}")
     return Trajectory(np.arange(a.shape[0], dtype=np.float64), a)
 
 
@@ -69,27 +60,18 @@ def _paired(estimate: TrajectoryLike, reference: TrajectoryLike, associate: bool
 
 def umeyama_alignment(source: np.ndarray, target: np.ndarray,
                       with_scale: bool = False) -> Tuple[np.ndarray, np.ndarray, float]:
-    """Least-squares similarity (or rigid) transform taking ``source`` onto ``target``.
-
-    Minimises ``sum_i || target_i - (s R source_i + t) ||^2`` over rotations R (det +1),
-    translations t and, when ``with_scale``, a scale s > 0 (otherwise s = 1): Umeyama 1991,
-    the closed form of Horn 1987 with the reflection correction.
-
-    Args:
-        source: (N, 3) points (e.g. estimated camera centres), any unit.
-        target: (N, 3) corresponding points (e.g. reference centres), same unit.
-        with_scale: also estimate the scale (monocular / scale-drifting estimates).
+    """Least-squares similarity (or rigid) transform taking ``source`` onto ``target`` (Umeyama
+    1991; the C++ core's one implementation): minimises ``sum_i || target_i - (s R source_i +
+    t) ||^2`` over rotations R (det +1), translations t and, with ``with_scale``, a scale s > 0
+    (else s = 1).  ``source`` and ``target`` are (N, 3) corresponding points in one unit.
 
     Returns:
-        (R (3, 3), t (3,), s float) so that ``target ~ s * R @ source + t``, i.e. the
-        4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.
+        (R (3, 3), t (3,), s float): the 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.
 
     Raises:
-        ValueError: shape mismatch, N < 3, non-finite values, or a degenerate configuration
-            (all points coincident or collinear in source or target: the cross-covariance
-            has rank < 2 and the rotation is not determined).
+        ValueError: shape mismatch, N < 3, non-finite values, or all points coincident or
+            collinear in source or target (the rotation is not determined).
     """
-    # The one Kabsch/Umeyama implementation is C++'s; it takes rows of contiguous coordinates.
     R, t, s = _core.registration.fit_similarity(np.ascontiguousarray(source, dtype=np.float64),
                                                 np.ascontiguousarray(target, dtype=np.float64), bool(with_scale))
     return np.asarray(R), np.asarray(t), float(s)
@@ -97,31 +79,25 @@ def umeyama_alignment(source: np.ndarray, target: np.ndarray,
 
 def associate(estimate: Trajectory, reference: Trajectory, max_difference: float = 0.02, offset: float = 0.0,
               method: str = "greedy", return_indices: bool = False):
-    """Pairs the poses of two trajectories by timestamp.
+    """Pairs the poses of two trajectories by timestamp (s).
 
     ``offset`` (s) is added to the estimate's timestamps before matching (the TUM tools'
-    ``--offset`` on the second file); the returned trajectories keep their own timestamps.
-
-    Methods:
-        ``"greedy"`` (default): :func:`scanalign.evaluation.trajectory.associate_timestamps`, the
-            TUM benchmark's rule: pairs with ``|t_ref - (t_est + offset)| <= max_difference``
-            taken closest first (ties: earlier reference, then earlier estimate), every
-            pose used at most once.
-        ``"nearest"``: ``evo.core.sync.associate_trajectories(reference, estimate,
-            max_diff=max_difference, offset_2=offset)`` (evo's command-line order): every pose of the
-            trajectory with fewer poses (the estimate on a tie) is matched to the nearest
-            pose of the other within ``<= max_difference`` (ties to the earlier one); a pose
-            of the longer trajectory may be used more than once.
+    ``--offset``); the returned trajectories keep their own timestamps.  ``method``:
+    ``"greedy"`` (default), :func:`scanalign.evaluation.trajectory.associate_timestamps`
+    (pairs with ``|t_ref - (t_est + offset)| <= max_difference``, closest first, every pose
+    used at most once); ``"nearest"``, ``evo.core.sync.associate_trajectories(reference,
+    estimate, max_diff=max_difference, offset_2=offset)``: every pose of the shorter
+    trajectory (the estimate on a tie) takes the nearest pose of the other within
+    ``max_difference``, which may be used more than once.
 
     Returns:
-        ``(estimate_matched, reference_matched)``, equal-length trajectories ordered by
-        reference time for ``"greedy"`` and by the shorter trajectory's order for
-        ``"nearest"``; with ``return_indices`` also the index arrays into the inputs,
-        ``(est, ref, idx_est, idx_ref)``.
+        ``(estimate_matched, reference_matched)`` in reference time order (``"greedy"``) or the
+        shorter trajectory's order (``"nearest"``); with ``return_indices`` also the index
+        arrays into the inputs, ``(est, ref, idx_est, idx_ref)``.
 
     Raises:
-        ValueError: no pair within ``max_difference``, a negative ``max_difference``, an
-            unknown method.
+        ValueError: no pair within ``max_difference``, a negative ``max_difference``, a
+            non-finite ``offset``, an unknown method.
     """
     est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
     if not np.isfinite(offset):  # max_difference is checked by both C++ association rules
@@ -153,18 +129,11 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
 
 @dataclass
 class AteResult:
-    """Absolute trajectory error.
-
-    Attributes:
-        translation: ATE, distances between reference and aligned estimated camera centres (m).
-        rotation: angles of ``R_ref_i^T R_aligned_i`` (degrees) after the same alignment.
-        T_reference_estimate: 4x4 ``[[s R, t], [0, 1]]`` that was applied to the estimate's
-            world frame (identity when ``align=False``); a similarity when ``scale != 1``.
-        scale: s (1.0 unless ``with_scale``).
-        aligned: the estimate in the reference world frame: rotations ``R R_i``, centres
-            ``s R p_i + t`` (after association, if any).
-        reference: the reference poses paired with ``aligned`` (after association, if any).
-    """
+    """Absolute trajectory error: ``translation`` (m) and ``rotation`` (degrees) statistics, the
+    alignment ``T_reference_estimate`` = ``[[s R, t], [0, 1]]`` applied to the estimate's world
+    frame (identity without ``align``) with its ``scale`` s, the estimate ``aligned`` to the
+    reference frame (rotations ``R R_i``, centres ``s R p_i + t``) and the ``reference`` poses
+    paired with it (after association, if any)."""
 
     translation: ErrorStats
     rotation: ErrorStats
@@ -186,14 +155,9 @@ class AteResult:
 
 @dataclass
 class RpeResult:
-    """Relative pose error over index pairs (i, j) of the (associated) trajectories.
-
-    Attributes:
-        translation: ``|| trans(E_ij) ||`` (m) per pair.
-        rotation: rotation angle of ``E_ij`` (degrees) per pair.
-        pairs: (M, 2) indices (i, j) into the compared trajectories.
-        delta, delta_unit, all_pairs: the pair selection used.
-    """
+    """Relative pose error: ``translation`` (m) and ``rotation`` (degrees) statistics over the
+    (M, 2) index ``pairs`` (i, j) of the compared trajectories, chosen by ``delta``,
+    ``delta_unit`` and ``all_pairs``."""
 
     translation: ErrorStats
     rotation: ErrorStats
@@ -210,23 +174,17 @@ class RpeResult:
 def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLike, align: bool = True,
                               with_scale: bool = False, associate: bool = False,
                               max_difference: float = 0.02, offset: float = 0.0) -> AteResult:
-    """Absolute trajectory error (Sturm et al. 2012, §"ATE"), translational and rotational.
+    """Absolute trajectory error (Sturm et al. 2012), translational (m) and rotational (degrees).
 
-    The estimated camera centres are aligned to the reference ones by the least-squares
-    rigid transform (Horn; with ``with_scale`` a similarity, Umeyama), then the error of
-    pose i is ``|| q_i - (s R p_i + t) ||`` (m).  Equal to ``evo``'s
-    ``APE(PoseRelation.translation_part)`` after ``traj_est.align(traj_ref, correct_scale)``.
-    The rotational error of pose i is the angle (degrees) of ``R_ref_i^T (R R_est_i)``
-    (evo's ``rotation_angle_deg``); the alignment is fitted to positions only.
+    With ``align``, the estimated camera centres are fitted to the reference ones by
+    :func:`umeyama_alignment` (a similarity with ``with_scale``); the error of pose i is
+    ``|| q_i - (s R p_i + t) ||`` (evo's APE ``translation_part`` after ``align``) and the
+    angle of ``R_ref_i^T (R R_est_i)``.
 
     Args:
-        estimate: estimated ``T_world_camera`` poses (a :class:`Trajectory` or (N, 4, 4)).
-        reference: reference (ground-truth) poses, same form.
-        align: fit the alignment (otherwise both are compared in their given frames).
-        with_scale: fit a scale too.
-        associate: pair the poses by timestamps with :func:`associate` (greedy,
-            ``max_difference`` s, ``offset`` s added to the estimate's times); otherwise they
-            are paired by index and must have equal lengths.
+        estimate, reference: ``T_world_camera`` poses (:class:`Trajectory` or (N, 4, 4)),
+            paired by index (equal lengths), or with ``associate`` by timestamps
+            (greedy :func:`associate`, ``max_difference`` s, ``offset`` s added to the estimate's times).
 
     Raises:
         ValueError: different lengths without ``associate``, fewer than 3 poses (with
@@ -235,9 +193,7 @@ def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLik
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 3 if align else 1,
                        "absolute_trajectory_error")
     R, t, s = umeyama_alignment(est.positions, ref.positions, with_scale) if align else (np.eye(3), np.zeros(3), 1.0)
-    T = np.eye(4)
-    T[:3, :3] = s * R
-    T[:3, 3] = t
+    T = np.vstack([np.column_stack([s * R, t]), [0.0, 0.0, 0.0, 1.0]])
     aligned = est.transformed(T)
     aligned.poses[:, :3, :3] = R @ est.rotations  # the scale moves the centres only
     trans_err = np.linalg.norm(aligned.positions - ref.positions, axis=1)
@@ -247,8 +203,6 @@ def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLik
 
 
 _associate = associate  # absolute_trajectory_error / relative_pose_error shadow the name
-
-
 _DELTA_UNITS = ("frames", "seconds", "meters")
 
 
@@ -256,30 +210,20 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
                         delta_unit: str = "frames", all_pairs: bool = False, rel_delta_tol: float = 0.1,
                         pairs_from_reference: bool = False, associate: bool = False,
                         max_difference: float = 0.02, offset: float = 0.0) -> RpeResult:
-    """Relative pose error (Sturm et al. 2012), translational (m) and rotational (degrees).
-
-    For each pair (i, j): ``E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`` with Q the reference and P
+    """Relative pose error (Sturm et al. 2012), translational (m) and rotational (degrees): for
+    each pair (i, j), ``E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`` with Q the reference and P
     the estimate poses (``T_world_camera``); errors are ``|| trans(E_ij) ||`` (m) and the
     rotation angle of ``E_ij`` (degrees).  No alignment is needed: RPE is invariant to a
     rigid change of either world frame.
 
-    Pair selection follows ``evo.core.metrics.RPE`` (so results equal evo's):
-
-    - ``delta_unit="frames"``: ``all_pairs=False`` uses non-overlapping pairs
-      (0, d), (d, 2d), ...; ``all_pairs=True`` every (i, i + d).  (Sturm's script uses
-      every (i, i + d), i.e. ``all_pairs=True``.)
-    - ``"meters"``: distance travelled along the camera-centre path (of the estimate, or the
-      reference with ``pairs_from_reference``).  Consecutive: from the last pair end, the
-      first pose at least ``delta`` m further along the path; all pairs: for every i the
-      first j > i whose path distance is closest to ``delta``, kept if within
-      ``rel_delta_tol * delta``.
-    - ``"seconds"`` (not in evo): the same rules on the timestamps (s) instead of path length.
-
-    Args:
-        estimate, reference: trajectories (or (N, 4, 4) arrays) paired by index, or by
-            timestamps with ``associate`` (greedy :func:`associate`, ``max_difference`` s,
-            ``offset`` s added to the estimate's times).
-        delta: pair spacing in ``delta_unit`` (a positive integer for frames).
+    Pairs are chosen as ``evo.core.metrics.RPE`` chooses them, ``delta`` apart in
+    ``delta_unit``: ``"frames"`` (a positive integer; Sturm's script is ``all_pairs=True``),
+    ``"meters"`` along the camera-centre path (of the estimate, or of the reference with
+    ``pairs_from_reference``) or ``"seconds"`` (not in evo).  ``all_pairs=False``: the chain
+    of pairs, each starting where the last ended and ending at the first pose at least
+    ``delta`` further; ``all_pairs=True``: for every i the first j > i closest to ``delta``
+    away, kept within ``rel_delta_tol * delta`` (exactly ``delta`` for frames).  Poses are
+    paired as in :func:`absolute_trajectory_error`.
 
     Raises:
         ValueError: different lengths, fewer than 2 poses, bad delta / unit, no pair found.
@@ -318,13 +262,12 @@ def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike,
                             rpe_delta: float = 1, rpe_delta_unit: str = "frames", rpe_all_pairs: bool = True,
                             points: Optional[np.ndarray] = None,
                             mesh: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Dict[str, Any]:
-    """ATE and RPE (and optionally cloud-to-mesh distances) as a JSON-ready dict.
+    """ATE and RPE (and optionally cloud-to-mesh distances) as a JSON-ready dict (m, degrees).
 
     The defaults are the TUM benchmark's: ATE after rigid alignment, RPE over every pair
-    (i, i + 1 frame).  ``points`` (reconstructed cloud, in the mesh's frame) and ``mesh``
-    ``(vertices, faces)`` (or an Open3D / trimesh mesh) add a ``"cloud_to_mesh_m"`` entry.  All lengths are in metres,
-    angles in degrees.  Keys: ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe``
-    (:meth:`RpeResult.as_dict`), optionally ``cloud_to_mesh_m``.
+    (i, i + 1 frame).  Keys: ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe``
+    (:meth:`RpeResult.as_dict`) and, given ``points`` (the reconstructed cloud, in the mesh's
+    frame) and ``mesh`` ``(vertices, faces)`` (or an Open3D / trimesh mesh), ``cloud_to_mesh_m``.
     """
     if (points is None) != (mesh is None):
         raise ValueError("pass both points and mesh=(vertices, faces) for the cloud-to-mesh distance, or neither")

@@ -1,10 +1,5 @@
-"""Reconstruction accuracy against a mesh: exact cloud-to-surface distances (m) and their summary.
-
-:class:`MeshDistanceIndex` is the C++ index (a bounding-volume hierarchy over the triangles,
-exact point-to-triangle distances after Ericson, Real-Time Collision Detection, 2005,
-§5.1.5; queries in parallel) bound directly; its documentation is its docstring.  Points
-and mesh share one frame; distances are unsigned (no inside / outside notion).
-"""
+"""Exact, unsigned cloud-to-mesh distances (m) and their summary, points and mesh in one frame;
+:class:`MeshDistanceIndex` is the C++ index (method and errors in its docstring)."""
 
 from __future__ import annotations
 
@@ -16,19 +11,14 @@ __all__ = ["MeshDistanceIndex", "MeshDistanceStats", "point_to_mesh_distance", "
 
 
 def point_to_mesh_distance(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Exact Euclidean distance (m, (N,) float64) from each of the (N, 3) ``points`` to the
-    surface of the mesh ``(vertices (V, 3), faces (F, 3))`` in the same frame; rows with
-    NaN/Inf give NaN.  :class:`MeshDistanceIndex` reuses the index over several clouds and
-    documents the method and the errors raised."""
+    """(N,) float64 distances (m) from the (N, 3) ``points`` to the mesh ``(vertices (V, 3),
+    faces (F, 3))``; rows with NaN/Inf give NaN.  :class:`MeshDistanceIndex` reuses the index."""
     return MeshDistanceIndex(vertices, faces).distance(points)
 
 
 def mesh_distance_stats(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> MeshDistanceStats:
     """:meth:`MeshDistanceIndex.stats` of ``points`` to the mesh ``(vertices, faces)``: mean,
     median, p95 (``numpy.percentile``'s linear interpolation), max and rmse (m) over the
-    finite points; rows with NaN/Inf are dropped (counted).
-
-    Raises:
-        ValueError: no finite point (besides the input errors of point_to_mesh_distance).
-    """
+    finite points; rows with NaN/Inf are dropped (counted).  ValueError when no point is
+    finite (besides the input errors of :class:`MeshDistanceIndex`)."""
     return MeshDistanceIndex(vertices, faces).stats(points)

@@ -1,15 +1,9 @@
-"""Camera trajectories: timestamped poses, the TUM text format, interpolation.
+"""Camera trajectories: timestamped poses ``T_world_camera`` (camera -> world, metres;
+seconds) in the TUM, KITTI and EuRoC text formats and ``evo``'s types, interpolated.
 
-A :class:`Trajectory` holds N poses ``T_world_camera`` (4x4, mapping camera coordinates
-into the trajectory's world frame; metres) with timestamps in seconds.  The TUM RGB-D
-text format has one pose per line, ``timestamp tx ty tz qx qy qz qw``, where (tx, ty, tz)
-is the camera centre in the world frame and (qx, qy, qz, qw) the unit quaternion of the
-camera's orientation in the world frame (Hamilton convention, scalar last).
-:class:`Trajectory` also reads and writes the KITTI odometry format (:meth:`Trajectory.write_kitti`)
-and EuRoC MAV CSV (:meth:`Trajectory.write_euroc`), and converts to and from ``evo``
-(:meth:`Trajectory.to_evo`, optional package).
-:func:`associate_timestamps` is the package's one rule for pairing two timestamp streams
-(depth with colour images, an estimate with its ground truth).
+The TUM RGB-D format has one pose per line, ``timestamp tx ty tz qx qy qz qw``: the camera
+centre and the unit quaternion (Hamilton, scalar last) of its orientation in the world frame.
+:func:`associate_timestamps` is the package's one rule for pairing two timestamp streams.
 """
 
 from __future__ import annotations
@@ -129,12 +123,9 @@ class Trajectory:
     @classmethod
     def read_kitti(cls, path: PathLike, times_path: Optional[PathLike] = None) -> "Trajectory":
         """Reads a KITTI pose file (12 numbers per line, see :meth:`write_kitti`); timestamps
-        from ``times_path`` (one per line), else the frame numbers 0, 1, 2, ...
-
-        Raises:
-            TumFormatError (a ValueError): a line without 12 finite numbers, or a times file
-                with another number of lines (file and line named).
-        """
+        from ``times_path`` (one per line), else the frame numbers 0, 1, 2, ...  TumFormatError
+        (a ValueError) names the file and line without 12 finite numbers, or a times file with
+        another number of lines."""
         values, _, _ = read_tum_rows(path, 12, "12 values (a 3x4 pose, row-major)")
         times = np.arange(len(values), dtype=np.float64)
         if times_path is not None:
@@ -162,11 +153,8 @@ class Trajectory:
     def read_euroc(cls, path: PathLike) -> "Trajectory":
         """Reads a EuRoC MAV pose CSV (``vicon0/data.csv``: 8 columns, or the 17 of
         ``state_groundtruth_estimate0/data.csv``, whose velocities and biases are ignored):
-        nanosecond timestamps, position, quaternion ``w x y z``.
-
-        Raises:
-            TumFormatError (a ValueError): a malformed line (file and line named).
-        """
+        nanosecond timestamps, position, quaternion ``w x y z``.  TumFormatError (a ValueError)
+        names the file and line of a malformed line."""
         ns, values = [], []
         for n, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
             if not line.strip() or line.lstrip().startswith("#"):
@@ -204,16 +192,13 @@ class Trajectory:
         return cls(np.array(times, dtype=np.float64), poses)
 
     def interpolate(self, timestamps: Sequence[float], max_gap: float = np.inf) -> "Trajectory":
-        """Poses at the given times: linear in position, spherical-linear in rotation.
-
-        Args:
-            timestamps: query times (s); each must lie within the trajectory's time span.
-            max_gap: a query whose bracketing poses are farther apart in time than this
-                (s) raises, so a gap in a ground truth is not papered over.
+        """Poses at ``timestamps`` (s, within the trajectory's span): linear in position,
+        spherical-linear in rotation.
 
         Raises:
-            ValueError: a query outside the span or across a gap larger than ``max_gap``; a
-                trajectory whose timestamps decrease (sort it first); a NaN or negative max_gap.
+            ValueError: a query outside the span, or between poses more than ``max_gap`` s apart
+                (a gap in a ground truth is not papered over); timestamps that decrease (sort
+                them first); a NaN or negative ``max_gap``.
         """
         t = np.asarray(timestamps, dtype=np.float64).reshape(-1)
         if len(self) == 0:
@@ -223,17 +208,14 @@ class Trajectory:
             raise ValueError(f"interpolate needs non-decreasing timestamps and max_gap >= 0 s, got max_gap {max_gap}")
         if np.any(t < ts[0] - 1e-9) or np.any(t > ts[-1] + 1e-9):
             raise ValueError(f"query times outside the trajectory's span [{ts[0]}, {ts[-1]}]")
-        hi = np.clip(np.searchsorted(ts, t, side="left"), 0, len(ts) - 1)
-        lo = np.clip(hi - 1, 0, len(ts) - 1)
-        exact = np.isclose(ts[hi], t, rtol=0, atol=1e-9)
-        lo = np.where(exact, hi, lo)
+        hi = np.minimum(np.searchsorted(ts, t, side="left"), len(ts) - 1)
+        lo = np.where(np.isclose(ts[hi], t, rtol=0, atol=1e-9), hi, np.maximum(hi - 1, 0))
         gap = ts[hi] - ts[lo]
         if np.any(gap > max_gap):
             raise ValueError(f"a query falls in a gap of {gap.max():.3f} s > max_gap {max_gap} s")
         with np.errstate(invalid="ignore", divide="ignore"):
             a = np.where(gap > 0, (t - ts[lo]) / gap, 0.0)
-        T = _core.evaluation.interpolate_poses(self.poses[lo], self.poses[hi], a)
-        return Trajectory(t, T)
+        return Trajectory(t, _core.evaluation.interpolate_poses(self.poses[lo], self.poses[hi], a))
 
 
 class TumFormatError(ValueError):
@@ -252,14 +234,11 @@ class TumFormatError(ValueError):
 
 
 def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarray, List[str], np.ndarray]:
-    """The TUM benchmark's text files, one rule for all: ``#`` starts a comment, blank
-    lines are skipped, commas and tabs separate fields (as in the benchmark's
-    ``associate.py``).  Every data line has ``fields`` fields: numbers, except that with
-    ``expected`` starting with "'timestamp filename'" the last one is a name.
-
-    Returns:
-        (values (N, k) float64, names (the last fields when they are names, else empty),
-        1-based line numbers (N,)).
+    """The TUM benchmark's text files, one rule for all (its ``associate.py``'s): ``#`` starts
+    a comment, blank lines are skipped, commas and tabs separate fields.  Every data line has
+    ``fields`` fields: numbers, but the last is a name when ``expected`` starts with
+    "'timestamp filename'".  Returns (values (N, k) float64, those names (else empty),
+    1-based line numbers (N,)).
 
     Raises:
         TumFormatError: not UTF-8 text, a line with another number of fields, a value that
@@ -293,11 +272,8 @@ def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarra
 
 
 def time_order(timestamps: np.ndarray, path: PathLike, lines: np.ndarray) -> np.ndarray:
-    """The stable order sorting ``timestamps`` (recorders sometimes flush out of order).
-
-    Raises:
-        TumFormatError: the same timestamp twice (both lines are named).
-    """
+    """The stable order sorting ``timestamps`` (recorders sometimes flush out of order);
+    TumFormatError naming both lines of a timestamp that appears twice."""
     order = np.argsort(timestamps, kind="stable")
     dup = np.flatnonzero(np.diff(timestamps[order]) == 0)
     if dup.size:
@@ -309,12 +285,8 @@ def time_order(timestamps: np.ndarray, path: PathLike, lines: np.ndarray) -> np.
 
 def read_tum_trajectory(path: PathLike) -> Trajectory:
     """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, in file order:
-    :meth:`Trajectory.interpolate` refuses one that is not time-sorted).
-
-    Raises:
-        TumFormatError (a ValueError): a line without 8 finite numbers or with a zero quaternion
-            (file and line named).
-    """
+    :meth:`Trajectory.interpolate` refuses one that is not time-sorted).  TumFormatError (a
+    ValueError) names the file and line without 8 finite numbers or with a zero quaternion."""
     return Trajectory.from_tum_rows(read_tum_rows(path, 8, "8 values (timestamp tx ty tz qx qy qz qw)")[0])
 
 

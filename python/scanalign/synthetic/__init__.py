@@ -1,15 +1,12 @@
 """Synthetic eye-in-hand RGB-D scans with exact ground truth (the simulator; production code
-does not import it).
-
-A camera on a robot's hand moves around objects on a table; the z-buffer renderer
-(:mod:`scanalign.reconstruction.rendering`) computes what it sees and a sensor model adds RealSense- or
-Zivid-like noise. Every pose, surface and pixel is known exactly.
+does not import it): a camera on a robot's hand moves around objects on a table, the z-buffer
+renderer (:mod:`scanalign.reconstruction.rendering`) computes what it sees and a sensor model
+adds RealSense- or Zivid-like noise.
 
 Frames (``T_a_b`` maps b-coordinates into a; metres, 4x4 float64): ``base``, the scene
-(world) frame, z up, the table top the plane ``z = table_height`` (0 by default), in which
-every pose and the reconstruction's model are given; ``robot``, the base of the arm (a UR5
-by default) at ``T_base_robot`` (default :func:`robot_mount`: hanging 0.9 m above the table
-centre); ``flange``, the tool flange, ``T_base_flange = T_base_robot @ fk(q)``; ``camera``,
+(world) frame, z up, the table top at ``z = table_height``, in which every pose and the
+reconstruction's model are given; ``robot``, the arm's base at ``T_base_robot``
+(:func:`robot_mount`); ``flange``, ``T_base_flange = T_base_robot @ fk(q)``; ``camera``,
 OpenCV convention (x right, y down, z along the optical axis), ``T_base_camera =
 T_base_flange @ T_flange_camera`` (the hand-eye calibration); ``object``, a mesh's own frame,
 placed by ``T_base_object``.
@@ -26,15 +23,9 @@ Pipeline::
     scan.mesh                          # the whole scene in the base frame (for cloud-to-mesh)
 
 or ``builtin_scan(n_frames=36, noise="sr300", seed=0)``, or a JSON / YAML file read by
-:class:`SyntheticConfig`. With a robot, analytic inverse kinematics of the planned flange
-poses gives the joints (each step the solution closest to the previous one) and forward
-kinematics of those joints the reference poses, so a reconstruction is scored against the
-robot's own pose, as in the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929,
-§4). A pose the arm cannot reach raises ValueError naming the frame and the IK status.
-
-Modules: :mod:`.scene` (objects on a table), :mod:`.trajectories` (camera paths and the
-robot that carries the camera), :mod:`.noise` (sensor models), :mod:`.scan` (rendering a
-scan), :mod:`.config` (a scan from one configuration), :mod:`.cell` (the built-in pick cell).
+:class:`SyntheticConfig`. With a robot (:func:`attach_robot`), the reference poses are forward
+kinematics of its joints, so a reconstruction is scored against the robot's own pose, as in
+the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929, §4).
 """
 
 from __future__ import annotations

@@ -5,20 +5,13 @@ Two cells, both with the parts of :data:`scanalign.grasp.parts.BUILTIN_PART_FILE
 block, the angle bracket and the hexagonal standoff) and the camera at
 :data:`~scanalign.synthetic.DEFAULT_T_FLANGE_CAMERA`:
 
-* ``"ur5"``: a UR5 hanging 0.75 m above the table centre, as on a gantry. The parts lie
-  0.16 m from its first axis: a UR arm cannot put its wrist within d4 = 0.11 m of that axis
-  (the shoulder singularity of the analytic IK), so nothing right under the base is reachable
-  with the tool pointing down.
+* ``"ur5"``: a UR5 hanging 0.75 m above the table centre, as on a gantry; the parts lie
+  0.16 m from its first axis, outside the shoulder singularity (wrist within d4 = 0.11 m).
 * ``"kr6_r900_sixx"``: a KUKA KR6 R900 sixx standing upright beside the table (its base 0.6 m
-  from the table centre, at the table top's height): the KR6 cannot fold its arm under its
-  own base, so it does not hang.
+  from the table centre, at the table top's height): it cannot fold its arm under its base.
 
-The camera circles the parts (:func:`loop_trajectory`, 0.35 m above the table, radius
-0.2 m), the arm following the path by inverse kinematics: the UR5 all the way round, the KR6
-on a 270 degree arc that leaves out the quarter nearest to it, where the camera would look
-away from the robot and the tool line up with the forearm (the wrist singularity, A5 = 0,
-where A4 and A6 would turn 1.6 rad between two frames). On the arc A5 stays above 0.48 rad
-and no joint moves more than 0.2 rad per frame.
+The camera circles the parts 0.35 m above the table (radius 0.2 m): the UR5 all the way
+round, the KR6 on a 270 degree arc without the quarter nearest to it (its wrist singularity).
 """
 
 from __future__ import annotations
@@ -55,12 +48,10 @@ class PickCell:
 
     Attributes:
         scan: the robot's scan (frames with joints, flange poses, the hand-eye transform).
-        parts: the parts' definitions (:class:`scanalign.grasp.PartGrasps`: mesh, grasps,
-            symmetry), one per placed part.
+        parts: one :class:`scanalign.grasp.PartGrasps` (mesh, grasps, symmetry) per placed part.
         truth: part name -> true ``T_base_model`` (model -> base, m).
         robot: the arm, placed in the cell (``robot.T_base_dh0`` includes the mount), its tool
             the flange.
-        scene: the rendered :class:`Scene`.
     """
 
     scan: SyntheticScan
@@ -76,9 +67,7 @@ def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_fram
 
     Args:
         robot: ``"ur5"`` or ``"kr6_r900_sixx"`` (the two cells of :data:`CELL_MOUNTS`).
-        noise: sensor noise preset (``"sr300"``, ``"zivid"``, ``"d435"``, ``"none"``).
-        seed: noise seed.
-        n_frames: frames of the scan loop.
+        noise, seed: sensor noise preset (``"sr300"``, ``"zivid"``, ``"d435"``, ``"none"``) and seed.
         placements: (part name, (x, y) m, yaw rad) per part; default :data:`DEFAULT_PLACEMENTS`.
     """
     if robot not in CELL_MOUNTS:

@@ -68,27 +68,20 @@ class SyntheticConfig:
         object_x, object_y, object_yaw: object position on the table (base frame, m) and
             rotation about the vertical (rad).
         table_size: side of the square table top (m); 0 for no table.
-        trajectory: ``"loop"`` or ``"hemisphere"``; n_frames: number of frames.
-        height, radius: loop: camera height above the table and circle radius (m).
-        distance: hemisphere: camera distance to the object (m); None = hypot(height, radius).
-        rings, min_elevation, max_elevation: hemisphere: number of rings, at elevations evenly
-            spaced in [min_elevation, max_elevation] (rad).
-        start_angle: azimuth of the first frame (rad).
-        intrinsics: a preset name of :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a mapping
-            width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
+        trajectory: ``"loop"`` (``height``, ``radius``: :func:`loop_trajectory`) or
+            ``"hemisphere"`` (``distance``, default ``hypot(height, radius)``, and ``rings``
+            elevations evenly spaced in [``min_elevation``, ``max_elevation``]:
+            :func:`hemisphere_trajectory`) of ``n_frames`` from ``start_angle`` at ``frame_rate``
+            (Hz); lengths in m, angles in rad.
+        intrinsics: a preset name of :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a
+            mapping width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
         noise, seed: a preset name of ``NOISE_PRESETS`` and the noise seed.
         depth_unit: metres per uint16 depth unit; ``"auto"`` for the sensor's own unit (0.1 mm
             without one); 0 stores float32 metres.
-        frame_rate: Hz.
-        robot: the arm that moves the camera: a name of :meth:`scanalign.kinematics.Robot.by_name`
-            (default ``"ur5"``), or ``"none"`` for the planned camera poses without an arm.
-        robot_x, robot_y, robot_z: position of the robot's base frame in the scene (m); x, y
-            None (default) = above the object; z default 0.9 above the table top.
-        robot_roll, robot_pitch, robot_yaw: orientation of the robot base in the scene (rad,
-            ``Rz(yaw) Ry(pitch) Rx(roll)``); default (pi, 0, 0): hanging, first axis down
-            (see :func:`~scanalign.synthetic.robot_mount` for why).
-        robot_elbow: start configuration: ``"up"`` (default: elbow away from the table),
-            ``"down"`` or ``"any"`` (see :func:`~scanalign.synthetic.attach_robot`).
+        robot, robot_elbow: a name of :meth:`scanalign.kinematics.Robot.by_name` (``"none"``: no
+            arm) and its start configuration, ``"up"``, ``"down"`` or ``"any"`` (:func:`attach_robot`).
+        robot_x, robot_y, robot_z, robot_roll, robot_pitch, robot_yaw: :func:`robot_mount` of the
+            robot base in the scene; x, y None = above the object.
     """
 
     mesh: str = "builtin"
@@ -225,38 +218,20 @@ class SyntheticConfig:
         return attach_robot(traj, self.robot, T_base_robot=self.T_base_robot(), elbow=self.robot_elbow)
 
     def build(self, *, keep_ground_truth: bool = False) -> SyntheticScan:
-        """Builds the scene and trajectory and renders the scan."""
+        """Builds the scene and trajectory and renders the scan (``keep_ground_truth``: noise-free
+        depth and face ids in each frame's ``meta``)."""
         scene = self.build_scene()
         unit = self.depth_unit if isinstance(self.depth_unit, str) or self.depth_unit > 0 else None
         return render_scan(scene, self.build_trajectory(scene), self.intrinsics_object(), self.noise, self.seed,
                            depth_unit=unit, keep_ground_truth=keep_ground_truth, frame_rate=self.frame_rate)
 
 
-def builtin_scan(
-    n_frames: int = 36,
-    noise: str = "sr300",
-    seed: int = 0,
-    *,
-    trajectory: str = "loop",
-    intrinsics: str = "sr300",
-    resolution_scale: float = 1.0,
-    keep_ground_truth: bool = False,
-    robot: str = "ur5",
-) -> SyntheticScan:
+def builtin_scan(n_frames: int = 36, noise: str = "sr300", seed: int = 0, *, trajectory: str = "loop",
+                 intrinsics: str = "sr300", resolution_scale: float = 1.0, keep_ground_truth: bool = False,
+                 robot: str = "ur5") -> SyntheticScan:
     """The demo scan, no download needed: the built-in part on a 60 cm table, seen by an
     SR300-like camera on a loop 40 cm above the table (radius 20 cm), 10 Hz, carried by a UR5
-    hanging 0.9 m above the table (reference poses are its forward kinematics, the joints in
-    ``scan.joints``).
-
-    Args:
-        n_frames: frames around the full loop.
-        noise: preset name (``NOISE_PRESETS``).
-        seed: noise seed.
-        trajectory: ``"loop"`` or ``"hemisphere"``.
-        intrinsics: intrinsics preset name.
-        resolution_scale: image resize factor.
-        keep_ground_truth: store noise-free depth and face ids in each frame's ``meta``.
-        robot: the arm's name, or ``"none"`` for the planned poses without an arm.
-    """
+    hanging 0.9 m above the table.  The arguments are :class:`SyntheticConfig` fields and
+    :meth:`SyntheticConfig.build`'s ``keep_ground_truth``."""
     return SyntheticConfig(n_frames=n_frames, noise=noise, seed=seed, trajectory=trajectory, intrinsics=intrinsics,
                            resolution_scale=resolution_scale, robot=robot).build(keep_ground_truth=keep_ground_truth)

@@ -36,8 +36,8 @@ NOISE_PRESETS: Dict[str, SensorNoise] = {
                          max_range=1.5, grazing_cos=0.2, edge_threshold=0.02, edge_width=1, dropout=0.002),
     "d435": SensorNoise(name="d435", axial_sigma_ref=0.00195, z_ref=0.5, depth_unit=0.001, min_range=0.175,
                         max_range=3.0, grazing_cos=0.25, edge_threshold=0.02, edge_width=2, dropout=0.005),
-    "zivid": SensorNoise(name="zivid", axial_sigma_ref=0.0001, z_ref=0.5, depth_unit=0.0, min_range=0.3,
-                         max_range=1.2, grazing_cos=0.1, edge_threshold=0.02, edge_width=1, dropout=0.0),
+    "zivid": SensorNoise(name="zivid", axial_sigma_ref=0.0001, z_ref=0.5, min_range=0.3, max_range=1.2,
+                         grazing_cos=0.1, edge_threshold=0.02, edge_width=1),  # no quantisation, no random holes
 }
 
 

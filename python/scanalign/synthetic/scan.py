@@ -26,30 +26,19 @@ __all__ = ["SyntheticScan", "render_scan"]
 
 @dataclass
 class SyntheticScan:
-    """A rendered scan with its ground truth.
+    """A rendered scan with its ground truth (``intrinsics``, ``noise``, ``scene`` and ``seed`` as rendered).
 
     Attributes:
-        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose: ``depth`` (uint16 in units of
-            ``depth_scale`` metres, 0 = missing, by default the sensor's own unit; or float32
-            metres with NaN when rendered with ``depth_unit=None``), ``rgb`` (uint8,
-            registered to the depth), ``timestamp`` (s), ``T_base_camera`` (the exact pose,
-            camera -> base), ``index``; ``meta`` holds ``T_base_flange`` when known,
-            ``joints`` (6, rad) and ``robot`` (its name) when a robot moved the camera, and,
-            with ``keep_ground_truth``, ``depth_true`` (float32 m, NaN = no hit) and
-            ``face_id`` (int32, indexes :attr:`mesh`).
+        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose (depth and
+            registered rgb as :func:`render_scan` stores them, ``timestamp`` (s), the exact
+            ``T_base_camera`` (camera -> base), ``index``); ``meta`` holds ``noise``,
+            ``T_base_flange``, ``joints`` (6, rad) and ``robot`` (its name) when known, and with
+            ``keep_ground_truth`` ``depth_true`` (float32 m, NaN = no hit) and ``face_id``
+            (int32, indexes :attr:`mesh`).
         reference: the exact camera trajectory, ``T_base_camera`` per frame.
-        mesh: the whole scene (objects and table) in the base frame, metres.
-        object_mesh: the objects only, base frame.
-        intrinsics: the camera's pinhole intrinsics.
-        noise: the sensor model used.
-        T_flange_camera: the hand-eye transform (camera -> flange), when the poses came from a
-            :class:`ScanTrajectory` (else None).
-        T_base_flange: (N, 4, 4) flange poses (flange -> base), or None.
-        scene: the scene rendered.
-        seed: the noise seed.
-        joints: (N, 6) joints (rad) of the robot that moved the camera, or None.
-        robot: that robot, placed in the scene (``robot.fk(joints) == T_base_flange``), or None.
-        T_base_robot: the robot's mounting in the scene (robot base -> base), or None.
+        mesh, object_mesh: the whole scene (objects and table), the objects only: base frame, m.
+        T_flange_camera, T_base_flange, joints, robot, T_base_robot: those of the
+            :class:`ScanTrajectory` rendered, else None.
     """
 
     frames: List[Frame]
@@ -97,38 +86,26 @@ def _camera_poses(poses: Union[ScanTrajectory, Trajectory, np.ndarray], frame_ra
     return np.array([se3.require_rigid(T, f"poses[{k}]") for k, T in enumerate(T_cams)]), np.array(stamps, float)
 
 
-def render_scan(
-    scene: Scene,
-    poses: Union[ScanTrajectory, Trajectory, np.ndarray],
-    intrinsics: Union[Intrinsics, str] = "sr300",
-    noise: Union[SensorNoise, str, None] = "sr300",
-    seed: int = 0,
-    *,
-    depth_unit: Union[float, str, None] = "auto",
-    near: float = 0.01,
-    keep_ground_truth: bool = False,
-    frame_rate: float = 10.0,
-    num_threads: int = 0,
-) -> SyntheticScan:
+def render_scan(scene: Scene, poses: Union[ScanTrajectory, Trajectory, np.ndarray],
+                intrinsics: Union[Intrinsics, str] = "sr300", noise: Union[SensorNoise, str, None] = "sr300",
+                seed: int = 0, *, depth_unit: Union[float, str, None] = "auto", near: float = 0.01,
+                keep_ground_truth: bool = False, frame_rate: float = 10.0, num_threads: int = 0) -> SyntheticScan:
     """Renders a scan: noisy depth and shaded colour for every camera pose.
 
     Args:
-        scene: what is seen.
-        poses: a :class:`ScanTrajectory` (flange poses + hand-eye, and the robot's joints when
-            it has a robot: stored in the scan and each frame's meta), a :class:`Trajectory`
-            of ``T_base_camera``, or an (N, 4, 4) array of ``T_base_camera`` (camera -> base, m).
+        poses: a :class:`ScanTrajectory` (its hand-eye transform, flange poses and robot are
+            kept in the scan and each frame's meta), a :class:`Trajectory` of ``T_base_camera``,
+            or an (N, 4, 4) array of ``T_base_camera`` (camera -> base, m; timestamps
+            ``k / frame_rate``, Hz).
         intrinsics: camera intrinsics or a preset name (:data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS`).
         noise: a :class:`SensorNoise` or a preset name (``NOISE_PRESETS``); None = "none".
-        seed: noise seed. Frame ``k``'s noise is seeded from
-            ``numpy.random.SeedSequence(seed).spawn(N)[k]``: equal seeds give bit-identical
-            frames, and a frame does not depend on how many others are rendered.
-        depth_unit: metres per unit of the stored uint16 depth (depths above 65535 units are
-            stored as missing); ``"auto"`` (default): the sensor's own quantisation step when
-            it has one (1/8 mm for the SR300, 1 mm for the D435), else 0.1 mm so that
-            sub-millimetre noise survives; None: float32 metres with NaN for missing pixels.
+        seed: frame ``k``'s noise is seeded from ``numpy.random.SeedSequence(seed).spawn(N)[k]``:
+            equal seeds give bit-identical frames, whatever the number of frames rendered.
+        depth_unit: metres per unit of the stored uint16 depth (0 = missing, as are depths above
+            65535 units); ``"auto"``: the sensor's own step when it has one (1/8 mm for the
+            SR300, 1 mm for the D435), else 0.1 mm; None: float32 metres, NaN = missing.
         near: renderer near plane (m).
         keep_ground_truth: also store the noise-free depth and face ids in ``frame.meta``.
-        frame_rate: Hz, for timestamps when ``poses`` has none (an array).
         num_threads: frames rendered concurrently (each on one thread); 0 = one per CPU.
 
     Raises:
@@ -169,22 +146,16 @@ def render_scan(
             units[(units > 65535) | (units < 0)] = 0
             depth, scale = units.astype(np.uint16), float(depth_unit)
         meta: Dict[str, Any] = {"noise": model.name}
-        if src["T_base_flange"] is not None:
-            meta["T_base_flange"] = src["T_base_flange"][k].copy()
-        if src["joints"] is not None:
-            meta["joints"] = src["joints"][k].copy()
-            if src["robot"] is not None:
-                meta["robot"] = src["robot"].name
+        meta.update({key: src[key][k].copy() for key in ("T_base_flange", "joints") if src[key] is not None})
+        if src["joints"] is not None and src["robot"] is not None:
+            meta["robot"] = src["robot"].name
         if keep_ground_truth:
-            meta["depth_true"] = clean.depth
-            meta["face_id"] = clean.face_id
+            meta.update(depth_true=clean.depth, face_id=clean.face_id)
         return Frame(depth=depth, intrinsics=K, rgb=scene.shade(clean, T, K), depth_scale=scale,
                      timestamp=float(stamps[k]), T_base_camera=T.copy(), index=k, meta=meta)
 
-    # Frames are independent: render them on a pool of threads, each frame single-threaded
-    # (the renderer and most NumPy work release the GIL). This scales better than threads
-    # inside one small frame, whose barriers stall when the machine is oversubscribed; the
-    # output does not depend on the number of workers.
+    # Independent frames on a pool of threads, each single-threaded (the renderer and NumPy
+    # release the GIL): better than threads within a small frame on a busy machine.
     workers = max(1, min(int(num_threads) or os.cpu_count() or 1, len(T_cams)))
     if workers == 1:
         frames = [render_frame(k) for k in range(len(T_cams))]

@@ -33,14 +33,8 @@ def _finite(value: object, shape: Tuple[int, ...], name: str, what: str) -> np.n
 
 @dataclass
 class SceneObject:
-    """A mesh placed in the scene.
-
-    Attributes:
-        name: label (e.g. the mesh name).
-        mesh: the mesh in its own (object) frame, metres.
-        T_base_object: 4x4 pose: maps object coordinates into the base frame.
-        color: RGB albedo in [0, 1] used for the shaded colour image.
-    """
+    """A mesh (its own frame, metres) placed in the scene at ``T_base_object`` (object -> base),
+    with its RGB albedo ``color`` in [0, 1] and a ``name``."""
 
     name: str
     mesh: io.Mesh
@@ -49,34 +43,19 @@ class SceneObject:
 
 
 class Scene:
-    """Objects on a table, in the robot base frame (z up, table top at ``table_height``).
-
-    The table is a finite rectangle (two triangles, normal +z) with a checker pattern in the
-    colour image. Rendering uses one combined mesh in the base frame, its faces reordered
-    along a Morton curve for cache locality; :attr:`face_object` and :attr:`face_source` map
-    its faces back to the objects.
-
-    Args:
-        table_size: (x, y) size of the table top, metres; None for no table.
-        table_center: (x, y) of the table's centre in the base frame, metres.
-        table_height: z of the table top in the base frame, metres.
-        checker_size: side of a checker square, metres.
-        checker_colors: the two RGB albedos of the checker, in [0, 1].
-        light_direction: direction towards a distant light in the base frame (normalised
-            here); shading is two-sided Lambertian plus ``ambient``.
-        ambient: ambient fraction of the light in [0, 1].
+    """Objects on a table, in the robot base frame (z up, metres): the table top (``table_size``
+    (x, y), None for none, centred at ``table_center`` (x, y), at z = ``table_height``) is two
+    triangles, normal +z, with a checker pattern of ``checker_size`` squares in the two RGB
+    albedos ``checker_colors`` (in [0, 1]) in the colour image.  Shading is two-sided
+    Lambertian under a distant light in direction ``light_direction`` (base frame, normalised
+    here) plus an ``ambient`` fraction in [0, 1].  Rendering uses one combined mesh
+    (:attr:`mesh`; :attr:`face_object`, :attr:`face_source`).
     """
 
-    def __init__(
-        self,
-        table_size: Optional[Tuple[float, float]] = (0.6, 0.6),
-        table_center: Tuple[float, float] = (0.5, 0.0),
-        table_height: float = 0.0,
-        checker_size: float = 0.05,
-        checker_colors: Tuple[Sequence[float], Sequence[float]] = ((0.80, 0.78, 0.72), (0.45, 0.43, 0.40)),
-        light_direction: Sequence[float] = (0.3, -0.2, 1.0),
-        ambient: float = 0.3,
-    ) -> None:
+    def __init__(self, table_size: Optional[Tuple[float, float]] = (0.6, 0.6),
+                 table_center: Tuple[float, float] = (0.5, 0.0), table_height: float = 0.0, checker_size: float = 0.05,
+                 checker_colors: Tuple[Sequence[float], Sequence[float]] = ((0.80, 0.78, 0.72), (0.45, 0.43, 0.40)),
+                 light_direction: Sequence[float] = (0.3, -0.2, 1.0), ambient: float = 0.3) -> None:
         ts = None if table_size is None else _finite(table_size, (2,), "table_size", "two lengths in metres")
         light = _finite(light_direction, (3,), "light_direction", "a non-zero 3-vector")
         for name, ok, what in (("table_size", ts is None or ts.min() > 0, "two positive lengths (m) or None"),
@@ -95,24 +74,14 @@ class Scene:
         self.objects: List[SceneObject] = []
         self._combined: Optional[Dict[str, np.ndarray]] = None
 
-    def add_object(
-        self,
-        mesh: io.Mesh,
-        T_base_object: Optional[np.ndarray] = None,
-        *,
-        position: Optional[Tuple[float, float]] = None,
-        yaw: float = 0.0,
-        color: Sequence[float] = (0.75, 0.45, 0.20),
-        name: Optional[str] = None,
-    ) -> SceneObject:
-        """Places a mesh (metres, its own frame) in the scene.
+    def add_object(self, mesh: io.Mesh, T_base_object: Optional[np.ndarray] = None, *,
+                   position: Optional[Tuple[float, float]] = None, yaw: float = 0.0,
+                   color: Sequence[float] = (0.75, 0.45, 0.20), name: Optional[str] = None) -> SceneObject:
+        """Places a mesh (metres, its own frame) in the scene and returns its :class:`SceneObject`.
 
         Either give ``T_base_object`` (object -> base), or let the object stand on the table:
         rotated by ``yaw`` (rad) about the vertical, its lowest vertex on the table top, the
         centre of its bounding box at ``position`` (x, y, base frame, m; default the table centre).
-
-        Returns:
-            The :class:`SceneObject` (its ``T_base_object`` is the pose used).
         """
         if not isinstance(mesh, io.Mesh):
             raise TypeError(f"mesh: expected scanalign.io.Mesh, got {type(mesh)!r}")
@@ -145,15 +114,12 @@ class Scene:
         default target of trajectories); the table centre when there are no objects."""
         if not self.objects:
             return np.array([*self.table_center, self.table_height])
-        v = self.object_mesh.vertices
-        lo, hi = v.min(axis=0), v.max(axis=0)
-        return np.array([(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, self.table_height])
+        v = self.object_mesh.vertices[:, :2]
+        return np.append((v.min(axis=0) + v.max(axis=0)) / 2, self.table_height)
 
     def _build(self) -> Dict[str, np.ndarray]:
-        """The combined mesh (C++ ``_core.synthetic.compose_scene``): each object moved into the
-        base frame, its faces in Morton order of their centroids and its vertices in order of
-        first use (neighbouring faces end up close in memory, which cuts the renderer's cache
-        misses on meshes stored in random order; unused vertices are dropped), then the table."""
+        """The combined mesh, built once by C++ ``_core.synthetic.compose_scene`` (faces in Morton
+        order, for the renderer's cache)."""
         if self._combined is not None:
             return self._combined
         objects = [(obj.mesh.vertices, obj.mesh.faces, obj.T_base_object, obj.color) for obj in self.objects]
@@ -174,10 +140,8 @@ class Scene:
         first ``len(object_mesh.faces)`` faces of :attr:`mesh`."""
         c = self._build()
         F = c["faces"][: int(c["n_object_faces"])].astype(np.int64)
-        used = np.unique(F)
-        remap = np.full(len(c["vertices"]), -1, dtype=np.int64)
-        remap[used] = np.arange(len(used))
-        return io.Mesh(c["vertices"][used].copy(), remap[F])
+        used, faces = np.unique(F, return_inverse=True)  # the used vertices, renumbered
+        return io.Mesh(c["vertices"][used], faces.reshape(F.shape).astype(np.int64))
 
     @property
     def face_object(self) -> np.ndarray:
@@ -201,9 +165,7 @@ class Scene:
                             num_threads=num_threads)
 
     def _prepare_shading(self) -> None:
-        """Colour of every face under the fixed light, for both checker albedos (they differ
-        on table faces only); the last row is the background (black). Built once (C++
-        ``_core.synthetic.scene_colors``)."""
+        """Colour of every face for both checker albedos, built once (C++ ``_core.synthetic.scene_colors``)."""
         c = self._build()
         if "lut" in c:
             return
@@ -213,10 +175,9 @@ class Scene:
 
     def shade(self, result: RenderResult, T_base_camera: np.ndarray,
               intrinsics: Union[Intrinsics, str]) -> np.ndarray:
-        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels): two-sided
-        Lambertian shading of each face's albedo (the object's colour, or the table's checker
-        at the point hit) under :attr:`light_direction`; black where nothing is hit.
-        ``T_base_camera``: camera -> base, m."""
+        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels), rendered at
+        ``T_base_camera`` (camera -> base, m): each face's shaded albedo (the table's checker
+        at the point hit); black where nothing is hit."""
         c = self._build()
         K = as_intrinsics(intrinsics)
         T = as_transform(T_base_camera, "T_base_camera")
@@ -224,7 +185,5 @@ class Scene:
         if fid.shape != K.shape:
             raise ValueError(f"result has shape {fid.shape}, intrinsics expect {K.shape}")
         self._prepare_shading()
-        # The table's checker parity from the base-frame point hit (the depth back-projected as
-        # depth_to_cloud does): C++ _core.synthetic.shade_scene.
         return _core.synthetic.shade_scene(c["lut"], c["lut_alt"], int(c["n_object_faces"]), fid,
                                            np.asarray(result.depth), K, T, self.table_center, self.checker_size)

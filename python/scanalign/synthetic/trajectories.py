@@ -16,7 +16,8 @@ from scanalign import kinematics as kin
 from scanalign.common import rigid as se3
 from scanalign.evaluation.trajectory import Trajectory
 
-__all__ = ["DEFAULT_T_FLANGE_CAMERA", "ScanTrajectory", "loop_trajectory", "hemisphere_trajectory", "DEFAULT_ROBOT_HEIGHT", "robot_mount", "attach_robot"]
+__all__ = ["DEFAULT_T_FLANGE_CAMERA", "ScanTrajectory", "loop_trajectory", "hemisphere_trajectory",
+           "DEFAULT_ROBOT_HEIGHT", "robot_mount", "attach_robot"]
 
 #: Default hand-eye calibration ``T_flange_camera`` (camera -> flange): the camera beside the
 #: gripper, 5 cm in front of the flange along its z axis and 3.5 cm off-axis along its x axis,
@@ -33,16 +34,13 @@ class ScanTrajectory:
     """Robot poses of a scan and the camera poses they give.
 
     Attributes:
-        T_base_flange: (N, 4, 4) flange poses (flange -> base), metres. With a robot, forward
-            kinematics of :attr:`joints`: ``robot.fk(joints)``.
+        T_base_flange: (N, 4, 4) flange poses (flange -> base), metres.
         T_flange_camera: (4, 4) hand-eye transform (camera -> flange).
         timestamps: (N,) seconds.
         joints: (N, 6) joint values of the robot (rad), or None when planned without a robot.
         robot: the :class:`scanalign.kinematics.Robot` that moves the camera, placed in the
-            scene (base transform ``T_base_robot``, tool the flange), so that
-            ``robot.fk(joints)`` is :attr:`T_base_flange`; None without a robot.
-        T_base_robot: (4, 4) mounting of the robot base in the scene (robot base -> scene
-            base), or None.
+            scene, its tool the flange: ``robot.fk(joints)`` is :attr:`T_base_flange`; or None.
+        T_base_robot: (4, 4) mounting of the robot base in the scene (robot base -> base), or None.
     """
 
     T_base_flange: np.ndarray
@@ -96,8 +94,6 @@ def _planned(T_base_camera: np.ndarray, T_flange_camera: Optional[np.ndarray], f
         raise ValueError("jitter_translation, jitter_rotation: amplitudes must be non-negative (m, rad)")
     T_cam = np.array(T_base_camera, dtype=np.float64)
     if jitter_translation > 0 or jitter_rotation > 0:
-        # Vibration-like perturbation of where the camera really is; the reference records
-        # the perturbed pose, so it stays exact.
         rng = np.random.default_rng(seed)
         for T in T_cam:
             axis = rng.normal(size=3)
@@ -113,51 +109,27 @@ def _planned(T_base_camera: np.ndarray, T_flange_camera: Optional[np.ndarray], f
     return attach_robot(traj, robot, T_base_robot=T_base_robot, q_start=q_start)
 
 
-def loop_trajectory(
-    n_frames: int = 36,
-    *,
-    center: Sequence[float] = (0.5, 0.0, 0.0),
-    height: float = 0.40,
-    radius: float = 0.20,
-    start_angle: float = 0.0,
-    sweep: float = 2 * math.pi,
-    target: Optional[Sequence[float]] = None,
-    T_flange_camera: Optional[np.ndarray] = None,
-    frame_rate: float = 10.0,
-    jitter_translation: float = 0.0,
-    jitter_rotation: float = 0.0,
-    seed: int = 0,
-    robot: Any = None,
-    T_base_robot: Optional[np.ndarray] = None,
-    q_start: Optional[Sequence[float]] = None,
-) -> ScanTrajectory:
-    """A loop around the object, as in the eye-in-hand paper (Comput. Electron. Agric. 180
-    (2021) 105929, Fig. 4): the camera circles at ``height`` above the table, tilted to look
-    at the target.
-
-    Camera ``k`` sits at ``center + (radius cos a_k, radius sin a_k, height)`` with
-    ``a_k = start_angle + sweep k / n_frames`` (a full loop by default, without repeating the
-    first pose), its optical axis through ``target``, image up towards +z. Flange poses are
-    ``T_base_camera @ inv(T_flange_camera)``. Timestamps are ``k / frame_rate``.
+def loop_trajectory(n_frames: int = 36, *, center: Sequence[float] = (0.5, 0.0, 0.0), height: float = 0.40,
+                    radius: float = 0.20, start_angle: float = 0.0, sweep: float = 2 * math.pi,
+                    target: Optional[Sequence[float]] = None, T_flange_camera: Optional[np.ndarray] = None,
+                    frame_rate: float = 10.0, jitter_translation: float = 0.0, jitter_rotation: float = 0.0,
+                    seed: int = 0, robot: Any = None, T_base_robot: Optional[np.ndarray] = None,
+                    q_start: Optional[Sequence[float]] = None) -> ScanTrajectory:
+    """A loop around the object (eye-in-hand paper, Comput. Electron. Agric. 180 (2021) 105929,
+    Fig. 4): camera ``k`` (``n_frames`` >= 1) sits at ``center + (radius cos a_k, radius sin a_k,
+    height)`` (base frame, m; ``height`` > 0, ``radius`` >= 0) with ``a_k = start_angle + sweep
+    k / n_frames`` (rad; a full loop by default, without repeating the first pose), looking at
+    ``target`` (default ``center``) with image up towards +z, at time ``k / frame_rate`` (Hz).
+    Flange poses are ``T_base_camera @ inv(T_flange_camera)`` (default
+    :data:`DEFAULT_T_FLANGE_CAMERA`).
 
     Args:
-        n_frames: number of poses (>= 1).
-        center: loop centre on the table, base frame (m).
-        height: camera height above ``center`` (m, > 0).
-        radius: loop radius (m, >= 0).
-        start_angle, sweep: first azimuth and swept angle (rad).
-        target: point looked at (m); default ``center``.
-        T_flange_camera: hand-eye transform; default :data:`DEFAULT_T_FLANGE_CAMERA`.
-        frame_rate: Hz.
         jitter_translation, jitter_rotation: standard deviations (m, rad) of an optional
-            random perturbation of each camera pose (the reference includes it). 0: smooth.
-        seed: seed of the jitter.
-        robot: None (default): the planned flange poses, no arm. A robot name ("ur5") or
-            :class:`scanalign.kinematics.Robot`: the arm follows the path
-            (:func:`~scanalign.synthetic.attach_robot`), the trajectory carries its joints, and
-            its poses are forward kinematics of them.
-        T_base_robot: with a robot, its mounting in the scene (robot base -> base, m); default
-            :func:`~scanalign.synthetic.robot_mount` hanging ``DEFAULT_ROBOT_HEIGHT`` above ``center``.
+            random perturbation of each camera pose (the reference includes it), seeded by ``seed``.
+        robot: None: no arm. A robot name ("ur5") or :class:`scanalign.kinematics.Robot`: the arm
+            follows the path (:func:`attach_robot`), its poses forward kinematics of its joints.
+        T_base_robot: with a robot, its mounting (robot base -> base, m); default
+            :func:`robot_mount` hanging ``DEFAULT_ROBOT_HEIGHT`` above ``center``.
         q_start: with a robot, joints (rad) to start from (default: chosen automatically, elbow up).
     """
     c = _array(center, (3,), "center")
@@ -167,38 +139,20 @@ def loop_trajectory(
                     T_base_robot, q_start, c)
 
 
-def hemisphere_trajectory(
-    n_frames: int = 48,
-    *,
-    center: Sequence[float] = (0.5, 0.0, 0.0),
-    distance: float = 0.45,
-    elevations: Sequence[float] = (math.radians(35.0), math.radians(55.0), math.radians(75.0)),
-    start_angle: float = 0.0,
-    target: Optional[Sequence[float]] = None,
-    T_flange_camera: Optional[np.ndarray] = None,
-    frame_rate: float = 10.0,
-    jitter_translation: float = 0.0,
-    jitter_rotation: float = 0.0,
-    seed: int = 0,
-    robot: Any = None,
-    T_base_robot: Optional[np.ndarray] = None,
-    q_start: Optional[Sequence[float]] = None,
-) -> ScanTrajectory:
-    """Rings on a hemisphere of radius ``distance`` around the target, one per elevation.
+def hemisphere_trajectory(n_frames: int = 48, *, center: Sequence[float] = (0.5, 0.0, 0.0), distance: float = 0.45,
+                          elevations: Sequence[float] = (math.radians(35.0), math.radians(55.0), math.radians(75.0)),
+                          start_angle: float = 0.0, target: Optional[Sequence[float]] = None,
+                          T_flange_camera: Optional[np.ndarray] = None, frame_rate: float = 10.0,
+                          jitter_translation: float = 0.0, jitter_rotation: float = 0.0, seed: int = 0,
+                          robot: Any = None, T_base_robot: Optional[np.ndarray] = None,
+                          q_start: Optional[Sequence[float]] = None) -> ScanTrajectory:
+    """Rings at ``distance`` (m) from ``target`` (default ``center``, base frame, m), one per
+    elevation (rad, in (0, pi/2]), from azimuth ``start_angle`` (rad).
 
-    Frames are shared between rings in proportion to their circumferences (``cos(elevation)``,
-    at least one each); successive rings run in opposite directions, each starting where the
-    previous ended: one continuous serpentine. Every camera looks at ``target`` (default
-    ``center``) with image up towards +z (outwards at 90 deg elevation).
-
-    Args:
-        n_frames: total number of poses (>= number of rings).
-        center: centre of the hemisphere's base on the table, base frame (m).
-        distance: camera distance to the target (m).
-        elevations: ring elevations above the table plane (rad, in (0, pi/2]).
-        start_angle: azimuth of the first pose (rad).
-        target, T_flange_camera, frame_rate, jitter_translation, jitter_rotation, seed,
-            robot, T_base_robot, q_start: as for :func:`loop_trajectory`.
+    The ``n_frames`` (>= number of rings) are shared between rings in proportion to their
+    circumferences (``cos(elevation)``, at least one each); successive rings run in opposite
+    directions, each starting where the previous ended. Cameras look at the target, image up
+    towards +z (outwards at 90 deg). The other arguments are those of :func:`loop_trajectory`.
     """
     c = _array(center, (3,), "center")
     poses = _core.synthetic.hemisphere_camera_poses(n_frames, c if target is None else _array(target, (3,), "target"),
@@ -212,17 +166,13 @@ DEFAULT_ROBOT_HEIGHT: float = 0.90
 
 def robot_mount(x: float = 0.5, y: float = 0.0, z: float = DEFAULT_ROBOT_HEIGHT, roll: float = math.pi,
                 pitch: float = 0.0, yaw: float = 0.0) -> np.ndarray:
-    """``T_base_robot``: where a robot's own base frame sits in the scene (robot base ->
-    scene base), from a position (m) and roll / pitch / yaw angles (rad, rotation
-    ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, as URDF).
+    """``T_base_robot`` (robot base -> scene base) from a position (m) and roll / pitch / yaw
+    (rad, rotation ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, as URDF).
 
-    The default hangs the arm upside down (roll = pi: first joint axis down) 0.9 m above the
-    centre of the default table, e.g. on a gantry. A camera circling an object all the way
-    round circles the arm's first axis too: from a base beside the table, a UR5 (reach
-    0.85 m) cannot reach the far side of the default hemisphere path, and the near side
-    passes through the shoulder singularity (the wrist within d4 = 0.11 m of the first
-    axis). From above, both default paths lie 0.15-0.47 m from the first axis and 0.3-0.7 m
-    from the shoulder, inside the workspace and away from every singularity.
+    The default hangs the arm (first joint axis down) 0.9 m above the default table's centre,
+    as on a gantry: from beside the table a UR5 (reach 0.85 m) cannot reach the far side of
+    the default hemisphere path and passes the shoulder singularity on the near side; from
+    above, both default paths stay inside the workspace, away from every singularity.
     """
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (x, y, z, roll, pitch, yaw)):
         raise ValueError(f"robot_mount: expected finite numbers (m, rad), got {(x, y, z, roll, pitch, yaw)!r}")
@@ -240,40 +190,21 @@ def as_robot(robot: Any) -> Any:
     return robot
 
 
-def attach_robot(
-    trajectory: ScanTrajectory,
-    robot: Any = "ur5",
-    *,
-    T_base_robot: Optional[np.ndarray] = None,
-    q_start: Optional[Sequence[float]] = None,
-    elbow: str = "up",
-) -> ScanTrajectory:
+def attach_robot(trajectory: ScanTrajectory, robot: Any = "ur5", *, T_base_robot: Optional[np.ndarray] = None,
+                 q_start: Optional[Sequence[float]] = None, elbow: str = "up") -> ScanTrajectory:
     """Moves a planned camera path with a robot arm: joints by inverse kinematics, poses by
-    forward kinematics.
+    forward kinematics.  The planned flange poses, in the robot's base frame ``inv(T_base_robot) @ T_base_flange``
+    (``T_base_robot``: robot base -> scene base, m; default :func:`robot_mount` ``()``), go to
+    :meth:`Robot.ik_trajectory` (each step the solution closest to the previous joints);
+    forward kinematics of those joints gives the returned flange poses (the planned ones to
+    ~1e-15 m).  ``robot`` (a :class:`scanalign.kinematics.Robot` or a name for
+    :meth:`Robot.by_name`) gets the flange as its tool and ``T_base_robot`` as its mount.
 
-    The planned flange poses are mapped into the robot's base frame,
-    ``inv(T_base_robot) @ T_base_flange``; :meth:`Robot.ik_trajectory` takes at each step the
-    solution closest to the previous joints; forward kinematics of those joints gives the
-    returned flange poses, so the reference camera poses are the robot's own (equal to the
-    planned ones to ~1e-15 m, the IK being exact).
-
-    Unless ``q_start`` is given, the start is chosen among the first pose's solutions with
-    the requested ``elbow`` ("up": the elbow away from the table, IK label +1 for an upright
-    base and -1 for a hanging one; "down": the other; "any"), each with its first and last
-    joint shifted by 0, -2 pi and +2 pi where the limits allow: the one whose trajectory
+    The start is ``q_start`` ((6,) rad) if given, else chosen among the first pose's solutions
+    with the requested ``elbow`` ("up": away from the table; "down"; "any"), each with its
+    first and last joint shifted by 0, -2 pi and +2 pi where the limits allow: the one that
     reaches every pose with the smallest largest joint step wins (ties within 1e-9 rad: the
-    lowest configuration index, then no shift, -2 pi, +2 pi). So a loop around the first axis
-    starts where it can turn all the way within the joint limits, and no step switches branch.
-
-    Args:
-        trajectory: the planned path (its ``T_base_flange`` and ``T_flange_camera``).
-        robot: a :class:`scanalign.kinematics.Robot` or a name for :meth:`Robot.by_name`
-            ("ur5", ...); its tool becomes the flange (the hand-eye transform plays that
-            role), its base ``T_base_robot`` (composed with the model's DH-frame-0 placement).
-        T_base_robot: (4, 4) mounting of the robot base in the scene (robot base -> scene
-            base, metres); default :func:`robot_mount` ``()``.
-        q_start: (6,) joints (rad) to start from: the first step is the solution closest to it.
-        elbow: "up", "down" or "any" (ignored with ``q_start``).
+    lowest configuration index, then no shift, -2 pi, +2 pi), so no step switches branch.
 
     Returns:
         A new :class:`ScanTrajectory` with ``joints``, ``robot`` (placed in the scene) and

@@ -1,11 +1,9 @@
 """Figures for reports and benchmarks: trajectories, per-frame statistics, curves.
 
-matplotlib is imported on first use and only through its object-oriented API with the Agg
-canvas (no pyplot, no display, no global backend switch), so these functions work on
-headless machines and do not disturb an interactive session.  Every function writes a PNG
-and returns its path.
-
-Conventions: inputs in metres and seconds; ``T_world_camera`` poses.
+matplotlib is imported on first use, only through its object-oriented API with the Agg
+canvas (no pyplot, no display, no global backend switch): these functions work headless and
+leave an interactive session alone.  Every function writes a PNG to ``path`` (creating its
+folder) and returns that path; ``title`` is the figure's title.  Inputs in metres and seconds.
 """
 
 from __future__ import annotations
@@ -20,8 +18,8 @@ from scanalign.evaluation import absolute_trajectory_error
 from scanalign.evaluation.trajectory import Trajectory
 from scanalign.pipelines.pick import placed_parts
 
-__all__ = ["plot_batch", "plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations", "plot_joint_trajectory",
-           "pose_overlay", "plot_pick"]
+__all__ = ["plot_batch", "plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations",
+           "plot_joint_trajectory", "pose_overlay", "plot_pick"]
 
 PathLike = Union[str, os.PathLike]
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -43,8 +41,7 @@ def _figure(figsize: Tuple[float, float]):
 
 def _save(fig, path: PathLike, dpi: int) -> Path:
     out = Path(path)
-    if out.parent and not out.parent.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
+    out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=dpi, format="png")
     return out
 
@@ -52,8 +49,7 @@ def _save(fig, path: PathLike, dpi: int) -> Path:
 def _plane_axes(plane: Optional[str], positions: np.ndarray) -> Tuple[int, int]:
     if plane is None:
         ext = np.ptp(positions, axis=0) if positions.shape[0] else np.zeros(3)
-        i, j = sorted(np.argsort(-ext, kind="stable")[:2].tolist())
-        return i, j
+        return tuple(sorted(np.argsort(-ext, kind="stable")[:2].tolist()))
     if len(plane) != 2 or plane[0] not in _AXES or plane[1] not in _AXES or plane[0] == plane[1]:
         raise ValueError(f"plane must be two different letters of 'xyz' such as 'xy' or 'xz', got {plane!r}")
     return _AXES[plane[0]], _AXES[plane[1]]
@@ -62,11 +58,21 @@ def _plane_axes(plane: Optional[str], positions: np.ndarray) -> Tuple[int, int]:
 def _length_unit(units: str, extent: float) -> Tuple[str, float]:
     if units == "auto":
         units = "mm" if extent < 0.5 else "m"
-    if units == "m":
-        return "m", 1.0
-    if units == "mm":
-        return "mm", 1000.0
-    raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
+    if units not in ("m", "mm"):
+        raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
+    return units, 1000.0 if units == "mm" else 1.0
+
+
+def _cube(pts: np.ndarray) -> Tuple[np.ndarray, float]:
+    """Centre and half side of a cube 1.1 times the points' largest extent (at least 1 mm)."""
+    return 0.5 * (pts.min(axis=0) + pts.max(axis=0)), 0.55 * max(float(np.ptp(pts, axis=0).max()), 1e-3)
+
+
+def _set_cube(ax: Any, centre: np.ndarray, half: float) -> None:
+    """Equal 3D axes spanning ``centre +- half``."""
+    for set_lim, c in zip((ax.set_xlim, ax.set_ylim, ax.set_zlim), centre):
+        set_lim(c - half, c + half)
+    ax.set_box_aspect((1, 1, 1))
 
 
 def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory], path: PathLike,
@@ -74,32 +80,21 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory
                             units: str = "auto", with_scale: bool = False, associate: bool = False,
                             max_difference: float = 0.02, dpi: int = 150) -> Path:
     """Top-down view of estimated vs reference camera centres, like Fig. 4 of the eye-in-hand
-    paper (Comput. Electron. Agric. 180 (2021) 105929).
-
-    The reference is a black line, the estimate a coloured one, and thin grey segments join
-    corresponding poses (their lengths are the ATE errors when ``aligned``).  Circles mark
-    the start, squares the end.  Axes are equal, in metres or millimetres.
+    paper (Comput. Electron. Agric. 180 (2021) 105929): the reference black, the estimate
+    coloured, grey segments joining paired poses; circles mark the start, squares the end.
 
     Args:
-        estimate, reference: ``T_world_camera`` trajectories, paired by index (equal length)
-            or by timestamps with ``associate`` (``max_difference`` s). Without a reference
-            (real data) the estimate alone is drawn, in its own frame.
-        path: PNG file to write (parent folders are created).
-        aligned: align the estimate to the reference first (as the ATE does; the ATE RMSE
-            appears in the legend).  Otherwise both are drawn as given and the legend shows
-            the RMSE of the raw distances.
+        estimate, reference: ``T_world_camera`` trajectories, paired as by
+            :func:`scanalign.evaluation.absolute_trajectory_error` (``associate``,
+            ``max_difference`` s). Without a reference the estimate alone is drawn, in its frame.
+        aligned: align the estimate to the reference first (``with_scale``: a similarity) and
+            give the ATE RMSE in the title; otherwise the RMSE of the raw distances.
         plane: two axes of the reference world frame, e.g. ``"xy"`` (x horizontal) or
             ``"xz"``; default: the two axes along which the reference centres extend most.
         units: ``"m"``, ``"mm"`` or ``"auto"`` (mm when the drawn extent is under 0.5 m).
-        with_scale: similarity alignment.
-
-    Returns:
-        The written path.
     """
-    ate = None
-    if reference is not None:
-        ate = absolute_trajectory_error(estimate, reference, align=aligned, with_scale=with_scale,
-                                        associate=associate, max_difference=max_difference)
+    ate = None if reference is None else absolute_trajectory_error(
+        estimate, reference, align=aligned, with_scale=with_scale, associate=associate, max_difference=max_difference)
     est = ate.aligned.positions if ate else estimate.positions
     ref = ate.reference.positions if ate else est[:0]
     i, j = _plane_axes(plane, ref if ate else est)
@@ -122,9 +117,7 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory
         ax.plot(pts[-1, 0], pts[-1, 1], "s", color=color, ms=6, zorder=4)
     ax.plot([], [], "o", color="0.3", mfc="white", label="start")
     ax.plot([], [], "s", color="0.3", label="end")
-    names = "xyz"
-    ax.set_xlabel(f"{names[i]} ({unit})")
-    ax.set_ylabel(f"{names[j]} ({unit})")
+    ax.set(xlabel=f"{'xyz'[i]} ({unit})", ylabel=f"{'xyz'[j]} ({unit})")
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.grid(True, lw=0.3, alpha=0.5)
@@ -143,8 +136,9 @@ _ALIASES = {"time": ("time", "seconds"), "iterations": ("iterations",), "fitness
             "model_size": ("model_size", "model_points"), "skipped": ("skipped",)}
 
 
-def _columns(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]]) -> Dict[str, np.ndarray]:
-    """Normalises rows-of-dicts or dict-of-columns to float columns by canonical name."""
+def _columns(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]]
+             ) -> Tuple[int, Dict[str, np.ndarray]]:
+    """The number of frames and float columns by canonical name, of rows of dicts or a dict of columns."""
     if isinstance(per_frame, Mapping):
         raw = {k: list(v) for k, v in per_frame.items()}
         n = len(next(iter(raw.values()))) if raw else 0
@@ -154,38 +148,24 @@ def _columns(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence
         rows = list(per_frame)
         if not all(isinstance(r, Mapping) for r in rows):
             raise TypeError("per_frame: expected a sequence of dicts or a dict of columns")
-        keys = set().union(*(r.keys() for r in rows)) if rows else set()
-        raw = {k: [r.get(k) for r in rows] for k in keys}
+        raw = {k: [r.get(k) for r in rows] for k in {k for r in rows for k in r}}
         n = len(rows)
-    cols: Dict[str, np.ndarray] = {}
-    for name, aliases in _ALIASES.items():
-        for a in aliases:
-            if a in raw:
-                cols[name] = np.array([np.nan if x is None else float(x) for x in raw[a]], dtype=np.float64)
-                break
-    cols["_n"] = np.array(n)
-    return cols
+    found = {name: next((a for a in aliases if a in raw), None) for name, aliases in _ALIASES.items()}
+    return n, {name: np.array([np.nan if x is None else float(x) for x in raw[a]], dtype=np.float64)
+               for name, a in found.items() if a is not None}
 
 
 def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]], path: PathLike,
                      title: Optional[str] = None, dpi: int = 150) -> Path:
     """Per-frame registration cost and model growth, two panels sharing the frame axis.
 
-    Top: registration time (ms, bars) with ICP iterations on a twin axis.  Bottom: model
-    size (points) with the ICP fitness on a twin axis.  Skipped frames (``skipped`` true,
-    or a missing / NaN time) are shaded red with an ``x`` on the frame axis.
-
-    Args:
-        per_frame: one dict per frame, or a dict of equal-length columns, with the time in
-            seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``, the
-            model size in points (``model_size`` or ``model_points``) and ``skipped``.
-        path: PNG file to write.
-
-    Returns:
-        The written path.
+    Top: registration time (ms, bars) and ICP iterations.  Bottom: model size (points) and
+    ICP fitness.  Skipped frames (``skipped`` true, or a missing / NaN time) are shaded red.
+    ``per_frame``: one dict per frame, or a dict of equal-length columns, with the time in
+    seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``, the model size
+    in points (``model_size`` or ``model_points``) and ``skipped``.
     """
-    cols = _columns(per_frame)
-    n = int(cols.pop("_n"))
+    n, cols = _columns(per_frame)
     if n == 0:
         raise ValueError("per_frame: no frames")
     if "time" not in cols:
@@ -201,32 +181,27 @@ def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, 
     ok = ~skipped
     ax1.bar(frames[ok], t_ms[ok], width=0.8, color="tab:blue", label="registration time")
     ax1.set_ylabel("time (ms)")
-    handles = [ax1.containers[0]] if ax1.containers else []
+    handles, h2s = ax1.containers[:1], []
     if "iterations" in cols:
         ax1b = ax1.twinx()
-        (h,) = ax1b.plot(frames, cols["iterations"], ".-", color="tab:orange", lw=0.8, ms=3, label="iterations")
+        handles += ax1b.plot(frames, cols["iterations"], ".-", color="tab:orange", lw=0.8, ms=3, label="iterations")
         ax1b.set_ylabel("ICP iterations")
-        handles.append(h)
     if "model_size" in cols:
-        (h2,) = ax2.plot(frames, cols["model_size"], "-", color="tab:green", lw=1.2, label="model size")
+        h2s += ax2.plot(frames, cols["model_size"], "-", color="tab:green", lw=1.2, label="model size")
         ax2.set_ylabel("model size (points)")
-        h2s = [h2]
     else:
-        h2s = []
         ax2.set_yticks([])
     if "fitness" in cols:
         ax2b = ax2.twinx()
-        (h,) = ax2b.plot(frames, cols["fitness"], ".", color="tab:purple", ms=3, label="fitness")
+        h2s += ax2b.plot(frames, cols["fitness"], ".", color="tab:purple", ms=3, label="fitness")
         ax2b.set_ylabel("fitness")
-        h2s.append(h)
     for ax in (ax1, ax2):
         for f in frames[skipped]:
             ax.axvspan(f - 0.5, f + 0.5, color="tab:red", alpha=0.15, lw=0)
         ax.grid(True, lw=0.3, alpha=0.5)
     if np.any(skipped):
-        ax1.plot(frames[skipped], np.zeros(int(skipped.sum())), "x", color="tab:red", ms=7, clip_on=False,
-                 label="skipped")
-        handles.append(ax1.lines[-1])
+        handles += ax1.plot(frames[skipped], np.zeros(int(skipped.sum())), "x", color="tab:red", ms=7,
+                            clip_on=False, label="skipped")
     ax2.set_xlabel("frame")
     if handles:
         ax1.legend(handles=handles, loc="upper left", fontsize=8)
@@ -248,13 +223,9 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
     Args:
         x: (M,) x values (e.g. number of images, iteration cap).
         series: label -> (M,) y values; NaN leaves a gap (e.g. a method that failed).
-        path: PNG file to write.
         xlabel, ylabel: axis labels, with units (e.g. ``"total time (s)"``).
         logx, logy: logarithmic axes (non-positive values are not drawn).
         errors: optional label -> (M,) symmetric error bars (e.g. standard deviations).
-
-    Returns:
-        The written path.
 
     Raises:
         ValueError: no series, or a series whose length differs from ``x``.
@@ -286,8 +257,7 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
             ax.xaxis.set_minor_formatter(NullFormatter())
     if logy:
         ax.set_yscale("log")
-    ax.set_xlabel(xlabel)
-    ax.set_ylabel(ylabel)
+    ax.set(xlabel=xlabel, ylabel=ylabel)
     if title:
         ax.set_title(title)
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
@@ -304,13 +274,10 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
         robot: a :class:`scanalign.kinematics.Robot` (its ``joint_positions(q, tcp=True)``
             gives the origins of DH frames 0..6 and the TCP in the robot base frame).
         q: (K, 6) joint values, radians; rows with NaN are skipped.
-        path: output PNG.
         labels: one caption per row (e.g. "shoulder +1 elbow +1 wrist -1").
         T_base_tool: (4, 4) target tool pose (tool -> base), drawn as a small RGB triad.
-        title: figure title.
 
-    Returns:
-        The path written. One 3D panel per configuration, metres, equal axes.
+    One 3D panel per configuration, metres, equal axes.
     """
     q = np.atleast_2d(np.asarray(q, dtype=np.float64))
     if q.ndim != 2 or q.shape[1] != 6:
@@ -323,10 +290,8 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
     nrows = (n + cols - 1) // cols
     fig = _figure((3.2 * cols, 3.2 * nrows))
     chains = [(k, np.asarray(robot.joint_positions(q[k], tcp=True))) for k in rows]
-    pts = np.vstack([c for _, c in chains] + ([np.asarray(T_base_tool)[None, :3, 3]] if T_base_tool is not None else [])
-                    ) if chains else np.zeros((1, 3))
-    centre = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
-    half = 0.55 * max(float(np.ptp(pts, axis=0).max()), 1e-3)
+    tool = [] if T_base_tool is None else [np.asarray(T_base_tool, dtype=np.float64)[None, :3, 3]]
+    centre, half = _cube(np.vstack([c for _, c in chains] + tool) if chains else np.zeros((1, 3)))
     for i, (k, chain) in enumerate(chains):
         ax = fig.add_subplot(nrows, cols, i + 1, projection="3d")
         ax.plot(chain[:, 0], chain[:, 1], chain[:, 2], "-o", color="0.25", lw=2.5, ms=3.5)
@@ -336,10 +301,7 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
             for a, colour in enumerate(("r", "g", "b")):
                 e = T[:3, 3] + 0.25 * half * T[:3, a]
                 ax.plot([T[0, 3], e[0]], [T[1, 3], e[1]], [T[2, 3], e[2]], color=colour, lw=1.5)
-        ax.set_xlim(centre[0] - half, centre[0] + half)
-        ax.set_ylim(centre[1] - half, centre[1] + half)
-        ax.set_zlim(centre[2] - half, centre[2] + half)
-        ax.set_box_aspect((1, 1, 1))
+        _set_cube(ax, centre, half)
         ax.tick_params(labelsize=6)
         ax.set_title(labels[k] if labels is not None else f"solution {k}", fontsize=8)
     if title:
@@ -354,9 +316,7 @@ def plot_joint_trajectory(t: Sequence[float], q: np.ndarray, path: PathLike, *,
     Args:
         t: (N,) times, seconds.
         q: (N, 6) joint values, radians (NaN rows: steps without a solution, left as gaps).
-        path: output PNG.
         limits: (6, 2) lower / upper joint limits, radians.
-        title: figure title.
     """
     t = np.asarray(t, dtype=np.float64)
     q = np.asarray(q, dtype=np.float64)
@@ -365,18 +325,17 @@ def plot_joint_trajectory(t: Sequence[float], q: np.ndarray, path: PathLike, *,
     fig = _figure((9.0, 5.0))
     axes = fig.subplots(2, 3, sharex=True)
     for j, ax in enumerate(axes.ravel()):
-        ax.plot(t, np.degrees(q[:, j]), color="C0", lw=1.4)
+        vals, seen = np.degrees(q[:, j]), np.isfinite(q[:, j]).any()
+        ax.plot(t, vals, color="C0", lw=1.4)
         if limits is not None:
-            lo, hi = np.degrees(np.asarray(limits, dtype=np.float64)[j])
-            span = np.nanmax(np.abs(np.degrees(q[:, j]))) if np.isfinite(q[:, j]).any() else 180.0
-            for v in (lo, hi):
+            span = np.nanmax(np.abs(vals)) if seen else 180.0
+            for v in np.degrees(np.asarray(limits, dtype=np.float64)[j]):
                 if abs(v) <= 1.5 * span + 30:
                     ax.axhline(v, color="C3", ls="--", lw=0.8)
-        vals = np.degrees(q[:, j])
-        if np.isfinite(vals).any():  # at least 10 degrees of span: a still joint reads as still
-            mid = 0.5 * (np.nanmin(vals) + np.nanmax(vals))
-            half = max(0.55 * (np.nanmax(vals) - np.nanmin(vals)), 5.0)
-            ax.set_ylim(mid - half, mid + half)
+        if seen:  # at least 10 degrees of span: a still joint reads as still
+            lo, hi = np.nanmin(vals), np.nanmax(vals)
+            half = max(0.55 * (hi - lo), 5.0)
+            ax.set_ylim(0.5 * (lo + hi) - half, 0.5 * (lo + hi) + half)
         ax.ticklabel_format(axis="y", useOffset=False)
         ax.set_title(f"joint {j + 1}", fontsize=9)
         ax.set_ylabel("deg", fontsize=8)
@@ -428,14 +387,10 @@ def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
         chains.append(chain)
         approach = np.array([np.asarray(c.T_base_tcp_pregrasp)[:3, 3], np.asarray(c.T_base_tcp_grasp)[:3, 3]])
         for ax, dims in ((ax3, 3), (ax2, 2)):
-            ax.plot(*chain[:, :dims].T, "-o", color=colour, lw=2, ms=3, label=f"{p.part}: {p.grasp_names[c.grasp_index]}")
+            ax.plot(*chain[:, :dims].T, "-o", color=colour, lw=2, ms=3,
+                    label=f"{p.part}: {p.grasp_names[c.grasp_index]}")
             ax.plot(*approach[:, :dims].T, "--", color="k", lw=1)
-    allp = np.vstack([pts] + chains)
-    centre, half = 0.5 * (allp.min(0) + allp.max(0)), 0.55 * float(np.ptp(allp, axis=0).max())
-    ax3.set_xlim(centre[0] - half, centre[0] + half)
-    ax3.set_ylim(centre[1] - half, centre[1] + half)
-    ax3.set_zlim(centre[2] - half, centre[2] + half)
-    ax3.set_box_aspect((1, 1, 1))
+    _set_cube(ax3, *_cube(np.vstack([pts] + chains)))
     ax2.set_aspect("equal")
     ax2.set_title("top view (m, base frame)")
     ax2.legend(loc="best", fontsize=8)
@@ -466,8 +421,7 @@ def plot_batch(records: Sequence[Mapping[str, Any]], path: PathLike, *, dpi: int
             if v.size:
                 ax.hist(v, bins=min(30, max(5, v.size // 2)), alpha=0.6, color=f"C{j}",
                         label=f"{kind} (n={v.size}, median {np.median(v):.3g})")
-        ax.set_xlabel(label)
-        ax.set_ylabel("jobs")
+        ax.set(xlabel=label, ylabel="jobs")
         ax.legend(fontsize=7)
     bad = sum(r.get("status") != "ok" for r in records)
     fig.suptitle(f"batch: {len(records)} jobs, {bad} failed or crashed")

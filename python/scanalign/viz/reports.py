@@ -1,7 +1,5 @@
 """The files of a run that people look at: each result's data files (its own ``save``) plus
-its figures. Results never draw themselves; this module draws them, so the areas and
-pipelines below never import matplotlib.
-"""
+its figures, drawn here so that the layers below never import matplotlib."""
 
 from __future__ import annotations
 
@@ -68,12 +66,10 @@ def reconstruction_figures(result: ReconstructionResult, out: Path) -> Dict[str,
 
 def write_pose_outputs(model: object, scene: np.ndarray, result: Any, prefix: Union[str, Path], *,
                        object_indices: Optional[np.ndarray] = None, samples: int = 20000) -> Dict[str, Path]:
-    """Files to inspect a pose: ``<prefix>_model.ply`` (the model surface, sampled, placed in
-    the scene frame by ``T_scene_model``), ``<prefix>_scene.ply`` (the scene, the object in
-    orange, the rest grey, the model in blue) and ``<prefix>_overlay.png`` (three
-    orthographic projections). ``model``: a mesh, (vertices, faces) or an (N, 3) cloud, and
-    ``scene`` (M, 3), metres; ``object_indices``: the object's points in ``scene`` (default
-    all). Returns the paths written."""
+    """Writes ``<prefix>_model.ply`` (the ``model`` -- a mesh, sampled, or an (N, 3) cloud --
+    placed in the scene frame by ``result.T_scene_model``), ``<prefix>_scene.ply`` (the (M, 3)
+    ``scene``, its ``object_indices`` (default all) orange, the rest grey, the model blue) and
+    ``<prefix>_overlay.png`` (three projections); metres. Returns the paths written."""
     prefix = Path(prefix)
     prefix.parent.mkdir(parents=True, exist_ok=True)
     scene = as_points(scene, "scene", np.dtype(np.float64))

@@ -1,8 +1,6 @@
-"""A live 3D view in rerun (https://rerun.io, optional: ``pip install rerun-sdk``).
-
-:class:`Viewer` streams a reconstruction while it runs -- the growing model, the camera and
-its path, the robot arm -- and the outcome of a pick (the scene, every found part at its
-pose, the arm at each chosen grasp) to a rerun viewer, to a ``.rrd`` recording, or both::
+"""A live 3D view in rerun (https://rerun.io, optional: ``pip install rerun-sdk``) of a
+reconstruction while it runs and of the outcome of a pick, in a viewer, a ``.rrd`` recording
+or both::
 
     from scanalign.pipelines.reconstruct import reconstruct
     from scanalign.viz.viewer import Viewer
@@ -12,16 +10,14 @@ pose, the arm at each chosen grasp) to a rerun viewer, to a ``.rrd`` recording, 
         view.log_reconstruction(result)
 
 ``scanalign reconstruct|pick --view`` and ``--view-save FILE.rrd`` do the same from the
-command line; :func:`scanalign.pipelines.pick.pick` takes ``viewer=``. Open a recording with
-``rerun FILE.rrd``.
+command line; :func:`scanalign.pipelines.pick.pick` takes ``viewer=``.
 
 Entities (world = the model / robot base frame, metres): ``world/model`` (points),
-``world/camera`` (pose and pinhole), ``world/camera_path`` (line strip of the camera centres),
-``world/reference_path`` (the robot's camera path, when known), ``world/arm`` (the joint
-origins of the arm from forward kinematics as a line strip; ``world/arm/flange``: the flange
-frame), ``world/scene`` and ``world/parts/<k>_<name>`` (pick: the part's mesh at its pose),
-``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (the
-frame index) and ``time`` (the frame timestamp, s).
+``world/camera`` (pose and pinhole), ``world/camera_path`` and ``world/reference_path`` (the
+estimated and the robot's camera centres), ``world/arm`` (the arm's joint origins, a line
+strip), ``world/scene``, ``world/parts/<k>_<name>`` (pick: the part's mesh at its pose) and
+``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (index)
+and ``time`` (timestamp, s).
 """
 
 from __future__ import annotations
@@ -46,10 +42,9 @@ def _rerun() -> Any:
 
 
 def arm_points(robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = None) -> np.ndarray:
-    """(8, 3) points of the arm in its base frame, metres: the origins of DH frames 0..6, then
-    the tool centre point (``Robot.joint_positions(q, tcp=True)``). With ``T_base_flange``
-    (e.g. logged by the robot) the chain is re-anchored so that its flange lies there (a robot
-    mounted elsewhere than its name's default)."""
+    """(8, 3) points of the arm in its base frame, metres: ``Robot.joint_positions(q, tcp=True)``,
+    the origins of DH frames 0..6 and the TCP; with ``T_base_flange`` (flange -> base) moved
+    so that the flange lies there (a robot mounted elsewhere than its name's default)."""
     q = np.asarray(q, dtype=np.float64).reshape(6)
     points = np.asarray(robot.joint_positions(q, tcp=True))
     if T_base_flange is not None:
@@ -75,12 +70,10 @@ class Viewer:
         connect: a rerun gRPC URL to stream to (a viewer on another machine).
         robot: the :class:`scanalign.kinematics.Robot` drawn from the frames' joints (default:
             ``Frame.meta["robot"]`` by name).
-        model_every: log the growing model every this many merged frames (its last state is
-            logged by :meth:`log_reconstruction`).
-        max_model_points: points logged per model update at most (evenly subsampled).
+        model_every, max_model_points: log the growing model every this many merged frames,
+            at most this many points (evenly subsampled).
 
-    Raises:
-        ImportError: rerun-sdk is not installed.
+    Raises ImportError when rerun-sdk is not installed.
     """
 
     def __init__(self, name: str = "scanalign", *, spawn: bool = False, save: Optional[Union[str, os.PathLike]] = None,
@@ -104,8 +97,6 @@ class Viewer:
         self._T_world_base: Optional[np.ndarray] = None
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
-    # --- primitives ---------------------------------------------------------------------
-
     def log_points(self, path: str, points: np.ndarray, colors: Optional[np.ndarray] = None, **kw: Any) -> None:
         """(N, 3) points (metres; optional (N, 3) colours, uint8 or float in [0, 1]) at ``path``."""
         p = np.asarray(points, dtype=np.float32).reshape(-1, 3)
@@ -120,20 +111,15 @@ class Viewer:
                      self.rr.TransformAxes3D(axis_length))
 
     def log_arm(self, path: str, robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = None) -> None:
-        """The arm at joints ``q`` (rad) as a line strip through its joint origins, base frame
-        (see :func:`arm_points`), with its flange frame at ``path/flange``."""
+        """The arm at joints ``q`` (rad) as a line strip through :func:`arm_points`."""
         pts = arm_points(robot, q, T_base_flange)
         if self._T_world_base is not None:
             pts = transform_points(self._T_world_base, pts)
         self.rec.log(path, self.rr.LineStrips3D([pts], radii=0.006, colors=[[255, 140, 0]]),
                      self.rr.Points3D(pts, radii=0.01))
 
-    # --- reconstruction -----------------------------------------------------------------
-
     def on_frame(self, frame: Any, record: Any, reconstructor: Any) -> None:
-        """The per-frame hook of :func:`scanalign.pipelines.reconstruct.reconstruct` (``on_frame=``): the
-        camera, its path, the arm (from ``frame.meta["joints"]``) and, every ``model_every``
-        merged frames, the model."""
+        """The ``on_frame=`` hook of :func:`scanalign.pipelines.reconstruct.reconstruct`."""
         rr = self.rr
         self.rec.set_time("frame", sequence=int(record.index))
         self.rec.set_time("time", duration=float(record.timestamp))
@@ -155,15 +141,13 @@ class Viewer:
                 model = reconstructor.model
                 self.log_points("world/model", model.points, model.colors, radii=0.0008)
         meta = getattr(frame, "meta", None) or {}
-        robot = self.robot
-        if robot is None and meta.get("robot") is not None:
-            robot = self.robot = Robot.by_name(str(meta["robot"]))
-        if robot is not None and meta.get("joints") is not None:
-            self.log_arm("world/arm", robot, meta["joints"], meta.get("T_base_flange"))
+        if self.robot is None and meta.get("robot") is not None:
+            self.robot = Robot.by_name(str(meta["robot"]))
+        if self.robot is not None and meta.get("joints") is not None:
+            self.log_arm("world/arm", self.robot, meta["joints"], meta.get("T_base_flange"))
 
     def log_reconstruction(self, result: Any) -> None:
-        """The final model, the estimated camera path and the reference path of a
-        :class:`scanalign.pipelines.reconstruct.ReconstructionResult`."""
+        """The model and camera paths of a :class:`scanalign.pipelines.reconstruct.ReconstructionResult`."""
         if result.records:
             self.rec.set_time("frame", sequence=int(result.records[-1].index))
         self.log_points("world/model", result.model.points, result.model.colors, radii=0.0008)
@@ -175,12 +159,8 @@ class Viewer:
                 ref = transform_points(self._T_world_base, ref)
             self.rec.log("world/reference_path", self.rr.LineStrips3D([ref], radii=0.001, colors=[[40, 170, 60]]))
 
-    # --- pick ---------------------------------------------------------------------------
-
     def log_pick(self, result: Any) -> None:
-        """A :class:`scanalign.pipelines.pick.PickResult`: the scene, each part with a pose as its mesh
-        there (``world/parts/<k>_<name>``) and the arm at each chosen grasp
-        (``world/grasps/<k>_<name>/arm``), all in the base frame."""
+        """A :class:`scanalign.pipelines.pick.PickResult`, in its base frame."""
         rr = self.rr
         self._T_world_base = None  # the pick's world is its base frame
         self.rec.set_time("frame", sequence=int(result.reconstruction.records[-1].index) + 1
@@ -200,8 +180,6 @@ class Viewer:
                 c = p.chosen
                 self.log_arm(f"world/grasps/{key}/arm", result.robot, c.q_grasp)
                 self.log_pose(f"world/grasps/{key}/tcp", np.asarray(c.T_base_tcp_grasp), axis_length=0.03)
-
-    # --- lifetime -----------------------------------------------------------------------
 
     def close(self) -> None:
         """Flushes everything to the viewer / file and disconnects."""
