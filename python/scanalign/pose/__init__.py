@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -36,10 +36,10 @@ from scanalign.common.arrays import as_points, as_transform, foreign_kind
 from scanalign.common.settings import (
     UnknownSettingError,
     field_names,
-    fields_of,
     is_struct,
     set_fields,
     set_path,
+    update,
     with_overrides,
 )
 from scanalign.features import estimate_normals
@@ -116,31 +116,26 @@ def motor_to_matrix(motor: Sequence[float]) -> np.ndarray:
     return _P.motor_to_matrix(np.asarray(motor, dtype=np.float64))
 
 
-def _ransac_settings(base: Any = None, **fields: Any) -> Any:
-    s = _P.CorrespondenceRansacSettings()
-    if base is not None:
-        set_fields(s, fields_of(base), "RANSAC")
-    if "seed" in fields:
+def _ransac_settings(base: Any = None, overrides: Optional[Dict[str, Any]] = None) -> Any:
+    fields = dict(overrides or {})
+    if "seed" in fields:  # any Python int seeds the 64-bit stream
         fields["seed"] = int(fields["seed"]) & (2**64 - 1)
-    return set_fields(s, fields, "RANSAC")
+    return with_overrides(_P.CorrespondenceRansacSettings, base, fields, "RANSAC")
 
 
-def ransac_rigid_motion(source: np.ndarray, target: np.ndarray, pairs: np.ndarray, *, max_iterations: int = 1000,
-                        inlier_threshold: float = 0.005, edge_similarity: float = 0.9, confidence: float = 0.999,
-                        seed: int = 0, num_threads: int = 0) -> CorrespondenceRansacResult:
+def ransac_rigid_motion(source: np.ndarray, target: np.ndarray, pairs: np.ndarray,
+                        settings: Optional[Any] = None, **overrides: Any) -> CorrespondenceRansacResult:
     """Rigid motion from putative pairs ``(K, 2)`` (indices into source and target, metres)
     with outliers: RANSAC over 3-pair samples prerejected unless their edge lengths agree
     within ``edge_similarity``, Kabsch hypotheses ranked by MSAC cost, adaptive stop at
-    ``confidence``, a motor refit on the inliers (``inlier_threshold`` m). Deterministic for a
-    ``seed`` whatever the thread count."""
+    ``confidence``, a motor refit on the inliers (``inlier_threshold`` m). ``settings``: a
+    ``CorrespondenceRansacSettings`` (default its C++ defaults) with keyword ``overrides``.
+    Deterministic for a ``seed`` whatever the thread count."""
     s, t = _pairs(source, target)
     p = np.asarray(pairs)
     if p.size and not np.issubdtype(p.dtype, np.integer):
         raise ValueError(f"pairs: expected an integer (K, 2) array, got {p.dtype}")
-    settings = _ransac_settings(max_iterations=max_iterations, inlier_threshold=inlier_threshold,
-                                edge_similarity=edge_similarity, confidence=confidence, seed=seed,
-                                num_threads=num_threads)
-    return _P.ransac_rigid_motion(s, t, p.astype(np.int64).reshape(-1, 2), settings)
+    return _P.ransac_rigid_motion(s, t, p.astype(np.int64).reshape(-1, 2), _ransac_settings(settings, overrides))
 
 
 def alignment_fitness(source: np.ndarray, target: np.ndarray, T_target_source: np.ndarray,
@@ -154,32 +149,35 @@ def alignment_fitness(source: np.ndarray, target: np.ndarray, T_target_source: n
 
 # --- coarse alignment ---------------------------------------------------------------------------
 
-def _cbd_alignment_settings(cbd_settings: Optional[_cbd.CbdSettings], cbd_overrides: Dict[str, object],
-                            ransac: Optional[Dict[str, Any]], base: Optional[Any] = None) -> Any:
-    s = base if base is not None else _P.CbdAlignmentSettings()
-    s.cbd = _cbd.make_settings(cbd_settings if cbd_settings is not None else s.cbd, **cbd_overrides)
-    s.ransac = _ransac_settings(s.ransac, **(ransac or {}))
+_ALIGNMENT_FIELDS = frozenset(field_names(_P.CbdAlignmentSettings)) - {"cbd", "ransac"}
+
+
+def _cbd_alignment_settings(settings: Any, overrides: Dict[str, object], ransac: Optional[Dict[str, Any]]) -> Any:
+    s = _P.CbdAlignmentSettings()
+    if isinstance(settings, _P.CbdAlignmentSettings):
+        s, settings = _P.CbdAlignmentSettings(settings), None
+    update(s, {k: v for k, v in overrides.items() if k in _ALIGNMENT_FIELDS}, what="CBD alignment")
+    cbd_overrides = {k: v for k, v in overrides.items() if k not in _ALIGNMENT_FIELDS}
+    s.cbd = _cbd.make_settings(settings if settings is not None else s.cbd, **cbd_overrides)
+    s.ransac = _ransac_settings(s.ransac, ransac)
     return s
 
 
-def align_cbd(source: np.ndarray, target: np.ndarray, settings: Optional[_cbd.CbdSettings] = None, *,
-              ransac: Optional[Dict[str, Any]] = None, matches_per_keypoint: int = 1, hypotheses: int = 3,
-              **cbd_overrides: object) -> CbdAlignmentResult:
+def align_cbd(source: np.ndarray, target: np.ndarray, settings: Optional[Any] = None, *,
+              ransac: Optional[Dict[str, Any]] = None, **overrides: object) -> CbdAlignmentResult:
     """Coarse alignment of ``source`` (e.g. a model view) onto ``target`` (e.g. a scene object),
-    (N, 3) metres, with the curvature-based descriptor (paper 5): CBD on both clouds
-    (:class:`scanalign.pose.cbd.CbdSettings` or field overrides; thesis defaults), nearest-descriptor
-    matches (``matches_per_keypoint``), RANSAC (``ransac``: :func:`ransac_rigid_motion`
-    keywords; 10000 iterations) and a motor refit, repeated on the pairs left for up to
-    ``hypotheses`` poses, the best fit of the whole source cloud winning (1: classic RANSAC).
+    (N, 3) metres, with the curvature-based descriptor (paper 5): CBD on both clouds,
+    nearest-descriptor matches (``matches_per_keypoint``), RANSAC (``ransac``: a dict of
+    :func:`ransac_rigid_motion` keywords) and a motor refit, repeated on the pairs left for up
+    to ``hypotheses`` poses, the best fit of the whole source cloud winning (1: classic RANSAC).
+    ``settings``: a ``CbdAlignmentSettings`` or a :class:`scanalign.pose.cbd.CbdSettings` (default:
+    the C++ defaults, the thesis's); keyword ``overrides`` name fields of either.
     ``found`` is False with a message when there are too few keypoints or no consensus."""
     s = as_points(source, "source")
     t = as_points(target, "target", s.dtype)
     if len(s) == 0 or len(t) == 0:
         raise ValueError("align_cbd: source and target must not be empty")
-    st = _cbd_alignment_settings(settings, cbd_overrides, ransac)
-    st.matches_per_keypoint = matches_per_keypoint
-    st.hypotheses = hypotheses
-    return _P.align_cbd(s, t, st)
+    return _P.align_cbd(s, t, _cbd_alignment_settings(settings, overrides, ransac))
 
 
 def normal_line_flag(points: np.ndarray, normals: np.ndarray) -> NormalLineFlag:
@@ -189,18 +187,17 @@ def normal_line_flag(points: np.ndarray, normals: np.ndarray) -> NormalLineFlag:
                                as_points(normals, "normals", np.dtype(np.float64)))
 
 
-def align_flags(source: np.ndarray, source_normals: np.ndarray, target: np.ndarray, target_normals: np.ndarray, *,
-                min_mean_normal_length: float = 0.05, max_iterations: int = 100) -> FlagAlignmentResult:
+def align_flags(source: np.ndarray, source_normals: np.ndarray, target: np.ndarray, target_normals: np.ndarray,
+                settings: Optional[Any] = None, **overrides: Any) -> FlagAlignmentResult:
     """Paper 4 initial alignment: the motor mapping the source flag (centroid + average normal
-    line) onto the target's, by Levenberg-Marquardt on the motor manifold. Partial views only:
-    refused (``valid`` False) when a mean unit normal is shorter than
+    line) onto the target's, by Levenberg-Marquardt on the motor manifold. ``settings``: a
+    ``FlagAlignmentSettings`` (default its C++ defaults) with keyword ``overrides``. Partial
+    views only: refused (``valid`` False) when a mean unit normal is shorter than
     ``min_mean_normal_length`` (a closed surface's normals average to zero)."""
     clouds = [as_points(a, name, np.dtype(np.float64)) for a, name in
               ((source, "source"), (source_normals, "source_normals"), (target, "target"),
                (target_normals, "target_normals"))]
-    s = set_fields(_P.FlagAlignmentSettings(), dict(min_mean_normal_length=min_mean_normal_length,
-                                                    max_iterations=max_iterations), "flag alignment")
-    return _P.align_flags(*clouds, s)
+    return _P.align_flags(*clouds, with_overrides(_P.FlagAlignmentSettings, settings, overrides, "flag alignment"))
 
 
 def _pcl_settings(method: str, overrides: Dict[str, object]) -> Any:

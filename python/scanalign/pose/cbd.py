@@ -21,7 +21,7 @@ Example::
 
 from __future__ import annotations
 
-from typing import Literal, Optional, Tuple
+from typing import Any, Literal, Optional, Tuple
 
 import numpy as np
 
@@ -58,32 +58,41 @@ def compute(points: np.ndarray, settings: Optional[CbdSettings] = None, *,
     return _core.pose.compute_cbd(as_points(points, "points"), make_settings(settings, **overrides), thresholds)
 
 
-def neighbourhood_pca(points: np.ndarray, radius: float = 0.0063, *,
+def _default(name: str, value: Any) -> Any:
+    """``value``, or the :class:`CbdSettings` default of the field ``name`` when None."""
+    return getattr(CbdSettings(), name) if value is None else value
+
+
+def neighbourhood_pca(points: np.ndarray, radius: Optional[float] = None, *,
                       num_threads: int = 0) -> Tuple[np.ndarray, np.ndarray]:
     """Neighbour counts (N,) and covariance eigenvalues (N, 3), descending, m², of every
-    point's ball of ``radius`` metres (k-d tree search). NaN points get count 0."""
-    return _core.pose.neighbourhood_pca(as_points(points, "points"), float(radius), int(num_threads))
+    point's ball of ``radius`` metres (default ``CbdSettings.radius``; k-d tree search). NaN
+    points get count 0."""
+    return _core.pose.neighbourhood_pca(as_points(points, "points"), float(_default("radius", radius)),
+                                        int(num_threads))
 
 
-def keypoint_scores(counts: np.ndarray, eigenvalues: np.ndarray, min_neighbors: int = 200) -> np.ndarray:
+def keypoint_scores(counts: np.ndarray, eigenvalues: np.ndarray, min_neighbors: Optional[int] = None) -> np.ndarray:
     """Score C_lC_p + C_pC_s + C_sC_l per point (paper 5, §III-B4); 1/3 below ``min_neighbors``."""
     return _core.pose.keypoint_scores(np.asarray(counts, np.uint32), np.asarray(eigenvalues, np.float64),
-                                      int(min_neighbors))
+                                      int(_default("min_neighbors", min_neighbors)))
 
 
 def select_keypoints(counts: np.ndarray, eigenvalues: np.ndarray, thresholds: ShapeThresholds = ShapeThresholds(),
-                     min_neighbors: int = 200, *, inclusive: bool = False) -> np.ndarray:
+                     min_neighbors: Optional[int] = None, *, inclusive: bool = False) -> np.ndarray:
     """Indices passing (6.4): ``count >= min_neighbors`` and some factor > its delta (>= when
     ``inclusive``); a delta >= 1 disables its factor."""
     return _core.pose.select_keypoints(np.asarray(counts, np.uint32), np.asarray(eigenvalues, np.float64),
-                                       thresholds, int(min_neighbors), bool(inclusive)).astype(np.int64)
+                                       thresholds, int(_default("min_neighbors", min_neighbors)),
+                                       bool(inclusive)).astype(np.int64)
 
 
-def automatic_keypoints(counts: np.ndarray, eigenvalues: np.ndarray, k: int = 2000,
-                        min_neighbors: int = 200) -> Tuple[np.ndarray, ShapeThresholds]:
+def automatic_keypoints(counts: np.ndarray, eigenvalues: np.ndarray, k: Optional[int] = None,
+                        min_neighbors: Optional[int] = None) -> Tuple[np.ndarray, ShapeThresholds]:
     """The ``k`` lowest-score points and the deltas they imply (paper 5, §III-B4)."""
     keys, t = _core.pose.automatic_keypoints(np.asarray(counts, np.uint32), np.asarray(eigenvalues, np.float64),
-                                             int(k), int(min_neighbors))
+                                             int(_default("num_keypoints", k)),
+                                             int(_default("min_neighbors", min_neighbors)))
     return keys.astype(np.int64), t
 
 
