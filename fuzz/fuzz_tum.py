@@ -1,7 +1,7 @@
 """atheris target: TUM RGB-D text files (trajectories, image lists) through
-scanalign.trajectory.read_tum_trajectory / scanalign.tum.read_timestamp_list, then the
-parsed timestamps through association and the trajectory through interpolation (byte 0
-picks the reader, the rest is the file)."""
+scanalign.evaluation.trajectory.read_tum_trajectory / scanalign.datasets.tum.read_timestamp_list,
+then the parsed timestamps through association and the trajectory through interpolation (byte
+0 picks the reader, the rest is the file)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,9 @@ import numpy as np
 import _fuzzlib
 
 with _fuzzlib.instrumented():
-    from scanalign import evaluation, trajectory, tum
+    from scanalign import evaluation
+    from scanalign.datasets import tum
+    from scanalign.evaluation import trajectory
 
 
 def seeds() -> dict:

@@ -334,7 +334,7 @@ def test_cli_batch_end_to_end(tmp_path):
                        capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 1, r.stderr  # one job failed
     assert "3 jobs (0 done before), status {'ok': 2, 'failed': 1}" in r.stdout, r.stdout
-    assert "gone: FileNotFoundError:" in r.stderr and "missing_folder: no such file or folder" in r.stderr
+    assert "gone: FileNotFoundError:" in r.stderr and "missing_folder: no such folder or file" in r.stderr
     for name in ("results.csv", "summary.json", "results.png", "records.jsonl"):
         assert (tmp_path / "out" / name).stat().st_size > 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())

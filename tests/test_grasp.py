@@ -80,7 +80,7 @@ def test_settings_by_name_and_bad_arguments():
     g = [G.Grasp("top", TOP)]
     strict = G.plan_grasp(robot, T, g, q_current=q0, min_wrist_angle=1.5)  # 86 degrees: nothing passes
     assert not strict.found and "near a singularity" in strict.message
-    with pytest.raises(TypeError, match="unknown plan_grasp setting 'clearance'"):
+    with pytest.raises(TypeError, match="clearance: unknown plan_grasp setting; did you mean table_clearance"):
         G.plan_grasp(robot, T, g, clearance=0.1)
     with pytest.raises(TypeError, match="approach_step"):
         G.plan_grasp(robot, T, g, approach_step="fine")

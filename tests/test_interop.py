@@ -170,7 +170,7 @@ def test_foreign_types_are_not_imported_for_arrays(surface):
     """Plain NumPy input never imports Open3D or trimesh (checked in a fresh interpreter)."""
     import subprocess
 
-    code = ("import sys, numpy as np; from scanalign import features, registration, interop; "
+    code = ("import sys, numpy as np; from scanalign import features, registration; from scanalign.io import interop; "
             "p = np.random.default_rng(0).random((200, 3)); features.estimate_normals(p, radius=0.2); "
             "print('open3d' in sys.modules, 'trimesh' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)

@@ -13,6 +13,7 @@ from scanalign.pipelines import pick
 from scanalign.common import rigid as se3
 from scanalign.grasp.parts import load_part
 from scanalign.synthetic.cell import CELL_MOUNTS, pick_cell, score_picks
+from scanalign.viz.reports import save_report
 
 CELLS = [("ur5", "sr300"), ("ur5", "zivid"), ("kr6_r900_sixx", "sr300")]
 
@@ -74,7 +75,8 @@ def test_joint_targets_reach_the_commanded_flange_poses(picked):
 
 def test_outputs(ur5_cell, tmp_path):
     cell, result = ur5_cell
-    paths = result.save(tmp_path / "out")
+    assert set(result.save(tmp_path / "data")) == {"picks", "joints", "scene"}  # data only; figures are viz's
+    paths = save_report(result, tmp_path / "out")
     report = json.loads(paths["picks"].read_text())
     assert report["robot"] == result.robot.name
     by_part = {p["part"]: p for p in report["picks"]}

@@ -240,8 +240,10 @@ void bindScene(py::module_& s) {
   s.def(
       "shade_scene",
       [](const py::object& colors, const py::object& alternate, std::size_t n_object_faces, const py::array& face_id,
-         const py::array& depth, const PinholeIntrinsics& intrinsics, const Eigen::Matrix4d& T_base_camera,
-         const Eigen::Vector2d& table_center, double checker_size) {
+         const py::array& depth, const PinholeIntrinsics& intrinsics, const py::object& T_base_camera_in,
+         const py::object& table_center, double checker_size) {
+        // converted here, not by pybind11's Eigen caster, so a wrong shape names the argument
+        const Eigen::Matrix4d T_base_camera = fields::Conv<Eigen::Matrix4d>::set(T_base_camera_in, "T_base_camera");
         SceneColors c;
         c.albedo = colorTableArg(colors, "colors");
         c.alternate = colorTableArg(alternate, "alternate");
@@ -254,7 +256,7 @@ void bindScene(py::module_& s) {
           throw py::value_error("face_id, depth: expected (" + std::to_string(h) + ", " + std::to_string(w) +
                                 ") images matching the intrinsics");
         SceneTable table;
-        table.center = table_center;
+        table.center = fields::Conv<Eigen::Vector2d>::set(table_center, "table_center");
         table.checker_size = checker_size;
         py::array_t<std::uint8_t> rgb({h, w, py::ssize_t{3}});
         std::uint8_t* out = rgb.mutable_data();

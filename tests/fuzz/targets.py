@@ -1098,7 +1098,8 @@ def dtype_rule(case):
     label, name, fn = _points_entries()[case["which"]]
     dtype = np.dtype(case["dtype"])
     with np.errstate(all="ignore"):
-        p = _cloud().astype(dtype) if dtype.kind != "U" else _cloud().astype("U4")
+        # millimetres for integers, so integer mesh vertices still span a surface
+        p = (_cloud() * (1000 if dtype.kind == "i" else 1)).astype(dtype) if dtype.kind != "U" else _cloud().astype("U4")
     if dtype.kind == "f" and dtype.itemsize in (4, 8) or (dtype.kind == "i" and label == "sample_mesh"):
         accepted(fn, p)
     else:

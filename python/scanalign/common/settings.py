@@ -120,8 +120,9 @@ def update(root: Root, values: Mapping[str, Any], where: str = "", what: str = "
             value = members[value]
         try:
             setattr(root, key, value) if not isinstance(root, Mapping) else root.__setitem__(key, value)
-        except (TypeError, ValueError) as e:
-            raise type(e)(f"{where}{key}: {e}") from None
+        except (TypeError, ValueError) as e:  # the C++ message names the field unless it is a bare one
+            named = str(e).startswith(f"{key}:") or f".{key}:" in str(e)
+            raise type(e)(f"{where}{e}" if named else f"{where}{key}: {e}") from None
     return root
 
 

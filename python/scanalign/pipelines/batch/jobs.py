@@ -36,7 +36,7 @@ from scanalign.grasp.parts import load_part
 from scanalign.pipelines import pick
 from scanalign.pipelines.pick import PickSettings, part_models, read_transform, upper_views
 from scanalign.pipelines.reconstruct import DEMO_SETTINGS, model_mesh_distance, reconstruct
-from scanalign.reconstruction import make_reconstruction_settings
+from scanalign.reconstruction import FrameToModelSettings, make_reconstruction_settings
 from scanalign.synthetic import SyntheticConfig
 from scanalign.synthetic.cell import pick_cell, score_picks
 
@@ -167,7 +167,8 @@ def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
         frames: Any = scan.frames
     else:
         frames = open_source(job.source)  # a TUM folder, a ROS bag or a folder of PNGs + camera file
-    base = make_reconstruction_settings(**DEMO_SETTINGS) if job.synthetic else None
+    # the engine's own settings (motion model 'previous', as batch jobs always ran) with the demo's workspace
+    base = make_reconstruction_settings(FrameToModelSettings(), **DEMO_SETTINGS) if job.synthetic else None
     result = reconstruct(frames, base, progress=False, **job.settings)
     s = result.summary()
     out = {"frames": s["frames"], "merged": s["merged"], "model_points": s["model_points"],
