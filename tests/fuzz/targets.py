@@ -1131,6 +1131,10 @@ def _numeric_entries():
     ]
 
 
+#: Arguments whose None means "the settings struct's default" (estimate_normals: NormalEstimationSettings.radius).
+_NONE_IS_THE_DEFAULT = {("estimate_normals", "radius")}
+
+
 @target("arguments", which=st.integers(0, 11),
         value=st.sampled_from(["valid", "valid", "0.01", "3", "", b"1", INF, -INF, NAN, 2**70, [1.0], None]))
 def numbers_not_strings(case):
@@ -1144,6 +1148,8 @@ def numbers_not_strings(case):
         refused(fn, value, names=(name,), exc=(TypeError,))
     elif isinstance(valid, float) and isinstance(value, (int, float)):
         call(fn, value)  # a huge or non-finite length: refused or a (useless) result, never a crash or OverflowError
+    elif value is None and (label, name) in _NONE_IS_THE_DEFAULT:
+        accepted(fn, value)  # documented: None takes the settings struct's default
     else:
         refused(fn, value, names=(name,))  # a count: inf, NaN, 2**70, a list or None is refused, naming it
 

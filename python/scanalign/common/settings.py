@@ -18,6 +18,7 @@ structs side by side).
 from __future__ import annotations
 
 import difflib
+import re
 import textwrap
 from pathlib import Path
 from typing import Any, Dict, Iterator, Mapping, Sequence, Tuple, TypeVar, Union
@@ -120,9 +121,9 @@ def update(root: Root, values: Mapping[str, Any], where: str = "", what: str = "
             value = members[value]
         try:
             setattr(root, key, value) if not isinstance(root, Mapping) else root.__setitem__(key, value)
-        except (TypeError, ValueError) as e:  # the C++ message names the field unless it is a bare one
-            named = str(e).startswith(f"{key}:") or f".{key}:" in str(e)
-            raise type(e)(f"{where}{e}" if named else f"{where}{key}: {e}") from None
+        except (TypeError, ValueError) as e:  # named by its path, once (not also as the C++ "Class.field")
+            message = re.sub(rf"^(\w+\.)?{re.escape(str(key))}: ", "", str(e))
+            raise type(e)(f"{where}{key}: {message}") from None
     return root
 
 

@@ -41,7 +41,8 @@ def _figure(figsize: Tuple[float, float]):
 
 def _save(fig, path: PathLike, dpi: int) -> Path:
     out = Path(path)
-    out.parent.mkdir(parents=True, exist_ok=True)
+    if not out.parent.exists():  # a file in the way is savefig's NotADirectoryError naming the path
+        out.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(out, dpi=dpi, format="png")
     return out
 
