@@ -31,7 +31,7 @@ import sys
 import tarfile
 import tempfile
 from pathlib import Path
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -50,7 +50,7 @@ _CGAL_MESH_PREFIX = "data/meshes/"
 _MESH_EXTENSIONS = (".off", ".ply", ".stl", ".obj")  # preference order for bare names
 _PCL_EXAMPLES = "usr/share/doc/python3-pcl/examples"
 _COMPLETE_MARKER = ".complete"
-
+_SMALL_GICP_DATA = ("source.ply", "target.ply", "T_target_source.txt")
 
 SMALL_GICP = "small_gicp"
 FETCH_COMMAND = "python -m scanalign.data fetch"
@@ -85,6 +85,7 @@ PINNED_FILES: dict[str, PinnedFile] = {
         "https://pypi.org/project/small-gicp/1.0.1/#files",
         "pip download --no-deps --no-binary :all: small_gicp==1.0.1"),
 }
+SMALL_GICP_SDIST = PINNED_FILES[SMALL_GICP].filename
 
 
 class DatasetUnavailableError(RuntimeError):
@@ -165,18 +166,17 @@ def _pinned_file(key: str, download: bool) -> Path:
             shutil.copyfile(supplied, fetched)
             verify_file(fetched, key, f"{pin.filename} copied from {supplied}", "the copy failed: try again")
         else:
-            fetched = _pip_download(Path(scratch)) if key == SMALL_GICP else _apt_download(key, Path(scratch))
+            fetched = (_pip_download(Path(scratch)) if key == SMALL_GICP
+                       else _run(pin.fetched_with.split(), Path(scratch), key, pin.filename))
             verify_file(fetched, key, f"{pin.filename} as downloaded by `{pin.fetched_with}`",
                         "the download was not kept: a corrupt download or a mirror serving another file")
         os.replace(fetched, target)
     return target
 
 
-# --------------------------------------------------------------------------- packages
-
-
-def _run(command: list[str], cwd: Path, package: str) -> None:
-    """Run a packaging command, turning every failure into DatasetUnavailableError."""
+def _run(command: list[str], cwd: Path, package: str, produces: str = "") -> Path:
+    """Runs a packaging command in ``cwd``, turning every failure (and no file ``produces``
+    left in ``cwd``) into DatasetUnavailableError; returns ``cwd / produces``."""
     manual = f"run `sudo apt-get update` first, then {_how_to_supply(package)}"
     if shutil.which(command[0]) is None:
         raise DatasetUnavailableError(f"`{command[0]}` is not available, so {package} cannot be fetched. On a "
@@ -187,16 +187,9 @@ def _run(command: list[str], cwd: Path, package: str) -> None:
         detail = (exc.stderr or exc.stdout or "").strip().splitlines()[-3:]
         raise DatasetUnavailableError(f"`{' '.join(command)}` failed (exit {exc.returncode}): "
                                       f"{' | '.join(detail)}. To fix, {manual}.") from exc
-
-
-def _apt_download(package: str, scratch: Path) -> Path:
-    """``apt-get download`` of the pinned version into ``scratch``."""
-    pin = PINNED_FILES[package]
-    _run(pin.fetched_with.split(), scratch, package)
-    downloaded = scratch / pin.filename
-    if not downloaded.exists():
-        raise DatasetUnavailableError(f"`{pin.fetched_with}` produced no {pin.filename}; {_how_to_supply(package)}")
-    return downloaded
+    if produces and not (cwd / produces).exists():
+        raise DatasetUnavailableError(f"`{' '.join(command)}` produced no {produces}; {_how_to_supply(package)}")
+    return cwd / produces
 
 
 def _unpacked(root: Path, key: str, download: bool) -> bool:
@@ -219,28 +212,33 @@ def _unpacked(root: Path, key: str, download: bool) -> bool:
     return False
 
 
-def _package_root(package: str, download: bool = False) -> Path:
-    """The unpacked package tree (``dpkg-deb -x``) of the verified pinned ``.deb``."""
-    root = cache_dir() / "packages" / package
-    if _unpacked(root, package, download):
+def _unpack(key: str, root: Path, download: bool, unpack: Callable[[Path, Path], object]) -> Path:
+    """``root``, holding what ``unpack(pinned file, folder)`` takes from the verified pinned
+    file of ``key`` and a marker with that file's sha256 (see :func:`_unpacked`)."""
+    if _unpacked(root, key, download):
         return root
-    deb = _pinned_file(package, download)
-    expected, marker = PINNED_FILES[package].sha256, root / _COMPLETE_MARKER
+    pinned = _pinned_file(key, download)
     root.parent.mkdir(parents=True, exist_ok=True)
     # Unpack beside the target and rename, so a crash never leaves a half tree behind.
-    scratch = Path(tempfile.mkdtemp(prefix=f".{package}-", dir=root.parent))
+    scratch = Path(tempfile.mkdtemp(prefix=f".{key}-", dir=root.parent))
     try:
-        _run(["dpkg-deb", "-x", str(deb), str(scratch)], root.parent, package)
-        (scratch / _COMPLETE_MARKER).write_text(expected + "\n")
+        unpack(pinned, scratch)
+        (scratch / _COMPLETE_MARKER).write_text(PINNED_FILES[key].sha256 + "\n")
         shutil.rmtree(root, ignore_errors=True)  # left by an interrupted older version
         try:
             os.replace(scratch, root)
         except OSError:
-            if not marker.exists():  # else another process finished first
+            if not (root / _COMPLETE_MARKER).exists():  # else another process finished first
                 raise
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     return root
+
+
+def _package_root(package: str, download: bool = False) -> Path:
+    """The unpacked package tree (``dpkg-deb -x``) of the verified pinned ``.deb``."""
+    return _unpack(package, cache_dir() / "packages" / package, download,
+                   lambda deb, into: _run(["dpkg-deb", "-x", str(deb), str(into)], into.parent, package))
 
 
 def _write_atomic(path: Path, data: bytes) -> None:
@@ -279,9 +277,6 @@ def _unknown(kind: str, name: str, known: Sequence[str], lister: str) -> ValueEr
     return ValueError(f"unknown {kind} {name!r}{hint} (see {lister}())")
 
 
-# --------------------------------------------------------------------------- CGAL meshes
-
-
 def _cgal_tar_members() -> list[str]:
     """File names (with extension) of the meshes in CGAL's data tarball."""
     names_file = cache_dir() / "cgal_meshes" / "index.txt"
@@ -306,16 +301,13 @@ def cgal_mesh_names() -> list[str]:
 
 def cgal_mesh_path(name: str) -> Path:
     """The cached file of a CGAL example mesh, extracted from the package on first use.
-
     ``name``: without extension (``"fandisk"``, ``"bunny00"``), or with one to pick a format
     (``"pig.stl"``). Raises ValueError for an unknown name, DatasetUnavailableError (naming
-    the fetch command) when the package has not been fetched.
-    """
+    the fetch command) when the package has not been fetched."""
     members = _cgal_tar_members()
-    candidates = [name + ext for ext in ("",) + _MESH_EXTENSIONS if name + ext in members]
-    if not candidates:
+    filename = next((name + ext for ext in ("",) + _MESH_EXTENSIONS if name + ext in members), None)
+    if filename is None:
         raise _unknown("CGAL mesh", name, cgal_mesh_names(), "cgal_mesh_names")
-    filename = candidates[0]
     target = cache_dir() / "cgal_meshes" / filename
     if not target.exists():
         _extract(_package_root(CGAL_PACKAGE) / _CGAL_TARBALL, {_CGAL_MESH_PREFIX + filename: target})
@@ -326,9 +318,6 @@ def load_cgal_mesh(name: str) -> io.Mesh:
     """A CGAL example mesh (``name`` as for :func:`cgal_mesh_path`), triangulated, in the
     file's own unit (mostly about one unit across; not metres)."""
     return io.read_mesh(cgal_mesh_path(name))
-
-
-# --------------------------------------------------------------------------- PCL clouds
 
 
 def _pcl_clouds() -> dict[str, Path]:
@@ -357,12 +346,6 @@ def load_pcl_cloud(name: str) -> np.ndarray:
     points removed). PCL's names are not always descriptive: ``bun0`` is an indoor lidar
     scan about 29 m across, not the Stanford bunny."""
     return io.read_pcd_points(pcl_cloud_path(name), dtype=np.float64, remove_nan=True)
-
-
-# --------------------------------------------------------------------------- small_gicp LiDAR pair
-
-SMALL_GICP_SDIST = PINNED_FILES[SMALL_GICP].filename
-_SMALL_GICP_DATA = ("source.ply", "target.ply", "T_target_source.txt")
 
 
 def _pip_download(scratch: Path) -> Path:
@@ -394,13 +377,9 @@ def _pip_download(scratch: Path) -> Path:
 def _small_gicp_data_dir(download: bool = False) -> Path:
     """``<cache>/small_gicp_data`` holding small_gicp's ``data/`` LiDAR pair, unpacked from
     the verified sdist."""
-    root = cache_dir() / "small_gicp_data"
-    if _unpacked(root, SMALL_GICP, download):
-        return root
     prefix = SMALL_GICP_SDIST[: -len(".tar.gz")] + "/data/"
-    _extract(_pinned_file(SMALL_GICP, download), {prefix + name: root / name for name in _SMALL_GICP_DATA})
-    _write_atomic(root / _COMPLETE_MARKER, (PINNED_FILES[SMALL_GICP].sha256 + "\n").encode())
-    return root
+    return _unpack(SMALL_GICP, cache_dir() / "small_gicp_data", download,
+                   lambda sdist, into: _extract(sdist, {prefix + name: into / name for name in _SMALL_GICP_DATA}))
 
 
 def fetch_small_gicp() -> Path:
@@ -414,22 +393,17 @@ def small_gicp_lidar_pair() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     ``(source (N, 3), target (M, 3), T_target_source (4, 4))``, float64, metres.
 
     Two downsampled outdoor LiDAR scans (about 70k points each, about 60 x 40 x 12 m) and the
-    pose shipped with them in the ``small_gicp`` 1.0.1 sdist (``data/``). The file stores the
-    pose with 6 significant digits; its rotation is projected onto the nearest rotation
-    matrix (a change below 1e-6), so the result is exactly rigid. Raises
-    DatasetUnavailableError (naming the fetch command) when the sdist has not been fetched.
-    """
+    pose shipped with them in the ``small_gicp`` 1.0.1 sdist (``data/``), stored with 6
+    significant digits: its rotation is projected onto the nearest rotation matrix (a change
+    below 1e-6), so the result is exactly rigid. Raises DatasetUnavailableError (naming the
+    fetch command) when the sdist has not been fetched."""
     root = _small_gicp_data_dir()
-    source = io.read_ply_points(root / "source.ply")["points"]
-    target = io.read_ply_points(root / "target.ply")["points"]
+    source, target = (io.read_ply_points(root / f"{name}.ply")["points"] for name in ("source", "target"))
     T = np.loadtxt(root / "T_target_source.txt", dtype=np.float64).reshape(4, 4)
     u, _, vt = np.linalg.svd(T[:3, :3])
     T[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
     T[3] = (0.0, 0.0, 0.0, 1.0)
     return source, target, T
-
-
-# --------------------------------------------------------------------------- command line
 
 
 def main(argv: Sequence[str] | None = None) -> int:

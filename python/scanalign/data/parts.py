@@ -1,21 +1,16 @@
 """The built-in parts (need no download), and meshes turned into oriented clouds.
 
 Each part is defined once, as a closed triangle mesh generated in C++ from its analytic
-surfaces (:func:`builtin_mesh`; :data:`BUILTIN_PARTS` names them with their symmetry). In
-metres, each in its own frame, z up:
+surfaces (:func:`builtin_mesh`; :data:`BUILTIN_PARTS` names them with their symmetry), in
+metres in its own frame, z up:
 
-``"block"``, the machined block (origin at the box centre; :func:`builtin_object` samples its
-cloud from the mesh and puts the points of the curved faces back on the exact cylinder and
-sphere):
-
-- a box ``[-0.040, 0.040] x [-0.025, 0.025] x [-0.015, 0.015]`` (80 x 50 x 30 mm);
-- a cylindrical boss of radius 0.012 standing on the top face, axis along z through
-  ``(x, y) = (-0.015, 0)``, 0.015 high (top at ``z = 0.030``);
-- a spherical cap: the part of the sphere of radius 0.015 centred at ``(0.020, 0.006,
-  0.006)`` above the top face (cap height 0.006, base radius 0.012).
-
-Flat faces, a cylinder and a sphere without symmetry constrain point-to-plane ICP in all
-six degrees of freedom.
+``"block"``, the machined block (origin at the box centre; :func:`builtin_object` samples it
+with the points of the curved faces on the exact cylinder and sphere): a box ``[-0.040, 0.040]
+x [-0.025, 0.025] x [-0.015, 0.015]`` (80 x 50 x 30 mm); a cylindrical boss of radius 0.012 on
+the top face, axis along z through ``(x, y) = (-0.015, 0)``, 0.015 high (top at ``z = 0.030``);
+a spherical cap, the part of the sphere of radius 0.015 centred at ``(0.020, 0.006, 0.006)``
+above the top face (cap height 0.006, base radius 0.012). Flat faces, a cylinder and a sphere
+without symmetry constrain point-to-plane ICP in all six degrees of freedom.
 
 ``"bracket"``, an L-shaped angle bracket (origin at the base plate's centre on its bottom face):
 a 70 x 40 x 6 mm base plate ``[-0.035, 0.035] x [-0.020, 0.020] x [0, 0.006]``, a 40 x 40 x 6 mm
@@ -39,27 +34,19 @@ import numpy as np
 import numpy.typing as npt
 
 from scanalign import _core, io
-from scanalign.common.arrays import mesh_arrays, require_memory
+from scanalign.common.arrays import mesh_arrays
 
 __all__ = ["builtin_mesh", "builtin_object", "sample_mesh", "normalize_mesh", "BUILTIN_PARTS"]
 
 MeshLike = Union[io.Mesh, Tuple[npt.ArrayLike, npt.ArrayLike]]
 
 
-def _require_memory(n_points: Any) -> None:
-    """Refuses an ``n_points`` the memory cannot hold (points, normals and the draws); the
-    rest (an integer in [0, 2^40]) is checked in C++, naming it."""
-    if isinstance(n_points, (int, np.integer)) and not isinstance(n_points, bool) and n_points > 0:
-        require_memory(160.0 * n_points, f"n_points = {n_points}")
-
-
 def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) -> Tuple[np.ndarray, np.ndarray]:
-    """Samples points uniformly per unit area on a triangle mesh's surface.
-
-    Triangles are drawn with probability proportional to their area, points uniformly
-    inside them (``p = a + sqrt(u) (1 - v) (b - a) + sqrt(u) v (c - a)``, ``u, v`` uniform
-    in [0, 1)); zero-area triangles are never drawn. In C++ (``_core.common.sample_mesh``), with
-    the random numbers of ``numpy.random.default_rng(seed)`` drawn as NumPy draws them.
+    """Samples points uniformly per unit area on a triangle mesh's surface, in C++
+    (``_core.common.sample_mesh``): triangles drawn with probability proportional to their area
+    (zero-area ones never), points uniform inside them (``p = a + sqrt(u) (1 - v) (b - a) +
+    sqrt(u) v (c - a)``, ``u, v`` uniform in [0, 1)), with the random numbers of
+    ``numpy.random.default_rng(seed)`` drawn as NumPy draws them.
 
     Args:
         mesh_or_vertices_faces: a :class:`scanalign.io.Mesh`, ``(vertices (V, 3), faces (F, 3))`` or an
@@ -76,7 +63,6 @@ def sample_mesh(mesh_or_vertices_faces: MeshLike, n_points: int, seed: int = 0) 
     """
     m = mesh_or_vertices_faces
     mesh = m if isinstance(m, io.Mesh) else io.Mesh(*(mesh_arrays(m) or m))  # or an Open3D / trimesh mesh
-    _require_memory(n_points)
     points, normals, _ = _core.common.sample_mesh(mesh.vertices, mesh.faces, n_points, seed)
     return points, normals
 
@@ -85,11 +71,8 @@ def normalize_mesh(mesh: io.Mesh, size: float) -> io.Mesh:
     """A copy of ``mesh`` scaled uniformly so that its largest bounding-box extent is ``size``
     metres, its bounding box centred on x = y = 0 and its lowest point at z = 0 (ready to
     stand on a table). For meshes in arbitrary units (CGAL's demo meshes are about one unit
-    across; CAD files are often in millimetres).
-
-    Raises:
-        ValueError: a non-positive size or a mesh without extent.
-    """
+    across; CAD files are often in millimetres). ValueError for a non-positive size or a mesh
+    without extent."""
     if not (math.isfinite(size) and size > 0):
         raise ValueError(f"size must be a finite positive length in metres, got {size}")
     v = mesh.vertices
@@ -117,20 +100,14 @@ def _builtin(segments: int, name: str) -> io.Mesh:
 
 
 def builtin_mesh(segments: int = 96, name: str = "block") -> io.Mesh:
-    """A built-in part (see the module docstring; :data:`BUILTIN_PARTS`) as a closed
-    triangle mesh, in metres in the part's own frame (z up).
+    """The built-in part ``name`` (``"block"``, ``"bracket"`` or ``"standoff"``; see the module
+    docstring and :data:`BUILTIN_PARTS`) as a watertight triangle mesh (every edge shared by two
+    faces, wound counter-clockwise seen from outside) in metres in the part's own frame (z up).
 
-    Watertight (every edge shared by exactly two faces), wound counter-clockwise seen from
-    outside (about 3000 triangles for the block at ``segments=96``); curved surfaces are
-    inscribed polygons (chord error 6 um for the block at 96 segments) whose vertices lie on
-    the exact surfaces.
-
-    Args:
-        segments: vertices around a curved surface (integer in [8, 4096]); the standoff's stud
-            rounds it up to a multiple of 6 (the mesh keeps the 6-fold symmetry); the bracket
-            has no curved surface.
-        name: ``"block"`` (default), ``"bracket"`` or ``"standoff"``.
-    """
+    Curved surfaces (the bracket has none) are inscribed polygons of ``segments`` vertices
+    (integer in [8, 4096]; the standoff's stud rounds it up to a multiple of 6, keeping the
+    6-fold symmetry) on the exact surfaces: about 3000 triangles and a chord error of 6 um for
+    the block at 96 segments."""
     if int(segments) != segments:
         raise ValueError(f"segments must be an integer >= 8, got {segments}")
     if name not in BUILTIN_PARTS:
@@ -144,6 +121,5 @@ def builtin_object(n_points: int = 20000, seed: int = 0) -> Tuple[np.ndarray, np
     :func:`builtin_mesh`, with the points and normals of the curved faces projected onto the
     exact cylinder and sphere: ``points, normals (n_points, 3)``, float64, metres, outward
     unit normals, in random order; equal seeds give identical output."""
-    _require_memory(n_points)
     points, normals, _ = _core.synthetic.sample_builtin_block(n_points, seed, 96)
     return points, normals

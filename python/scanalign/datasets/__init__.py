@@ -8,7 +8,6 @@ from pathlib import Path
 from typing import Any, Optional, Union
 
 from scanalign import synthetic
-from scanalign.datasets import tum
 from scanalign.datasets.sources import BagSequence, ImageFolderSequence, is_bag, is_image_folder
 from scanalign.datasets.tum import TumSequence, is_tum_folder, write_tum_sequence
 
@@ -18,11 +17,12 @@ __all__ = ["BagSequence", "ImageFolderSequence", "TumSequence", "is_bag", "is_im
 PathLike = Union[str, "os.PathLike[str]"]
 #: Suffixes of synthetic-scan config files (:class:`scanalign.synthetic.SyntheticConfig`).
 SYNTHETIC_SUFFIXES = (".json", ".yaml", ".yml")
+_READERS = ((is_tum_folder, TumSequence), (is_bag, BagSequence), (is_image_folder, ImageFolderSequence))
 
 
 def is_recording(path: Any) -> bool:
     """True for a TUM RGB-D folder, a ROS bag or an image folder."""
-    return is_tum_folder(path) or is_bag(path) or is_image_folder(path)
+    return any(test(path) for test, _ in _READERS)
 
 
 def open_source(source: PathLike, *, synthetic_overrides: Optional[dict] = None, **options: Any):
@@ -51,12 +51,9 @@ def open_source(source: PathLike, *, synthetic_overrides: Optional[dict] = None,
     if p.is_file() and p.suffix.lower() in SYNTHETIC_SUFFIXES:
         config = synthetic.SyntheticConfig.from_file(p)
         return (synthetic.SyntheticConfig(**{**config.to_dict(), **given}) if given else config).build()
-    if is_tum_folder(p):
-        return tum.TumSequence(p, **options)
-    if is_bag(p):
-        return BagSequence(p, **options)
-    if is_image_folder(p):
-        return ImageFolderSequence(p, **options)
+    for test, reader in _READERS:
+        if test(p):
+            return reader(p, **options)
     if not p.exists():
         raise FileNotFoundError(f"{source}: no such folder or file")
     raise ValueError(f"{source}: not a recording: expected a TUM RGB-D folder (depth.txt), a ROS bag (.bag, .mcap, "

@@ -18,17 +18,16 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
-from scanalign import _core
 from scanalign.datasets.tum import (
     ImageFileSequence,
-    bracket,
     camera_argument,
     check_number,
     check_selection,
+    interpolate,
     pair_frames,
     resolve_camera,
 )
-from scanalign.evaluation.trajectory import Trajectory, matrix_from_quaternion
+from scanalign.evaluation.trajectory import Trajectory, pose_from_tum
 from scanalign.reconstruction.camera import Frame, camera_from_dict, sequence_index
 
 __all__ = ["BagSequence", "ImageFolderSequence", "is_bag", "is_image_folder", "DEPTH_ENCODINGS",
@@ -47,16 +46,6 @@ _JOINTS, _TF, _FLOAT32 = "sensor_msgs/msg/JointState", "tf2_msgs/msg/TFMessage",
 #: UR arms' joint names in kinematic order (the ROS drivers publish them alphabetically).
 _UR_JOINTS = ("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint", "wrist_2_joint",
               "wrist_3_joint")
-
-
-def _rosbags():
-    try:
-        from rosbags.highlevel import AnyReader
-        from rosbags.typesys import Stores, get_typestore
-    except ImportError as e:
-        raise ImportError("reading ROS bags needs the pure-Python package 'rosbags': pip install 'scanalign[ros]' "
-                          f"(or pip install rosbags) ({e})") from None
-    return AnyReader, Stores, get_typestore
 
 
 def is_bag(path: Any) -> bool:
@@ -91,27 +80,23 @@ def _field(msg: Any, *names: str) -> Any:
     raise AttributeError(f"message {type(msg).__name__} has none of the fields {names}")
 
 
-def _stamp_ns(msg: Any) -> int:
+def _stamp_ns(msg: Any, bag_time: Optional[int] = None) -> int:
+    """A message's header stamp (ns), or ``bag_time`` when given and the stamp is unset (<= 0)."""
     s = msg.header.stamp
-    return int(s.sec) * 1_000_000_000 + int(_field(s, "nanosec", "nsec"))
+    ns = int(s.sec) * 1_000_000_000 + int(_field(s, "nanosec", "nsec"))
+    return ns if ns > 0 or bag_time is None else bag_time
 
 
 def _seconds(ns: Any) -> Any:
     """Nanoseconds (int or int64 array) as float seconds, rounded once: whole seconds plus the
     fraction, so that a stamp of 1700000000.1 s reads as the float 1700000000.1."""
-    if isinstance(ns, np.ndarray):
-        return (ns // 1_000_000_000).astype(np.float64) + (ns % 1_000_000_000) / 1e9
-    return int(ns) // 1_000_000_000 + (int(ns) % 1_000_000_000) / 1e9
+    whole, fraction = divmod(ns if isinstance(ns, np.ndarray) else int(ns), 1_000_000_000)
+    return whole + fraction / 1e9
 
 
 def _common_prefix(a: str, b: str) -> int:
     """Number of leading topic-name components two topics share."""
-    n = 0
-    for x, y in zip(a.strip("/").split("/"), b.strip("/").split("/")):
-        if x != y:
-            break
-        n += 1
-    return n
+    return len(os.path.commonprefix([a.strip("/").split("/"), b.strip("/").split("/")]))
 
 
 def _order_joints(names: Sequence[str]) -> List[str]:
@@ -126,49 +111,43 @@ def _order_joints(names: Sequence[str]) -> List[str]:
 class BagSequence:
     """The RGB-D frames of a ROS 1 or ROS 2 bag, read with ``rosbags`` (pure Python).
 
-    On construction the bag's topics are chosen and every depth, colour, joint-state and tf
-    message's timestamp is read; images are decoded when a frame is requested. Frames are the
-    depth images in header-timestamp order; with colour, each is paired with a colour image
-    within ``max_time_difference`` as in :class:`~scanalign.datasets.tum.TumSequence` (depth
-    images without a partner are dropped, counted in :attr:`dropped_depth_frames`). Then
-    ``start``, ``stride``, ``limit`` select frames. Each frame's joints and pose are
-    interpolated at its depth timestamp when the bag is opened.
+    Opening the bag chooses the topics, reads every depth, colour, joint-state and tf message's
+    timestamp and interpolates each frame's joints and pose at its depth timestamp; images are
+    decoded when a frame is requested. Frames are the depth images in header-timestamp order,
+    paired with colour and selected as in :class:`~scanalign.datasets.tum.TumSequence`.
 
     Args:
         path: a ROS 1 ``.bag``, a ROS 2 bag folder, or a ROS 2 ``.mcap`` / ``.db3`` file.
-        depth_topic: the depth ``sensor_msgs/Image`` topic; default: the only topic whose
-            encoding is a depth encoding (:data:`DEPTH_ENCODINGS`), preferring names with
-            ``aligned_depth_to_color`` when colour is present, then names with ``depth``.
+        depth_topic: the depth ``sensor_msgs/Image`` topic; default: the only one with a depth
+            encoding (:data:`DEPTH_ENCODINGS`), preferring names with ``aligned_depth_to_color``
+            when colour is present, then names with ``depth``.
         color_topic: the colour topic, or False for none; default: the colour-encoded
-            (:data:`COLOR_ENCODINGS`) image topic registered to the depth images (their size
-            and ``header.frame_id``) that shares the longest name prefix with the depth topic
-            (none: no colour, said in :attr:`notes`). A named one must have the depth size.
-        camera_info_topic: the ``sensor_msgs/CameraInfo`` of the depth images; default: the one
-            sharing the longest name prefix with the depth topic among those of the depth
-            images' size. Its K and (Brown-Conrady, "plumb_bob") distortion are used.
+            (:data:`COLOR_ENCODINGS`) topic registered to the depth images (their size and
+            ``header.frame_id``) sharing the longest name prefix with the depth topic (none: no
+            colour, said in :attr:`notes`). A named one must have the depth size.
+        camera_info_topic: the depth images' ``sensor_msgs/CameraInfo`` (its K and "plumb_bob"
+            distortion); default: the one of their size sharing the longest name prefix.
         intrinsics: an :class:`Intrinsics`, a preset name or a camera file overriding
             camera_info (needed when the bag has none).
-        depth_scale: metres per unit of 16-bit depth; default: a RealSense recording's
-            ``Depth Units`` option when present, else 0.001 (millimetres, the ROS
-            convention). Float (32FC1) depth is metres.
+        depth_scale: metres per unit of 16-bit depth; default: a RealSense recording's ``Depth
+            Units`` option, else 0.001 (the ROS convention). Float (32FC1) depth is metres.
         joint_states_topic: the robot's ``sensor_msgs/JointState`` topic, or False; default
-            ``/joint_states`` or the only JointState topic.
-        joint_names: the joints to put into ``meta["joints"]``, in this order; default: the
-            first message's names (a UR arm's in kinematic order, whatever order the driver
-            publishes them in).
-        base_frame: the tf frame ``T_base_camera`` is relative to; default: the root of the tf
-            tree above the camera frame. ``tf=False``: no poses from tf.
-        camera_frame: the tf frame of the depth images; default: their ``header.frame_id``.
+            ``/joint_states`` or the only one.
+        joint_names: the joints of ``meta["joints"]``, in order; default: the first message's
+            names (a UR arm's in kinematic order, whatever order the driver publishes).
+        tf, base_frame, camera_frame: ``T_base_camera`` from tf (``tf=False``: none), relative to
+            ``base_frame`` (default: the root of the tf tree above the camera frame), of
+            ``camera_frame`` (default: the depth images' ``header.frame_id``).
         max_time_difference: largest |t_depth - t_colour| (s) of a pair.
         max_joint_gap, max_tf_gap: largest time (s) between the two joint states / moving tf
-            samples that bracket a frame for it to get joints / a pose.
+            samples around a frame for it to get joints / a pose.
         start, stride, limit: frame selection after pairing.
 
     Attributes:
-        path, depth_topic, color_topic (or None), camera_info_topic (or None),
-        joint_states_topic (or None), joint_names, base_frame, camera_frame, intrinsics,
-        depth_scale, timestamps ((N,) float64 depth header times, s), dropped_depth_frames,
-        notes (what was chosen or ignored, and why).
+        path, depth_topic, color_topic / camera_info_topic / joint_states_topic (or None),
+        joint_names, base_frame, camera_frame, intrinsics, depth_scale, timestamps ((N,)
+        float64 depth header times, s), dropped_depth_frames, notes (what was chosen or ignored,
+        and why).
 
     Frames: ``depth`` (H, W) uint16 (units of :attr:`depth_scale`) or float32 metres, ``rgb``
     (H, W, 3) uint8 or None, ``timestamp`` the depth header time (s), ``T_base_camera`` from
@@ -188,7 +167,12 @@ class BagSequence:
                  base_frame: Optional[str] = None, camera_frame: Optional[str] = None,
                  max_time_difference: float = 0.02, max_joint_gap: float = 0.1, max_tf_gap: float = 0.1,
                  start: int = 0, stride: int = 1, limit: Optional[int] = None) -> None:
-        AnyReader, Stores, get_typestore = _rosbags()
+        try:
+            from rosbags.highlevel import AnyReader
+            from rosbags.typesys import Stores, get_typestore
+        except ImportError as e:
+            raise ImportError("reading ROS bags needs the pure-Python package 'rosbags': pip install "
+                              f"'scanalign[ros]' (or pip install rosbags) ({e})") from None
         self.path = Path(path)
         if not self.path.exists():
             raise FileNotFoundError(f"{self.path}: no such bag")
@@ -196,11 +180,9 @@ class BagSequence:
         max_dt, max_joint_gap, max_tf_gap = (check_number(name, v, "a finite number >= 0 (s)") for name, v in (
             ("max_time_difference", max_time_difference), ("max_joint_gap", max_joint_gap), ("max_tf_gap", max_tf_gap)))
         self.notes: List[str] = []
-        self._reader = None
-        ros1 = self.path.suffix.lower() == ".bag"
         try:
-            reader = AnyReader([self.path], default_typestore=get_typestore(Stores.ROS1_NOETIC if ros1 else
-                                                                             Stores.ROS2_HUMBLE))
+            reader = AnyReader([self.path], default_typestore=get_typestore(
+                Stores.ROS1_NOETIC if self.path.suffix.lower() == ".bag" else Stores.ROS2_HUMBLE))
             reader.open()
         except ImportError:
             raise
@@ -218,8 +200,6 @@ class BagSequence:
             self.close()
             raise
 
-    # -- construction ----------------------------------------------------------------------
-
     def _error(self, message: str) -> ValueError:
         return ValueError(f"{self.path}: {message}")
 
@@ -227,9 +207,7 @@ class BagSequence:
         return {c.topic: c for c in self._reader.connections if c.msgtype == msgtype}
 
     def _first(self, connection: Any) -> Any:
-        for conn, _, raw in self._reader.messages(connections=[connection]):
-            return self._deserialize(raw, conn)
-        return None
+        return next((self._deserialize(raw, c) for c, _, raw in self._reader.messages(connections=[connection])), None)
 
     def _deserialize(self, raw: bytes, conn: Any) -> Any:
         try:
@@ -249,18 +227,16 @@ class BagSequence:
     def _index(self, depth_topic, color_topic, info_topic, intrinsics, depth_scale, camera_frame, max_dt, start,
                stride, limit) -> None:
         images = self._topics(_IMAGE)
-        firsts = {t: self._first(c) for t, c in images.items()}
-        firsts = {t: m for t, m in firsts.items() if m is not None}
+        firsts = {t: m for t, c in images.items() if (m := self._first(c)) is not None}
 
         # Depth.
         if depth_topic is not None:
-            depth_conn = self._pick_topic(depth_topic, _IMAGE, "depth")
-            first = firsts.get(depth_topic)
-            if first is None:
+            self._pick_topic(depth_topic, _IMAGE, "depth")
+            if depth_topic not in firsts:
                 raise self._error(f"depth topic {depth_topic!r} has no messages")
-            if first.encoding not in DEPTH_ENCODINGS:
-                raise self._error(f"depth topic {depth_topic!r} has encoding {first.encoding!r}; depth must be one of "
-                                  f"{sorted(DEPTH_ENCODINGS)}")
+            if firsts[depth_topic].encoding not in DEPTH_ENCODINGS:
+                raise self._error(f"depth topic {depth_topic!r} has encoding {firsts[depth_topic].encoding!r}; depth "
+                                  f"must be one of {sorted(DEPTH_ENCODINGS)}")
         else:
             cands = sorted(t for t, m in firsts.items() if m.encoding in DEPTH_ENCODINGS)
             if not cands:
@@ -274,16 +250,26 @@ class BagSequence:
             if len(cands) > 1:
                 raise self._error(f"several depth image topics {cands}; pass depth_topic=")
             depth_topic = cands[0]
-            depth_conn = images[depth_topic]
-        first = firsts[depth_topic]
-        self.depth_topic = depth_topic
+        first, self.depth_topic = firsts[depth_topic], depth_topic
         size = (int(first.width), int(first.height))
 
         # Colour.
         self.color_topic = None
-        color_conn = None
-        if color_topic is not None and color_topic is not False:
-            color_conn = self._pick_topic(color_topic, _IMAGE, "colour")
+        if color_topic is None:
+            # Registered colour has the depth images' size and optical frame (RealSense's
+            # aligned_depth_to_color is published in the colour camera's frame).
+            cands = [t for t, m in firsts.items() if m.encoding in COLOR_ENCODINGS]
+            same = sorted((t for t in cands if (int(firsts[t].width), int(firsts[t].height)) == size
+                           and firsts[t].header.frame_id == first.header.frame_id),
+                          key=lambda t: (-_common_prefix(t, depth_topic), t))
+            if same:
+                self.color_topic = same[0]
+            elif cands:
+                self.notes.append(f"colour topics {sorted(cands)} left out: not registered to the depth images (not "
+                                  f"{size[0]}x{size[1]} in frame {first.header.frame_id!r}); color_topic= uses one "
+                                  "of the same size anyway")
+        elif color_topic is not False:
+            self._pick_topic(color_topic, _IMAGE, "colour")
             m = firsts.get(color_topic)
             if m is None or m.encoding not in COLOR_ENCODINGS:
                 raise self._error(f"colour topic {color_topic!r} has encoding {getattr(m, 'encoding', None)!r}; "
@@ -293,39 +279,25 @@ class BagSequence:
                                   f"are {size[0]}x{size[1]}: colour must be registered to depth (e.g. RealSense "
                                   "aligned_depth_to_color)")
             self.color_topic = color_topic
-        elif color_topic is None:
-            # Registered colour has the depth images' size and optical frame (RealSense's
-            # aligned_depth_to_color is published in the colour camera's frame).
-            cands = [t for t, m in firsts.items() if m.encoding in COLOR_ENCODINGS]
-            same = sorted((t for t in cands if (int(firsts[t].width), int(firsts[t].height)) == size
-                           and firsts[t].header.frame_id == first.header.frame_id),
-                          key=lambda t: (-_common_prefix(t, depth_topic), t))
-            if same:
-                self.color_topic, color_conn = same[0], images[same[0]]
-            elif cands:
-                self.notes.append(f"colour topics {sorted(cands)} left out: not registered to the depth images (not "
-                                  f"{size[0]}x{size[1]} in frame {first.header.frame_id!r}); color_topic= uses one "
-                                  "of the same size anyway")
 
         # Camera.
         self.camera_info_topic = None
-        infos = self._topics(_INFO)
         given, file_scale, _ = camera_argument(intrinsics)
         if given is None:
             if info_topic is not None:
-                conn = self._pick_topic(info_topic, _INFO, "camera_info")
+                msg = self._first(self._pick_topic(info_topic, _INFO, "camera_info"))
+                if msg is None:
+                    raise self._error(f"camera_info topic {info_topic!r} has no messages")
             else:
-                sized = {t: c for t, c in infos.items()
+                infos = self._topics(_INFO)
+                sized = {t: m for t, c in infos.items()
                          if (m := self._first(c)) is not None and (int(m.width), int(m.height)) == size}
                 if not sized:
                     raise self._error(f"no sensor_msgs/CameraInfo for the {size[0]}x{size[1]} depth images of "
                                       f"{depth_topic} (camera_info topics: {sorted(infos) or 'none'}); pass "
                                       "intrinsics= (a preset, a camera file or an Intrinsics)")
                 info_topic = max(sorted(sized), key=lambda t: _common_prefix(t, depth_topic))
-                conn = sized[info_topic]
-            msg = self._first(conn)
-            if msg is None:
-                raise self._error(f"camera_info topic {info_topic!r} has no messages")
+                msg = sized[info_topic]
             try:
                 given, _ = camera_from_dict({"width": int(msg.width), "height": int(msg.height),
                                              "K": np.asarray(_field(msg, "k", "K"), dtype=np.float64),
@@ -344,22 +316,19 @@ class BagSequence:
         if scale is not None:
             scale = check_number("depth_scale", scale, "in (0, 1] metres per unit", strict=True, high=1)
         else:
-            units = [c for t, c in self._topics(_FLOAT32).items() if t.lower().endswith("depth units/value")]
-            if units:
-                units.sort(key=lambda c: -_common_prefix(c.topic, depth_topic))
-                m = self._first(units[0])
-                if m is not None and math.isfinite(float(m.data)) and 0 < float(m.data) <= 1:
-                    # A float32 in the bag: its shortest decimal (1e-4, not 1.0000000475e-4).
-                    scale = float(np.format_float_positional(np.float32(m.data), unique=True))
-                    self.notes.append(f"depth_scale {scale:g} m from {units[0].topic}")
+            units = sorted((c for t, c in self._topics(_FLOAT32).items() if t.lower().endswith("depth units/value")),
+                           key=lambda c: -_common_prefix(c.topic, depth_topic))
+            m = self._first(units[0]) if units else None
+            if m is not None and math.isfinite(float(m.data)) and 0 < float(m.data) <= 1:
+                # A float32 in the bag: its shortest decimal (1e-4, not 1.0000000475e-4).
+                scale = float(np.format_float_positional(np.float32(m.data), unique=True))
+                self.notes.append(f"depth_scale {scale:g} m from {units[0].topic}")
         self.depth_scale = 0.001 if scale is None else scale
 
         # Timestamps of every image (header stamps; bag time kept for random access).
-        self._depth = self._stamps(depth_conn)
-        self._color = self._stamps(color_conn) if color_conn is not None else []
-        self._depth_conn, self._color_conn = depth_conn, color_conn
-        if not self._depth:
-            raise self._error(f"depth topic {depth_topic} has no messages")
+        self._depth_conn, self._color_conn = images[depth_topic], images.get(self.color_topic)
+        self._depth = self._stamps(self._depth_conn)  # not empty: the topic has a first message
+        self._color = self._stamps(self._color_conn) if self._color_conn is not None else []
         d_ts = _seconds(np.array([s for s, _, _ in self._depth], dtype=np.int64))
         di, ci = np.arange(len(d_ts)), None
         if self._color:
@@ -368,7 +337,7 @@ class BagSequence:
         self.dropped_depth_frames = int(len(d_ts) - len(di))
         keep = np.arange(len(di))[start::stride][:limit]
         self._frames = [(int(di[k]), None if ci is None else int(ci[k])) for k in keep]
-        self.timestamps = d_ts[[d for d, _ in self._frames]] if self._frames else np.zeros(0)
+        self.timestamps = d_ts[di[keep]]
         self.camera_frame = camera_frame or first.header.frame_id or None
 
     def _stamps(self, conn: Any) -> List[Tuple[int, int, int]]:
@@ -378,8 +347,7 @@ class BagSequence:
         for c, t, raw in self._reader.messages(connections=[conn]):
             n = n + 1 if t == last else 0
             last = t
-            stamp = _stamp_ns(self._deserialize(raw, c))
-            out.append((stamp if stamp > 0 else t, t, n))
+            out.append((_stamp_ns(self._deserialize(raw, c), t), t, n))
         if len({s for s, _, _ in out}) != len(out):
             raise self._error(f"topic {conn.topic}: two images with the same header timestamp")
         return sorted(out)
@@ -409,25 +377,19 @@ class BagSequence:
             if len(pos) != len(msg_names):
                 raise self._error(f"topic {conn.topic}: a JointState with {len(msg_names)} names and {len(pos)} "
                                   "positions")
-            stamp = _stamp_ns(m)
-            times.append(stamp if stamp > 0 else bag_t)
+            times.append(_stamp_ns(m, bag_t))
             rows.append(pos[[msg_names.index(n) for n in names]])
         if not rows:
             self.notes.append(f"{conn.topic}: no joint states" + (f" with all of {names}" if names else ""))
             return [None] * len(t)
         self.joint_states_topic, self.joint_names = conn.topic, names
         order = np.argsort(np.array(times, dtype=np.int64), kind="stable")
-        ok, lo, hi, w = bracket(np.array(times, dtype=np.int64)[order], t, max_gap)
-        q = np.stack(rows)[order]
-        out: List[Optional[np.ndarray]] = [None] * len(t)
-        for k, row in zip(ok, (1 - w)[:, None] * q[lo] + w[:, None] * q[hi]):
-            out[k] = row
-        return out
+        return interpolate(np.array(times, dtype=np.int64)[order], np.stack(rows)[order], t, max_gap)
 
     def _read_tf(self, base_frame: Optional[str], t: np.ndarray, max_gap: float) -> List[Optional[np.ndarray]]:
         """Per frame (header times ``t``, ns), ``T_base_camera`` along the tf chain (each moving
         link interpolated, a static one as last published), or None."""
-        edges: Dict[str, Dict[str, Any]] = {}  # child -> {parent, static, samples [(t, T)]}
+        edges: Dict[str, Dict[str, Any]] = {}  # child -> {parent, static, samples [(t, tx ty tz qx qy qz qw)]}
         for topic, static in (("/tf_static", True), ("/tf", False)):
             conn = self._topics(_TF).get(topic)
             if conn is None:
@@ -439,11 +401,7 @@ class BagSequence:
                     if e["parent"] != parent:
                         raise self._error(f"{topic}: frame {child!r} has two parents, {e['parent']!r} and {parent!r}")
                     r, q = ts.transform.translation, ts.transform.rotation
-                    T = np.eye(4)
-                    T[:3, :3] = matrix_from_quaternion(np.array([q.x, q.y, q.z, q.w], dtype=np.float64))
-                    T[:3, 3] = (r.x, r.y, r.z)
-                    stamp = _stamp_ns(ts)
-                    e["samples"].append((stamp if stamp > 0 else bag_t, T))
+                    e["samples"].append((_stamp_ns(ts, bag_t), (r.x, r.y, r.z, q.x, q.y, q.z, q.w)))
         if not edges or self.camera_frame is None:
             return [None] * len(t)
         camera = self.camera_frame.lstrip("/")
@@ -457,20 +415,15 @@ class BagSequence:
             self.notes.append(f"tf: the camera frame {camera!r} is not in the tf tree: no poses")
             return [None] * len(t)
         self.base_frame = frame
-        poses, covered = np.tile(np.eye(4), (len(t), 1, 1)), np.ones(len(t), dtype=bool)
+        poses: List[Optional[np.ndarray]] = [np.eye(4)] * len(t)
         for child in reversed(chain):  # base -> camera
             s = sorted(edges[child]["samples"], key=lambda x: x[0])
             ns = np.array([x[0] for x in s], dtype=np.int64)
-            P = Trajectory(_seconds(ns), np.stack([x[1] for x in s])).poses  # checked finite
-            if edges[child]["static"]:  # a tf_static link holds whatever was published last, at any time
-                poses = poses @ P[-1]
-                continue
-            ok, lo, hi, w = bracket(ns, t, max_gap)
-            E = np.tile(np.eye(4), (len(t), 1, 1))
-            E[ok] = _core.evaluation.interpolate_poses(P[lo], P[hi], w)
-            covered &= np.isin(np.arange(len(t)), ok)
-            poses = poses @ E
-        return [T if c else None for T, c in zip(poses, covered)]
+            P = Trajectory(_seconds(ns), pose_from_tum([x[1] for x in s])).poses  # checked finite
+            # A tf_static link holds whatever was published last, at any time.
+            links = [P[-1]] * len(t) if edges[child]["static"] else interpolate(ns, P, t, max_gap)
+            poses = [None if T is None or E is None else T @ E for T, E in zip(poses, links)]
+        return poses
 
     def _message(self, conn: Any, entry: Tuple[int, int, int]) -> Any:
         _, t, n = entry
@@ -490,11 +443,8 @@ class BagSequence:
         if (w, h) != (self.intrinsics.width, self.intrinsics.height):
             raise self._error(f"{where}: a {w}x{h} image, the camera is {self.intrinsics.width}x"
                               f"{self.intrinsics.height}")
-        if depth:
-            code, _ = table[enc]
-            dtype, channels = np.dtype((">" if msg.is_bigendian else "<") + code), 1
-        else:
-            dtype, channels = np.dtype(np.uint8), table[enc][0]
+        code, channels = (table[enc][0], 1) if depth else ("u1", table[enc][0])
+        dtype = np.dtype((">" if msg.is_bigendian else "<") + code)
         row = w * channels * dtype.itemsize
         data = np.asarray(msg.data, dtype=np.uint8).reshape(-1)
         if step < row or data.size < step * h:
@@ -535,12 +485,12 @@ class BagSequence:
 
     def close(self) -> None:
         """Closes the bag (frames can no longer be read)."""
-        if self._reader is not None:
-            reader, self._reader = self._reader, None
-            try:
+        reader, self._reader = getattr(self, "_reader", None), None  # None: construction failed early
+        try:
+            if reader is not None:
                 reader.close()
-            except Exception:  # pragma: no cover - closing a half-open reader
-                pass
+        except Exception:  # pragma: no cover - closing a half-open reader
+            pass
 
     def __enter__(self) -> "BagSequence":
         return self
@@ -548,11 +498,7 @@ class BagSequence:
     def __exit__(self, *exc: Any) -> None:
         self.close()
 
-    def __del__(self) -> None:
-        try:
-            self.close()
-        except Exception:  # pragma: no cover
-            pass
+    __del__ = close
 
     def __repr__(self) -> str:
         return (f"BagSequence({os.fspath(self.path)!r}, frames={len(self)}, depth={self.depth_topic}, "
@@ -585,9 +531,8 @@ class ImageFolderSequence(ImageFileSequence):
         frame_rate: frames per second when the names are not times.
         start, stride, limit: frame selection after pairing.
 
-    Raises:
-        FileNotFoundError / ValueError (naming the file): no depth images, no camera file (or
-        several), a malformed camera file, images that cannot be paired, a bad image.
+    Raises FileNotFoundError / ValueError (naming the file): no depth images, no camera file
+    (or several), a malformed camera file, images that cannot be paired, a bad image.
     """
 
     def __init__(self, folder: PathLike, *, intrinsics: Any = None, depth_scale: Optional[float] = None,
@@ -635,6 +580,5 @@ class ImageFolderSequence(ImageFileSequence):
         return np.arange(len(files), dtype=np.float64) / frame_rate
 
     def __repr__(self) -> str:
-        return (f"ImageFolderSequence({os.fspath(self.folder)!r}, frames={len(self)}, "
-                f"rgb={self.rgb_files is not None}, "
-                f"intrinsics={self.intrinsics}, depth_scale={self.depth_scale})")
+        return (f"ImageFolderSequence({os.fspath(self.folder)!r}, frames={len(self)}, rgb={self.rgb_files is not None},"
+                f" intrinsics={self.intrinsics}, depth_scale={self.depth_scale})")

@@ -10,9 +10,8 @@ A sequence folder (e.g. ``rgbd_dataset_freiburg1_xyz``) holds::
     groundtruth.txt    # optional; TUM trajectory "timestamp tx ty tz qx qy qz qw"
     camera.json        # optional camera file (or camera.yaml / intrinsics.json|yaml)
 
-The lists follow :func:`scanalign.evaluation.trajectory.read_tum_rows`. TUM depth images store
-5000 units per metre (``depth_scale = 1/5000`` m per unit, 0 = no measurement). Ground truth
-poses are ``T_world_camera`` of the motion-capture world (4x4, metres), handed out as
+The lists follow :func:`scanalign.evaluation.trajectory.read_tum_rows`; depth images store 5000
+units per metre. Ground truth poses are ``T_world_camera`` (4x4, metres) handed out as
 ``Frame.T_base_camera``: the motion-capture world plays the part of the robot's base frame.
 """
 
@@ -59,14 +58,10 @@ CAMERA_FILE_NAMES = ("camera.json", "camera.yaml", "camera.yml", "intrinsics.jso
 PathLike = Union[str, "os.PathLike[str]"]
 
 
-# --------------------------------------------------------------------------- shared by the readers
-
-
 def check_number(name: str, value: Any, what: str, low: float = 0.0, strict: bool = False,
                  high: float = math.inf) -> float:
     """``value`` as a float: a finite real number (not a bool) ``>= low`` (``> low`` when
-    ``strict``) and ``<= high``; else ValueError "``name`` must be ``what``, got ...".
-    """
+    ``strict``) and ``<= high``; else ValueError "``name`` must be ``what``, got ..."."""
     ok = (not isinstance(value, (bool, np.bool_)) and isinstance(value, (int, float, np.integer, np.floating))
           and math.isfinite(float(value)) and (value > low if strict else value >= low) and value <= high)
     if not ok:
@@ -95,14 +90,11 @@ def _read_camera(path: PathLike) -> Tuple[Intrinsics, Optional[float]]:
 
 
 def camera_argument(intrinsics: Any) -> Tuple[Optional[Intrinsics], Optional[float], Optional[Path]]:
-    """An ``intrinsics=`` argument: an :class:`Intrinsics`, a preset name of
-    :data:`~scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a camera file path (then
-    with its optional depth_scale and path), or None: ``(intrinsics, depth_scale, file)``.
-
-    Raises:
-        ValueError: a string that is neither a preset nor a file; TumFormatError for a
-            malformed camera file. TypeError: another type.
-    """
+    """An ``intrinsics=`` argument (an :class:`Intrinsics`, a preset name of
+    :data:`~scanalign.reconstruction.camera.INTRINSICS_PRESETS`, a camera file path or None) as
+    ``(intrinsics, depth_scale, file)``, the last two from a camera file only. ValueError for a
+    string that is neither a preset nor a file (TumFormatError: a malformed camera file),
+    TypeError for another type."""
     if intrinsics is None or isinstance(intrinsics, Intrinsics):
         return intrinsics, None, None
     if isinstance(intrinsics, str) and intrinsics in INTRINSICS_PRESETS:
@@ -119,14 +111,11 @@ def camera_argument(intrinsics: Any) -> Tuple[Optional[Intrinsics], Optional[flo
 
 def resolve_camera(folder: Path, intrinsics: Any, depth_scale: Any, default_scale: float,
                    max_scale: float = math.inf) -> Tuple[Intrinsics, float, Optional[Path]]:
-    """A recording folder's ``(intrinsics, depth_scale, camera file)``.
-
-    ``intrinsics``: as :func:`camera_argument`; None: the folder's camera file (one of
-    :data:`CAMERA_FILE_NAMES`; more than one is an error). ``depth_scale`` (m per unit): this
-    argument, else the camera file given as ``intrinsics``, else the folder's camera file
-    (read only when it matters, so a stray file does not block explicit settings), else
-    ``default_scale``; it must lie in ``(0, max_scale]``.
-    """
+    """A recording folder's ``(intrinsics, depth_scale, camera file)``. ``intrinsics``: as
+    :func:`camera_argument`; None: the folder's camera file (one of :data:`CAMERA_FILE_NAMES`;
+    more than one is an error). ``depth_scale`` (m per unit, in ``(0, max_scale]``): this
+    argument, else the camera file given as ``intrinsics``, else the folder's camera file (read
+    only when it matters, so a stray file does not block explicit settings), else ``default_scale``."""
     rule = "a positive number of metres per unit" if max_scale == math.inf else f"in (0, {max_scale:g}] metres per unit"
     if depth_scale is not None:
         check_number("depth_scale", depth_scale, rule, strict=True, high=max_scale)
@@ -215,21 +204,25 @@ def pair_frames(depth_t: np.ndarray, color_t: np.ndarray, max_dt: float, where: 
     return pairs
 
 
-def bracket(ts: np.ndarray, t: np.ndarray, max_gap: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Where samples at sorted times ``ts`` cover the query times ``t`` (same unit): an exact
-    hit (within 1e-9), or inside their span between two samples at most ``max_gap`` apart.
-    Returns ``(covered, lo, hi, w)``: the indices of the covered queries and, for each, the
-    samples that bracket it and the weight of ``hi`` (``t = (1 - w) ts[lo] + w ts[hi]``)."""
-    t = np.asarray(t)
+def interpolate(ts: np.ndarray, values: np.ndarray, t: np.ndarray, max_gap: float) -> List[Optional[np.ndarray]]:
+    """Per query time ``t``, the ``values`` sampled at sorted times ``ts`` (same unit)
+    interpolated, or None where the samples do not cover it (covered: an exact hit within
+    1e-9, or inside their span between two samples at most ``max_gap`` apart). Poses
+    (N, 4, 4) are linear in position and spherical-linear in rotation, rows (N, n) linear."""
+    t, out = np.asarray(t), [None] * len(t)
     if len(ts) == 0:
-        empty = np.zeros(0, dtype=np.int64)
-        return empty, empty, empty, np.zeros(0)
+        return out
     hi = np.clip(np.searchsorted(ts, t, side="left"), 0, len(ts) - 1)
     lo = np.where(np.abs(ts[hi] - t) <= 1e-9, hi, np.maximum(hi - 1, 0))
     gap = ts[hi] - ts[lo]
     ok = np.flatnonzero((t >= ts[0]) & (t <= ts[-1]) & (gap <= max_gap))
     lo, hi, gap = lo[ok], hi[ok], gap[ok]
-    return ok, lo, hi, np.where(gap > 0, (t[ok] - ts[lo]) / np.where(gap > 0, gap, 1), 0.0)
+    w = np.where(gap > 0, (t[ok] - ts[lo]) / np.where(gap > 0, gap, 1), 0.0)
+    a, b = values[lo], values[hi]
+    for k, v in zip(ok, _core.evaluation.interpolate_poses(a, b, w) if values.ndim == 3
+                    else (1 - w)[:, None] * a + w[:, None] * b):
+        out[k] = v
+    return out
 
 
 class ImageFileSequence:
@@ -254,11 +247,10 @@ class ImageFileSequence:
     def __getitem__(self, i: int) -> Frame:
         k = sequence_index(i, len(self), type(self).__name__)
         depth = load_image(self.depth_files[k], "depth", self.intrinsics)
-        meta = {"depth_file": str(self.depth_files[k]), "rgb_file": None, **self._meta(k)}
-        rgb = None
-        if self.rgb_files is not None:
-            rgb = load_image(self.rgb_files[k], "colour", self.intrinsics)
-            meta["rgb_file"] = str(self.rgb_files[k])
+        rgb_file = None if self.rgb_files is None else self.rgb_files[k]
+        rgb = None if rgb_file is None else load_image(rgb_file, "colour", self.intrinsics)
+        meta = {"depth_file": str(self.depth_files[k]), "rgb_file": None if rgb_file is None else str(rgb_file),
+                **self._meta(k)}
         return Frame(depth=depth, intrinsics=self.intrinsics, rgb=rgb, depth_scale=self.depth_scale,
                      timestamp=float(self.timestamps[k]), T_base_camera=self._pose(k), index=k, meta=meta)
 
@@ -267,71 +259,57 @@ class ImageFileSequence:
             yield self[k]
 
 
-# --------------------------------------------------------------------------- TUM folders
-
-
 def read_timestamp_list(path: PathLike) -> Tuple[np.ndarray, List[str], List[int]]:
-    """Reads a TUM image list (``rgb.txt`` / ``depth.txt``): ``timestamp filename`` lines,
-    sorted by timestamp (recorders sometimes flush out of order).
-
-    Returns:
-        (timestamps (N,) float64 seconds, filenames as written, 1-based line numbers).
-
-    Raises:
-        TumFormatError: a line without exactly two fields, a timestamp that is not a finite
-            number, or the same timestamp twice (file and line are named).
-    """
+    """Reads a TUM image list (``rgb.txt`` / ``depth.txt``) of ``timestamp filename`` lines,
+    sorted by timestamp (recorders sometimes flush out of order): ``(timestamps (N,) float64
+    seconds, filenames as written, 1-based line numbers)``. TumFormatError (naming the file and
+    line) for a line without exactly two fields, a timestamp that is not a finite number, or
+    the same timestamp twice."""
     values, names, lines = read_tum_rows(path, 2, "'timestamp filename'")
     order = time_order(values[:, 0], path, lines)
     return values[order, 0], [names[k] for k in order], lines[order].tolist()
 
 
 class TumSequence(ImageFileSequence):
-    """An RGB-D sequence in the TUM RGB-D benchmark layout, read lazily (PNGs are decoded
-    when a frame is requested).
+    """An RGB-D sequence in the TUM RGB-D benchmark layout; PNGs are decoded when a frame is
+    requested.
 
     Frames are the depth images of ``depth.txt`` in increasing time. When ``rgb.txt`` lists
-    images, each depth image is paired with a colour image within ``max_time_difference``
-    (:func:`scanalign.evaluation.trajectory.associate_timestamps`); depth images without a
-    partner are dropped (counted in :attr:`dropped_depth_frames`). Without colour,
-    ``Frame.rgb`` is None. Then ``start``, ``stride``, ``limit`` select
-    ``associated[start::stride][:limit]``.
-
-    Ground truth (``groundtruth.txt``) is interpolated to each depth timestamp (linear in
-    position, spherical-linear in rotation); a frame outside it, or in a gap wider than
-    ``max_groundtruth_gap`` s, gets ``T_base_camera=None``.
+    images, each is paired with a colour image within ``max_time_difference`` by
+    :func:`~scanalign.evaluation.trajectory.associate_timestamps` (depth images without a
+    partner are dropped, counted in :attr:`dropped_depth_frames`); then ``start``, ``stride``,
+    ``limit`` select ``paired[start::stride][:limit]``. Ground truth (``groundtruth.txt``) is
+    interpolated to each depth timestamp (linear in position, spherical-linear in rotation); a
+    frame outside it, or in a gap wider than ``max_groundtruth_gap`` s, gets ``T_base_camera=None``.
 
     Args:
         folder: the sequence folder.
         intrinsics: an :class:`Intrinsics`, a preset name from
-            :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` (e.g. ``"tum_fr1"``), a
+            :data:`~scanalign.reconstruction.camera.INTRINSICS_PRESETS` (e.g. ``"tum_fr1"``), a
             camera file, or None for the folder's own camera file (:data:`CAMERA_FILE_NAMES`).
-        depth_scale: metres per depth unit: this argument, else the ``depth_scale`` of the
-            camera file given as ``intrinsics``, else that of the folder's camera file, else
-            1/5000 (TUM).
+        depth_scale: metres per depth unit: this argument, else the ``depth_scale`` of the camera
+            file given as ``intrinsics``, else that of the folder's camera file, else 1/5000.
         max_time_difference: largest |t_depth - t_rgb| (s) of a pair (inclusive).
         stride, start, limit: frame selection (stride >= 1, start >= 0, limit None: all).
-        max_groundtruth_gap: largest time (s) between the two ground-truth poses that bracket
-            a frame (the default 0.1 s tolerates a few dropped 100 Hz samples, not a
-            tracking loss).
+        max_groundtruth_gap: largest time (s) between the two ground-truth poses around a frame
+            (the default 0.1 s tolerates a few dropped 100 Hz samples, not a tracking loss).
 
     Attributes:
-        folder (Path), name (the folder's name), intrinsics, depth_scale, camera_file (None
-        for a preset or an :class:`Intrinsics`), has_rgb, dropped_depth_frames, groundtruth
-        (the whole time-sorted ground-truth :class:`Trajectory`, or None); per selected frame:
-        timestamps ((N,) float64 s), depth_files, rgb_timestamps and rgb_files (None when
-        depth-only).
+        folder (Path), name (the folder's name), intrinsics, depth_scale, camera_file (None for
+        a preset or an :class:`Intrinsics`), has_rgb, dropped_depth_frames, groundtruth (the
+        whole time-sorted ground-truth :class:`Trajectory`, or None); per selected frame:
+        timestamps ((N,) float64 s), depth_files, rgb_timestamps and rgb_files (None: depth only).
 
     Frames: ``depth`` (H, W) uint16 in units of :attr:`depth_scale` m (0 = no measurement),
     ``rgb`` (H, W, 3) uint8 or None, ``timestamp`` the depth timestamp, ``T_base_camera`` the
     interpolated ground truth or None; ``meta``: ``depth_file``, ``rgb_file``,
-    ``rgb_timestamp``, ``source_index`` (position among all associated frames), ``sequence``.
+    ``rgb_timestamp``, ``source_index`` (position among all paired frames), ``sequence``.
 
     Raises (the lists, every selected image's existence and the first frame's image headers
     are checked on construction, every frame's images when loaded):
         FileNotFoundError: no such folder, no ``depth.txt``, or a listed image is missing.
-        NotADirectoryError: ``folder`` is a file. TypeError: a non-integer ``stride``,
-            ``start`` or ``limit``, an ``intrinsics`` of another type.
+        NotADirectoryError: ``folder`` is a file. TypeError: a non-integer ``stride``, ``start``
+            or ``limit``, an ``intrinsics`` of another type.
         ValueError: a bad ``stride``, ``start``, ``limit``, ``depth_scale``, time bound;
             TumFormatError (a ValueError, naming the file and line): a malformed list or camera
             file, no intrinsics, an unreadable, non-16-bit (depth) or wrongly sized image, no
@@ -371,10 +349,9 @@ class TumSequence(ImageFileSequence):
         self.rgb_timestamps = None if ri is None else rgb_ts[ri[self._source_index]]
         self.rgb_files = None if ri is None else self._listed(rgb_list, "colour", rgb_names, rgb_lines,
                                                                ri[self._source_index])
-        if len(self) > 0:  # early, cheap check of the first frame's headers
-            open_image(self.depth_files[0], "depth", self.intrinsics).close()
-            if self.rgb_files:
-                open_image(self.rgb_files[0], "colour", self.intrinsics).close()
+        for files, what in ((self.depth_files, "depth"), (self.rgb_files, "colour")):
+            if files:  # an early, cheap check of the first frame's headers
+                open_image(files[0], what, self.intrinsics).close()
 
         self.groundtruth: Optional[Trajectory] = None
         self._poses: List[Optional[np.ndarray]] = [None] * len(self)
@@ -384,9 +361,7 @@ class TumSequence(ImageFileSequence):
             gt = self.groundtruth = Trajectory.from_tum_rows(rows[time_order(rows[:, 0], gt_path, lines)])
             # Timestamps are microsecond decimals: a gap equal to max_gap in the text may exceed
             # it by a rounding error in binary, hence the 1 us slack.
-            ok, lo, hi, w = bracket(gt.timestamps, self.timestamps, max_gap + 1e-6)
-            for k, T in zip(ok, _core.evaluation.interpolate_poses(gt.poses[lo], gt.poses[hi], w)):
-                self._poses[int(k)] = T
+            self._poses = interpolate(gt.timestamps, gt.poses, self.timestamps, max_gap + 1e-6)
 
     def _listed(self, list_file: Path, what: str, names: List[str], lines: List[int], keep: np.ndarray) -> List[Path]:
         """The selected images of a list, each checked to exist."""
@@ -458,7 +433,6 @@ def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Op
     ``depth_scale``); and, unless ``write_groundtruth`` is False, ``groundtruth.txt`` with
     each frame's ``T_base_camera`` (as ``T_world_camera``, metres) when it has one.
     Timestamps get 6 decimals; frames are written in time order; PNGs use zlib level 1.
-
     Returns the folder path. Raises TypeError (not a :class:`Frame`, bad ``intrinsics``),
     ValueError (no frames, mixed intrinsics or colour, size mismatch, malformed colour or
     pose, timestamps equal at 6 decimals or non-finite, depth beyond ``65535 * depth_scale``),
