@@ -3,18 +3,16 @@ batch job or a pipeline reads."""
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
-from typing import Any, Optional, Union
+from typing import Any, Optional
 
 from scanalign import synthetic
 from scanalign.datasets.sources import BagSequence, ImageFolderSequence, is_bag, is_image_folder
-from scanalign.datasets.tum import TumSequence, is_tum_folder, write_tum_sequence
+from scanalign.datasets.tum import PathLike, TumSequence, is_tum_folder, write_tum_sequence
 
 __all__ = ["BagSequence", "ImageFolderSequence", "TumSequence", "is_bag", "is_image_folder", "is_tum_folder",
            "is_recording", "open_source", "write_tum_sequence", "SYNTHETIC_SUFFIXES"]
 
-PathLike = Union[str, "os.PathLike[str]"]
 #: Suffixes of synthetic-scan config files (:class:`scanalign.synthetic.SyntheticConfig`).
 SYNTHETIC_SUFFIXES = (".json", ".yaml", ".yml")
 _READERS = ((is_tum_folder, TumSequence), (is_bag, BagSequence), (is_image_folder, ImageFolderSequence))

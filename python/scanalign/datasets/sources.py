@@ -1,12 +1,9 @@
-"""Recordings other than TUM folders as sequences of
-:class:`scanalign.reconstruction.camera.Frame` (``len``, indexing, iteration; images decoded
-when a frame is requested), opened by :func:`scanalign.datasets.open_source`:
-
-- a ROS 1 ``.bag`` (RealSense recordings included), a ROS 2 bag folder (``metadata.yaml``) or a
-  single ``.mcap`` / ``.db3`` file: :class:`BagSequence`, read with the pure-Python ``rosbags``
-  package (``pip install 'scanalign[ros]'``), no ROS install;
-- a folder of PNG images with a camera file: :class:`ImageFolderSequence`.
-"""
+"""Recordings other than TUM folders as sequences of :class:`~scanalign.reconstruction.camera.Frame`
+(``len``, indexing, iteration; images decoded when a frame is requested), opened by
+:func:`scanalign.datasets.open_source`: ROS 1 and ROS 2 bags (RealSense recordings included) as
+:class:`BagSequence`, read with the pure-Python ``rosbags`` package (``pip install
+'scanalign[ros]'``, no ROS install), and folders of PNG images with a camera file as
+:class:`ImageFolderSequence`."""
 
 from __future__ import annotations
 
@@ -14,12 +11,13 @@ import math
 import os
 import re
 from pathlib import Path
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from scanalign.datasets.tum import (
     ImageFileSequence,
+    PathLike,
     camera_argument,
     check_number,
     check_selection,
@@ -32,8 +30,6 @@ from scanalign.reconstruction.camera import Frame, camera_from_dict, sequence_in
 
 __all__ = ["BagSequence", "ImageFolderSequence", "is_bag", "is_image_folder", "DEPTH_ENCODINGS",
            "COLOR_ENCODINGS"]
-
-PathLike = Union[str, "os.PathLike[str]"]
 
 #: Depth image encodings read from bags: numpy dtype and whether the values are metres.
 DEPTH_ENCODINGS = {"16UC1": ("u2", False), "mono16": ("u2", False), "32FC1": ("f4", True)}

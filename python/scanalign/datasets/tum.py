@@ -29,6 +29,7 @@ from PIL import Image
 
 from scanalign import _core
 from scanalign.evaluation.trajectory import (
+    PathLike,
     Trajectory,
     TumFormatError,
     associate_timestamps,
@@ -54,8 +55,6 @@ TUM_DEPTH_SCALE = 1.0 / 5000.0
 #: Camera files looked for in a sequence folder, in this order.  At most one may exist.
 CAMERA_FILE_NAMES = ("camera.json", "camera.yaml", "camera.yml", "intrinsics.json", "intrinsics.yaml",
                      "intrinsics.yml")
-
-PathLike = Union[str, "os.PathLike[str]"]
 
 
 def check_number(name: str, value: Any, what: str, low: float = 0.0, strict: bool = False,
@@ -343,12 +342,11 @@ class TumSequence(ImageFileSequence):
             di, ri = pair_frames(d_ts, rgb_ts, max_dt, self.folder).T
         self.dropped_depth_frames = int(len(d_ts) - len(di))
         self._source_index = np.arange(len(di))[start::stride][:limit]
-        di = di[self._source_index]
+        di, ri = di[self._source_index], None if ri is None else ri[self._source_index]
         self.timestamps = d_ts[di]
         self.depth_files = self._listed(depth_list, "depth", d_names, d_lines, di)
-        self.rgb_timestamps = None if ri is None else rgb_ts[ri[self._source_index]]
-        self.rgb_files = None if ri is None else self._listed(rgb_list, "colour", rgb_names, rgb_lines,
-                                                               ri[self._source_index])
+        self.rgb_timestamps = None if ri is None else rgb_ts[ri]
+        self.rgb_files = None if ri is None else self._listed(rgb_list, "colour", rgb_names, rgb_lines, ri)
         for files, what in ((self.depth_files, "depth"), (self.rgb_files, "colour")):
             if files:  # an early, cheap check of the first frame's headers
                 open_image(files[0], what, self.intrinsics).close()
