@@ -116,11 +116,15 @@ def _load_source(source: str, args: argparse.Namespace) -> tuple:
                              "poses from its forward kinematics)")
 
 
-def _add_output_options(g, out: str, plots: Optional[str], quiet: str = "no progress bar") -> None:
+def _add_output_options(g, out: str, plots: Optional[str], quiet: str = "no progress bar", view: bool = False) -> None:
     g.add_argument("--out", default=out, help=f"output folder (default: {out})")
     if plots:
         g.add_argument("--no-plots", action="store_true", help=f"do not write {plots}")
     g.add_argument("--quiet", action="store_true", help=quiet)
+    if view:
+        g.add_argument("--view", action="store_true", help="stream the run to a rerun viewer (spawned, or one already "
+                                                           "running; needs pip install rerun-sdk)")
+        g.add_argument("--view-save", metavar="FILE.rrd", help="save the rerun recording of the run to this file")
 
 
 def _add_synthetic_options(g) -> None:
@@ -141,14 +145,15 @@ def _box(values: Any) -> Any:
     return tuple(float(v) for v in values)
 
 
-_Q = ("Q1", "Q2", "Q3", "Q4", "Q5", "Q6")  # the metavar of six joint values
+_Q = ("Q1", "Q2", "Q3", "Q4", "Q5", "Q6")  # the metavars of six joint values and of a box
+_BOX = ("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX")
 _F = "frame_to_model."
 #: The reconstruct command's settings: one ReconstructionSettings; its flags are aliases of fields.
 RECONSTRUCT = Command(ReconstructionSettings, (
     Alias("--min-depth", "min_depth", "depth images"),
     Alias("--max-depth", "max_depth", "depth images"),
     Alias("--pixel-stride", "pixel_stride", "depth images"),
-    Alias("--crop", _F + "crop_box", "depth images", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+    Alias("--crop", _F + "crop_box", "depth images", nargs=6, metavar=_BOX,
           value=_box, help="keep only points inside this box in camera coordinates (x right, y down, z forward)"),
     Alias("--depth-filter", "filter_depth", "reconstruction"),
     Alias("--normal-radius", _F + "normal_radius", "reconstruction"),
@@ -165,11 +170,10 @@ RECONSTRUCT = Command(ReconstructionSettings, (
     Alias("--estimator", _F + "icp.estimator", "registration", choices=["point_to_plane", "point_to_point"]),
     Alias("--max-distance", _F + "icp.max_correspondence_distance", "registration"),
     Alias("--max-iterations", _F + "icp.max_iterations", "registration"),
-    Alias("--box", _F + "icp.box", "registration", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+    Alias("--box", _F + "icp.box", "registration", nargs=6, metavar=_BOX,
           value=_box, help="box correspondence rejector in camera coordinates (eye-in-hand paper §3.4)"),
     Alias("--box-preset", _F + "icp.box", "registration", choices=["free_hand", "banana"],
-          value=lambda name: getattr(Box, name + "_preset")(),
-          help="the eye-in-hand paper's box rejector values"),
+          value=lambda name: getattr(Box, name + "_preset")(), help="the eye-in-hand paper's box rejector values"),
     Alias("--threads", _F + "num_threads", "registration"),
 ))
 
@@ -214,8 +218,7 @@ REGISTER = Command(_register_root, (
     Alias("--max-iterations", "icp.max_iterations"),
     Alias("--estimator", "icp.estimator", choices=["point_to_plane", "point_to_point"]),
     Alias("--normal-radius", "normals.radius"),
-    Alias("--box", "icp.box", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"), value=_box,
-          help="box rejector in the source camera frame"),
+    Alias("--box", "icp.box", nargs=6, metavar=_BOX, value=_box, help="box rejector in the source camera frame"),
 ))
 
 #: The commands whose settings are C++ structs (``--config``, ``--set``, ``dump-config``).
@@ -225,12 +228,6 @@ COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER, "pose": POSE, "pic
 def _viewer(args: argparse.Namespace) -> Any:
     """The rerun live view of ``--view`` / ``--view-save FILE.rrd`` (a context yielding None without either)."""
     return Viewer(spawn=args.view, save=args.view_save) if args.view or args.view_save else contextlib.nullcontext()
-
-
-def _add_view_options(g) -> None:
-    g.add_argument("--view", action="store_true", help="stream the run to a rerun viewer (spawned, or one already "
-                                                       "running; needs pip install rerun-sdk)")
-    g.add_argument("--view-save", metavar="FILE.rrd", help="save the rerun recording of the run to this file")
 
 
 def reconstruct_command(args: argparse.Namespace) -> int:
@@ -278,9 +275,8 @@ def _print_summary(summary: dict, paths: dict) -> None:
 
 def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> None:
     g = p.add_argument_group("output")
-    _add_output_options(g, out_default, "trajectory.png / frames.png", quiet="print nothing but errors")
+    _add_output_options(g, out_default, "trajectory.png / frames.png", quiet="print nothing but errors", view=True)
     g.add_argument("--no-progress", action="store_true", help="no progress bar")
-    _add_view_options(g)
     _add_synthetic_options(p.add_argument_group("synthetic scans (builtin or a config file)"))
     g = p.add_argument_group("real sequences (TUM RGB-D folder)")
     g.add_argument("--intrinsics", help="intrinsics preset (tum_fr1, tum_fr2, tum_fr3, tum_default, sr300, d435) or "
@@ -445,8 +441,7 @@ def _add_pick_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="demo: noise seed (0)")
     p.add_argument("--q-current", type=float, nargs=6, metavar=_Q,
                    help="the robot's joints now, rad (default: the scan's last)")
-    _add_output_options(p, "scanalign-pick", "pick.png", quiet="no progress bars")
-    _add_view_options(p)
+    _add_output_options(p, "scanalign-pick", "pick.png", quiet="no progress bars", view=True)
     add_settings_options(p, PICK)
 
 
@@ -480,8 +475,7 @@ def _record_config(args: argparse.Namespace, rc: int) -> int:
     ``NAME.config.yaml`` beside ``--out NAME.ply``, none without ``--out``); returns ``rc``."""
     if args.command not in COMMANDS or not args.out:
         return rc
-    out = Path(args.out)
-    path = out.with_suffix(".config.yaml") if args.command == "register" else out / "config.yaml"
+    path = Path(args.out).with_suffix(".config.yaml") if args.command == "register" else Path(args.out) / "config.yaml"
     inputs = [a for a in (getattr(args, "source", None), getattr(args, "target", None)) if a]
     write_effective(args.command, args.settings, args, inputs, path)
     if args.command != "register" and not args.quiet:  # register's stdout is JSON

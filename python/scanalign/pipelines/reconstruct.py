@@ -115,8 +115,7 @@ class ReconstructionResult:
         """The estimated poses of exactly the frames in :attr:`reference` (same order)."""
         if self.reference is None:
             return self.estimate
-        keep = np.isin(self.estimate.timestamps, self.reference.timestamps)
-        return self.estimate[np.nonzero(keep)[0]]
+        return self.estimate[np.nonzero(np.isin(self.estimate.timestamps, self.reference.timestamps))[0]]
 
 
 def write_joints_csv(path: Union[str, Path], indices: Iterable[int], timestamps: Iterable[float],

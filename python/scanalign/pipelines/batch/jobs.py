@@ -152,12 +152,10 @@ def run_job(job: Job, library: Any = None) -> Dict[str, Any]:
 
 
 def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
-    scan = None
-    if job.synthetic:
-        scan = SyntheticConfig(n_frames=job.n_frames, noise=job.noise, seed=job.seed, robot=job.robot).build()
-        frames: Any = scan.frames
-    else:
-        frames = open_source(job.source)  # a TUM folder, a ROS bag or a folder of PNGs + camera file
+    scan = (SyntheticConfig(n_frames=job.n_frames, noise=job.noise, seed=job.seed, robot=job.robot).build()
+            if job.synthetic else None)
+    # a TUM folder, a ROS bag or a folder of PNGs + camera file
+    frames: Any = scan.frames if scan is not None else open_source(job.source)
     # the engine's own settings (motion model 'previous', as batch jobs always ran) with the demo's workspace
     base = make_reconstruction_settings(FrameToModelSettings(), **DEMO_SETTINGS) if job.synthetic else None
     result = reconstruct(frames, base, progress=False, **job.settings)
