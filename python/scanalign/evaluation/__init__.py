@@ -60,18 +60,13 @@ def _paired(estimate: TrajectoryLike, reference: TrajectoryLike, associate: bool
 
 def umeyama_alignment(source: np.ndarray, target: np.ndarray,
                       with_scale: bool = False) -> Tuple[np.ndarray, np.ndarray, float]:
-    """Least-squares similarity (or rigid) transform taking ``source`` onto ``target`` (Umeyama
-    1991; the C++ core's one implementation): minimises ``sum_i || target_i - (s R source_i +
-    t) ||^2`` over rotations R (det +1), translations t and, with ``with_scale``, a scale s > 0
-    (else s = 1).  ``source`` and ``target`` are (N, 3) corresponding points in one unit.
-
-    Returns:
-        (R (3, 3), t (3,), s float): the 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.
-
-    Raises:
-        ValueError: shape mismatch, N < 3, non-finite values, or all points coincident or
-            collinear in source or target (the rotation is not determined).
-    """
+    """``(R (3, 3), t (3,), s)``, the least-squares similarity (or rigid) transform taking
+    ``source`` onto ``target`` ((N, 3) corresponding points in one unit; Umeyama 1991, the C++
+    core's one implementation): it minimises ``sum_i || target_i - (s R source_i + t) ||^2``
+    over rotations R (det +1), translations t and, with ``with_scale``, a scale s > 0 (else
+    s = 1).  The 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.  ValueError: shape
+    mismatch, N < 3, non-finite values, or all points coincident or collinear in source or
+    target (the rotation is not determined)."""
     R, t, s = _core.registration.fit_similarity(np.ascontiguousarray(source, dtype=np.float64),
                                                 np.ascontiguousarray(target, dtype=np.float64), bool(with_scale))
     return np.asarray(R), np.asarray(t), float(s)
@@ -119,11 +114,9 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
     else:
         raise ValueError(f"unknown association method {method!r} (use 'greedy' or 'nearest')")
     if ie.size == 0:
-        raise ValueError(
-            f"associate: no timestamps match within max_difference={max_difference} s (offset {offset} s); "
-            f"estimate spans [{est.timestamps.min() if len(est) else 'empty'}, "
-            f"{est.timestamps.max() if len(est) else ''}] s, reference "
-            f"[{tr.min() if len(ref) else 'empty'}, {tr.max() if len(ref) else ''}] s")
+        span = [f"[{t.min()}, {t.max()}]" if len(t) else "[empty, ]" for t in (est.timestamps, tr)]
+        raise ValueError(f"associate: no timestamps match within max_difference={max_difference} s (offset "
+                         f"{offset} s); estimate spans {span[0]} s, reference {span[1]} s")
     return (est[ie], ref[ir], ie, ir) if return_indices else (est[ie], ref[ir])
 
 

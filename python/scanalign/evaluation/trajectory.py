@@ -98,13 +98,16 @@ class Trajectory:
 
     @classmethod
     def from_tum_rows(cls, rows: np.ndarray) -> "Trajectory":
+        """From rows ``timestamp tx ty tz qx qy qz qw`` (:meth:`to_tum_rows`)."""
         rows = np.asarray(rows, dtype=np.float64).reshape(-1, 8)
         return cls(rows[:, 0], pose_from_tum(rows[:, 1:]))
 
     @classmethod
     def read_tum(cls, path: PathLike) -> "Trajectory":
-        """:func:`read_tum_trajectory`."""
-        return read_tum_trajectory(path)
+        """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, in file order:
+        :meth:`interpolate` refuses one that is not time-sorted).  TumFormatError (a ValueError)
+        names the file and line without 8 finite numbers or with a zero quaternion."""
+        return cls.from_tum_rows(read_tum_rows(path, 8, "8 values (timestamp tx ty tz qx qy qz qw)")[0])
 
     def write_tum(self, path: PathLike, header: Optional[str] = None) -> None:
         """:func:`write_tum_trajectory`."""
@@ -283,11 +286,8 @@ def time_order(timestamps: np.ndarray, path: PathLike, lines: np.ndarray) -> np.
     return order
 
 
-def read_tum_trajectory(path: PathLike) -> Trajectory:
-    """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, in file order:
-    :meth:`Trajectory.interpolate` refuses one that is not time-sorted).  TumFormatError (a
-    ValueError) names the file and line without 8 finite numbers or with a zero quaternion."""
-    return Trajectory.from_tum_rows(read_tum_rows(path, 8, "8 values (timestamp tx ty tz qx qy qz qw)")[0])
+#: Reads a TUM trajectory file (:meth:`Trajectory.read_tum`).
+read_tum_trajectory = Trajectory.read_tum
 
 
 def write_tum_trajectory(path: PathLike, trajectory: Trajectory, header: Optional[str] = None) -> None:

@@ -52,6 +52,7 @@ class PickCell:
         truth: part name -> true ``T_base_model`` (model -> base, m).
         robot: the arm, placed in the cell (``robot.T_base_dh0`` includes the mount), its tool
             the flange.
+        scene: the rendered :class:`Scene` (table and parts, base frame, m).
     """
 
     scan: SyntheticScan
@@ -73,17 +74,14 @@ def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_fram
     if robot not in CELL_MOUNTS:
         raise ValueError(f"robot: the built-in cells are {sorted(CELL_MOUNTS)}, got {robot!r}")
     scene = Scene(table_size=(0.6, 0.6))
-    parts, truth = [], {}
-    for name, xy, yaw in placements or DEFAULT_PLACEMENTS:
-        part = load_part(name)
-        obj = scene.add_object(part.mesh, position=xy, yaw=yaw, name=name)
-        parts.append(part)
-        truth[name] = np.array(obj.T_base_object)
+    placed = [(load_part(name), name, xy, yaw) for name, xy, yaw in placements or DEFAULT_PLACEMENTS]
+    truth = {name: np.array(scene.add_object(part.mesh, position=xy, yaw=yaw, name=name).T_base_object)
+             for part, name, xy, yaw in placed}
     start, sweep = CELL_SCAN_ARCS[robot]
     traj = loop_trajectory(n_frames, center=(0.5, 0.0, 0.0), height=0.35, radius=0.2, robot=robot,
                            T_base_robot=CELL_MOUNTS[robot], start_angle=start, sweep=sweep)
     scan = render_scan(scene, traj, "sr300", noise=noise, seed=seed)
-    return PickCell(scan, parts, truth, scan.robot, scene)
+    return PickCell(scan, [p[0] for p in placed], truth, scan.robot, scene)
 
 
 def score_picks(result: Any, truth: Dict[str, np.ndarray]) -> Dict[str, Dict[str, float]]:

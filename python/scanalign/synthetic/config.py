@@ -144,11 +144,8 @@ class SyntheticConfig:
         unknown = sorted(set(d) - known)
         if unknown:
             raise ValueError(f"unknown synthetic config keys {unknown}; known: {sorted(known)}")
-        values = dict(d)
-        for key in ("object_size", "distance", "robot_x", "robot_y"):
-            if isinstance(values.get(key), str) and values[key].lower() in ("null", "none", "~", ""):
-                values[key] = None
-        return cls(**values)
+        return cls(**{k: None if k in ("object_size", "distance", "robot_x", "robot_y") and isinstance(v, str)
+                      and v.lower() in ("null", "none", "~", "") else v for k, v in d.items()})
 
     @classmethod
     def from_file(cls, path: PathLike) -> "SyntheticConfig":
@@ -186,17 +183,16 @@ class SyntheticConfig:
         """The table (if any) with the object standing on it."""
         scene = Scene(table_size=(self.table_size, self.table_size) if self.table_size > 0 else None,
                       table_center=(self.object_x, self.object_y))
-        name = Path(self.mesh).stem if self.mesh != "builtin" else "builtin"
-        scene.add_object(self.load_mesh(), position=(self.object_x, self.object_y), yaw=self.object_yaw, name=name)
+        scene.add_object(self.load_mesh(), position=(self.object_x, self.object_y), yaw=self.object_yaw,
+                         name=Path(self.mesh).stem)
         return scene
 
     def T_base_robot(self) -> Optional[np.ndarray]:
         """The robot's mounting in the scene (robot base -> base, 4x4, m), or None without a robot."""
-        if self.robot == "none":
-            return None
-        return robot_mount(self.object_x if self.robot_x is None else self.robot_x,
-                           self.object_y if self.robot_y is None else self.robot_y,
-                           self.robot_z, self.robot_roll, self.robot_pitch, self.robot_yaw)
+        return None if self.robot == "none" else robot_mount(
+            self.object_x if self.robot_x is None else self.robot_x,
+            self.object_y if self.robot_y is None else self.robot_y,
+            self.robot_z, self.robot_roll, self.robot_pitch, self.robot_yaw)
 
     def build_trajectory(self, scene: Scene) -> ScanTrajectory:
         """The planned camera path; with a robot, followed by the arm (``attach_robot``).
@@ -213,9 +209,8 @@ class SyntheticConfig:
             traj = hemisphere_trajectory(self.n_frames, center=scene.center, distance=distance,
                                          elevations=np.linspace(self.min_elevation, self.max_elevation, self.rings),
                                          start_angle=self.start_angle, frame_rate=self.frame_rate)
-        if self.robot == "none":
-            return traj
-        return attach_robot(traj, self.robot, T_base_robot=self.T_base_robot(), elbow=self.robot_elbow)
+        return traj if self.robot == "none" else attach_robot(traj, self.robot, T_base_robot=self.T_base_robot(),
+                                                              elbow=self.robot_elbow)
 
     def build(self, *, keep_ground_truth: bool = False) -> SyntheticScan:
         """Builds the scene and trajectory and renders the scan (``keep_ground_truth``: noise-free

@@ -43,13 +43,9 @@ NOISE_PRESETS: Dict[str, SensorNoise] = {
 
 def as_noise(noise: Union[SensorNoise, str, None]) -> SensorNoise:
     """A :class:`SensorNoise`, a preset name, or None ("none") as a :class:`SensorNoise`."""
-    if noise is None:
-        return NOISE_PRESETS["none"]
-    if isinstance(noise, str):
-        try:
-            return NOISE_PRESETS[noise]
-        except KeyError:
-            raise ValueError(f"unknown noise preset {noise!r}; known: {sorted(NOISE_PRESETS)}") from None
-    if not isinstance(noise, SensorNoise):
+    noise = "none" if noise is None else noise
+    if not isinstance(noise, (str, SensorNoise)):
         raise TypeError(f"noise: expected SensorNoise or a preset name, got {type(noise)!r}")
-    return noise
+    if isinstance(noise, str) and noise not in NOISE_PRESETS:
+        raise ValueError(f"unknown noise preset {noise!r}; known: {sorted(NOISE_PRESETS)}")
+    return NOISE_PRESETS[noise] if isinstance(noise, str) else noise

@@ -122,10 +122,9 @@ def render_scan(scene: Scene, poses: Union[ScanTrajectory, Trajectory, np.ndarra
         depth_unit = model.depth_unit if model.depth_unit > 0 else 1e-4
     elif depth_unit is not None and not (math.isfinite(depth_unit) and depth_unit > 0):
         raise ValueError(f"depth_unit must be a positive length in metres, 'auto' or None, got {depth_unit!r}")
-    if int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    if int(num_threads) != num_threads or num_threads < 0:
-        raise ValueError(f"num_threads must be a non-negative integer, got {num_threads!r}")
+    for name, v in (("seed", seed), ("num_threads", num_threads)):
+        if int(v) != v or v < 0:
+            raise ValueError(f"{name} must be a non-negative integer, got {v!r}")
     T_cams, stamps = _camera_poses(poses, frame_rate)
     need = len(T_cams) * K.width * K.height * (3 + (4 if depth_unit is None else 2) + 8 * keep_ground_truth)
     require_memory(need, f"{len(T_cams)} frames of {K.width}x{K.height}")  # frames are kept in memory

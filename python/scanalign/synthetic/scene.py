@@ -17,18 +17,16 @@ from scanalign.reconstruction.rendering import RenderResult, as_intrinsics, rend
 __all__ = ["SceneObject", "Scene"]
 
 
-def _as_color(color: Sequence[float], name: str = "color") -> np.ndarray:
-    c = np.asarray(color, dtype=np.float64)
-    if c.shape != (3,) or not np.all(np.isfinite(c)) or c.min() < 0 or c.max() > 1:
-        raise ValueError(f"{name}: expected three values in [0, 1] (linear RGB), got {color!r}")
-    return c
-
-
-def _finite(value: object, shape: Tuple[int, ...], name: str, what: str) -> np.ndarray:
+def _finite(value: object, shape: Tuple[int, ...], name: str, what: str, lo: float = -math.inf,
+            hi: float = math.inf) -> np.ndarray:
     a = np.asarray(value, dtype=np.float64)
-    if a.shape != shape or not np.all(np.isfinite(a)):
+    if a.shape != shape or not np.all(np.isfinite(a)) or a.min() < lo or a.max() > hi:
         raise ValueError(f"{name}: expected {what}, got {value!r}")
     return a
+
+
+def _as_color(color: Sequence[float], name: str = "color") -> np.ndarray:
+    return _finite(color, (3,), name, "three values in [0, 1] (linear RGB)", 0.0, 1.0)
 
 
 @dataclass

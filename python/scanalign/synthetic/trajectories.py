@@ -96,8 +96,7 @@ def _planned(T_base_camera: np.ndarray, T_flange_camera: Optional[np.ndarray], f
     if jitter_translation > 0 or jitter_rotation > 0:
         rng = np.random.default_rng(seed)
         for T in T_cam:
-            axis = rng.normal(size=3)
-            T[:3, :3] = se3.rotation_about(axis, rng.normal() * jitter_rotation) @ T[:3, :3]
+            T[:3, :3] = se3.rotation_about(rng.normal(size=3), rng.normal() * jitter_rotation) @ T[:3, :3]
             T[:3, 3] += rng.normal(size=3) * jitter_translation
     traj = ScanTrajectory(T_cam @ se3.inverse(np.asarray(Tfc)), np.array(Tfc), np.arange(len(T_cam)) / frame_rate)
     if robot is None or (isinstance(robot, str) and robot == "none"):
@@ -192,13 +191,14 @@ def as_robot(robot: Any) -> Any:
 
 def attach_robot(trajectory: ScanTrajectory, robot: Any = "ur5", *, T_base_robot: Optional[np.ndarray] = None,
                  q_start: Optional[Sequence[float]] = None, elbow: str = "up") -> ScanTrajectory:
-    """Moves a planned camera path with a robot arm: joints by inverse kinematics, poses by
-    forward kinematics.  The planned flange poses, in the robot's base frame ``inv(T_base_robot) @ T_base_flange``
-    (``T_base_robot``: robot base -> scene base, m; default :func:`robot_mount` ``()``), go to
-    :meth:`Robot.ik_trajectory` (each step the solution closest to the previous joints);
-    forward kinematics of those joints gives the returned flange poses (the planned ones to
-    ~1e-15 m).  ``robot`` (a :class:`scanalign.kinematics.Robot` or a name for
-    :meth:`Robot.by_name`) gets the flange as its tool and ``T_base_robot`` as its mount.
+    """A new :class:`ScanTrajectory` (``joints``, ``robot`` placed in the scene, ``T_base_robot``
+    set): the planned path moved by a robot arm, joints by inverse kinematics, poses by forward
+    kinematics.  The planned flange poses in the robot's base frame, ``inv(T_base_robot) @
+    T_base_flange`` (``T_base_robot``: robot base -> scene base, m; default :func:`robot_mount`
+    ``()``), go to :meth:`Robot.ik_trajectory` (each step the solution closest to the previous
+    joints); forward kinematics of those joints gives the flange poses (the planned ones to
+    ~1e-15 m).  ``robot`` (a :class:`scanalign.kinematics.Robot` or a name) gets the flange as
+    its tool and ``T_base_robot`` as its mount.
 
     The start is ``q_start`` ((6,) rad) if given, else chosen among the first pose's solutions
     with the requested ``elbow`` ("up": away from the table; "down"; "any"), each with its
@@ -206,15 +206,10 @@ def attach_robot(trajectory: ScanTrajectory, robot: Any = "ur5", *, T_base_robot
     reaches every pose with the smallest largest joint step wins (ties within 1e-9 rad: the
     lowest configuration index, then no shift, -2 pi, +2 pi), so no step switches branch.
 
-    Returns:
-        A new :class:`ScanTrajectory` with ``joints``, ``robot`` (placed in the scene) and
-        ``T_base_robot`` set.
-
     Raises:
         ValueError: a pose the robot cannot reach, or reaches only outside its joint limits
-            (naming the frame, its time and the IK status), a bad ``elbow`` or ``q_start``, or
-            a malformed ``T_base_robot``.
-        TypeError: ``robot`` or ``trajectory`` of another type.
+            (naming the frame, its time and the IK status), a bad ``elbow``, ``q_start`` or
+            ``T_base_robot``.  TypeError: ``robot`` or ``trajectory`` of another type.
     """
     if not isinstance(trajectory, ScanTrajectory):
         raise TypeError(f"trajectory: expected ScanTrajectory, got {type(trajectory)!r}")

@@ -56,14 +56,6 @@ def _plane_axes(plane: Optional[str], positions: np.ndarray) -> Tuple[int, int]:
     return _AXES[plane[0]], _AXES[plane[1]]
 
 
-def _length_unit(units: str, extent: float) -> Tuple[str, float]:
-    if units == "auto":
-        units = "mm" if extent < 0.5 else "m"
-    if units not in ("m", "mm"):
-        raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
-    return units, 1000.0 if units == "mm" else 1.0
-
-
 def _cube(pts: np.ndarray) -> Tuple[np.ndarray, float]:
     """Centre and half side of a cube 1.1 times the points' largest extent (at least 1 mm)."""
     return 0.5 * (pts.min(axis=0) + pts.max(axis=0)), 0.55 * max(float(np.ptp(pts, axis=0).max()), 1e-3)
@@ -101,10 +93,12 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory
     i, j = _plane_axes(plane, ref if ate else est)
     both = np.concatenate([est, ref])
     extent = float(np.ptp(both[:, [i, j]], axis=0).max()) if both.shape[0] else 0.0
-    unit, k = _length_unit(units, extent)
+    if units not in ("auto", "m", "mm"):
+        raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
+    unit = ("mm" if extent < 0.5 else "m") if units == "auto" else units
+    k = 1000.0 if unit == "mm" else 1.0
     e2, r2 = est[:, [i, j]] * k, ref[:, [i, j]] * k
-    fig = _figure((6.4, 5.6))
-    ax = fig.add_subplot(1, 1, 1)
+    ax = _figure((6.4, 5.6)).add_subplot(1, 1, 1)
     if ate:
         from matplotlib.collections import LineCollection
 
@@ -130,7 +124,7 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory
         summary = f"estimated camera path (model frame), {len(estimate)} poses, no reference"
     ax.set_title(f"{title + chr(10) if title else ''}{summary}")
     ax.legend(loc="best", fontsize=8)
-    return _save(fig, path, dpi)
+    return _save(ax.figure, path, dpi)
 
 
 _ALIASES = {"time": ("time", "seconds"), "iterations": ("iterations",), "fitness": ("fitness",),
@@ -234,8 +228,7 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
     xv = np.asarray(x, dtype=np.float64).reshape(-1)
     if not series:
         raise ValueError("plot_series: no series given")
-    fig = _figure((6.4, 4.4))
-    ax = fig.add_subplot(1, 1, 1)
+    ax = _figure((6.4, 4.4)).add_subplot(1, 1, 1)
     style = "o-" if markers else "-"
     for label, y in series.items():
         yv = np.asarray(y, dtype=np.float64).reshape(-1)
@@ -263,7 +256,7 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
         ax.set_title(title)
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize=8)
-    return _save(fig, path, dpi)
+    return _save(ax.figure, path, dpi)
 
 
 def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels: Optional[Sequence[str]] = None,
