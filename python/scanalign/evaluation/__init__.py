@@ -60,13 +60,12 @@ def _paired(estimate: TrajectoryLike, reference: TrajectoryLike, associate: bool
 
 def umeyama_alignment(source: np.ndarray, target: np.ndarray,
                       with_scale: bool = False) -> Tuple[np.ndarray, np.ndarray, float]:
-    """``(R (3, 3), t (3,), s)``, the least-squares similarity (or rigid) transform taking
-    ``source`` onto ``target`` ((N, 3) corresponding points in one unit; Umeyama 1991, the C++
-    core's one implementation): it minimises ``sum_i || target_i - (s R source_i + t) ||^2``
-    over rotations R (det +1), translations t and, with ``with_scale``, a scale s > 0 (else
-    s = 1).  The 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.  ValueError: shape
-    mismatch, N < 3, non-finite values, or all points coincident or collinear in source or
-    target (the rotation is not determined)."""
+    """``(R (3, 3), t (3,), s)``, the least-squares similarity (or rigid) transform taking ``source`` onto ``target``
+    ((N, 3) corresponding points in one unit; Umeyama 1991, the C++ core's one implementation): it minimises
+    ``sum_i || target_i - (s R source_i + t) ||^2`` over rotations R (det +1), translations t and, with
+    ``with_scale``, a scale s > 0 (else s = 1).  The 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.  ValueError:
+    shape mismatch, N < 3, non-finite values, or all points coincident or collinear in source or target (the rotation
+    is not determined)."""
     R, t, s = _core.registration.fit_similarity(np.ascontiguousarray(source, dtype=np.float64),
                                                 np.ascontiguousarray(target, dtype=np.float64), bool(with_scale))
     return np.asarray(R), np.asarray(t), float(s)
@@ -76,13 +75,12 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
               method: str = "greedy", return_indices: bool = False):
     """Pairs the poses of two trajectories by timestamp (s).
 
-    ``offset`` (s) is added to the estimate's timestamps before matching (the TUM tools'
-    ``--offset``); the returned trajectories keep their own timestamps.  ``method``:
-    ``"greedy"`` (default), :func:`scanalign.evaluation.trajectory.associate_timestamps`
-    (pairs with ``|t_ref - (t_est + offset)| <= max_difference``, closest first, every pose
-    used at most once); ``"nearest"``, ``evo.core.sync.associate_trajectories(reference,
-    estimate, max_diff=max_difference, offset_2=offset)``: every pose of the shorter
-    trajectory (the estimate on a tie) takes the nearest pose of the other within
+    ``offset`` (s) is added to the estimate's timestamps before matching (the TUM tools' ``--offset``); the returned
+    trajectories keep their own timestamps.  ``method``: ``"greedy"`` (default),
+    :func:`scanalign.evaluation.trajectory.associate_timestamps` (pairs with
+    ``|t_ref - (t_est + offset)| <= max_difference``, closest first, every pose used at most once); ``"nearest"``,
+    ``evo.core.sync.associate_trajectories(reference, estimate, max_diff=max_difference, offset_2=offset)``: every
+    pose of the shorter trajectory (the estimate on a tie) takes the nearest pose of the other within
     ``max_difference``, which may be used more than once.
 
     Returns:
@@ -122,11 +120,10 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
 
 @dataclass
 class AteResult:
-    """Absolute trajectory error: ``translation`` (m) and ``rotation`` (degrees) statistics, the
-    alignment ``T_reference_estimate`` = ``[[s R, t], [0, 1]]`` applied to the estimate's world
-    frame (identity without ``align``) with its ``scale`` s, the estimate ``aligned`` to the
-    reference frame (rotations ``R R_i``, centres ``s R p_i + t``) and the ``reference`` poses
-    paired with it (after association, if any)."""
+    """Absolute trajectory error: ``translation`` (m) and ``rotation`` (degrees) statistics, the alignment
+    ``T_reference_estimate`` = ``[[s R, t], [0, 1]]`` applied to the estimate's world frame (identity without
+    ``align``) with its ``scale`` s, the estimate ``aligned`` to the reference frame (rotations ``R R_i``, centres
+    ``s R p_i + t``) and the ``reference`` poses paired with it (after association, if any)."""
 
     translation: ErrorStats
     rotation: ErrorStats
@@ -148,9 +145,8 @@ class AteResult:
 
 @dataclass
 class RpeResult:
-    """Relative pose error: ``translation`` (m) and ``rotation`` (degrees) statistics over the
-    (M, 2) index ``pairs`` (i, j) of the compared trajectories, chosen by ``delta``,
-    ``delta_unit`` and ``all_pairs``."""
+    """Relative pose error: ``translation`` (m) and ``rotation`` (degrees) statistics over the (M, 2) index ``pairs``
+    (i, j) of the compared trajectories, chosen by ``delta``, ``delta_unit`` and ``all_pairs``."""
 
     translation: ErrorStats
     rotation: ErrorStats
@@ -169,10 +165,9 @@ def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLik
                               max_difference: float = 0.02, offset: float = 0.0) -> AteResult:
     """Absolute trajectory error (Sturm et al. 2012), translational (m) and rotational (degrees).
 
-    With ``align``, the estimated camera centres are fitted to the reference ones by
-    :func:`umeyama_alignment` (a similarity with ``with_scale``); the error of pose i is
-    ``|| q_i - (s R p_i + t) ||`` (evo's APE ``translation_part`` after ``align``) and the
-    angle of ``R_ref_i^T (R R_est_i)``.
+    With ``align``, the estimated camera centres are fitted to the reference ones by :func:`umeyama_alignment` (a
+    similarity with ``with_scale``); the error of pose i is ``|| q_i - (s R p_i + t) ||`` (evo's APE
+    ``translation_part`` after ``align``) and the angle of ``R_ref_i^T (R R_est_i)``.
 
     Args:
         estimate, reference: ``T_world_camera`` poses (:class:`Trajectory` or (N, 4, 4)),
@@ -203,20 +198,17 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
                         delta_unit: str = "frames", all_pairs: bool = False, rel_delta_tol: float = 0.1,
                         pairs_from_reference: bool = False, associate: bool = False,
                         max_difference: float = 0.02, offset: float = 0.0) -> RpeResult:
-    """Relative pose error (Sturm et al. 2012), translational (m) and rotational (degrees): for
-    each pair (i, j), ``E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`` with Q the reference and P
-    the estimate poses (``T_world_camera``); errors are ``|| trans(E_ij) ||`` (m) and the
-    rotation angle of ``E_ij`` (degrees).  No alignment is needed: RPE is invariant to a
-    rigid change of either world frame.
+    """Relative pose error (Sturm et al. 2012), translational (m) and rotational (degrees): for each pair (i, j),
+    ``E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`` with Q the reference and P the estimate poses (``T_world_camera``); errors
+    are ``|| trans(E_ij) ||`` (m) and the rotation angle of ``E_ij`` (degrees).  No alignment is needed: RPE is
+    invariant to a rigid change of either world frame.
 
-    Pairs are chosen as ``evo.core.metrics.RPE`` chooses them, ``delta`` apart in
-    ``delta_unit``: ``"frames"`` (a positive integer; Sturm's script is ``all_pairs=True``),
-    ``"meters"`` along the camera-centre path (of the estimate, or of the reference with
-    ``pairs_from_reference``) or ``"seconds"`` (not in evo).  ``all_pairs=False``: the chain
-    of pairs, each starting where the last ended and ending at the first pose at least
-    ``delta`` further; ``all_pairs=True``: for every i the first j > i closest to ``delta``
-    away, kept within ``rel_delta_tol * delta`` (exactly ``delta`` for frames).  Poses are
-    paired as in :func:`absolute_trajectory_error`.
+    Pairs are chosen as ``evo.core.metrics.RPE`` chooses them, ``delta`` apart in ``delta_unit``: ``"frames"`` (a
+    positive integer; Sturm's script is ``all_pairs=True``), ``"meters"`` along the camera-centre path (of the
+    estimate, or of the reference with ``pairs_from_reference``) or ``"seconds"`` (not in evo).  ``all_pairs=False``:
+    the chain of pairs, each starting where the last ended and ending at the first pose at least ``delta`` further;
+    ``all_pairs=True``: for every i the first j > i closest to ``delta`` away, kept within ``rel_delta_tol * delta``
+    (exactly ``delta`` for frames).  Poses are paired as in :func:`absolute_trajectory_error`.
 
     Raises:
         ValueError: different lengths, fewer than 2 poses, bad delta / unit, no pair found.

@@ -125,10 +125,9 @@ class Trajectory:
 
     @classmethod
     def read_kitti(cls, path: PathLike, times_path: Optional[PathLike] = None) -> "Trajectory":
-        """Reads a KITTI pose file (12 numbers per line, see :meth:`write_kitti`); timestamps
-        from ``times_path`` (one per line), else the frame numbers 0, 1, 2, ...  TumFormatError
-        (a ValueError) names the file and line without 12 finite numbers, or a times file with
-        another number of lines."""
+        """Reads a KITTI pose file (12 numbers per line, see :meth:`write_kitti`); timestamps from ``times_path`` (one
+        per line), else the frame numbers 0, 1, 2, ...  TumFormatError (a ValueError) names the file and line without
+        12 finite numbers, or a times file with another number of lines."""
         values, _, _ = read_tum_rows(path, 12, "12 values (a 3x4 pose, row-major)")
         times = np.arange(len(values), dtype=np.float64)
         if times_path is not None:
@@ -199,9 +198,8 @@ class Trajectory:
         spherical-linear in rotation.
 
         Raises:
-            ValueError: a query outside the span, or between poses more than ``max_gap`` s apart
-                (a gap in a ground truth is not papered over); timestamps that decrease (sort
-                them first); a NaN or negative ``max_gap``.
+            ValueError: a query outside the span, or between poses more than ``max_gap`` s apart (a gap in a ground
+                truth is not papered over); timestamps that decrease (sort them first); a NaN or negative ``max_gap``.
         """
         t = np.asarray(timestamps, dtype=np.float64).reshape(-1)
         if len(self) == 0:
@@ -237,11 +235,10 @@ class TumFormatError(ValueError):
 
 
 def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarray, List[str], np.ndarray]:
-    """The TUM benchmark's text files, one rule for all (its ``associate.py``'s): ``#`` starts
-    a comment, blank lines are skipped, commas and tabs separate fields.  Every data line has
-    ``fields`` fields: numbers, but the last is a name when ``expected`` starts with
-    "'timestamp filename'".  Returns (values (N, k) float64, those names (else empty),
-    1-based line numbers (N,)).
+    """The TUM benchmark's text files, one rule for all (its ``associate.py``'s): ``#`` starts a comment, blank lines
+    are skipped, commas and tabs separate fields.  Every data line has ``fields`` fields: numbers, but the last is a
+    name when ``expected`` starts with "'timestamp filename'".  Returns (values (N, k) float64, those names (else
+    empty), 1-based line numbers (N,)).
 
     Raises:
         TumFormatError: not UTF-8 text, a line with another number of fields, a value that

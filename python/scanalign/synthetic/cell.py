@@ -1,9 +1,8 @@
 """The built-in pick cell: known parts at known poses on a table, a robot with a camera on its
 hand that scans them, and the ground truth a pick is scored against.
 
-Two cells, both with the parts of :data:`scanalign.grasp.parts.BUILTIN_PART_FILES` (the machined
-block, the angle bracket and the hexagonal standoff) and the camera at
-:data:`~scanalign.synthetic.DEFAULT_T_FLANGE_CAMERA`:
+Two cells, both with the parts of :data:`scanalign.grasp.parts.BUILTIN_PART_FILES` (the machined block, the angle
+bracket and the hexagonal standoff) and the camera at :data:`~scanalign.synthetic.DEFAULT_T_FLANGE_CAMERA`:
 
 * ``"ur5"``: a UR5 hanging 0.75 m above the table centre, as on a gantry; the parts lie
   0.16 m from its first axis, outside the shoulder singularity (wrist within d4 = 0.11 m).
@@ -50,8 +49,7 @@ class PickCell:
         scan: the robot's scan (frames with joints, flange poses, the hand-eye transform).
         parts: one :class:`scanalign.grasp.PartGrasps` (mesh, grasps, symmetry) per placed part.
         truth: part name -> true ``T_base_model`` (model -> base, m).
-        robot: the arm, placed in the cell (``robot.T_base_dh0`` includes the mount), its tool
-            the flange.
+        robot: the arm, placed in the cell (``robot.T_base_dh0`` includes the mount), its tool the flange.
         scene: the rendered :class:`Scene` (table and parts, base frame, m).
     """
 
@@ -85,10 +83,9 @@ def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_fram
 
 
 def score_picks(result: Any, truth: Dict[str, np.ndarray]) -> Dict[str, Dict[str, float]]:
-    """Errors of a :class:`scanalign.pipelines.pick.PickResult` against the cell's truth, per picked part:
-    ``tcp_m`` / ``tcp_deg``, the TCP pose at the chosen grasp against the same grasp on the
-    truly placed part (the nearest of its symmetric copies), and ``pose_m`` / ``pose_deg``,
-    the part's pose error (up to its symmetry)."""
+    """Errors of a :class:`scanalign.pipelines.pick.PickResult` against the cell's truth, per picked part: ``tcp_m`` /
+    ``tcp_deg``, the TCP pose at the chosen grasp against the same grasp on the truly placed part (the nearest of its
+    symmetric copies), and ``pose_m`` / ``pose_deg``, the part's pose error (up to its symmetry)."""
     out = {}
     parts = {p.name: p for p in result.parts}
     for p in result.picks:

@@ -60,18 +60,16 @@ class SyntheticConfig:
     """Everything that defines a synthetic scan; read from JSON or flat YAML (``key: value``).
 
     Attributes:
-        mesh: ``"builtin"`` (:func:`scanalign.data.parts.builtin_mesh`), a CGAL demo mesh name
-            (``"bunny00"``, ``"fandisk"``, ... fetched by :mod:`scanalign.data.downloads`), or a path
-            to a .ply/.off/.stl/.obj file.
+        mesh: ``"builtin"`` (:func:`scanalign.data.parts.builtin_mesh`), a CGAL demo mesh name (``"bunny00"``,
+            ``"fandisk"``, ... fetched by :mod:`scanalign.data.downloads`), or a path to a .ply/.off/.stl/.obj file.
         object_size: largest extent of the object (m) after scaling; None keeps the builtin
             part's size (80 mm) and scales other meshes to 0.15 m.
         object_x, object_y, object_yaw: object position on the table (base frame, m) and
             rotation about the vertical (rad).
         table_size: side of the square table top (m); 0 for no table.
-        trajectory: ``"loop"`` (``height``, ``radius``: :func:`loop_trajectory`) or
-            ``"hemisphere"`` (``distance``, default ``hypot(height, radius)``, and ``rings``
-            elevations evenly spaced in [``min_elevation``, ``max_elevation``]:
-            :func:`hemisphere_trajectory`) of ``n_frames`` from ``start_angle`` at ``frame_rate``
+        trajectory: ``"loop"`` (``height``, ``radius``: :func:`loop_trajectory`) or ``"hemisphere"`` (``distance``,
+            default ``hypot(height, radius)``, and ``rings`` elevations evenly spaced in [``min_elevation``,
+            ``max_elevation``]: :func:`hemisphere_trajectory`) of ``n_frames`` from ``start_angle`` at ``frame_rate``
             (Hz); lengths in m, angles in rad.
         intrinsics: a preset name of :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a
             mapping width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
@@ -198,8 +196,7 @@ class SyntheticConfig:
         """The planned camera path; with a robot, followed by the arm (``attach_robot``).
 
         Raises:
-            ValueError: a pose the robot cannot reach from its mount (naming the frame and the
-                IK status).
+            ValueError: a pose the robot cannot reach from its mount (naming the frame and the IK status).
         """
         if self.trajectory == "loop":
             traj = loop_trajectory(self.n_frames, center=scene.center, height=self.height, radius=self.radius,
@@ -224,9 +221,8 @@ class SyntheticConfig:
 def builtin_scan(n_frames: int = 36, noise: str = "sr300", seed: int = 0, *, trajectory: str = "loop",
                  intrinsics: str = "sr300", resolution_scale: float = 1.0, keep_ground_truth: bool = False,
                  robot: str = "ur5") -> SyntheticScan:
-    """The demo scan, no download needed: the built-in part on a 60 cm table, seen by an
-    SR300-like camera on a loop 40 cm above the table (radius 20 cm), 10 Hz, carried by a UR5
-    hanging 0.9 m above the table.  The arguments are :class:`SyntheticConfig` fields and
-    :meth:`SyntheticConfig.build`'s ``keep_ground_truth``."""
+    """The demo scan, no download needed: the built-in part on a 60 cm table, seen by an SR300-like camera on a loop
+    40 cm above the table (radius 20 cm), 10 Hz, carried by a UR5 hanging 0.9 m above the table.  The arguments are
+    :class:`SyntheticConfig` fields and :meth:`SyntheticConfig.build`'s ``keep_ground_truth``."""
     return SyntheticConfig(n_frames=n_frames, noise=noise, seed=seed, trajectory=trajectory, intrinsics=intrinsics,
                            resolution_scale=resolution_scale, robot=robot).build(keep_ground_truth=keep_ground_truth)

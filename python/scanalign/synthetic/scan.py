@@ -29,12 +29,11 @@ class SyntheticScan:
     """A rendered scan with its ground truth (``intrinsics``, ``noise``, ``scene`` and ``seed`` as rendered).
 
     Attributes:
-        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose (depth and
-            registered rgb as :func:`render_scan` stores them, ``timestamp`` (s), the exact
-            ``T_base_camera`` (camera -> base), ``index``); ``meta`` holds ``noise``,
-            ``T_base_flange``, ``joints`` (6, rad) and ``robot`` (its name) when known, and with
-            ``keep_ground_truth`` ``depth_true`` (float32 m, NaN = no hit) and ``face_id``
-            (int32, indexes :attr:`mesh`).
+        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose (depth and registered rgb as
+            :func:`render_scan` stores them, ``timestamp`` (s), the exact ``T_base_camera`` (camera -> base),
+            ``index``); ``meta`` holds ``noise``, ``T_base_flange``, ``joints`` (6, rad) and ``robot`` (its name) when
+            known, and with ``keep_ground_truth`` ``depth_true`` (float32 m, NaN = no hit) and ``face_id`` (int32,
+            indexes :attr:`mesh`).
         reference: the exact camera trajectory, ``T_base_camera`` per frame.
         mesh, object_mesh: the whole scene (objects and table), the objects only: base frame, m.
         T_flange_camera, T_base_flange, joints, robot, T_base_robot: those of the
@@ -93,10 +92,9 @@ def render_scan(scene: Scene, poses: Union[ScanTrajectory, Trajectory, np.ndarra
     """Renders a scan: noisy depth and shaded colour for every camera pose.
 
     Args:
-        poses: a :class:`ScanTrajectory` (its hand-eye transform, flange poses and robot are
-            kept in the scan and each frame's meta), a :class:`Trajectory` of ``T_base_camera``,
-            or an (N, 4, 4) array of ``T_base_camera`` (camera -> base, m; timestamps
-            ``k / frame_rate``, Hz).
+        poses: a :class:`ScanTrajectory` (its hand-eye transform, flange poses and robot are kept in the scan and each
+            frame's meta), a :class:`Trajectory` of ``T_base_camera``, or an (N, 4, 4) array of ``T_base_camera``
+            (camera -> base, m; timestamps ``k / frame_rate``, Hz).
         intrinsics: camera intrinsics or a preset name (:data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS`).
         noise: a :class:`SensorNoise` or a preset name (``NOISE_PRESETS``); None = "none".
         seed: frame ``k``'s noise is seeded from ``numpy.random.SeedSequence(seed).spawn(N)[k]``:

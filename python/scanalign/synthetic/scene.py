@@ -41,13 +41,12 @@ class SceneObject:
 
 
 class Scene:
-    """Objects on a table, in the robot base frame (z up, metres): the table top (``table_size``
-    (x, y), None for none, centred at ``table_center`` (x, y), at z = ``table_height``) is two
-    triangles, normal +z, with a checker pattern of ``checker_size`` squares in the two RGB
-    albedos ``checker_colors`` (in [0, 1]) in the colour image.  Shading is two-sided
-    Lambertian under a distant light in direction ``light_direction`` (base frame, normalised
-    here) plus an ``ambient`` fraction in [0, 1].  Rendering uses one combined mesh
-    (:attr:`mesh`; :attr:`face_object`, :attr:`face_source`).
+    """Objects on a table, in the robot base frame (z up, metres): the table top (``table_size`` (x, y), None for
+    none, centred at ``table_center`` (x, y), at z = ``table_height``) is two triangles, normal +z, with a checker
+    pattern of ``checker_size`` squares in the two RGB albedos ``checker_colors`` (in [0, 1]) in the colour image.
+    Shading is two-sided Lambertian under a distant light in direction ``light_direction`` (base frame, normalised
+    here) plus an ``ambient`` fraction in [0, 1].  Rendering uses one combined mesh (:attr:`mesh`;
+    :attr:`face_object`, :attr:`face_source`).
     """
 
     def __init__(self, table_size: Optional[Tuple[float, float]] = (0.6, 0.6),
@@ -143,8 +142,7 @@ class Scene:
 
     @property
     def face_object(self) -> np.ndarray:
-        """(F,) int32: for each face of :attr:`mesh`, its object's index in :attr:`objects`,
-        or -1 for the table."""
+        """(F,) int32: for each face of :attr:`mesh`, its object's index in :attr:`objects`, or -1 for the table."""
         return self._build()["owner"].copy()
 
     @property
@@ -173,9 +171,8 @@ class Scene:
 
     def shade(self, result: RenderResult, T_base_camera: np.ndarray,
               intrinsics: Union[Intrinsics, str]) -> np.ndarray:
-        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels), rendered at
-        ``T_base_camera`` (camera -> base, m): each face's shaded albedo (the table's checker
-        at the point hit); black where nothing is hit."""
+        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels), rendered at ``T_base_camera`` (camera
+        -> base, m): each face's shaded albedo (the table's checker at the point hit); black where nothing is hit."""
         c = self._build()
         K = as_intrinsics(intrinsics)
         T = as_transform(T_base_camera, "T_base_camera")

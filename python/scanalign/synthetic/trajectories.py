@@ -114,13 +114,11 @@ def loop_trajectory(n_frames: int = 36, *, center: Sequence[float] = (0.5, 0.0, 
                     frame_rate: float = 10.0, jitter_translation: float = 0.0, jitter_rotation: float = 0.0,
                     seed: int = 0, robot: Any = None, T_base_robot: Optional[np.ndarray] = None,
                     q_start: Optional[Sequence[float]] = None) -> ScanTrajectory:
-    """A loop around the object (eye-in-hand paper, Comput. Electron. Agric. 180 (2021) 105929,
-    Fig. 4): camera ``k`` (``n_frames`` >= 1) sits at ``center + (radius cos a_k, radius sin a_k,
-    height)`` (base frame, m; ``height`` > 0, ``radius`` >= 0) with ``a_k = start_angle + sweep
-    k / n_frames`` (rad; a full loop by default, without repeating the first pose), looking at
-    ``target`` (default ``center``) with image up towards +z, at time ``k / frame_rate`` (Hz).
-    Flange poses are ``T_base_camera @ inv(T_flange_camera)`` (default
-    :data:`DEFAULT_T_FLANGE_CAMERA`).
+    """A loop around the object (eye-in-hand paper, Comput. Electron. Agric. 180 (2021) 105929, Fig. 4): camera ``k``
+    (``n_frames`` >= 1) sits at ``center + (radius cos a_k, radius sin a_k, height)`` (base frame, m; ``height`` > 0,
+    ``radius`` >= 0) with ``a_k = start_angle + sweep k / n_frames`` (rad; a full loop by default, without repeating
+    the first pose), looking at ``target`` (default ``center``) with image up towards +z, at time ``k / frame_rate``
+    (Hz). Flange poses are ``T_base_camera @ inv(T_flange_camera)`` (default :data:`DEFAULT_T_FLANGE_CAMERA`).
 
     Args:
         jitter_translation, jitter_rotation: standard deviations (m, rad) of an optional
@@ -191,20 +189,18 @@ def as_robot(robot: Any) -> Any:
 
 def attach_robot(trajectory: ScanTrajectory, robot: Any = "ur5", *, T_base_robot: Optional[np.ndarray] = None,
                  q_start: Optional[Sequence[float]] = None, elbow: str = "up") -> ScanTrajectory:
-    """A new :class:`ScanTrajectory` (``joints``, ``robot`` placed in the scene, ``T_base_robot``
-    set): the planned path moved by a robot arm, joints by inverse kinematics, poses by forward
-    kinematics.  The planned flange poses in the robot's base frame, ``inv(T_base_robot) @
-    T_base_flange`` (``T_base_robot``: robot base -> scene base, m; default :func:`robot_mount`
-    ``()``), go to :meth:`Robot.ik_trajectory` (each step the solution closest to the previous
-    joints); forward kinematics of those joints gives the flange poses (the planned ones to
-    ~1e-15 m).  ``robot`` (a :class:`scanalign.kinematics.Robot` or a name) gets the flange as
-    its tool and ``T_base_robot`` as its mount.
+    """A new :class:`ScanTrajectory` (``joints``, ``robot`` placed in the scene, ``T_base_robot`` set): the planned
+    path moved by a robot arm, joints by inverse kinematics, poses by forward kinematics.  The planned flange poses in
+    the robot's base frame, ``inv(T_base_robot) @ T_base_flange`` (``T_base_robot``: robot base -> scene base, m;
+    default :func:`robot_mount` ``()``), go to :meth:`Robot.ik_trajectory` (each step the solution closest to the
+    previous joints); forward kinematics of those joints gives the flange poses (the planned ones to ~1e-15 m).
+    ``robot`` (a :class:`scanalign.kinematics.Robot` or a name) gets the flange as its tool and ``T_base_robot`` as
+    its mount.
 
-    The start is ``q_start`` ((6,) rad) if given, else chosen among the first pose's solutions
-    with the requested ``elbow`` ("up": away from the table; "down"; "any"), each with its
-    first and last joint shifted by 0, -2 pi and +2 pi where the limits allow: the one that
-    reaches every pose with the smallest largest joint step wins (ties within 1e-9 rad: the
-    lowest configuration index, then no shift, -2 pi, +2 pi), so no step switches branch.
+    The start is ``q_start`` ((6,) rad) if given, else chosen among the first pose's solutions with the requested
+    ``elbow`` ("up": away from the table; "down"; "any"), each with its first and last joint shifted by 0, -2 pi and
+    +2 pi where the limits allow: the one that reaches every pose with the smallest largest joint step wins (ties
+    within 1e-9 rad: the lowest configuration index, then no shift, -2 pi, +2 pi), so no step switches branch.
 
     Raises:
         ValueError: a pose the robot cannot reach, or reaches only outside its joint limits

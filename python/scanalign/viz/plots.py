@@ -154,11 +154,10 @@ def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, 
                      title: Optional[str] = None, dpi: int = 150) -> Path:
     """Per-frame registration cost and model growth, two panels sharing the frame axis.
 
-    Top: registration time (ms, bars) and ICP iterations.  Bottom: model size (points) and
-    ICP fitness.  Skipped frames (``skipped`` true, or a missing / NaN time) are shaded red.
-    ``per_frame``: one dict per frame, or a dict of equal-length columns, with the time in
-    seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``, the model size
-    in points (``model_size`` or ``model_points``) and ``skipped``.
+    Top: registration time (ms, bars) and ICP iterations.  Bottom: model size (points) and ICP fitness.  Skipped
+    frames (``skipped`` true, or a missing / NaN time) are shaded red. ``per_frame``: one dict per frame, or a dict of
+    equal-length columns, with the time in seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``,
+    the model size in points (``model_size`` or ``model_points``) and ``skipped``.
     """
     n, cols = _columns(per_frame)
     if n == 0:
@@ -359,10 +358,9 @@ def pose_overlay(obj: np.ndarray, placed: np.ndarray, result: Any, path: PathLik
 
 
 def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
-    """The arm at each chosen grasp over the scene (a :class:`scanalign.pipelines.pick.PickResult`):
-    a 3D view and a top view in the base frame (m): scene points grey, placed parts coloured,
-    the arm as a stick figure from its base through the joints to the TCP, and the straight
-    approach from the pre-grasp (dashed)."""
+    """The arm at each chosen grasp over the scene (a :class:`scanalign.pipelines.pick.PickResult`): a 3D view and a
+    top view in the base frame (m): scene points grey, placed parts coloured, the arm as a stick figure from its base
+    through the joints to the TCP, and the straight approach from the pre-grasp (dashed)."""
     fig = _figure((13, 6))
     ax3, ax2 = fig.add_subplot(1, 2, 1, projection="3d"), fig.add_subplot(1, 2, 2)
     pts = result.points[:: max(1, len(result.points) // 20000)]
