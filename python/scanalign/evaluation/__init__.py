@@ -1,9 +1,9 @@
-"""Trajectory and reconstruction accuracy: ATE, RPE (Sturm et al., "A Benchmark for the
-Evaluation of RGB-D SLAM Systems", IROS 2012), cloud-to-mesh distance.
+"""Trajectory and reconstruction accuracy: ATE, RPE (Sturm et al., "A Benchmark for the Evaluation of RGB-D SLAM
+Systems", IROS 2012), cloud-to-mesh distance.
 
-Inputs in metres and radians; a pose ``T_world_camera`` maps camera coordinates into the
-trajectory's world frame.  Error statistics report translations in metres and rotations in
-**degrees** (as the TUM tools and ``evo``, whose APE ``translation_part`` and RPE these equal).
+Inputs in metres and radians; a pose ``T_world_camera`` maps camera coordinates into the trajectory's world frame.
+Error statistics report translations in metres and rotations in **degrees** (as the TUM tools and ``evo``, whose APE
+``translation_part`` and RPE these equal).
 """
 
 from __future__ import annotations
@@ -44,8 +44,8 @@ def _as_trajectory(x: TrajectoryLike, name: str) -> Trajectory:
 
 def _paired(estimate: TrajectoryLike, reference: TrajectoryLike, associate: bool, max_difference: float,
             offset: float, minimum: int, what: str) -> Tuple[Trajectory, Trajectory]:
-    """The two trajectories, paired by timestamps with ``associate`` (else by index, so they
-    must have equal lengths), with at least ``minimum`` pairs."""
+    """The two trajectories, paired by timestamps with ``associate`` (else by index, so they must have equal lengths),
+    with at least ``minimum`` pairs."""
     est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
     if associate:
         est, ref = _associate(est, ref, max_difference=max_difference, offset=offset)
@@ -73,24 +73,17 @@ def umeyama_alignment(source: np.ndarray, target: np.ndarray,
 
 def associate(estimate: Trajectory, reference: Trajectory, max_difference: float = 0.02, offset: float = 0.0,
               method: str = "greedy", return_indices: bool = False):
-    """Pairs the poses of two trajectories by timestamp (s).
+    """Pairs the poses of two trajectories by timestamp (s): ``(estimate_matched, reference_matched)``, with
+    ``return_indices`` also the index arrays into the inputs, ``(est, ref, idx_est, idx_ref)``.
 
     ``offset`` (s) is added to the estimate's timestamps before matching (the TUM tools' ``--offset``); the returned
-    trajectories keep their own timestamps.  ``method``: ``"greedy"`` (default),
+    trajectories keep their own timestamps.  ``method``: ``"greedy"`` (default; pairs in reference time order),
     :func:`scanalign.evaluation.trajectory.associate_timestamps` (pairs with
-    ``|t_ref - (t_est + offset)| <= max_difference``, closest first, every pose used at most once); ``"nearest"``,
-    ``evo.core.sync.associate_trajectories(reference, estimate, max_diff=max_difference, offset_2=offset)``: every
-    pose of the shorter trajectory (the estimate on a tie) takes the nearest pose of the other within
-    ``max_difference``, which may be used more than once.
-
-    Returns:
-        ``(estimate_matched, reference_matched)`` in reference time order (``"greedy"``) or the
-        shorter trajectory's order (``"nearest"``); with ``return_indices`` also the index
-        arrays into the inputs, ``(est, ref, idx_est, idx_ref)``.
-
-    Raises:
-        ValueError: no pair within ``max_difference``, a negative ``max_difference``, a
-            non-finite ``offset``, an unknown method.
+    ``|t_ref - (t_est + offset)| <= max_difference``, closest first, every pose used at most once); ``"nearest"``
+    (pairs in the shorter trajectory's order), ``evo.core.sync.associate_trajectories(reference, estimate,
+    max_diff=max_difference, offset_2=offset)``: every pose of the shorter trajectory (the estimate on a tie) takes
+    the nearest pose of the other within ``max_difference``, which may be used more than once.  ValueError: no pair
+    within ``max_difference``, a negative ``max_difference``, a non-finite ``offset``, an unknown method.
     """
     est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
     if not np.isfinite(offset):  # max_difference is checked by both C++ association rules
@@ -156,6 +149,7 @@ class RpeResult:
     all_pairs: bool
 
     def as_dict(self) -> Dict[str, Any]:
+        """JSON-ready: statistics (m, degrees) and how the pairs were chosen."""
         return {"translation_m": self.translation.as_dict(), "rotation_deg": self.rotation.as_dict(),
                 "delta": self.delta, "delta_unit": self.delta_unit, "all_pairs": self.all_pairs}
 
@@ -163,20 +157,16 @@ class RpeResult:
 def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLike, align: bool = True,
                               with_scale: bool = False, associate: bool = False,
                               max_difference: float = 0.02, offset: float = 0.0) -> AteResult:
-    """Absolute trajectory error (Sturm et al. 2012), translational (m) and rotational (degrees).
+    """Absolute trajectory error (Sturm et al. 2012), translational (m) and rotational (degrees), of ``estimate``
+    against ``reference`` (``T_world_camera`` poses, :class:`Trajectory` or (N, 4, 4)) paired by index (equal
+    lengths), or with ``associate`` by timestamps (greedy :func:`associate`, ``max_difference`` s, ``offset`` s added
+    to the estimate's times).
 
     With ``align``, the estimated camera centres are fitted to the reference ones by :func:`umeyama_alignment` (a
     similarity with ``with_scale``); the error of pose i is ``|| q_i - (s R p_i + t) ||`` (evo's APE
-    ``translation_part`` after ``align``) and the angle of ``R_ref_i^T (R R_est_i)``.
-
-    Args:
-        estimate, reference: ``T_world_camera`` poses (:class:`Trajectory` or (N, 4, 4)),
-            paired by index (equal lengths), or with ``associate`` by timestamps
-            (greedy :func:`associate`, ``max_difference`` s, ``offset`` s added to the estimate's times).
-
-    Raises:
-        ValueError: different lengths without ``associate``, fewer than 3 poses (with
-            ``align``; 1 without), degenerate (collinear) centres with ``align``.
+    ``translation_part`` after ``align``) and the angle of ``R_ref_i^T (R R_est_i)``.  ValueError: different lengths
+    without ``associate``, fewer than 3 poses (with ``align``; 1 without), degenerate (collinear) centres with
+    ``align``.
     """
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 3 if align else 1,
                        "absolute_trajectory_error")
@@ -208,10 +198,8 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
     estimate, or of the reference with ``pairs_from_reference``) or ``"seconds"`` (not in evo).  ``all_pairs=False``:
     the chain of pairs, each starting where the last ended and ending at the first pose at least ``delta`` further;
     ``all_pairs=True``: for every i the first j > i closest to ``delta`` away, kept within ``rel_delta_tol * delta``
-    (exactly ``delta`` for frames).  Poses are paired as in :func:`absolute_trajectory_error`.
-
-    Raises:
-        ValueError: different lengths, fewer than 2 poses, bad delta / unit, no pair found.
+    (exactly ``delta`` for frames).  Poses are paired as in :func:`absolute_trajectory_error`.  ValueError: different
+    lengths, fewer than 2 poses, bad delta / unit, no pair found.
     """
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 2, "relative_pose_error")
     if delta_unit not in _DELTA_UNITS:
@@ -249,10 +237,10 @@ def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike,
                             mesh: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Dict[str, Any]:
     """ATE and RPE (and optionally cloud-to-mesh distances) as a JSON-ready dict (m, degrees).
 
-    The defaults are the TUM benchmark's: ATE after rigid alignment, RPE over every pair
-    (i, i + 1 frame).  Keys: ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe``
-    (:meth:`RpeResult.as_dict`) and, given ``points`` (the reconstructed cloud, in the mesh's
-    frame) and ``mesh`` ``(vertices, faces)`` (or an Open3D / trimesh mesh), ``cloud_to_mesh_m``.
+    The defaults are the TUM benchmark's: ATE after rigid alignment, RPE over every pair (i, i + 1 frame).  Keys:
+    ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe`` (:meth:`RpeResult.as_dict`) and, given ``points`` (the
+    reconstructed cloud, in the mesh's frame) and ``mesh`` ``(vertices, faces)`` (or an Open3D / trimesh mesh),
+    ``cloud_to_mesh_m``.
     """
     if (points is None) != (mesh is None):
         raise ValueError("pass both points and mesh=(vertices, faces) for the cloud-to-mesh distance, or neither")
