@@ -36,8 +36,8 @@ class SyntheticScan:
             indexes :attr:`mesh`).
         reference: the exact camera trajectory, ``T_base_camera`` per frame.
         mesh, object_mesh: the whole scene (objects and table), the objects only: base frame, m.
-        T_flange_camera, T_base_flange, joints, robot, T_base_robot: those of the
-            :class:`ScanTrajectory` rendered, else None.
+        T_flange_camera, T_base_flange, joints, robot, T_base_robot: those of the :class:`ScanTrajectory` rendered,
+            else None.
     """
 
     frames: List[Frame]
@@ -58,9 +58,8 @@ class SyntheticScan:
         return len(self.frames)
 
     def points(self, index: int, in_base: bool = False) -> np.ndarray:
-        """(N, 3) float64 points of frame ``index``'s valid depth pixels (metres), in the
-        camera frame, or in the base frame with ``in_base``. Back-projected by the C++
-        ``depth_to_cloud``, so camera-frame coordinates carry its float32 rounding (~1e-7 m)."""
+        """(N, 3) float64 points (m) of frame ``index``'s valid depth pixels in the camera frame (the base frame with
+        ``in_base``), back-projected by the C++ ``depth_to_cloud`` (so with its float32 rounding, ~1e-7 m)."""
         frame = self.frames[index]
         p, _ = depth_to_cloud(frame.depth, self.intrinsics, depth_scale=frame.depth_scale, min_depth=0.0,
                               max_depth=math.inf)
@@ -97,18 +96,16 @@ def render_scan(scene: Scene, poses: Union[ScanTrajectory, Trajectory, np.ndarra
             (camera -> base, m; timestamps ``k / frame_rate``, Hz).
         intrinsics: camera intrinsics or a preset name (:data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS`).
         noise: a :class:`SensorNoise` or a preset name (``NOISE_PRESETS``); None = "none".
-        seed: frame ``k``'s noise is seeded from ``numpy.random.SeedSequence(seed).spawn(N)[k]``:
-            equal seeds give bit-identical frames, whatever the number of frames rendered.
-        depth_unit: metres per unit of the stored uint16 depth (0 = missing, as are depths above
-            65535 units); ``"auto"``: the sensor's own step when it has one (1/8 mm for the
-            SR300, 1 mm for the D435), else 0.1 mm; None: float32 metres, NaN = missing.
+        seed: frame ``k``'s noise is seeded from ``numpy.random.SeedSequence(seed).spawn(N)[k]``: equal seeds give
+            bit-identical frames, whatever the number of frames rendered.
+        depth_unit: metres per unit of the stored uint16 depth (0, and depths over 65535 units, = missing); ``"auto"``:
+            the sensor's own step if any (1/8 mm SR300, 1 mm D435), else 0.1 mm; None: float32 metres, NaN = missing.
         near: renderer near plane (m).
         keep_ground_truth: also store the noise-free depth and face ids in ``frame.meta``.
         num_threads: frames rendered concurrently (each on one thread); 0 = one per CPU.
 
-    Raises:
-        TypeError, ValueError: bad arguments (unknown preset, malformed poses, non-positive
-            depth unit, frames that would not fit in half the machine's memory ...).
+    TypeError, ValueError: bad arguments (unknown preset, malformed poses, non-positive depth unit, frames that would
+    not fit in half the machine's memory ...).
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene: expected Scene, got {type(scene)!r}")

@@ -74,12 +74,10 @@ class Scene:
     def add_object(self, mesh: io.Mesh, T_base_object: Optional[np.ndarray] = None, *,
                    position: Optional[Tuple[float, float]] = None, yaw: float = 0.0,
                    color: Sequence[float] = (0.75, 0.45, 0.20), name: Optional[str] = None) -> SceneObject:
-        """Places a mesh (metres, its own frame) in the scene and returns its :class:`SceneObject`.
-
-        Either give ``T_base_object`` (object -> base), or let the object stand on the table:
-        rotated by ``yaw`` (rad) about the vertical, its lowest vertex on the table top, the
-        centre of its bounding box at ``position`` (x, y, base frame, m; default the table centre).
-        """
+        """Places a mesh (metres, its own frame) in the scene and returns its :class:`SceneObject`: at ``T_base_object``
+        (object -> base) if given, else standing on the table, rotated by ``yaw`` (rad) about the vertical, its lowest
+        vertex on the table top, the centre of its bounding box at ``position`` (x, y, base frame, m; default the
+        table centre)."""
         if not isinstance(mesh, io.Mesh):
             raise TypeError(f"mesh: expected scanalign.io.Mesh, got {type(mesh)!r}")
         if mesh.faces.shape[0] == 0:
@@ -107,16 +105,15 @@ class Scene:
 
     @property
     def center(self) -> np.ndarray:
-        """(3,) centre of the objects' bounding box in the base frame, at table height (the
-        default target of trajectories); the table centre when there are no objects."""
+        """(3,) centre of the objects' bounding box in the base frame (m) at table height, the default target of
+        trajectories; the table centre when there are no objects."""
         if not self.objects:
             return np.array([*self.table_center, self.table_height])
         v = self.object_mesh.vertices[:, :2]
         return np.append((v.min(axis=0) + v.max(axis=0)) / 2, self.table_height)
 
     def _build(self) -> Dict[str, np.ndarray]:
-        """The combined mesh, built once by C++ ``_core.synthetic.compose_scene`` (faces in Morton
-        order, for the renderer's cache)."""
+        """The combined mesh, built once by C++ ``compose_scene`` (faces in Morton order, for the renderer's cache)."""
         if self._combined is not None:
             return self._combined
         objects = [(obj.mesh.vertices, obj.mesh.faces, obj.T_base_object, obj.color) for obj in self.objects]
@@ -147,32 +144,28 @@ class Scene:
 
     @property
     def face_source(self) -> np.ndarray:
-        """(F,) int64: for each face of :attr:`mesh`, its row in its object's own mesh (or in
-        the table's two triangles)."""
+        """(F,) int64: for each face of :attr:`mesh`, its row in its object's mesh (or in the table's two triangles)."""
         return self._build()["source"].copy()
 
     def render(self, T_base_camera: np.ndarray, intrinsics: Union[Intrinsics, str], *, near: float = 0.01,
                far: float = math.inf, num_threads: int = 0) -> RenderResult:
-        """Noise-free depth, face ids and incidence for a camera at ``T_base_camera``
-        (camera -> base, m). Face ids index :attr:`mesh`."""
-        c = self._build()
-        T = se3.require_rigid(T_base_camera, "T_base_camera")
+        """Noise-free depth, face ids (into :attr:`mesh`) and incidence for a camera at ``T_base_camera`` (camera ->
+        base, m)."""
+        c, T = self._build(), se3.require_rigid(T_base_camera, "T_base_camera")
         return render_depth(c["vertices"], c["faces"], intrinsics, se3.inverse(T), near=near, far=far,
                             num_threads=num_threads)
 
     def _prepare_shading(self) -> None:
         """Colour of every face for both checker albedos, built once (C++ ``_core.synthetic.scene_colors``)."""
-        c = self._build()
-        if "lut" in c:
-            return
-        c["lut"], c["lut_alt"] = _core.synthetic.scene_colors(c["normals"], c["albedo"], c["owner"],
-                                                              int(c["n_object_faces"]), self.light_direction,
-                                                              self.ambient, self.checker_colors[1])
+        if "lut" not in (c := self._build()):
+            c["lut"], c["lut_alt"] = _core.synthetic.scene_colors(c["normals"], c["albedo"], c["owner"],
+                                                                  int(c["n_object_faces"]), self.light_direction,
+                                                                  self.ambient, self.checker_colors[1])
 
     def shade(self, result: RenderResult, T_base_camera: np.ndarray,
               intrinsics: Union[Intrinsics, str]) -> np.ndarray:
-        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels), rendered at ``T_base_camera`` (camera
-        -> base, m): each face's shaded albedo (the table's checker at the point hit); black where nothing is hit."""
+        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels), seen from ``T_base_camera``
+        (camera -> base, m): each face's shaded albedo (the table's checker at the point hit); black where no hit."""
         c = self._build()
         K = as_intrinsics(intrinsics)
         T = as_transform(T_base_camera, "T_base_camera")

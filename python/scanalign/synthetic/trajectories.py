@@ -1,6 +1,5 @@
-"""Planned camera paths around the scene (a loop, hemisphere rings), the flange poses that
-carry the camera, and the robot arm that follows them: where it is mounted, its joints by
-inverse kinematics and its poses by forward kinematics."""
+"""Planned camera paths around the scene (a loop, hemisphere rings), the flange poses that carry the camera, and the
+robot arm that follows them: where it is mounted, its joints by inverse kinematics, its poses by forward kinematics."""
 
 from __future__ import annotations
 
@@ -19,10 +18,9 @@ from scanalign.evaluation.trajectory import Trajectory
 __all__ = ["DEFAULT_T_FLANGE_CAMERA", "ScanTrajectory", "loop_trajectory", "hemisphere_trajectory",
            "DEFAULT_ROBOT_HEIGHT", "robot_mount", "attach_robot"]
 
-#: Default hand-eye calibration ``T_flange_camera`` (camera -> flange): the camera beside the
-#: gripper, 5 cm in front of the flange along its z axis and 3.5 cm off-axis along its x axis,
-#: looking along the tool axis rotated by 3 deg about x, -2 deg about y and 1 deg about z (the
-#: misalignment of a real bracket, so the hand-eye transform is not a pure offset).
+#: Default hand-eye calibration ``T_flange_camera`` (camera -> flange): the camera beside the gripper, 5 cm in front of
+#: the flange along its z axis and 3.5 cm off-axis along its x axis, looking along the tool axis rotated by 3 deg about
+#: x, -2 deg about y and 1 deg about z (the misalignment of a real bracket, so the hand-eye transform is not an offset).
 DEFAULT_T_FLANGE_CAMERA: np.ndarray = se3.rigid([1.0, 0.0, 0.0], math.radians(3.0), [0.035, 0.0, 0.05])
 DEFAULT_T_FLANGE_CAMERA[:3, :3] = (DEFAULT_T_FLANGE_CAMERA[:3, :3] @ se3.rotation_about([0.0, 1.0, 0.0], math.radians(
     -2.0)) @ se3.rotation_about([0.0, 0.0, 1.0], math.radians(1.0)))
@@ -85,8 +83,8 @@ def _planned(T_base_camera: np.ndarray, T_flange_camera: Optional[np.ndarray], f
              jitter_translation: float, jitter_rotation: float, seed: int, robot: Any,
              T_base_robot: Optional[np.ndarray], q_start: Optional[Sequence[float]],
              center: np.ndarray) -> ScanTrajectory:
-    """Flange poses ``T_base_camera @ inv(T_flange_camera)`` of planned camera poses,
-    optionally jittered, then followed by ``robot`` when one is given."""
+    """Flange poses ``T_base_camera @ inv(T_flange_camera)`` of planned camera poses, optionally jittered, then
+    followed by ``robot`` when one is given."""
     Tfc = DEFAULT_T_FLANGE_CAMERA if T_flange_camera is None else se3.require_rigid(T_flange_camera, "T_flange_camera")
     if not (math.isfinite(frame_rate) and frame_rate > 0):
         raise ValueError(f"frame_rate must be positive (Hz), got {frame_rate!r}")
@@ -143,13 +141,11 @@ def hemisphere_trajectory(n_frames: int = 48, *, center: Sequence[float] = (0.5,
                           jitter_translation: float = 0.0, jitter_rotation: float = 0.0, seed: int = 0,
                           robot: Any = None, T_base_robot: Optional[np.ndarray] = None,
                           q_start: Optional[Sequence[float]] = None) -> ScanTrajectory:
-    """Rings at ``distance`` (m) from ``target`` (default ``center``, base frame, m), one per
-    elevation (rad, in (0, pi/2]), from azimuth ``start_angle`` (rad).
-
-    The ``n_frames`` (>= number of rings) are shared between rings in proportion to their
-    circumferences (``cos(elevation)``, at least one each); successive rings run in opposite
-    directions, each starting where the previous ended. Cameras look at the target, image up
-    towards +z (outwards at 90 deg). The other arguments are those of :func:`loop_trajectory`.
+    """Rings at ``distance`` (m) from ``target`` (default ``center``, base frame, m), one per elevation (rad, in
+    (0, pi/2]), from azimuth ``start_angle`` (rad).  The ``n_frames`` (>= number of rings) are shared between rings in
+    proportion to their circumferences (``cos(elevation)``, at least one each); successive rings run in opposite
+    directions, each starting where the previous ended.  Cameras look at the target, image up towards +z (outwards at
+    90 deg).  The other arguments are those of :func:`loop_trajectory`.
     """
     c = _array(center, (3,), "center")
     poses = _core.synthetic.hemisphere_camera_poses(n_frames, c if target is None else _array(target, (3,), "target"),
@@ -163,13 +159,13 @@ DEFAULT_ROBOT_HEIGHT: float = 0.90
 
 def robot_mount(x: float = 0.5, y: float = 0.0, z: float = DEFAULT_ROBOT_HEIGHT, roll: float = math.pi,
                 pitch: float = 0.0, yaw: float = 0.0) -> np.ndarray:
-    """``T_base_robot`` (robot base -> scene base) from a position (m) and roll / pitch / yaw
-    (rad, rotation ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, as URDF).
+    """``T_base_robot`` (robot base -> scene base) from a position (m) and roll / pitch / yaw (rad, rotation
+    ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, as URDF).
 
-    The default hangs the arm (first joint axis down) 0.9 m above the default table's centre,
-    as on a gantry: from beside the table a UR5 (reach 0.85 m) cannot reach the far side of
-    the default hemisphere path and passes the shoulder singularity on the near side; from
-    above, both default paths stay inside the workspace, away from every singularity.
+    The default hangs the arm (first joint axis down) 0.9 m above the default table's centre, as on a gantry: from
+    beside the table a UR5 (reach 0.85 m) cannot reach the far side of the default hemisphere path and passes the
+    shoulder singularity on the near side; from above, both default paths stay inside the workspace, away from every
+    singularity.
     """
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (x, y, z, roll, pitch, yaw)):
         raise ValueError(f"robot_mount: expected finite numbers (m, rad), got {(x, y, z, roll, pitch, yaw)!r}")
@@ -202,10 +198,9 @@ def attach_robot(trajectory: ScanTrajectory, robot: Any = "ur5", *, T_base_robot
     +2 pi where the limits allow: the one that reaches every pose with the smallest largest joint step wins (ties
     within 1e-9 rad: the lowest configuration index, then no shift, -2 pi, +2 pi), so no step switches branch.
 
-    Raises:
-        ValueError: a pose the robot cannot reach, or reaches only outside its joint limits
-            (naming the frame, its time and the IK status), a bad ``elbow``, ``q_start`` or
-            ``T_base_robot``.  TypeError: ``robot`` or ``trajectory`` of another type.
+    ValueError: a pose the robot cannot reach, or reaches only outside its joint limits (naming the frame, its time and
+    the IK status), a bad ``elbow``, ``q_start`` or ``T_base_robot``; TypeError: ``robot`` or ``trajectory`` of another
+    type.
     """
     if not isinstance(trajectory, ScanTrajectory):
         raise TypeError(f"trajectory: expected ScanTrajectory, got {type(trajectory)!r}")
@@ -224,14 +219,11 @@ def attach_robot(trajectory: ScanTrajectory, robot: Any = "ur5", *, T_base_robot
 
     def run(q0: np.ndarray) -> Tuple[Any, float]:
         tr = model.ik_trajectory(T_robot_flange, q0)
-        if not np.all(tr.ok):
-            return tr, math.inf
-        return tr, float(np.abs(np.diff(np.vstack([q0[None], tr.q]), axis=0)).max())
+        return tr, float(np.abs(np.diff(np.vstack([q0[None], tr.q]), axis=0)).max()) if np.all(tr.ok) else math.inf
 
-    if q_start is not None:  # Robot.ik_trajectory checks it (6 finite values, naming q_start)
-        best, _ = run(np.asarray(q_start, dtype=np.float64))
-    else:
-        best = _best_start(model, Tbr, T_robot_flange[0], elbow, run, where)
+    # Robot.ik_trajectory checks q_start (6 finite values, naming q_start).
+    best = (run(np.asarray(q_start, dtype=np.float64))[0] if q_start is not None
+            else _best_start(model, Tbr, T_robot_flange[0], elbow, run, where))
     if not np.all(best.ok):
         k = int(np.flatnonzero(~np.asarray(best.ok, dtype=bool))[0])
         raise ValueError(f"robot {model.name} mounted at T_base_robot cannot follow the camera path: {where(k)} "
@@ -253,7 +245,7 @@ def _best_start(model: Any, Tbr: np.ndarray, T_first: np.ndarray, elbow: str, ru
                          f"{status[0]!r} for every configuration; move the robot (T_base_robot) or the path")
     # Elbow label of "up" in the scene: +1 when the robot's z axis points upwards.
     z_up = (Tbr @ model.T_base_dh0)[2, 2] >= 0
-    want = {"up": 1 if z_up else -1, "down": -1 if z_up else 1, "any": 0}[elbow]
+    want = {"up": 1, "down": -1, "any": 0}[elbow] * (1 if z_up else -1)
     candidates = [k for k in range(8) if ok[k] and (want == 0 or int(first.config[k][1]) == want)]
     if not candidates:
         raise ValueError(f"robot {model.name}: no elbow-{elbow} solution within the joint limits for {where(0)}; "
