@@ -62,13 +62,9 @@ class PickCell:
 
 def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_frames: int = 24,
               placements: Optional[Sequence[Tuple[str, Tuple[float, float], float]]] = None) -> PickCell:
-    """Renders the built-in cell (see the module docstring).
-
-    Args:
-        robot: ``"ur5"`` or ``"kr6_r900_sixx"`` (the two cells of :data:`CELL_MOUNTS`).
-        noise, seed: sensor noise preset (``"sr300"``, ``"zivid"``, ``"d435"``, ``"none"``) and seed.
-        placements: (part name, (x, y) m, yaw rad) per part; default :data:`DEFAULT_PLACEMENTS`.
-    """
+    """Renders the built-in cell (see the module docstring) of ``robot``, ``"ur5"`` or ``"kr6_r900_sixx"`` (the keys
+    of :data:`CELL_MOUNTS`), with a sensor ``noise`` preset (``"sr300"``, ``"zivid"``, ``"d435"``, ``"none"``) and its
+    ``seed``, and ``placements`` (part name, (x, y) m, yaw rad) per part (default :data:`DEFAULT_PLACEMENTS`)."""
     if robot not in CELL_MOUNTS:
         raise ValueError(f"robot: the built-in cells are {sorted(CELL_MOUNTS)}, got {robot!r}")
     scene = Scene(table_size=(0.6, 0.6))

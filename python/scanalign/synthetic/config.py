@@ -62,24 +62,22 @@ class SyntheticConfig:
     Attributes:
         mesh: ``"builtin"`` (:func:`scanalign.data.parts.builtin_mesh`), a CGAL demo mesh name (``"bunny00"``,
             ``"fandisk"``, ... fetched by :mod:`scanalign.data.downloads`), or a path to a .ply/.off/.stl/.obj file.
-        object_size: largest extent of the object (m) after scaling; None keeps the builtin
-            part's size (80 mm) and scales other meshes to 0.15 m.
-        object_x, object_y, object_yaw: object position on the table (base frame, m) and
-            rotation about the vertical (rad).
+        object_size: largest extent of the object (m) after scaling; None keeps the builtin part's size (80 mm) and
+            scales other meshes to 0.15 m.
+        object_x, object_y, object_yaw: position on the table (base frame, m) and rotation about the vertical (rad).
         table_size: side of the square table top (m); 0 for no table.
         trajectory: ``"loop"`` (``height``, ``radius``: :func:`loop_trajectory`) or ``"hemisphere"`` (``distance``,
             default ``hypot(height, radius)``, and ``rings`` elevations evenly spaced in [``min_elevation``,
             ``max_elevation``]: :func:`hemisphere_trajectory`) of ``n_frames`` from ``start_angle`` at ``frame_rate``
             (Hz); lengths in m, angles in rad.
-        intrinsics: a preset name of :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a
-            mapping width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
+        intrinsics: a preset name of :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a mapping
+            width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
         noise, seed: a preset name of ``NOISE_PRESETS`` and the noise seed.
-        depth_unit: metres per uint16 depth unit; ``"auto"`` for the sensor's own unit (0.1 mm
-            without one); 0 stores float32 metres.
-        robot, robot_elbow: a name of :meth:`scanalign.kinematics.Robot.by_name` (``"none"``: no
-            arm) and its start configuration, ``"up"``, ``"down"`` or ``"any"`` (:func:`attach_robot`).
-        robot_x, robot_y, robot_z, robot_roll, robot_pitch, robot_yaw: :func:`robot_mount` of the
-            robot base in the scene; x, y None = above the object.
+        depth_unit: metres per uint16 depth unit; ``"auto"``: the sensor's own (0.1 mm without one); 0: float32 metres.
+        robot, robot_elbow: a name of :meth:`scanalign.kinematics.Robot.by_name` (``"none"``: no arm) and its start
+            configuration, ``"up"``, ``"down"`` or ``"any"`` (:func:`attach_robot`).
+        robot_x, robot_y, robot_z, robot_roll, robot_pitch, robot_yaw: :func:`robot_mount` of the robot base in the
+            scene; x, y None = above the object.
     """
 
     mesh: str = "builtin"
@@ -193,11 +191,8 @@ class SyntheticConfig:
             self.robot_z, self.robot_roll, self.robot_pitch, self.robot_yaw)
 
     def build_trajectory(self, scene: Scene) -> ScanTrajectory:
-        """The planned camera path; with a robot, followed by the arm (``attach_robot``).
-
-        Raises:
-            ValueError: a pose the robot cannot reach from its mount (naming the frame and the IK status).
-        """
+        """The planned camera path; with a robot, followed by the arm (:func:`attach_robot`: ValueError naming the
+        frame and the IK status of a pose the robot cannot reach from its mount)."""
         if self.trajectory == "loop":
             traj = loop_trajectory(self.n_frames, center=scene.center, height=self.height, radius=self.radius,
                                    start_angle=self.start_angle, frame_rate=self.frame_rate)
