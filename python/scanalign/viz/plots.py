@@ -1,9 +1,9 @@
 """Figures for reports and benchmarks: trajectories, per-frame statistics, curves.
 
-matplotlib is imported on first use, only through its object-oriented API with the Agg
-canvas (no pyplot, no display, no global backend switch): these functions work headless and
-leave an interactive session alone.  Every function writes a PNG to ``path`` (creating its
-folder) and returns that path; ``title`` is the figure's title.  Inputs in metres and seconds.
+matplotlib is imported on first use, only through its object-oriented API with the Agg canvas (no pyplot, no display,
+no global backend switch): these functions work headless and leave an interactive session alone.  Every function
+writes a PNG to ``path`` (creating its folder) and returns that path; ``title`` is the figure's title.  Inputs in
+metres and seconds.
 """
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ __all__ = ["plot_batch", "plot_trajectory_topdown", "plot_frame_stats", "plot_se
            "plot_joint_trajectory", "pose_overlay", "plot_pick"]
 
 PathLike = Union[str, os.PathLike]
-_AXES = {"x": 0, "y": 1, "z": 2}
 
 
 def _figure(figsize: Tuple[float, float]):
@@ -31,9 +30,8 @@ def _figure(figsize: Tuple[float, float]):
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            "scanalign.viz.plots needs matplotlib (pip install matplotlib); the rest of scanalign "
-            "works without it") from exc
+        raise ImportError("scanalign.viz.plots needs matplotlib (pip install matplotlib); the rest of scanalign "
+                          "works without it") from exc
     fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
@@ -51,9 +49,9 @@ def _plane_axes(plane: Optional[str], positions: np.ndarray) -> Tuple[int, int]:
     if plane is None:
         ext = np.ptp(positions, axis=0) if positions.shape[0] else np.zeros(3)
         return tuple(sorted(np.argsort(-ext, kind="stable")[:2].tolist()))
-    if len(plane) != 2 or plane[0] not in _AXES or plane[1] not in _AXES or plane[0] == plane[1]:
+    if len(plane) != 2 or not set(plane) <= set("xyz") or plane[0] == plane[1]:
         raise ValueError(f"plane must be two different letters of 'xyz' such as 'xy' or 'xz', got {plane!r}")
-    return _AXES[plane[0]], _AXES[plane[1]]
+    return "xyz".index(plane[0]), "xyz".index(plane[1])
 
 
 def _cube(pts: np.ndarray) -> Tuple[np.ndarray, float]:
@@ -221,8 +219,7 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
         logx, logy: logarithmic axes (non-positive values are not drawn).
         errors: optional label -> (M,) symmetric error bars (e.g. standard deviations).
 
-    Raises:
-        ValueError: no series, or a series whose length differs from ``x``.
+    ValueError: no series, or a series (or its errors) whose length differs from ``x``.
     """
     xv = np.asarray(x, dtype=np.float64).reshape(-1)
     if not series:
@@ -250,9 +247,7 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
             ax.xaxis.set_minor_formatter(NullFormatter())
     if logy:
         ax.set_yscale("log")
-    ax.set(xlabel=xlabel, ylabel=ylabel)
-    if title:
-        ax.set_title(title)
+    ax.set(xlabel=xlabel, ylabel=ylabel, title=title or "")
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize=8)
     return _save(ax.figure, path, dpi)
@@ -261,7 +256,8 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
 def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels: Optional[Sequence[str]] = None,
                             T_base_tool: Optional[np.ndarray] = None, title: Optional[str] = None,
                             dpi: int = 110) -> Path:
-    """Draws arm configurations (e.g. all IK solutions of one pose) as stick figures.
+    """Draws arm configurations (e.g. all IK solutions of one pose) as stick figures, one 3D panel each (metres, equal
+    axes).
 
     Args:
         robot: a :class:`scanalign.kinematics.Robot` (its ``joint_positions(q, tcp=True)``
@@ -269,8 +265,6 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
         q: (K, 6) joint values, radians; rows with NaN are skipped.
         labels: one caption per row (e.g. "shoulder +1 elbow +1 wrist -1").
         T_base_tool: (4, 4) target tool pose (tool -> base), drawn as a small RGB triad.
-
-    One 3D panel per configuration, metres, equal axes.
     """
     q = np.atleast_2d(np.asarray(q, dtype=np.float64))
     if q.ndim != 2 or q.shape[1] != 6:
@@ -279,8 +273,7 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
     if labels is not None and len(labels) != q.shape[0]:
         raise ValueError("labels: need one label per row of q")
     n = max(len(rows), 1)
-    cols = min(n, 4)
-    nrows = (n + cols - 1) // cols
+    cols, nrows = min(n, 4), -(-n // 4)
     fig = _figure((3.2 * cols, 3.2 * nrows))
     chains = [(k, np.asarray(robot.joint_positions(q[k], tcp=True))) for k in rows]
     tool = [] if T_base_tool is None else [np.asarray(T_base_tool, dtype=np.float64)[None, :3, 3]]
@@ -304,13 +297,8 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
 
 def plot_joint_trajectory(t: Sequence[float], q: np.ndarray, path: PathLike, *,
                           limits: Optional[np.ndarray] = None, title: Optional[str] = None, dpi: int = 110) -> Path:
-    """Joint angles over time, one panel per joint, with the joint limits as dashed lines.
-
-    Args:
-        t: (N,) times, seconds.
-        q: (N, 6) joint values, radians (NaN rows: steps without a solution, left as gaps).
-        limits: (6, 2) lower / upper joint limits, radians.
-    """
+    """Joint angles (degrees) over ``t`` ((N,) s), one panel per joint of ``q`` ((N, 6) rad; NaN rows, steps without a
+    solution, are gaps), with the ``limits`` ((6, 2) lower / upper, rad) as dashed lines."""
     t = np.asarray(t, dtype=np.float64)
     q = np.asarray(q, dtype=np.float64)
     if q.ndim != 2 or q.shape[1] != 6 or t.shape != (q.shape[0],):

@@ -66,8 +66,8 @@ class Viewer:
         spawn: start a rerun viewer (or connect to one already listening on its port).
         save: write the recording to this ``.rrd`` file (as well, with ``spawn``).
         connect: a rerun gRPC URL to stream to (a viewer on another machine).
-        robot: the :class:`scanalign.kinematics.Robot` drawn from the frames' joints (default:
-            ``Frame.meta["robot"]`` by name).
+        robot: the :class:`scanalign.kinematics.Robot` drawn from the frames' joints (default: by name from
+            ``Frame.meta["robot"]``).
         model_every, max_model_points: log the growing model every this many merged frames,
             at most this many points (evenly subsampled).
 
@@ -163,8 +163,7 @@ class Viewer:
         self._T_world_base = None  # the pick's world is its base frame
         self.rec.set_time("frame", sequence=int(result.reconstruction.records[-1].index) + 1
                           if result.reconstruction is not None and result.reconstruction.records else 0)
-        grey = np.full((len(result.points), 3), 160, np.uint8)
-        self.log_points("world/scene", result.points, grey, radii=0.0008)
+        self.log_points("world/scene", result.points, np.full((len(result.points), 3), 160, np.uint8), radii=0.0008)
         meshes = {p.name: p.mesh for p in result.parts}
         for k, p in enumerate(result.picks):
             if p.T_base_model is None:
@@ -175,9 +174,8 @@ class Viewer:
             self.rec.log(f"world/parts/{key}", rr.Mesh3D(vertex_positions=m.vertices, triangle_indices=m.faces,
                                                          albedo_factor=[70, 130, 230, 255]))
             if p.status == "picked":
-                c = p.chosen
-                self.log_arm(f"world/grasps/{key}/arm", result.robot, c.q_grasp)
-                self.log_pose(f"world/grasps/{key}/tcp", np.asarray(c.T_base_tcp_grasp), axis_length=0.03)
+                self.log_arm(f"world/grasps/{key}/arm", result.robot, p.chosen.q_grasp)
+                self.log_pose(f"world/grasps/{key}/tcp", np.asarray(p.chosen.T_base_tcp_grasp), axis_length=0.03)
 
     def close(self) -> None:
         """Flushes everything to the viewer / file and disconnects."""
