@@ -17,12 +17,8 @@ from scanalign import _core
 from scanalign._core.evaluation import ErrorStats
 from scanalign.common import rigid as se3
 from scanalign.common.arrays import mesh_arrays
-from scanalign.evaluation.mesh_distance import (
-    MeshDistanceIndex,
-    MeshDistanceStats,
-    mesh_distance_stats,
-    point_to_mesh_distance,
-)
+from scanalign.evaluation.mesh_distance import (MeshDistanceIndex, MeshDistanceStats, mesh_distance_stats,
+                                                point_to_mesh_distance)
 from scanalign.evaluation.trajectory import Trajectory, associate_timestamps
 
 __all__ = ["umeyama_alignment", "associate", "ErrorStats", "AteResult", "RpeResult",

@@ -20,9 +20,8 @@ from scanalign import _core
 from scanalign.common.arrays import as_transform
 from scanalign.io import atomic_open
 
-__all__ = ["Trajectory", "quaternion_from_matrix", "matrix_from_quaternion", "pose_from_tum",
-           "read_tum_trajectory", "write_tum_trajectory", "associate_timestamps", "TumFormatError",
-           "read_tum_rows", "time_order"]
+__all__ = ["Trajectory", "quaternion_from_matrix", "matrix_from_quaternion", "pose_from_tum", "read_tum_trajectory",
+           "write_tum_trajectory", "associate_timestamps", "TumFormatError", "read_tum_rows", "time_order"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 

@@ -33,19 +33,10 @@ from scanalign.synthetic.config import SyntheticConfig, builtin_scan
 from scanalign.synthetic.noise import NOISE_PRESETS, SensorNoise
 from scanalign.synthetic.scan import SyntheticScan, render_scan
 from scanalign.synthetic.scene import Scene, SceneObject
-from scanalign.synthetic.trajectories import (
-    DEFAULT_ROBOT_HEIGHT,
-    DEFAULT_T_FLANGE_CAMERA,
-    ScanTrajectory,
-    attach_robot,
-    hemisphere_trajectory,
-    loop_trajectory,
-    robot_mount,
-)
+from scanalign.synthetic.trajectories import (DEFAULT_ROBOT_HEIGHT, DEFAULT_T_FLANGE_CAMERA, ScanTrajectory,
+                                              attach_robot, hemisphere_trajectory, loop_trajectory, robot_mount)
 
-__all__ = [
-    "RenderResult", "render_depth", "look_at", "builtin_mesh", "normalize_mesh", "SceneObject", "Scene",
-    "DEFAULT_T_FLANGE_CAMERA", "ScanTrajectory", "DEFAULT_ROBOT_HEIGHT", "robot_mount", "attach_robot",
-    "loop_trajectory", "hemisphere_trajectory", "SensorNoise", "NOISE_PRESETS", "SyntheticScan", "render_scan",
-    "SyntheticConfig", "builtin_scan",
-]
+__all__ = ["RenderResult", "render_depth", "look_at", "builtin_mesh", "normalize_mesh", "SceneObject", "Scene",
+           "DEFAULT_T_FLANGE_CAMERA", "ScanTrajectory", "DEFAULT_ROBOT_HEIGHT", "robot_mount", "attach_robot",
+           "loop_trajectory", "hemisphere_trajectory", "SensorNoise", "NOISE_PRESETS", "SyntheticScan", "render_scan",
+           "SyntheticConfig", "builtin_scan"]

@@ -15,25 +15,13 @@ import numpy as np
 from scanalign import io
 from scanalign.data import downloads as datasets  # the downloader, only for CGAL mesh names
 from scanalign.data.parts import builtin_mesh, normalize_mesh
-from scanalign.reconstruction.camera import (
-    INTRINSICS_PRESETS,
-    Intrinsics,
-    intrinsics_from_dict,
-    intrinsics_preset,
-    read_camera_file,
-)
+from scanalign.reconstruction.camera import (INTRINSICS_PRESETS, Intrinsics, intrinsics_from_dict, intrinsics_preset,
+                                             read_camera_file)
 from scanalign.synthetic.noise import NOISE_PRESETS
 from scanalign.synthetic.scan import SyntheticScan, render_scan
 from scanalign.synthetic.scene import Scene
-from scanalign.synthetic.trajectories import (
-    DEFAULT_ROBOT_HEIGHT,
-    ScanTrajectory,
-    as_robot,
-    attach_robot,
-    hemisphere_trajectory,
-    loop_trajectory,
-    robot_mount,
-)
+from scanalign.synthetic.trajectories import (DEFAULT_ROBOT_HEIGHT, ScanTrajectory, as_robot, attach_robot,
+                                              hemisphere_trajectory, loop_trajectory, robot_mount)
 
 __all__ = ["SyntheticConfig", "builtin_scan"]
 
