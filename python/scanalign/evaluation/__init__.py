@@ -84,8 +84,7 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
     est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
     if not np.isfinite(offset):  # max_difference is checked by both C++ association rules
         raise ValueError(f"offset must be finite, got {offset}")
-    te = est.timestamps + float(offset)
-    tr = ref.timestamps
+    te, tr = est.timestamps + float(offset), ref.timestamps
     if method == "greedy":
         # Trajectories need not be time-sorted: match in time order, map back to rows.
         o_r, o_e = np.argsort(tr, kind="stable"), np.argsort(te, kind="stable")

@@ -206,12 +206,8 @@ class Trajectory:
 
 
 class TumFormatError(ValueError):
-    """A file does not follow the TUM RGB-D benchmark's formats.
-
-    Attributes:
-        path: the offending file (or folder), or None.
-        line: 1-based line number in ``path`` where applicable, else None.
-    """
+    """A file does not follow the TUM RGB-D benchmark's formats: ``path`` is the offending file (or folder) or None,
+    ``line`` the 1-based line number in it where applicable, else None."""
 
     def __init__(self, message: str, path: Optional[PathLike] = None, line: Optional[int] = None) -> None:
         where = "" if path is None else f"{os.fspath(path)}:{line}: " if line is not None else f"{os.fspath(path)}: "

@@ -119,13 +119,12 @@ def loop_trajectory(n_frames: int = 36, *, center: Sequence[float] = (0.5, 0.0, 
     (Hz). Flange poses are ``T_base_camera @ inv(T_flange_camera)`` (default :data:`DEFAULT_T_FLANGE_CAMERA`).
 
     Args:
-        jitter_translation, jitter_rotation: standard deviations (m, rad) of an optional
-            random perturbation of each camera pose (the reference includes it), seeded by ``seed``.
-        robot: None: no arm. A robot name ("ur5") or :class:`scanalign.kinematics.Robot`: the arm
-            follows the path (:func:`attach_robot`), its poses forward kinematics of its joints.
-        T_base_robot: with a robot, its mounting (robot base -> base, m); default
-            :func:`robot_mount` hanging ``DEFAULT_ROBOT_HEIGHT`` above ``center``.
-        q_start: with a robot, joints (rad) to start from (default: chosen automatically, elbow up).
+        jitter_translation, jitter_rotation: standard deviations (m, rad) of an optional random perturbation of each
+            camera pose (the reference includes it), seeded by ``seed``.
+        robot: None: no arm; a robot name ("ur5") or :class:`scanalign.kinematics.Robot`: the arm follows the path
+            (:func:`attach_robot`), its poses forward kinematics of its joints.
+        T_base_robot, q_start: with a robot, its mounting (robot base -> base, m; default :func:`robot_mount` hanging
+            ``DEFAULT_ROBOT_HEIGHT`` above ``center``) and the joints (rad) to start from (default: chosen, elbow up).
     """
     c = _array(center, (3,), "center")
     poses = _core.synthetic.loop_camera_poses(n_frames, c, height, radius, start_angle, sweep,

@@ -276,17 +276,15 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
     cols, nrows = min(n, 4), -(-n // 4)
     fig = _figure((3.2 * cols, 3.2 * nrows))
     chains = [(k, np.asarray(robot.joint_positions(q[k], tcp=True))) for k in rows]
-    tool = [] if T_base_tool is None else [np.asarray(T_base_tool, dtype=np.float64)[None, :3, 3]]
-    centre, half = _cube(np.vstack([c for _, c in chains] + tool) if chains else np.zeros((1, 3)))
+    T = None if T_base_tool is None else np.asarray(T_base_tool, dtype=np.float64)
+    pts = [c for _, c in chains] + ([] if T is None else [T[None, :3, 3]])
+    centre, half = _cube(np.vstack(pts) if chains else np.zeros((1, 3)))
     for i, (k, chain) in enumerate(chains):
         ax = fig.add_subplot(nrows, cols, i + 1, projection="3d")
         ax.plot(chain[:, 0], chain[:, 1], chain[:, 2], "-o", color="0.25", lw=2.5, ms=3.5)
         ax.plot([chain[0, 0]], [chain[0, 1]], [chain[0, 2]], "s", color="k", ms=6)
-        if T_base_tool is not None:
-            T = np.asarray(T_base_tool, dtype=np.float64)
-            for a, colour in enumerate(("r", "g", "b")):
-                e = T[:3, 3] + 0.25 * half * T[:3, a]
-                ax.plot([T[0, 3], e[0]], [T[1, 3], e[1]], [T[2, 3], e[2]], color=colour, lw=1.5)
+        for a, colour in enumerate(("r", "g", "b") if T is not None else ()):  # the target tool triad
+            ax.plot(*np.stack([T[:3, 3], T[:3, 3] + 0.25 * half * T[:3, a]], axis=1), color=colour, lw=1.5)
         _set_cube(ax, centre, half)
         ax.tick_params(labelsize=6)
         ax.set_title(labels[k] if labels is not None else f"solution {k}", fontsize=8)

@@ -59,7 +59,7 @@ def _colors(c: Optional[np.ndarray]) -> Optional[np.ndarray]:
 
 
 class Viewer:
-    """A rerun recording of scanalign runs.
+    """A rerun recording of scanalign runs (ImportError when rerun-sdk is not installed).
 
     Args:
         name: the rerun application id.
@@ -70,8 +70,6 @@ class Viewer:
             ``Frame.meta["robot"]``).
         model_every, max_model_points: log the growing model every this many merged frames,
             at most this many points (evenly subsampled).
-
-    Raises ImportError when rerun-sdk is not installed.
     """
 
     def __init__(self, name: str = "scanalign", *, spawn: bool = False, save: Optional[Union[str, os.PathLike]] = None,
