@@ -1,9 +1,7 @@
 """Trajectory and reconstruction accuracy: ATE, RPE (Sturm et al., "A Benchmark for the Evaluation of RGB-D SLAM
-Systems", IROS 2012), cloud-to-mesh distance.
-
-Inputs in metres and radians; a pose ``T_world_camera`` maps camera coordinates into the trajectory's world frame.
-Error statistics report translations in metres and rotations in **degrees** (as the TUM tools and ``evo``, whose APE
-``translation_part`` and RPE these equal).
+Systems", IROS 2012), cloud-to-mesh distance.  Inputs in metres and radians; a pose ``T_world_camera`` maps camera
+coordinates into the trajectory's world frame.  Error statistics report translations in metres and rotations in
+**degrees** (as the TUM tools and ``evo``, whose APE ``translation_part`` and RPE these equal).
 """
 
 from __future__ import annotations
@@ -79,8 +77,7 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
     (pairs in the shorter trajectory's order), ``evo.core.sync.associate_trajectories(reference, estimate,
     max_diff=max_difference, offset_2=offset)``: every pose of the shorter trajectory (the estimate on a tie) takes
     the nearest pose of the other within ``max_difference``, which may be used more than once.  ValueError: no pair
-    within ``max_difference``, a negative ``max_difference``, a non-finite ``offset``, an unknown method.
-    """
+    within ``max_difference``, a negative ``max_difference``, a non-finite ``offset``, an unknown method."""
     est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
     if not np.isfinite(offset):  # max_difference is checked by both C++ association rules
         raise ValueError(f"offset must be finite, got {offset}")
@@ -161,8 +158,7 @@ def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLik
     similarity with ``with_scale``); the error of pose i is ``|| q_i - (s R p_i + t) ||`` (evo's APE
     ``translation_part`` after ``align``) and the angle of ``R_ref_i^T (R R_est_i)``.  ValueError: different lengths
     without ``associate``, fewer than 3 poses (with ``align``; 1 without), degenerate (collinear) centres with
-    ``align``.
-    """
+    ``align``."""
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 3 if align else 1,
                        "absolute_trajectory_error")
     R, t, s = umeyama_alignment(est.positions, ref.positions, with_scale) if align else (np.eye(3), np.zeros(3), 1.0)
@@ -194,8 +190,7 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
     the chain of pairs, each starting where the last ended and ending at the first pose at least ``delta`` further;
     ``all_pairs=True``: for every i the first j > i closest to ``delta`` away, kept within ``rel_delta_tol * delta``
     (exactly ``delta`` for frames).  Poses are paired as in :func:`absolute_trajectory_error`.  ValueError: different
-    lengths, fewer than 2 poses, bad delta / unit, no pair found.
-    """
+    lengths, fewer than 2 poses, bad delta / unit, no pair found."""
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 2, "relative_pose_error")
     if delta_unit not in _DELTA_UNITS:
         raise ValueError(f"delta_unit must be one of {_DELTA_UNITS}, got {delta_unit!r}")
@@ -235,8 +230,7 @@ def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike,
     The defaults are the TUM benchmark's: ATE after rigid alignment, RPE over every pair (i, i + 1 frame).  Keys:
     ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe`` (:meth:`RpeResult.as_dict`) and, given ``points`` (the
     reconstructed cloud, in the mesh's frame) and ``mesh`` ``(vertices, faces)`` (or an Open3D / trimesh mesh),
-    ``cloud_to_mesh_m``.
-    """
+    ``cloud_to_mesh_m``."""
     if (points is None) != (mesh is None):
         raise ValueError("pass both points and mesh=(vertices, faces) for the cloud-to-mesh distance, or neither")
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 0, "evaluate_reconstruction")

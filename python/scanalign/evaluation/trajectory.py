@@ -1,9 +1,7 @@
 """Camera trajectories: timestamped poses ``T_world_camera`` (camera -> world, metres; seconds) in the TUM, KITTI and
-EuRoC text formats and ``evo``'s types, interpolated.
-
-The TUM RGB-D format has one pose per line, ``timestamp tx ty tz qx qy qz qw``: the camera centre and the unit
-quaternion (Hamilton, scalar last) of its orientation in the world frame.  :func:`associate_timestamps` is the
-package's one rule for pairing two timestamp streams.
+EuRoC text formats and ``evo``'s types, interpolated.  The TUM RGB-D format has one pose per line,
+``timestamp tx ty tz qx qy qz qw``: the camera centre and the unit quaternion (Hamilton, scalar last) of its
+orientation in the world frame.  :func:`associate_timestamps` is the package's one rule for pairing timestamp streams.
 """
 
 from __future__ import annotations
@@ -221,8 +219,7 @@ def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarra
     are skipped, commas and tabs separate fields.  Every data line has ``fields`` fields: numbers, but the last is a
     name when ``expected`` starts with "'timestamp filename'".  Returns (values (N, k) float64, those names (else
     empty), 1-based line numbers (N,)).  TumFormatError, naming the file and line: not UTF-8 text, a line with another
-    number of fields, a value that is not a finite number, a zero quaternion (8 fields).
-    """
+    number of fields, a value that is not a finite number, a zero quaternion (8 fields)."""
     try:
         text = Path(path).read_text(encoding="utf-8")
     except UnicodeDecodeError as e:

@@ -1,7 +1,6 @@
-"""Synthetic eye-in-hand RGB-D scans with exact ground truth (the simulator; production code
-does not import it): a camera on a robot's hand moves around objects on a table, the z-buffer
-renderer (:mod:`scanalign.reconstruction.rendering`) computes what it sees and a sensor model
-adds RealSense- or Zivid-like noise.
+"""Synthetic eye-in-hand RGB-D scans with exact ground truth (the simulator; production code does not import it): a
+camera on a robot's hand moves around objects on a table, the z-buffer renderer of
+:mod:`scanalign.reconstruction.rendering` computes what it sees and a sensor model adds RealSense- or Zivid-like noise.
 
 Frames (``T_a_b`` maps b-coordinates into a; metres, 4x4 float64): ``base``, the scene (world) frame, z up, the table
 top at ``z = table_height``, in which every pose and the reconstruction's model are given; ``robot``, the arm's base

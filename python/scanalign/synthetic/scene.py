@@ -46,8 +46,7 @@ class Scene:
     pattern of ``checker_size`` squares in the two RGB albedos ``checker_colors`` (in [0, 1]) in the colour image.
     Shading is two-sided Lambertian under a distant light in direction ``light_direction`` (base frame, normalised
     here) plus an ``ambient`` fraction in [0, 1].  Rendering uses one combined mesh (:attr:`mesh`;
-    :attr:`face_object`, :attr:`face_source`).
-    """
+    :attr:`face_object`, :attr:`face_source`)."""
 
     def __init__(self, table_size: Optional[Tuple[float, float]] = (0.6, 0.6),
                  table_center: Tuple[float, float] = (0.5, 0.0), table_height: float = 0.0, checker_size: float = 0.05,

@@ -144,8 +144,7 @@ def hemisphere_trajectory(n_frames: int = 48, *, center: Sequence[float] = (0.5,
     (0, pi/2]), from azimuth ``start_angle`` (rad).  The ``n_frames`` (>= number of rings) are shared between rings in
     proportion to their circumferences (``cos(elevation)``, at least one each); successive rings run in opposite
     directions, each starting where the previous ended.  Cameras look at the target, image up towards +z (outwards at
-    90 deg).  The other arguments are those of :func:`loop_trajectory`.
-    """
+    90 deg).  The other arguments are those of :func:`loop_trajectory`."""
     c = _array(center, (3,), "center")
     poses = _core.synthetic.hemisphere_camera_poses(n_frames, c if target is None else _array(target, (3,), "target"),
                                                     distance, np.ravel(elevations), start_angle)
@@ -164,8 +163,7 @@ def robot_mount(x: float = 0.5, y: float = 0.0, z: float = DEFAULT_ROBOT_HEIGHT,
     The default hangs the arm (first joint axis down) 0.9 m above the default table's centre, as on a gantry: from
     beside the table a UR5 (reach 0.85 m) cannot reach the far side of the default hemisphere path and passes the
     shoulder singularity on the near side; from above, both default paths stay inside the workspace, away from every
-    singularity.
-    """
+    singularity."""
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (x, y, z, roll, pitch, yaw)):
         raise ValueError(f"robot_mount: expected finite numbers (m, rad), got {(x, y, z, roll, pitch, yaw)!r}")
     T = se3.rigid([0.0, 0.0, 1.0], yaw, [x, y, z])
@@ -199,8 +197,7 @@ def attach_robot(trajectory: ScanTrajectory, robot: Any = "ur5", *, T_base_robot
 
     ValueError: a pose the robot cannot reach, or reaches only outside its joint limits (naming the frame, its time and
     the IK status), a bad ``elbow``, ``q_start`` or ``T_base_robot``; TypeError: ``robot`` or ``trajectory`` of another
-    type.
-    """
+    type."""
     if not isinstance(trajectory, ScanTrajectory):
         raise TypeError(f"trajectory: expected ScanTrajectory, got {type(trajectory)!r}")
     if elbow not in ("up", "down", "any"):

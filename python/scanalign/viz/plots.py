@@ -1,9 +1,7 @@
-"""Figures for reports and benchmarks: trajectories, per-frame statistics, curves.
-
-matplotlib is imported on first use, only through its object-oriented API with the Agg canvas (no pyplot, no display,
-no global backend switch): these functions work headless and leave an interactive session alone.  Every function
-writes a PNG to ``path`` (creating its folder) and returns that path; ``title`` is the figure's title.  Inputs in
-metres and seconds.
+"""Figures for reports and benchmarks: trajectories, per-frame statistics, curves.  matplotlib is imported on first
+use, only through its object-oriented API with the Agg canvas (no pyplot, no display, no global backend switch): these
+functions work headless and leave an interactive session alone.  Every function writes a PNG to ``path`` (creating its
+folder) and returns that path; ``title`` is the figure's title.  Inputs in metres and seconds.
 """
 
 from __future__ import annotations
@@ -150,13 +148,11 @@ def _columns(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence
 
 def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]], path: PathLike,
                      title: Optional[str] = None, dpi: int = 150) -> Path:
-    """Per-frame registration cost and model growth, two panels sharing the frame axis.
-
-    Top: registration time (ms, bars) and ICP iterations.  Bottom: model size (points) and ICP fitness.  Skipped
-    frames (``skipped`` true, or a missing / NaN time) are shaded red. ``per_frame``: one dict per frame, or a dict of
-    equal-length columns, with the time in seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``,
-    the model size in points (``model_size`` or ``model_points``) and ``skipped``.
-    """
+    """Per-frame registration cost and model growth, two panels sharing the frame axis.  Top: registration time (ms,
+    bars) and ICP iterations.  Bottom: model size (points) and ICP fitness.  Skipped frames (``skipped`` true, or a
+    missing / NaN time) are shaded red.  ``per_frame``: one dict per frame, or a dict of equal-length columns, with the
+    time in seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``, the model size in points
+    (``model_size`` or ``model_points``) and ``skipped``."""
     n, cols = _columns(per_frame)
     if n == 0:
         raise ValueError("per_frame: no frames")
@@ -174,19 +170,17 @@ def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, 
     ax1.bar(frames[ok], t_ms[ok], width=0.8, color="tab:blue", label="registration time")
     ax1.set_ylabel("time (ms)")
     handles, h2s = ax1.containers[:1], []
-    if "iterations" in cols:
-        ax1b = ax1.twinx()
-        handles += ax1b.plot(frames, cols["iterations"], ".-", color="tab:orange", lw=0.8, ms=3, label="iterations")
-        ax1b.set_ylabel("ICP iterations")
     if "model_size" in cols:
         h2s += ax2.plot(frames, cols["model_size"], "-", color="tab:green", lw=1.2, label="model size")
         ax2.set_ylabel("model size (points)")
     else:
         ax2.set_yticks([])
-    if "fitness" in cols:
-        ax2b = ax2.twinx()
-        h2s += ax2b.plot(frames, cols["fitness"], ".", color="tab:purple", ms=3, label="fitness")
-        ax2b.set_ylabel("fitness")
+    for ax, hs, key, style, colour, ylabel in ((ax1, handles, "iterations", ".-", "tab:orange", "ICP iterations"),
+                                               (ax2, h2s, "fitness", ".", "tab:purple", "fitness")):
+        if key in cols:  # on a second y axis of the panel (lw only shows on the iterations' line)
+            twin = ax.twinx()
+            hs += twin.plot(frames, cols[key], style, color=colour, lw=0.8, ms=3, label=key)
+            twin.set_ylabel(ylabel)
     for ax in (ax1, ax2):
         for f in frames[skipped]:
             ax.axvspan(f - 0.5, f + 0.5, color="tab:red", alpha=0.15, lw=0)
