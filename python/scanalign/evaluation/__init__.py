@@ -225,12 +225,10 @@ def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike,
                             rpe_delta: float = 1, rpe_delta_unit: str = "frames", rpe_all_pairs: bool = True,
                             points: Optional[np.ndarray] = None,
                             mesh: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Dict[str, Any]:
-    """ATE and RPE (and optionally cloud-to-mesh distances) as a JSON-ready dict (m, degrees).
-
-    The defaults are the TUM benchmark's: ATE after rigid alignment, RPE over every pair (i, i + 1 frame).  Keys:
-    ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe`` (:meth:`RpeResult.as_dict`) and, given ``points`` (the
-    reconstructed cloud, in the mesh's frame) and ``mesh`` ``(vertices, faces)`` (or an Open3D / trimesh mesh),
-    ``cloud_to_mesh_m``."""
+    """ATE and RPE (and optionally cloud-to-mesh distances) as a JSON-ready dict (m, degrees), by default as in the
+    TUM benchmark: ATE after rigid alignment, RPE over every pair (i, i + 1 frame).  Keys: ``poses``, ``ate``
+    (:meth:`AteResult.as_dict`), ``rpe`` (:meth:`RpeResult.as_dict`) and, given ``points`` (the reconstructed cloud, in
+    the mesh's frame) and ``mesh`` ``(vertices, faces)`` (or an Open3D / trimesh mesh), ``cloud_to_mesh_m``."""
     if (points is None) != (mesh is None):
         raise ValueError("pass both points and mesh=(vertices, faces) for the cloud-to-mesh distance, or neither")
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 0, "evaluate_reconstruction")

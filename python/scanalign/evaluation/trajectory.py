@@ -135,10 +135,9 @@ class Trajectory:
         (scalar first) of the camera in the world frame."""
         whole = np.floor(self.timestamps)
         ns = [int(a) * 10**9 + int(round(b)) for a, b in zip(whole, (self.timestamps - whole) * 1e9)]
-        q = quaternion_from_matrix(self.rotations)[:, [3, 0, 1, 2]]
+        rows = np.c_[self.positions, quaternion_from_matrix(self.rotations)[:, [3, 0, 1, 2]]]  # w x y z
         with atomic_open(path, "w", encoding="utf-8") as f:
             f.write("#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []\n")
-            rows = np.c_[self.positions, q]
             f.writelines(f"{t}," + ",".join(f"{v:.17g}" for v in row) + "\n" for t, row in zip(ns, rows))
 
     @classmethod
@@ -210,8 +209,7 @@ class TumFormatError(ValueError):
     def __init__(self, message: str, path: Optional[PathLike] = None, line: Optional[int] = None) -> None:
         where = "" if path is None else f"{os.fspath(path)}:{line}: " if line is not None else f"{os.fspath(path)}: "
         super().__init__(where + message)
-        self.path = None if path is None else os.fspath(path)
-        self.line = line
+        self.path, self.line = (None if path is None else os.fspath(path)), line
 
 
 def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarray, List[str], np.ndarray]:

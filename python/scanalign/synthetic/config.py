@@ -125,8 +125,7 @@ class SyntheticConfig:
     def from_dict(cls, d: Mapping[str, Any]) -> "SyntheticConfig":
         """From a mapping of field names to values; unknown keys raise ValueError."""
         known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
+        if unknown := sorted(set(d) - known):
             raise ValueError(f"unknown synthetic config keys {unknown}; known: {sorted(known)}")
         return cls(**{k: None if k in ("object_size", "distance", "robot_x", "robot_y") and isinstance(v, str)
                       and v.lower() in ("null", "none", "~", "") else v for k, v in d.items()})
@@ -147,8 +146,7 @@ class SyntheticConfig:
     def load_mesh(self) -> io.Mesh:
         """The object mesh in metres, in its own frame (scaled per ``object_size``)."""
         if self.mesh == "builtin":
-            m = builtin_mesh()
-            return m if self.object_size is None else normalize_mesh(m, self.object_size)
+            return builtin_mesh() if self.object_size is None else normalize_mesh(builtin_mesh(), self.object_size)
         if os.path.exists(self.mesh):
             m = io.read_mesh(self.mesh)
         elif os.sep in self.mesh or (os.altsep and os.altsep in self.mesh):

@@ -29,11 +29,10 @@ class SyntheticScan:
     """A rendered scan with its ground truth (``intrinsics``, ``noise``, ``scene`` and ``seed`` as rendered).
 
     Attributes:
-        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose (depth and registered rgb as
-            :func:`render_scan` stores them, ``timestamp`` (s), the exact ``T_base_camera`` (camera -> base),
-            ``index``); ``meta`` holds ``noise``, ``T_base_flange``, ``joints`` (6, rad) and ``robot`` (its name) when
-            known, and with ``keep_ground_truth`` ``depth_true`` (float32 m, NaN = no hit) and ``face_id`` (int32,
-            indexes :attr:`mesh`).
+        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose (depth and registered rgb as stored by
+            :func:`render_scan`, ``timestamp`` (s), the exact ``T_base_camera`` (camera -> base), ``index``); ``meta``
+            holds ``noise``, ``T_base_flange``, ``joints`` (6, rad) and ``robot`` (its name) when known, and with
+            ``keep_ground_truth`` ``depth_true`` (float32 m, NaN = no hit) and ``face_id`` (int32, into :attr:`mesh`).
         reference: the exact camera trajectory, ``T_base_camera`` per frame.
         mesh, object_mesh: the whole scene (objects and table), the objects only: base frame, m.
         T_flange_camera, T_base_flange, joints, robot, T_base_robot: those of the :class:`ScanTrajectory` rendered,
@@ -61,9 +60,8 @@ class SyntheticScan:
         """(N, 3) float64 points (m) of frame ``index``'s valid depth pixels in the camera frame (the base frame with
         ``in_base``), back-projected by the C++ ``depth_to_cloud`` (so with its float32 rounding, ~1e-7 m)."""
         frame = self.frames[index]
-        p, _ = depth_to_cloud(frame.depth, self.intrinsics, depth_scale=frame.depth_scale, min_depth=0.0,
-                              max_depth=math.inf)
-        p = p.astype(np.float64)
+        p = depth_to_cloud(frame.depth, self.intrinsics, depth_scale=frame.depth_scale, min_depth=0.0,
+                           max_depth=math.inf)[0].astype(np.float64)
         return _core.common.transform_points(frame.T_base_camera, p) if in_base else p
 
 

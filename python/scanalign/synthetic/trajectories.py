@@ -54,8 +54,7 @@ class ScanTrajectory:
         self.T_flange_camera = se3.require_rigid(self.T_flange_camera, "T_flange_camera")
         self.timestamps = _array(np.ravel(self.timestamps), (n,), "timestamps")
         self.joints = None if self.joints is None else _array(self.joints, (n, 6), "joints")
-        if self.T_base_robot is not None:
-            self.T_base_robot = se3.require_rigid(self.T_base_robot, "T_base_robot")
+        self.T_base_robot = None if self.T_base_robot is None else se3.require_rigid(self.T_base_robot, "T_base_robot")
 
     def __len__(self) -> int:
         return len(self.T_base_flange)
@@ -160,10 +159,9 @@ def robot_mount(x: float = 0.5, y: float = 0.0, z: float = DEFAULT_ROBOT_HEIGHT,
     """``T_base_robot`` (robot base -> scene base) from a position (m) and roll / pitch / yaw (rad, rotation
     ``Rz(yaw) @ Ry(pitch) @ Rx(roll)``, as URDF).
 
-    The default hangs the arm (first joint axis down) 0.9 m above the default table's centre, as on a gantry: from
-    beside the table a UR5 (reach 0.85 m) cannot reach the far side of the default hemisphere path and passes the
-    shoulder singularity on the near side; from above, both default paths stay inside the workspace, away from every
-    singularity."""
+    The default hangs the arm (first joint axis down) 0.9 m above the default table's centre, as on a gantry: beside
+    the table a UR5 (reach 0.85 m) misses the far side of the default hemisphere path and passes its shoulder
+    singularity on the near side; from above, both default paths stay in the workspace, clear of singularities."""
     if not all(isinstance(v, (int, float)) and math.isfinite(v) for v in (x, y, z, roll, pitch, yaw)):
         raise ValueError(f"robot_mount: expected finite numbers (m, rad), got {(x, y, z, roll, pitch, yaw)!r}")
     T = se3.rigid([0.0, 0.0, 1.0], yaw, [x, y, z])
@@ -182,22 +180,20 @@ def as_robot(robot: Any) -> Any:
 
 def attach_robot(trajectory: ScanTrajectory, robot: Any = "ur5", *, T_base_robot: Optional[np.ndarray] = None,
                  q_start: Optional[Sequence[float]] = None, elbow: str = "up") -> ScanTrajectory:
-    """A new :class:`ScanTrajectory` (``joints``, ``robot`` placed in the scene, ``T_base_robot`` set): the planned
-    path moved by a robot arm, joints by inverse kinematics, poses by forward kinematics.  The planned flange poses in
-    the robot's base frame, ``inv(T_base_robot) @ T_base_flange`` (``T_base_robot``: robot base -> scene base, m;
-    default :func:`robot_mount` ``()``), go to :meth:`Robot.ik_trajectory` (each step the solution closest to the
-    previous joints); forward kinematics of those joints gives the flange poses (the planned ones to ~1e-15 m).
-    ``robot`` (a :class:`scanalign.kinematics.Robot` or a name) gets the flange as its tool and ``T_base_robot`` as
-    its mount.
+    """A new :class:`ScanTrajectory` (``joints``, ``robot`` placed in the scene with the flange as its tool,
+    ``T_base_robot`` set): the planned path moved by ``robot`` (a :class:`scanalign.kinematics.Robot` or a name),
+    joints by inverse kinematics, poses by forward kinematics.  The planned flange poses in the robot's base frame,
+    ``inv(T_base_robot) @ T_base_flange`` (``T_base_robot``: robot base -> scene base, m; default :func:`robot_mount`
+    ``()``), go to :meth:`Robot.ik_trajectory` (each step the solution closest to the previous joints); forward
+    kinematics of those joints gives the flange poses (the planned ones to ~1e-15 m).
 
     The start is ``q_start`` ((6,) rad) if given, else chosen among the first pose's solutions with the requested
     ``elbow`` ("up": away from the table; "down"; "any"), each with its first and last joint shifted by 0, -2 pi and
     +2 pi where the limits allow: the one that reaches every pose with the smallest largest joint step wins (ties
     within 1e-9 rad: the lowest configuration index, then no shift, -2 pi, +2 pi), so no step switches branch.
 
-    ValueError: a pose the robot cannot reach, or reaches only outside its joint limits (naming the frame, its time and
-    the IK status), a bad ``elbow``, ``q_start`` or ``T_base_robot``; TypeError: ``robot`` or ``trajectory`` of another
-    type."""
+    ValueError: a pose it cannot reach, or only outside its joint limits (naming the frame, its time and the IK
+    status), a bad ``elbow``, ``q_start`` or ``T_base_robot``; TypeError: ``robot`` or ``trajectory`` of wrong type."""
     if not isinstance(trajectory, ScanTrajectory):
         raise TypeError(f"trajectory: expected ScanTrajectory, got {type(trajectory)!r}")
     if elbow not in ("up", "down", "any"):

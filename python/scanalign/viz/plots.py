@@ -112,12 +112,10 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.grid(True, lw=0.3, alpha=0.5)
-    if ate:
-        label = "ATE" if aligned else "RMS distance (unaligned)"
-        summary = (f"{label} RMSE {ate.translation.rmse * k:.3g} {unit}, max {ate.translation.max * k:.3g} {unit}, "
-                   f"{ate.translation.count} poses")
-    else:
-        summary = f"estimated camera path (model frame), {len(estimate)} poses, no reference"
+    label = "ATE" if aligned else "RMS distance (unaligned)"
+    summary = (f"{label} RMSE {ate.translation.rmse * k:.3g} {unit}, max {ate.translation.max * k:.3g} {unit}, "
+               f"{ate.translation.count} poses" if ate else
+               f"estimated camera path (model frame), {len(estimate)} poses, no reference")
     ax.set_title(f"{title + chr(10) if title else ''}{summary}")
     ax.legend(loc="best", fontsize=8)
     return _save(ax.figure, path, dpi)
@@ -193,9 +191,8 @@ def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, 
         ax1.legend(handles=handles, loc="upper left", fontsize=8)
     if h2s:
         ax2.legend(handles=h2s, loc="upper left", fontsize=8)
-    total = np.nansum(cols["time"])
     ax1.set_title(f"{title + chr(10) if title else ''}{n} frames, {int(skipped.sum())} skipped, "
-                  f"registration {total:.3g} s total")
+                  f"registration {np.nansum(cols['time']):.3g} s total")
     return _save(fig, path, dpi)
 
 
@@ -395,6 +392,5 @@ def plot_batch(records: Sequence[Mapping[str, Any]], path: PathLike, *, dpi: int
                         label=f"{kind} (n={v.size}, median {np.median(v):.3g})")
         ax.set(xlabel=label, ylabel="jobs")
         ax.legend(fontsize=7)
-    bad = sum(r.get("status") != "ok" for r in records)
-    fig.suptitle(f"batch: {len(records)} jobs, {bad} failed or crashed")
+    fig.suptitle(f"batch: {len(records)} jobs, {sum(r.get('status') != 'ok' for r in records)} failed or crashed")
     return _save(fig, path, dpi)

@@ -73,10 +73,8 @@ def write_pose_outputs(model: object, scene: np.ndarray, result: Any, prefix: Un
     scene = as_points(scene, "scene", np.dtype(np.float64))
     if isinstance(model, (str, Path)):
         model = io.read_mesh(model)
-    if isinstance(model, np.ndarray) or foreign_kind(model) == "cloud":
-        mp = as_points(model, "model", np.dtype(np.float64))
-    else:
-        mp, _ = sample_mesh(model, samples, seed=0)
+    cloud = isinstance(model, np.ndarray) or foreign_kind(model) == "cloud"
+    mp = as_points(model, "model", np.dtype(np.float64)) if cloud else sample_mesh(model, samples, seed=0)[0]
     placed = transform_points(np.asarray(result.T_scene_model, dtype=np.float64), mp)
     paths = {f"{part}_{ext}": prefix.with_name(f"{prefix.name}_{part}.{ext}")
              for part, ext in (("model", "ply"), ("scene", "ply"), ("overlay", "png"))}

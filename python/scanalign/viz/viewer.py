@@ -77,14 +77,10 @@ class Viewer:
                  max_model_points: int = 500_000) -> None:
         rr = self.rr = _rerun()
         self.rec = rr.RecordingStream(name)
-        sinks = []
         if spawn:
             self.rec.spawn(connect=False)
-            sinks.append(rr.GrpcSink())
-        if connect:
-            sinks.append(rr.GrpcSink(connect))
-        if save is not None:
-            sinks.append(rr.FileSink(os.fspath(save)))
+        sinks = (([rr.GrpcSink()] if spawn else []) + ([rr.GrpcSink(connect)] if connect else [])
+                 + ([rr.FileSink(os.fspath(save))] if save is not None else []))
         if sinks:
             self.rec.set_sinks(*sinks)
         self.robot, self.model_every, self.max_model_points = robot, max(1, int(model_every)), int(max_model_points)
@@ -109,8 +105,7 @@ class Viewer:
     def log_arm(self, path: str, robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = None) -> None:
         """The arm at joints ``q`` (rad) as a line strip through :func:`arm_points`."""
         pts = arm_points(robot, q, T_base_flange)
-        if self._T_world_base is not None:
-            pts = transform_points(self._T_world_base, pts)
+        pts = pts if self._T_world_base is None else transform_points(self._T_world_base, pts)
         self.rec.log(path, self.rr.LineStrips3D([pts], radii=0.006, colors=[[255, 140, 0]]),
                      self.rr.Points3D(pts, radii=0.01))
 
@@ -119,23 +114,20 @@ class Viewer:
         rr = self.rr
         self.rec.set_time("frame", sequence=int(record.index))
         self.rec.set_time("time", duration=float(record.timestamp))
-        T_base_camera = getattr(frame, "T_base_camera", None)
-        if self._T_world_base is None and record.merged and T_base_camera is not None:
-            self._T_world_base = np.asarray(record.T_model_camera) @ np.linalg.inv(np.asarray(T_base_camera))
+        if self._T_world_base is None and record.merged and (T_bc := getattr(frame, "T_base_camera", None)) is not None:
+            self._T_world_base = np.asarray(record.T_model_camera) @ np.linalg.inv(np.asarray(T_bc))
         if record.merged:
             T = np.asarray(record.T_model_camera, dtype=np.float64)
             self._path.append(T[:3, 3].copy())
             self.rec.log("world/camera", rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]))
-            K = getattr(frame, "intrinsics", None)
-            if K is not None and self._merged == 0:  # the camera's image, once
+            if (K := getattr(frame, "intrinsics", None)) is not None and self._merged == 0:  # the camera's image, once
                 self.rec.log("world/camera", rr.Pinhole(focal_length=[K.fx, K.fy], principal_point=[K.cx, K.cy],
                                                         width=K.width, height=K.height, image_plane_distance=0.05))
             self.rec.log("world/camera_path", rr.LineStrips3D([np.array(self._path)], radii=0.001,
                                                               colors=[[30, 120, 220]]))
             self._merged += 1
             if self._merged % self.model_every == 1 or self.model_every == 1:
-                model = reconstructor.model
-                self.log_points("world/model", model.points, model.colors, radii=0.0008)
+                self.log_points("world/model", reconstructor.model.points, reconstructor.model.colors, radii=0.0008)
         meta = getattr(frame, "meta", None) or {}
         if self.robot is None and meta.get("robot") is not None:
             self.robot = Robot.by_name(str(meta["robot"]))
@@ -151,8 +143,7 @@ class Viewer:
                                                                colors=[[30, 120, 220]]))
         if result.reference is not None and len(result.reference):
             ref = result.reference.positions
-            if self._T_world_base is not None:
-                ref = transform_points(self._T_world_base, ref)
+            ref = ref if self._T_world_base is None else transform_points(self._T_world_base, ref)
             self.rec.log("world/reference_path", self.rr.LineStrips3D([ref], radii=0.001, colors=[[40, 170, 60]]))
 
     def log_pick(self, result: Any) -> None:
