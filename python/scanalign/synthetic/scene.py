@@ -148,8 +148,8 @@ class Scene:
 
     def render(self, T_base_camera: np.ndarray, intrinsics: Union[Intrinsics, str], *, near: float = 0.01,
                far: float = math.inf, num_threads: int = 0) -> RenderResult:
-        """Noise-free depth, face ids (into :attr:`mesh`) and incidence for a camera at ``T_base_camera`` (camera ->
-        base, m)."""
+        """Noise-free depth, face ids (into :attr:`mesh`) and incidence for a camera at ``T_base_camera``
+        (camera -> base, m)."""
         c, T = self._build(), se3.require_rigid(T_base_camera, "T_base_camera")
         return render_depth(c["vertices"], c["faces"], intrinsics, se3.inverse(T), near=near, far=far,
                             num_threads=num_threads)
