@@ -44,36 +44,13 @@ from __future__ import annotations
 
 from scanalign import _core
 
-__all__ = [
-    "Multivector", "Sphere", "Plane", "Line", "Motor", "Point", "Circle", "Reality",
-    "e0", "e1", "e2", "e3", "einf", "Ic", "I3", "blade_names",
-    "up", "down", "to_vector5", "from_vector5", "inner_product_matrix",
-    "point_pair", "point_pair_points", "point_pair_reality", "flat_point", "flat_point_location",
-    "circle", "round_center", "round_radius2", "rotor", "translator",
-    "meet_sphere_plane", "meet_planes", "meet_spheres", "meet_plane_circle", "meet_line_plane",
-    "point_distance", "point_plane_distance", "sphere_point_inner", "point_sphere_distance",
-    "geometric_product_many",
-    "PointPair", "FlatPoint", "meet_plane_circle_pair", "meet_line_plane_flat",
-    "signed_angle", "rotation_plane_from_axis", "rotation_axis", "normalise_blade", "euclidean_dual",
-    "rotation_plane_perpendicular_to_line", "rotation_plane_parallel_to_plane",
-]
+__all__ = ["Multivector", "Sphere", "Plane", "Line", "Motor", "Point", "Circle", "Reality", "e0", "e1", "e2", "e3",
+           "einf", "Ic", "I3", "blade_names", "up", "down", "to_vector5", "from_vector5", "inner_product_matrix",
+           "point_pair", "point_pair_points", "point_pair_reality", "flat_point", "flat_point_location", "circle",
+           "round_center", "round_radius2", "rotor", "translator", "meet_sphere_plane", "meet_planes", "meet_spheres",
+           "meet_plane_circle", "meet_line_plane", "point_distance", "point_plane_distance", "sphere_point_inner",
+           "point_sphere_distance", "geometric_product_many", "PointPair", "FlatPoint", "meet_plane_circle_pair",
+           "meet_line_plane_flat", "signed_angle", "rotation_plane_from_axis", "rotation_axis", "normalise_blade",
+           "euclidean_dual", "rotation_plane_perpendicular_to_line", "rotation_plane_parallel_to_plane"]
 
-_c = _core.cga
-Multivector, Sphere, Plane, Line, Motor, Point, Circle = _c.Multivector, _c.Sphere, _c.Plane, _c.Line, _c.Motor, \
-    _c.Point, _c.Circle
-Reality, PointPair, FlatPoint = _c.Reality, _c.PointPair, _c.FlatPoint
-e0, e1, e2, e3, einf, Ic, I3 = _c.e0, _c.e1, _c.e2, _c.e3, _c.einf, _c.Ic, _c.I3
-blade_names, up, down, to_vector5, from_vector5 = _c.blade_names, _c.up, _c.down, _c.to_vector5, _c.from_vector5
-inner_product_matrix, geometric_product_many = _c.inner_product_matrix, _c.geometric_product_many
-point_pair, point_pair_points, point_pair_reality = _c.point_pair, _c.point_pair_points, _c.point_pair_reality
-flat_point, flat_point_location, circle = _c.flat_point, _c.flat_point_location, _c.circle
-round_center, round_radius2, rotor, translator = _c.round_center, _c.round_radius2, _c.rotor, _c.translator
-meet_sphere_plane, meet_planes, meet_spheres = _c.meet_sphere_plane, _c.meet_planes, _c.meet_spheres
-meet_plane_circle, meet_line_plane = _c.meet_plane_circle, _c.meet_line_plane
-meet_plane_circle_pair, meet_line_plane_flat = _c.meet_plane_circle_pair, _c.meet_line_plane_flat
-point_distance, point_plane_distance = _c.point_distance, _c.point_plane_distance
-sphere_point_inner, point_sphere_distance = _c.sphere_point_inner, _c.point_sphere_distance
-signed_angle, rotation_plane_from_axis, rotation_axis = _c.signed_angle, _c.rotation_plane_from_axis, _c.rotation_axis
-normalise_blade, euclidean_dual = _c.normalise_blade, _c.euclidean_dual
-rotation_plane_perpendicular_to_line = _c.rotation_plane_perpendicular_to_line
-rotation_plane_parallel_to_plane = _c.rotation_plane_parallel_to_plane
+globals().update({name: getattr(_core.cga, name) for name in __all__})  # the bound C++ names, as they are

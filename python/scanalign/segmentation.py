@@ -43,11 +43,7 @@ __all__ = ["PlaneResult", "SphereResult", "TableSegmentationResult", "RansacSett
            "ransac_plane", "ransac_sphere", "segment_table", "segment_table_full", "plane_from_points",
            "sphere_from_points"]
 
-_S = _core.segmentation
-PlaneResult, SphereResult, TableSegmentationResult = _S.PlaneResult, _S.SphereResult, _S.TableSegmentationResult
-RansacSettings, TableSegmentationSettings = _S.RansacSettings, _S.TableSegmentationSettings
-ransac_plane, ransac_sphere, segment_table_full = _S.ransac_plane, _S.ransac_sphere, _S.segment_table_full
-plane_from_points, sphere_from_points = _S.plane_from_points, _S.sphere_from_points
+globals().update({name: getattr(_core.segmentation, name) for name in __all__ if name != "segment_table"})  # as bound
 
 
 def segment_table(points: np.ndarray, **kwargs: object) -> Tuple[PlaneResult, List[np.ndarray]]:

@@ -88,12 +88,10 @@ def _build(where: str, cls: Any, fields: dict, allowed: set, required: Sequence[
     """cls(**fields), every error a ValueError naming ``where`` and the field."""
     if not isinstance(fields, dict):
         raise ValueError(f"{where}: expected a mapping, got {type(fields).__name__}")
-    for key in fields:
-        if key not in allowed:
-            raise ValueError(f"{where}: unknown field {key!r} (expected {sorted(allowed)})")
-    for key in required:
-        if key not in fields:
-            raise ValueError(f"{where}: missing field {key!r}")
+    if (key := next((k for k in fields if k not in allowed), None)) is not None:
+        raise ValueError(f"{where}: unknown field {key!r} (expected {sorted(allowed)})")
+    if (key := next((k for k in required if k not in fields), None)) is not None:
+        raise ValueError(f"{where}: missing field {key!r}")
     args = {}
     for key, value in fields.items():
         try:

@@ -54,7 +54,7 @@ naming it. Results are values with read-only arrays.
 
 from __future__ import annotations
 
-from typing import Tuple
+from typing import Callable, Tuple
 
 import numpy as np
 
@@ -91,48 +91,25 @@ STEP_NAMES: Tuple[str, ...] = _K.STEP_NAMES
 #: (8, 3) int8, read-only: the configuration (shoulder, elbow, wrist) stored at each solution index.
 CONFIGS: np.ndarray = _K.CONFIGS
 #: Names accepted by :meth:`Robot.by_name` ("agilus" is an alias of "kr6_r900_sixx").
-BUILTIN_ROBOTS: Tuple[str, ...] = ("kr6_r900_sixx", "agilus", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis")
+BUILTIN_ROBOTS: Tuple[str, ...] = ("kr6_r900_sixx", "agilus", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e",
+                                   "ur5_thesis")
 
 
-def kuka_kr6_r900_sixx() -> Robot:
-    """KUKA KR6 R900 sixx ("Agilus"): the DH table of the thesis authors' code (thesis Paper 1
-    Table 1 is garbled in print), q = KUKA's axis values A1..A6; home q = (0, -pi/2, pi/2, 0,
-    0, 0) puts the flange at (0.525, 0, 0.890) m pointing along +x. Limits from KUKA's data
-    sheet."""
-    return Robot.by_name("kr6_r900_sixx")
+def _builtin(function: str, name: str, doc: str) -> Callable[[], Robot]:
+    """A function named ``function`` returning the built-in robot ``name`` (:meth:`Robot.by_name`)."""
+    def builtin() -> Robot:
+        return Robot.by_name(name)
+    builtin.__name__ = builtin.__qualname__ = function
+    builtin.__doc__ = doc
+    return builtin
 
 
-def ur3() -> Robot:
-    """Universal Robots UR3 (CB series), UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur3")
-
-
-def ur5() -> Robot:
-    """Universal Robots UR5 (CB series), UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur5")
-
-
-def ur10() -> Robot:
-    """Universal Robots UR10 (CB series), UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur10")
-
-
-def ur3e() -> Robot:
-    """Universal Robots UR3e, UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur3e")
-
-
-def ur5e() -> Robot:
-    """Universal Robots UR5e, UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur5e")
-
-
-def ur10e() -> Robot:
-    """Universal Robots UR10e, UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur10e")
-
-
-def ur5_thesis() -> Robot:
-    """The UR5 with the numbers printed in the thesis (Paper 1 Table 2), for reproducing its
-    zero pose: q = 0 puts the flange at (-0.81743, -0.19145, -0.00545) m."""
-    return Robot.by_name("ur5_thesis")
+kuka_kr6_r900_sixx = _builtin("kuka_kr6_r900_sixx", "kr6_r900_sixx", """KUKA KR6 R900 sixx ("Agilus"): the DH table
+    of the thesis authors' code (thesis Paper 1 Table 1 is garbled in print), q = KUKA's axis values A1..A6; home
+    q = (0, -pi/2, pi/2, 0, 0, 0) puts the flange at (0.525, 0, 0.890) m pointing along +x. Limits from KUKA's data
+    sheet.""")
+ur3, ur5, ur10, ur3e, ur5e, ur10e = (
+    _builtin(n, n, f"Universal Robots {n[:2].upper() + n[2:]}{'' if n.endswith('e') else ' (CB series)'}, UR's "
+             "published DH table, limits +-2*pi.") for n in ("ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e"))
+ur5_thesis = _builtin("ur5_thesis", "ur5_thesis", """The UR5 with the numbers printed in the thesis (Paper 1
+    Table 2), for reproducing its zero pose: q = 0 puts the flange at (-0.81743, -0.19145, -0.00545) m.""")

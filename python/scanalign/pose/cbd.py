@@ -27,7 +27,7 @@ import numpy as np
 
 from scanalign import _core
 from scanalign.common.arrays import as_points
-from scanalign.common.settings import fields_of, set_fields
+from scanalign.common.settings import with_overrides
 
 __all__ = ["CbdSettings", "ShapeThresholds", "CbdFeatures", "make_settings", "compute", "neighbourhood_pca",
            "keypoint_scores", "select_keypoints", "automatic_keypoints", "match"]
@@ -42,10 +42,9 @@ def make_settings(settings: Optional[CbdSettings] = None, **overrides: object) -
     """A copy of ``settings`` (or the defaults) with fields overridden by keyword; enum fields
     take their names (``keypoint_mode="automatic"``, ``variant="scalar"``), ``thresholds`` a
     3-tuple. TypeError for an unknown field; values are checked in C++ when used."""
-    s = set_fields(CbdSettings(), fields_of(settings) if settings is not None else {}, "CBD")
     if "thresholds" in overrides and not isinstance(overrides["thresholds"], ShapeThresholds):
         overrides["thresholds"] = ShapeThresholds(*(float(v) for v in overrides["thresholds"]))  # type: ignore
-    return set_fields(s, overrides, "CBD")
+    return with_overrides(CbdSettings, settings, overrides, "CBD")
 
 
 def compute(points: np.ndarray, settings: Optional[CbdSettings] = None, *,

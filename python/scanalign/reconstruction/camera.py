@@ -123,10 +123,7 @@ _BROWN_CONRADY = ("plumb_bob", "brown_conrady", "modified_brown_conrady", "ratio
 def _distortion5(values: Any, model: Any = None) -> Tuple[float, ...]:
     """(k1, k2, p1, p2, k3) from a coefficient list (4, 5, 8, 12 or 14 numbers, OpenCV's
     order; beyond the fifth they must be zero) of a Brown-Conrady model."""
-    try:
-        v = np.asarray(values, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        raise ValueError(f"distortion coefficients must be numbers, got {values!r}") from None
+    v = _numbers(values, None, "distortion coefficients")
     if v.size == 0 or not np.any(v != 0):
         return NO_DISTORTION
     name = None if model is None else str(model).strip().lower().replace(" ", "_").replace("-", "_")
@@ -139,9 +136,7 @@ def _distortion5(values: Any, model: Any = None) -> Tuple[float, ...]:
     if np.any(v[5:] != 0):
         raise ValueError(f"distortion coefficients beyond k1 k2 p1 p2 k3 are not supported (rational / thin-prism / "
                          f"tilt terms {v[5:].tolist()} must be zero)")
-    out = np.zeros(5)
-    out[:min(5, v.size)] = v[:5]
-    return tuple(float(x) for x in out)
+    return tuple(float(x) for x in np.r_[v, 0.0][:5])  # k3 = 0 when 4 are given
 
 
 def _first(d: Mapping[str, Any], *keys: str) -> Any:
@@ -202,7 +197,7 @@ def camera_from_dict(d: Mapping[str, Any]) -> Tuple[Intrinsics, Optional[float]]
     width, height = _first(d, "image_width", "width", "imageWidth"), _first(d, "image_height", "height", "imageHeight")
     if width is None or height is None:
         raise ValueError("camera: missing the image size (image_width and image_height, or width and height)")
-    distortion = NO_DISTORTION if dist is None else _distortion5(_numbers(dist, None, "distortion_coefficients"), model)
+    distortion = NO_DISTORTION if dist is None else _distortion5(dist, model)
     return Intrinsics(width, height, K[0], K[4], K[2], K[5], distortion), scale
 
 

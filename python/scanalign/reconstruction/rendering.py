@@ -53,22 +53,14 @@ def as_intrinsics(intrinsics: object) -> Intrinsics:
         raise ValueError("intrinsics: the renderer draws pinhole images; give intrinsics without distortion "
                          f"(got distortion={intrinsics.distortion})")
     if not isinstance(intrinsics, Intrinsics):
-        raise TypeError(
-            f"intrinsics: expected scanalign.reconstruction.camera.Intrinsics or a preset name, got {type(intrinsics)!r}")
+        raise TypeError("intrinsics: expected scanalign.reconstruction.camera.Intrinsics or a preset name, "
+                        f"got {type(intrinsics)!r}")
     return intrinsics
 
 
-def render_depth(
-    vertices: np.ndarray,
-    faces: np.ndarray,
-    intrinsics: Union[Intrinsics, str],
-    T_camera_world: np.ndarray,
-    *,
-    near: float = 0.01,
-    far: float = math.inf,
-    cull_backfaces: bool = False,
-    num_threads: int = 0,
-) -> RenderResult:
+def render_depth(vertices: np.ndarray, faces: np.ndarray, intrinsics: Union[Intrinsics, str],
+                 T_camera_world: np.ndarray, *, near: float = 0.01, far: float = math.inf,
+                 cull_backfaces: bool = False, num_threads: int = 0) -> RenderResult:
     """Renders a triangle mesh with a z-buffer: depth, visible face and incidence per pixel.
 
     Pixel ``(u, v)`` samples the ray through its centre. Depth is the exact intersection of
