@@ -95,8 +95,9 @@ def read_pcd_points(path: PathLike, dtype: npt.DTypeLike = np.float64, remove_na
 
 def _pcd_xyz(path: PathLike, fields: dict[str, np.ndarray]) -> np.ndarray:
     """The (N, 3) x y z of PCD ``fields``; ValueError naming the file for a missing one or a COUNT above 1."""
-    if not all(k in fields for k in "xyz"):
-        raise _error(path, f"PCD file has no x, y, z fields (it has {', '.join(fields) or 'none'})")
+    if missing := [k for k in "xyz" if k not in fields]:
+        raise _error(path, f"PCD file has no x, y, z fields (missing {'/'.join(missing)}; it has "
+                     f"{', '.join(fields) or 'none'})")
     shaped = [axis for axis in "xyz" if fields[axis].ndim != 1]
     if shaped:  # COUNT > 1 makes a field (N, COUNT): not one coordinate per point
         raise _error(path, f"PCD field(s) {'/'.join(shaped)} must have COUNT 1 to be coordinates")

@@ -1,5 +1,6 @@
 """Serial 6R robots: forward kinematics and analytic inverse kinematics with conformal
-geometric algebra (Kleppe, PhD thesis, NTNU 2018, Ch. 5.3 and Paper 1).
+geometric algebra (Kleppe, PhD thesis, NTNU 2018, Ch. 5.3 and Paper 1); docs/api/kinematics.md
+has the details (statuses, singularities, corrections to the printed construction).
 
 A :class:`Robot` is a standard Denavit-Hartenberg (DH) table with joint limits and two
 fixed transforms. Frames and units (metres and radians everywhere):
@@ -17,7 +18,7 @@ Inverse kinematics is solved in closed form for two arm layouts (``Robot.geometr
 offset a1, elbow offset a3, spherical wrist) and ``"universal_robots"`` (three parallel
 axes and an offset wrist). The joint points of the arm are intersections of CGA spheres and
 planes (point pairs); an imaginary point pair (Q^2 < 0) reports the configuration as
-``"unreachable"`` instead of returning wrong angles.
+``"unreachable"`` (``q`` NaN) instead of returning wrong angles.
 
 Every pose has up to 8 solutions, stored at a fixed index
 ``4*(shoulder<0) + 2*(elbow<0) + (wrist<0)`` (:meth:`IKResult.index`). The labels are
@@ -32,20 +33,10 @@ geometric:
   reaching forward (towards the wrist centre); -1 ("down").
 - ``wrist`` +1 ("no flip"): ``sin(theta5) > 0`` (DH angle); -1 ("flip").
 
-Singular poses are solved with a documented free angle (``q_free``): KUKA shoulder
-(wrist centre on the first axis) ``q1 = q_free[0]`` ("back": ``+ pi``); KUKA wrist
-(``a_e`` parallel to ``z3``) ``q4 = q_free[3]`` ("flip": ``+ pi``); UR wrist
-(``a_e`` parallel to ``z1``) ``q6 = q_free[5]`` ("flip": ``+ pi``), or the nearest q6 for
-which the elbow still reaches (q6 moves the UR wrist points). At the elbow singularity (arm
-stretched or folded) the two elbow labels give the same angles; at the UR shoulder
-singularity (``P_c`` on the first axis) the solutions with shoulder and elbow labels both
-flipped coincide. :attr:`IKResult.singular` names which applied, per solution (a pose
-singular for one configuration is usually regular for the others).
-
-Statuses: ``"ok"`` (reaches the pose, inside the limits), ``"outside_limits"`` (reaches the
-pose, but some joint has no 2*pi multiple inside its limits), ``"unreachable"`` (a point
-pair of the construction is imaginary; ``q`` is NaN), ``"invalid_input"`` (batch only: a
-non-finite or non-rigid pose).
+Singular poses are solved with a free angle (``q_free``): KUKA shoulder (wrist centre on the
+first axis) ``q1 = q_free[0]``, KUKA wrist ``q4 = q_free[3]``, UR wrist ``q6 = q_free[5]`` (or
+the nearest q6 for which the elbow still reaches), ``+ pi`` for "back" / "flip";
+:attr:`IKResult.singular` names which applied, per solution.
 
 The classes are the C++ structs, bound directly (``scanalign._core.kinematics``): every
 argument is checked once, at the C++ boundary, and a bad one raises TypeError / ValueError
