@@ -22,13 +22,10 @@ Objects (all coordinates in metres, in the frame the caller works in):
   ``Pi* = n + delta einf`` (4.65)), :class:`Line` (direct ``(p + e0)^d^einf`` (4.68)),
   :class:`Point`, :class:`Circle` (direct ``up(a)^up(b)^up(c)`` (4.57)), point pairs
   ``up(a)^up(b)`` (4.62), flat points ``up(p)^einf`` (4.69).
-- :class:`Motor` ``M = T R`` with ``T = 1 - 1/2 t einf`` and ``R`` the rotor of the
-  quaternion ``(w, x, y, z)``: ``R = w - (x e23 + y e31 + z e12)``; ``M up(x) ~M = up(R x + t)``.
-  :meth:`Motor.interpolate` slerps the rotation and lerps the translation (not a screw).
+- :class:`Motor` ``M = T R`` (``M up(x) ~M = up(R x + t)``), :class:`PointPair` (``Q = PA^PB``) and
+  :class:`FlatPoint` (``P^einf``): their class docstrings give the construction and equations.
 - meets (4.70)-(4.73) return dual objects ``A* ^ B*`` (the line-plane meet returns the
   flat point ``Pi* . L``); distances (4.56), (4.67), Paper 5 eq. (10).
-- :class:`PointPair` (direct ``Q = PA^PB``; ``reality()`` is the sign of ``Q^2``, thesis
-  (4.70)-(4.73); ``points()`` by (4.63)) and :class:`FlatPoint` (``P^einf``, ``location()``).
 - angles (Paper 1 §3.7): :func:`signed_angle` ``atan2((a^b) N^{-1}, a.b)`` (17) about a rotation
   plane ``N`` (unit Euclidean bivector whose Euclidean dual ``N* = N I3^{-1}`` is the rotation
   axis); :func:`rotation_plane_perpendicular_to_line` (20) and

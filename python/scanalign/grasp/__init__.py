@@ -28,12 +28,8 @@ __all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCan
            "PartGrasps", "plan_grasp", "read_part_grasps", "write_part_grasps", "symmetric_pose_error"]
 
 _G = _core.grasp
-Grasp = _G.Grasp
-Gripper = _G.Gripper
-PartSymmetry = _core.pose.PartSymmetry
-GraspPlannerSettings = _G.GraspPlannerSettings
-GraspCandidate = _G.GraspCandidate
-GraspPlanResult = _G.GraspPlanResult
+Grasp, Gripper, GraspPlannerSettings = _G.Grasp, _G.Gripper, _G.GraspPlannerSettings
+GraspCandidate, GraspPlanResult, PartSymmetry = _G.GraspCandidate, _G.GraspPlanResult, _core.pose.PartSymmetry
 #: ``symmetric_pose_error(T_a, T_b, symmetry)`` -> (rad, m): the pose error of a part up to its
 #: symmetry, translation measured at the symmetry point.
 symmetric_pose_error = _core.pose.symmetric_pose_error
@@ -124,10 +120,8 @@ def read_part_grasps(path: Any) -> PartGrasps:
     grasps = data.get("grasps")
     if not isinstance(grasps, list) or not grasps:
         raise ValueError(f"{p}: field 'grasps' must be a non-empty list")
-    out = []
-    for i, g in enumerate(grasps):
-        label = f"{p}: grasps[{i}]" + (f" ({g['name']!r})" if isinstance(g, dict) and "name" in g else "")
-        out.append(_build(label, Grasp, g, _GRASP_KEYS, ["T_model_grasp"]))
+    out = [_build(f"{p}: grasps[{i}]" + (f" ({g['name']!r})" if isinstance(g, dict) and "name" in g else ""), Grasp, g,
+                  _GRASP_KEYS, ["T_model_grasp"]) for i, g in enumerate(grasps)]
     scale = data.get("scale", 1.0)
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale < float("inf"):
         raise ValueError(f"{p}: field 'scale' must be a positive number, got {scale!r}")

@@ -2,12 +2,8 @@
 
 Every scanalign function that takes points or a mesh also takes these objects directly
 (``scanalign.common.arrays`` converts them, by duck typing: neither package is imported unless
-the object is one of theirs); the functions here convert explicitly, for the other way:
-
-- :func:`to_open3d` (``open3d.geometry.PointCloud`` / ``TriangleMesh``), :func:`to_trimesh`
-  (``trimesh.Trimesh`` / ``trimesh.PointCloud``);
-- :func:`from_open3d` / :func:`from_trimesh`: a :class:`Cloud` ``(points, normals, colors)``
-  for a cloud, a :class:`scanalign.io.Mesh` for a mesh.
+the object is one of theirs); :func:`to_open3d` / :func:`to_trimesh` convert the other way, and
+:func:`from_open3d` / :func:`from_trimesh` explicitly (a :class:`Cloud` or a :class:`scanalign.io.Mesh`).
 
 Open3D and trimesh are optional: the functions that build their objects import them on
 first use and raise ImportError naming the PyPI package. Trajectories convert to ``evo``

@@ -57,14 +57,8 @@ __all__ = [
     "kuka_kr6_r900_sixx", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis", "robot_from_urdf"]
 
 _K = _core.kinematics
-
-Robot = _K.Robot
-IKResult = _K.IKResult
-IKSolution = _K.IKSolution
-IKBatchResult = _K.IKBatchResult
-JointTrajectoryResult = _K.JointTrajectoryResult
-IKConstruction = _K.IKConstruction
-config_index = _K.config_index
+Robot, IKResult, IKSolution, IKBatchResult = _K.Robot, _K.IKResult, _K.IKSolution, _K.IKBatchResult
+JointTrajectoryResult, IKConstruction, config_index = _K.JointTrajectoryResult, _K.IKConstruction, _K.config_index
 
 from scanalign.kinematics.urdf import robot_from_urdf  # noqa: E402  (imports yourdfpy only when called)
 

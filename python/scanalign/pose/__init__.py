@@ -381,5 +381,4 @@ def find_parts(models: Sequence[object], scene: np.ndarray, settings: Optional[F
     pts = as_points(scene, "scene", np.dtype(np.float64))
     model_views = [_model_views(m, s.pose.views)[0] for m in models]
     return _P.find_parts(model_views, pts, s, None if symmetries is None else list(symmetries),
-                         [int(i) for i in views or []],
-                         _progress("parts", s.pose, progress))
+                         [int(i) for i in views or []], _progress("parts", s.pose, progress))

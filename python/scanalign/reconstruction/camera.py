@@ -29,17 +29,11 @@ __all__ = ["Intrinsics", "Frame", "INTRINSICS_PRESETS", "read_camera_file", "rea
 NO_DISTORTION: Tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-#: Intrinsics of a depth image: the C++ ``PinholeIntrinsics``, the library's one intrinsics
-#: type, bound as it is. ``Intrinsics(width, height, fx, fy, cx, cy, distortion=(0,)*5)``
-#: validates (ValueError naming the field); fields ``width, height`` (pixels), ``fx, fy``
-#: (focal lengths, pixels), ``cx, cy`` (principal point, pixels), ``distortion`` (Brown-Conrady
-#: ``(k1, k2, p1, p2, k3)`` of normalised image coordinates, OpenCV's order, ROS "plumb_bob";
-#: zero for a pinhole camera or rectified images: back-projection
-#: (:func:`scanalign.reconstruction.depth_to_cloud`) undistorts every pixel's ray as OpenCV's
-#: ``undistortPoints`` does); ``K`` (3x3), ``shape`` ``(height, width)``, ``has_distortion``,
-#: ``scaled(factor)``, ``to_dict()`` (the keys :func:`intrinsics_from_dict` reads; distortion
-#: only when not zero). Immutable and hashable. Presets: :func:`intrinsics_preset`; camera
-#: files: :func:`read_camera`.
+#: Intrinsics of a depth image: the C++ ``PinholeIntrinsics``, the library's one intrinsics type,
+#: bound as it is (its fields, units and methods documented there: ``help(Intrinsics)``).
+#: ``Intrinsics(width, height, fx, fy, cx, cy, distortion=(0,)*5)`` validates (ValueError naming
+#: the field); ``distortion`` is Brown-Conrady ``(k1, k2, p1, p2, k3)``, OpenCV's order, which
+#: back-projection undoes. Presets: :func:`intrinsics_preset`; camera files: :func:`read_camera`.
 Intrinsics = _core.reconstruction.PinholeIntrinsics
 
 
@@ -66,10 +60,9 @@ def intrinsics_preset(name: str) -> Intrinsics:
 
 
 class _CameraYamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader plus what camera files need: numbers in exponent notation without
-    a dot or an exponent sign (``1e-3``, ``5.25e2``: floats in YAML 1.2 and JSON, text in
-    YAML 1.1) are floats, and OpenCV's ``!!opencv-matrix`` mappings (rows, cols, dt, data)
-    become (rows, cols) float64 arrays."""
+    """PyYAML's safe loader plus what camera files need (:func:`read_camera_file`): OpenCV's
+    ``!!opencv-matrix`` and exponent notation without a dot or sign (``1e-3``: a float in YAML 1.2
+    and JSON, text in YAML 1.1)."""
 
 
 _CameraYamlLoader.add_implicit_resolver(
