@@ -41,13 +41,12 @@ def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmet
                **overrides: Any) -> GraspPlanResult:
     """Joint targets to pick a part at ``T_base_model`` (4x4, m, base frame).
 
-    ``robot``: a :class:`scanalign.kinematics.Robot` (its ``T_base_dh0`` places it in the
-    cell; its tool is replaced by ``gripper.T_flange_tcp``) or a name. ``symmetry``: default
-    none; ``gripper``: default :meth:`Gripper.parallel_jaw`; ``table_plane``: (nx, ny, nz, d),
-    unit normal pointing up, ``n.p + d = 0`` in the base frame; ``q_current``: joints now (rad,
-    default zeros); ``settings``: a :class:`GraspPlannerSettings` (default its C++ defaults),
-    ``overrides`` its fields by name.
-    Raises ValueError / TypeError naming the argument or field.
+    ``robot``: a :class:`scanalign.kinematics.Robot` (its ``T_base_dh0`` places it in the cell; its
+    tool is replaced by ``gripper.T_flange_tcp``) or a name. ``symmetry``: default none;
+    ``gripper``: default :meth:`Gripper.parallel_jaw`; ``table_plane``: (nx, ny, nz, d), unit normal
+    pointing up, ``n.p + d = 0`` in the base frame; ``q_current``: joints now (rad, default zeros);
+    ``settings``: a :class:`GraspPlannerSettings` (default its C++ defaults), ``overrides`` its
+    fields by name. Raises ValueError / TypeError naming the argument or field.
     """
     if isinstance(robot, str):
         robot = kinematics.Robot.by_name(robot)

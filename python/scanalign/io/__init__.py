@@ -55,13 +55,12 @@ def read_pcd(path: PathLike) -> dict[str, np.ndarray]:
 
     Returns:
         Field name -> array, in header order, with the dtype given by the header
-        (``TYPE``/``SIZE``).  A field with ``COUNT 1`` has shape ``(N,)``, otherwise
-        ``(N, COUNT)``.  Organised clouds (``HEIGHT > 1``) are flattened row by row to
-        ``N = WIDTH * HEIGHT``; invalid points stay in place as NaN.  Coordinates
-        (``x``, ``y``, ``z``) are in the file's unit (metres for PCL's own data).
-        Normals come back as their own fields (``normal_x``, ``normal_y``, ``normal_z``).
-        Packed colours (``rgb``/``rgba``) are returned raw; see :func:`unpack_rgb`.
-        PCL's padding fields named ``_`` are dropped.
+        (``TYPE``/``SIZE``).  A field with ``COUNT 1`` has shape ``(N,)``, otherwise ``(N, COUNT)``.
+        Organised clouds (``HEIGHT > 1``) are flattened row by row to ``N = WIDTH * HEIGHT``;
+        invalid points stay in place as NaN.  Coordinates (``x``, ``y``, ``z``) are in the file's
+        unit (metres for PCL's own data). Normals come back as their own fields (``normal_x``,
+        ``normal_y``, ``normal_z``). Packed colours (``rgb``/``rgba``) are returned raw; see
+        :func:`unpack_rgb`. PCL's padding fields named ``_`` are dropped.
 
     Raises:
         ValueError: malformed header, unknown DATA type, truncated or corrupt payload,

@@ -1,13 +1,12 @@
 """Robots from URDF files: ``Robot.from_urdf(path, base_link, tip_link)``.
 
-A URDF describes an arm as a tree of links joined by joints, each joint placed by an
-arbitrary ``<origin>`` and turning about an arbitrary ``<axis>``. This module reads the file
-(with the ``yourdfpy`` parser), walks the chain ``base_link -> tip_link`` and folds the fixed
-joints into their neighbours; :meth:`Robot.from_joint_chain` (C++,
-``scanalign/kinematics/joint_chain.hpp``) then derives the standard DH table the analytic
-inverse kinematics needs, ``T_base_dh0`` and ``T_flange_tool`` from the joint axes, so that
-``robot.fk(q)`` is the pose of ``tip_link`` in ``base_link`` for the URDF's joint values q,
-limits included.
+A URDF describes an arm as a tree of links joined by joints, each joint placed by an arbitrary
+``<origin>`` and turning about an arbitrary ``<axis>``. This module reads the file (with the
+``yourdfpy`` parser), walks the chain ``base_link -> tip_link`` and folds the fixed joints into
+their neighbours; :meth:`Robot.from_joint_chain` (C++, ``scanalign/kinematics/joint_chain.hpp``)
+then derives the standard DH table the analytic inverse kinematics needs, ``T_base_dh0`` and
+``T_flange_tool`` from the joint axes, so that ``robot.fk(q)`` is the pose of ``tip_link`` in
+``base_link`` for the URDF's joint values q, limits included.
 
 The DH z axes follow the URDF joint axes, so q maps 1:1 onto the URDF joints unless
 ``joint_signs`` reverses some. Each DH x axis has a free sign (it flips alpha_i and a_i and

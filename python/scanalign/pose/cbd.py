@@ -8,9 +8,8 @@ plane normal to v2 and one for the plane normal to v1. The descriptors are
 ``(r1, d1, r2, d2)`` (sphere radius, distance from the sphere centre to the keypoint; paper 5
 (29)-(32)) and the scalar ``F = (S1 + S2)·P = ½(r1² − d1²) + ½(r2² − d2²)`` (6.14)-(6.16).
 
-Units: metres (points, radius, r, d), 1/m (gamma: the thesis's 0.2 per mm is 200),
-m² (F). Descriptors are invariant to rigid motions of the cloud and to the signs of the
-PCA eigenvectors.
+Units: metres (points, radius, r, d), 1/m (gamma: the thesis's 0.2 per mm is 200), m² (F).
+Descriptors are invariant to rigid motions of the cloud and to the signs of the PCA eigenvectors.
 
 Example::
 

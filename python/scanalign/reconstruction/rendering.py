@@ -28,9 +28,8 @@ class RenderResult:
         depth: float32 depth z along the optical axis, metres; NaN where nothing is hit.
         face_id: int32 index (row of ``faces``) of the visible triangle; -1 where nothing is hit.
         cos_incidence: float32 cosine between the visible face's normal (right-hand rule on
-            its winding) and the direction from the surface point to the camera: 1 head on,
-            about 0 at grazing angles, negative when the back of a face is seen; 0 where
-            nothing is hit.
+            its winding) and the direction from the surface point to the camera: 1 head on, about 0
+            at grazing angles, negative when the back of a face is seen; 0 where nothing is hit.
     """
 
     depth: np.ndarray
