@@ -99,8 +99,7 @@ def require_rigid(T: object, name: str) -> np.ndarray:
     """``T`` as a 4x4 float64 rigid transform; ValueError naming ``name`` and the failed
     property otherwise (shape, finiteness, last row, orthonormality, reflection)."""
     m = as_transform(T, name)
-    why = rigid_problem(m)
-    if why is not None:
+    if (why := rigid_problem(m)) is not None:
         raise ValueError(f"{name}: {why}")
     return m
 

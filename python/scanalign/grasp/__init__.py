@@ -113,8 +113,7 @@ def read_part_grasps(path: Any) -> PartGrasps:
         raise ValueError(f"{p}: not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'}: {e}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{p}: expected a mapping at the top level")
-    unknown = set(data) - {"name", "mesh", "scale", "symmetry", "gripper", "grasps"}
-    if unknown:
+    if unknown := set(data) - {"name", "mesh", "scale", "symmetry", "gripper", "grasps"}:
         raise ValueError(f"{p}: unknown field(s) {sorted(unknown)}")
     grasps = data.get("grasps")
     if not isinstance(grasps, list) or not grasps:

@@ -97,8 +97,7 @@ def _pcd_xyz(path: PathLike, fields: dict[str, np.ndarray]) -> np.ndarray:
     if missing := [k for k in "xyz" if k not in fields]:
         raise _error(path, f"PCD file has no x, y, z fields (missing {'/'.join(missing)}; it has "
                      f"{', '.join(fields) or 'none'})")
-    shaped = [axis for axis in "xyz" if fields[axis].ndim != 1]
-    if shaped:  # COUNT > 1 makes a field (N, COUNT): not one coordinate per point
+    if shaped := [axis for axis in "xyz" if fields[axis].ndim != 1]:  # COUNT > 1: (N, COUNT), not a coordinate
         raise _error(path, f"PCD field(s) {'/'.join(shaped)} must have COUNT 1 to be coordinates")
     return np.column_stack([fields[k] for k in "xyz"])
 
@@ -190,8 +189,7 @@ def _read_ply_mesh(path: PathLike) -> Mesh:
     if "face" not in ply:
         return Mesh(vertices, np.empty((0, 3), dtype=np.int64))
     names = ply["face"].data.dtype.names
-    key = next((k for k in ("vertex_indices", "vertex_index") if k in names), None)
-    if key is None:
+    if (key := next((k for k in ("vertex_indices", "vertex_index") if k in names), None)) is None:
         raise _error(path, "PLY face element has no vertex_indices/vertex_index list")
     polygons = ply["face"][key]
     if polygons.dtype != object:  # fixed length, read in one go
@@ -332,11 +330,9 @@ def read_ply_points(path: PathLike) -> dict[str, np.ndarray]:
     """
     ply = _read_ply(path)
     result = {"points": _ply_vertex_columns(path, ply).astype(np.float64)}
-    normals = _ply_vertex_columns(path, ply, ("nx", "ny", "nz"))
-    if normals is not None:
+    if (normals := _ply_vertex_columns(path, ply, ("nx", "ny", "nz"))) is not None:
         result["normals"] = normals.astype(np.float64)
-    colors = _ply_vertex_columns(path, ply, ("red", "green", "blue"))
-    if colors is not None:
+    if (colors := _ply_vertex_columns(path, ply, ("red", "green", "blue"))) is not None:
         if colors.dtype.kind == "f":
             colors = np.rint(np.clip(colors, 0.0, 1.0) * 255.0)
         result["colors"] = np.clip(colors, 0, 255).astype(np.uint8)

@@ -267,18 +267,16 @@ def pose_task_settings(cls: type, settings: Any = None, **overrides: Any) -> Any
     (every step's). Raises UnknownSettingError / TypeError / ValueError naming the field."""
     s = with_overrides(cls, settings, (), "pose")
     pose = "" if cls is PoseSettings else "pose."
-    method = overrides.pop("method", None)
-    if method is not None:
+    if (method := overrides.pop("method", None)) is not None:
         if method not in METHODS and method != "pcl":
             raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
         set_path(s, pose + "method", method if method in ("cbd", "flags", "pcl") else "pcl")
         if method in _PCL_METHODS:
             set_path(s, pose + "pcl", _pcl_preset(method))
-    threads = overrides.pop("num_threads", None)
-    if threads is not None:
-        for path in (pose + "num_threads", pose + "views.num_threads", "table.plane.num_threads"):
-            if path != "table.plane.num_threads" or hasattr(s, "table"):
-                set_path(s, path, threads)
+    if (threads := overrides.pop("num_threads", None)) is not None:  # every step's
+        table = ["table.plane.num_threads"] if hasattr(s, "table") else []
+        for path in [pose + "num_threads", pose + "views.num_threads", *table]:
+            set_path(s, path, threads)
     # whole structs first (cbd_settings=CbdSettings(...)), then the fields that refine them
     for key, value in sorted(overrides.items(), key=lambda kv: not is_struct(kv[1])):
         set_path(s, _path(s, key, pose), value)

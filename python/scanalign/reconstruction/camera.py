@@ -41,14 +41,13 @@ def intrinsics_from_dict(d: Mapping[str, Any]) -> Intrinsics:
     """Intrinsics from a mapping with keys width, height, fx, fy, cx, cy and optional
     distortion (k1, k2, p1, p2, k3); other keys are ignored. :func:`camera_from_dict` also
     reads ROS ``camera_info`` and OpenCV calibration layouts."""
-    missing = [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]
-    if missing:
+    if missing := [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]:
         raise ValueError(f"intrinsics: missing keys {missing}")
     dist = d.get("distortion")
     # No int() / float() here: the constructor checks each value and names it (a string or an
     # infinite size is an error, not parsed or an OverflowError).
-    return Intrinsics(d["width"], d["height"], d["fx"], d["fy"], d["cx"],
-                      d["cy"], NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
+    return Intrinsics(d["width"], d["height"], d["fx"], d["fy"], d["cx"], d["cy"],
+                      NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
 
 
 def intrinsics_preset(name: str) -> Intrinsics:
