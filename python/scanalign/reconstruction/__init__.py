@@ -176,7 +176,8 @@ def bilateral_filter_depth(depth: np.ndarray, settings: Optional[BilateralFilter
         ValueError beyond 2**27 pixels (checked before allocating) or for bad settings (named).
     """
     f = BilateralFilterSettings() if settings is None else settings
-    return _core.reconstruction.bilateral_filter_depth(np.asarray(depth), f, depth_scale, num_threads)
+    return _core.reconstruction.bilateral_filter_depth(np.asarray(depth), settings=f, depth_scale=depth_scale,
+                                                       num_threads=num_threads)
 
 
 def frame_to_cloud(frame: Frame, settings: Optional[DepthToCloudSettings] = None, **overrides: Any):
