@@ -21,7 +21,7 @@ from __future__ import annotations
 from typing import Any, Optional
 
 from scanalign import _core
-from scanalign.common.settings import fields_of, set_fields
+from scanalign.common.settings import with_overrides
 
 __all__ = ["HandEyeSettings", "HandEyeResult", "calibrate_hand_eye"]
 
@@ -59,8 +59,7 @@ def calibrate_hand_eye(T_base_flange: Any, T_camera_target: Any = None, *, T_wor
     """
     if (T_camera_target is None) == (T_world_camera is None):
         raise ValueError("give exactly one of T_camera_target (target views) and T_world_camera (a scan trajectory)")
-    s = set_fields(HandEyeSettings(), fields_of(settings) if settings is not None else {}, "hand-eye")
-    set_fields(s, overrides, "hand-eye")
+    s = with_overrides(HandEyeSettings, settings, overrides, "hand-eye")
     if T_camera_target is not None:
         return _C.calibrate_hand_eye_from_target(T_base_flange, T_camera_target, s)
     return _C.calibrate_hand_eye(T_base_flange, T_world_camera, s)

@@ -22,13 +22,10 @@ Objects (all coordinates in metres, in the frame the caller works in):
   ``Pi* = n + delta einf`` (4.65)), :class:`Line` (direct ``(p + e0)^d^einf`` (4.68)),
   :class:`Point`, :class:`Circle` (direct ``up(a)^up(b)^up(c)`` (4.57)), point pairs
   ``up(a)^up(b)`` (4.62), flat points ``up(p)^einf`` (4.69).
-- :class:`Motor` ``M = T R`` with ``T = 1 - 1/2 t einf`` and ``R`` the rotor of the
-  quaternion ``(w, x, y, z)``: ``R = w - (x e23 + y e31 + z e12)``; ``M up(x) ~M = up(R x + t)``.
-  :meth:`Motor.interpolate` slerps the rotation and lerps the translation (not a screw).
+- :class:`Motor` ``M = T R`` (``M up(x) ~M = up(R x + t)``), :class:`PointPair` (``Q = PA^PB``) and
+  :class:`FlatPoint` (``P^einf``): their class docstrings give the construction and equations.
 - meets (4.70)-(4.73) return dual objects ``A* ^ B*`` (the line-plane meet returns the
   flat point ``Pi* . L``); distances (4.56), (4.67), Paper 5 eq. (10).
-- :class:`PointPair` (direct ``Q = PA^PB``; ``reality()`` is the sign of ``Q^2``, thesis
-  (4.70)-(4.73); ``points()`` by (4.63)) and :class:`FlatPoint` (``P^einf``, ``location()``).
 - angles (Paper 1 §3.7): :func:`signed_angle` ``atan2((a^b) N^{-1}, a.b)`` (17) about a rotation
   plane ``N`` (unit Euclidean bivector whose Euclidean dual ``N* = N I3^{-1}`` is the rotation
   axis); :func:`rotation_plane_perpendicular_to_line` (20) and
@@ -44,36 +41,13 @@ from __future__ import annotations
 
 from scanalign import _core
 
-__all__ = [
-    "Multivector", "Sphere", "Plane", "Line", "Motor", "Point", "Circle", "Reality",
-    "e0", "e1", "e2", "e3", "einf", "Ic", "I3", "blade_names",
-    "up", "down", "to_vector5", "from_vector5", "inner_product_matrix",
-    "point_pair", "point_pair_points", "point_pair_reality", "flat_point", "flat_point_location",
-    "circle", "round_center", "round_radius2", "rotor", "translator",
-    "meet_sphere_plane", "meet_planes", "meet_spheres", "meet_plane_circle", "meet_line_plane",
-    "point_distance", "point_plane_distance", "sphere_point_inner", "point_sphere_distance",
-    "geometric_product_many",
-    "PointPair", "FlatPoint", "meet_plane_circle_pair", "meet_line_plane_flat",
-    "signed_angle", "rotation_plane_from_axis", "rotation_axis", "normalise_blade", "euclidean_dual",
-    "rotation_plane_perpendicular_to_line", "rotation_plane_parallel_to_plane",
-]
+__all__ = ["Multivector", "Sphere", "Plane", "Line", "Motor", "Point", "Circle", "Reality", "e0", "e1", "e2", "e3",
+           "einf", "Ic", "I3", "blade_names", "up", "down", "to_vector5", "from_vector5", "inner_product_matrix",
+           "point_pair", "point_pair_points", "point_pair_reality", "flat_point", "flat_point_location", "circle",
+           "round_center", "round_radius2", "rotor", "translator", "meet_sphere_plane", "meet_planes", "meet_spheres",
+           "meet_plane_circle", "meet_line_plane", "point_distance", "point_plane_distance", "sphere_point_inner",
+           "point_sphere_distance", "geometric_product_many", "PointPair", "FlatPoint", "meet_plane_circle_pair",
+           "meet_line_plane_flat", "signed_angle", "rotation_plane_from_axis", "rotation_axis", "normalise_blade",
+           "euclidean_dual", "rotation_plane_perpendicular_to_line", "rotation_plane_parallel_to_plane"]
 
-_c = _core.cga
-Multivector, Sphere, Plane, Line, Motor, Point, Circle = _c.Multivector, _c.Sphere, _c.Plane, _c.Line, _c.Motor, \
-    _c.Point, _c.Circle
-Reality, PointPair, FlatPoint = _c.Reality, _c.PointPair, _c.FlatPoint
-e0, e1, e2, e3, einf, Ic, I3 = _c.e0, _c.e1, _c.e2, _c.e3, _c.einf, _c.Ic, _c.I3
-blade_names, up, down, to_vector5, from_vector5 = _c.blade_names, _c.up, _c.down, _c.to_vector5, _c.from_vector5
-inner_product_matrix, geometric_product_many = _c.inner_product_matrix, _c.geometric_product_many
-point_pair, point_pair_points, point_pair_reality = _c.point_pair, _c.point_pair_points, _c.point_pair_reality
-flat_point, flat_point_location, circle = _c.flat_point, _c.flat_point_location, _c.circle
-round_center, round_radius2, rotor, translator = _c.round_center, _c.round_radius2, _c.rotor, _c.translator
-meet_sphere_plane, meet_planes, meet_spheres = _c.meet_sphere_plane, _c.meet_planes, _c.meet_spheres
-meet_plane_circle, meet_line_plane = _c.meet_plane_circle, _c.meet_line_plane
-meet_plane_circle_pair, meet_line_plane_flat = _c.meet_plane_circle_pair, _c.meet_line_plane_flat
-point_distance, point_plane_distance = _c.point_distance, _c.point_plane_distance
-sphere_point_inner, point_sphere_distance = _c.sphere_point_inner, _c.point_sphere_distance
-signed_angle, rotation_plane_from_axis, rotation_axis = _c.signed_angle, _c.rotation_plane_from_axis, _c.rotation_axis
-normalise_blade, euclidean_dual = _c.normalise_blade, _c.euclidean_dual
-rotation_plane_perpendicular_to_line = _c.rotation_plane_perpendicular_to_line
-rotation_plane_parallel_to_plane = _c.rotation_plane_parallel_to_plane
+globals().update({name: getattr(_core.cga, name) for name in __all__})  # the bound C++ names, as they are

@@ -18,13 +18,6 @@ from scanalign import _core
 __all__ = ["SphereFitResult", "CircleFitResult", "SphereFitBatchResult", "fit_sphere", "fit_spheres", "fit_circle_2d",
            "MIN_SPHERE_POINTS"]
 
-_F = _core.fitting
-
-SphereFitResult = _F.SphereFitResult
-CircleFitResult = _F.CircleFitResult
-SphereFitBatchResult = _F.SphereFitBatchResult
-fit_sphere = _F.fit_sphere
-fit_spheres = _F.fit_spheres
-fit_circle_2d = _F.fit_circle_2d
+globals().update({name: getattr(_core.fitting, name) for name in __all__[:-1]})  # the bound C++ names, as they are
 #: Points (with positive weight) that :func:`fit_sphere` requires (four determine a sphere exactly).
-MIN_SPHERE_POINTS: int = _F.MIN_SPHERE_POINTS
+MIN_SPHERE_POINTS: int = _core.fitting.MIN_SPHERE_POINTS

@@ -11,17 +11,10 @@ over its inliers (plane: PCA; sphere: the CGA algebraic fit, (5.31)), and the re
 below ``threshold`` (plane: ``|n.p - distance| < threshold``; sphere:
 ``| |p - center| - radius | < threshold``).
 
-The number of hypotheses adapts to the best inlier ratio found so far (``confidence``);
-sample ``k`` is drawn from a generator seeded by ``(seed, k)`` and hypotheses are accepted
-in order, so results are reproducible for a seed and independent of ``num_threads``.
-
-Input: ``(N, 3)`` float32/float64 points in metres (other dtypes raise ``TypeError``,
-other shapes ``ValueError``). Rows with NaN/Inf are ignored: they are never sampled nor
-inliers, and every returned index refers to a row of the input array. Fewer finite points
-than the minimal sample (3 for a plane, 4 for a sphere) raises ``ValueError``. When no
-model can be built -- every sample drawn was degenerate, e.g. collinear points for a
-plane or points within ``threshold`` of one plane for a sphere -- the result has
-``status == "degenerate"`` and ``success == False`` (nothing is raised).
+Results are reproducible for a ``seed`` whatever ``num_threads`` (sample ``k`` depends on
+``(seed, k)`` only). Input: ``(N, 3)`` float32/float64 points in metres; NaN/Inf rows are never
+sampled nor inliers, and every returned index refers to a row of the input. When every sample
+drawn is degenerate the result has ``status == "degenerate"`` (nothing is raised).
 
 Table segmentation (the thesis's Paper 3, §3.1.2-3.1.3): :func:`segment_table_full`
 documents the five steps (crop, RANSAC table plane, removal of the table and everything
@@ -43,11 +36,7 @@ __all__ = ["PlaneResult", "SphereResult", "TableSegmentationResult", "RansacSett
            "ransac_plane", "ransac_sphere", "segment_table", "segment_table_full", "plane_from_points",
            "sphere_from_points"]
 
-_S = _core.segmentation
-PlaneResult, SphereResult, TableSegmentationResult = _S.PlaneResult, _S.SphereResult, _S.TableSegmentationResult
-RansacSettings, TableSegmentationSettings = _S.RansacSettings, _S.TableSegmentationSettings
-ransac_plane, ransac_sphere, segment_table_full = _S.ransac_plane, _S.ransac_sphere, _S.segment_table_full
-plane_from_points, sphere_from_points = _S.plane_from_points, _S.sphere_from_points
+globals().update({name: getattr(_core.segmentation, name) for name in __all__ if name != "segment_table"})  # as bound
 
 
 def segment_table(points: np.ndarray, **kwargs: object) -> Tuple[PlaneResult, List[np.ndarray]]:

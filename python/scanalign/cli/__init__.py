@@ -1,4 +1,4 @@
-"""The ``scanalign`` command line (:mod:`.main`) and its config files (:mod:`.config`)."""
+"""The ``scanalign`` command line (:mod:`.commands`) and its settings options (:mod:`.settings`)."""
 
 from scanalign.cli.commands import main
 

@@ -1,7 +1,5 @@
 """``python -m scanalign.cli``."""
 
-import sys
-
 from scanalign.cli.commands import main
 
-sys.exit(main())
+raise SystemExit(main())

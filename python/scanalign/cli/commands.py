@@ -44,28 +44,22 @@ def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
     """Runs the two-cloud registration demo; returns the report written to ``out/report.json``."""
     if not (np.isfinite(noise) and noise >= 0):
         raise ValueError(f"--noise must be a finite depth noise >= 0 (m), got {noise}")
-    rng = np.random.default_rng(seed)
     out.mkdir(parents=True, exist_ok=True)
     # Model: the built-in part, in the model frame, 40 cm in front of the first camera.
-    part, _ = parts.builtin_object(n_points=40000, seed=seed)
-    model = part + np.array([0.0, 0.0, 0.40])
+    model = parts.builtin_object(n_points=40000, seed=seed)[0] + np.array([0.0, 0.0, 0.40])
     model_normals = estimate_normals(model, radius=0.005, viewpoint=(0.0, 0.0, 0.0))
     # A new frame: the camera moved by T_model_camera; the frame sees part of the object
     # (one side cut away) with depth noise, in its own camera frame.
     T_model_camera = se3.rigid((0.3, 1.0, 0.2), np.deg2rad(4.0), (0.012, -0.008, 0.006))
     frame = se3.transform_points(np.linalg.inv(T_model_camera), model[model[:, 0] > -0.02])
-    frame = frame + rng.normal(0.0, noise, frame.shape)
-
+    frame = frame + np.random.default_rng(seed).normal(0.0, noise, frame.shape)
     print(f"model: {len(model)} points, frame: {len(frame)} points, depth noise {noise * 1000:.2f} mm")
     runs = {}
-    for name, fn in (
-        ("scanalign", lambda: icp(frame, model, model_normals, max_correspondence_distance=0.02)),
-        ("pcl_point_to_plane_lls", lambda: pcl_icp(frame, model, model_normals, variant="point_to_plane_lls",
-                                                   max_correspondence_distance=0.02)),
-        ("pcl_svd", lambda: pcl_icp(frame, model, variant="svd", max_correspondence_distance=0.02)),
-    ):
+    for name, variant in (("scanalign", None), ("pcl_point_to_plane_lls", "point_to_plane_lls"), ("pcl_svd", "svd")):
         t0 = time.perf_counter()
-        r = fn()
+        r = (icp(frame, model, model_normals, max_correspondence_distance=0.02) if variant is None else
+             pcl_icp(frame, model, None if variant == "svd" else model_normals, variant=variant,
+                     max_correspondence_distance=0.02))
         wall = time.perf_counter() - t0
         rot, trans = se3.pose_error(r.T_target_source, T_model_camera)
         runs[name] = {**_icp_record(r), "seconds": wall, "rotation_error_rad": rot, "translation_error_m": trans}
@@ -84,13 +78,12 @@ def register_demo(out: Path, seed: int = 0, noise: float = 0.0005) -> dict:
 
 def register(args: argparse.Namespace) -> int:
     """``scanalign register``: ICP between two files; prints JSON, writes the aligned source."""
-    settings = args.settings
     src, _ = io.read_cloud(Path(args.source))
     tgt, tgt_normals = io.read_cloud(Path(args.target))
     if tgt_normals is None or not np.isfinite(tgt_normals).any():
-        tgt_normals = estimate_normals(tgt, settings=settings["normals"])
+        tgt_normals = estimate_normals(tgt, settings=args.settings["normals"])
     init = _pick.read_transform(args.init, "--init", rigid=False) if args.init else None
-    r = icp(src, tgt, tgt_normals, init, settings=settings["icp"])
+    r = icp(src, tgt, tgt_normals, init, settings=args.settings["icp"])
     print(json.dumps(_icp_record(r), indent=2))
     if args.out:
         aligned = se3.transform_points(r.T_target_source, src)
@@ -99,14 +92,10 @@ def register(args: argparse.Namespace) -> int:
 
 
 def _synthetic_overrides(args: argparse.Namespace) -> dict:
-    """SyntheticConfig fields from --frames, --noise, --seed, --robot and --robot-base."""
-    out = {"n_frames": args.frames, "noise": args.noise, "seed": args.seed}
-    if args.robot is not None:
-        out["robot"] = args.robot
-    if args.robot_base is not None:
-        names = ("robot_x", "robot_y", "robot_z", "robot_roll", "robot_pitch", "robot_yaw")
-        out.update(zip(names, (float(v) for v in args.robot_base)))
-    return out
+    """SyntheticConfig fields from --frames, --noise, --seed, --robot and --robot-base (None: not given)."""
+    names = ("robot_x", "robot_y", "robot_z", "robot_roll", "robot_pitch", "robot_yaw")
+    return {"n_frames": args.frames, "noise": args.noise, "seed": args.seed, "robot": args.robot,
+            **dict(zip(names, map(float, args.robot_base or ())))}
 
 
 def _load_source(source: str, args: argparse.Namespace) -> tuple:
@@ -115,37 +104,33 @@ def _load_source(source: str, args: argparse.Namespace) -> tuple:
     src = datasets.open_source(source, synthetic_overrides=_synthetic_overrides(args), intrinsics=args.intrinsics,
                                depth_scale=args.depth_scale, start=args.start, stride=args.frame_stride,
                                limit=args.limit)
-    if isinstance(src, synthetic.SyntheticScan):
-        what = "built-in synthetic scan" if source == "builtin" else f"synthetic scan from {source}"
-        return src.frames, src, what + _robot_note(src)
-    what = ("TUM RGB-D folder" if isinstance(src, datasets.TumSequence) else
-            "ROS bag" if isinstance(src, datasets.BagSequence) else "image folder")
-    return src, None, f"{what} {source}"
+    if not isinstance(src, synthetic.SyntheticScan):
+        what = ("TUM RGB-D folder" if isinstance(src, datasets.TumSequence) else
+                "ROS bag" if isinstance(src, datasets.BagSequence) else "image folder")
+        return src, None, f"{what} {source}"
+    what = "built-in synthetic scan" if source == "builtin" else f"synthetic scan from {source}"
+    if src.robot is None:
+        return src.frames, src, what + " (camera poses as planned, no robot)"
+    p = src.T_base_robot[:3, 3]
+    return src.frames, src, (f"{what} (camera on a {src.robot.name} based at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m, "
+                             "poses from its forward kinematics)")
 
 
-def _robot_note(scan) -> str:
-    if scan.robot is None:
-        return " (camera poses as planned, no robot)"
-    p = scan.T_base_robot[:3, 3]
-    return (f" (camera on a {scan.robot.name} based at ({p[0]:.2f}, {p[1]:.2f}, {p[2]:.2f}) m, "
-            f"poses from its forward kinematics)")
-
-
-def _add_output_options(g, out: str, plots: Optional[str], quiet: str = "no progress bar") -> None:
+def _add_output_options(g, out: str, plots: Optional[str], quiet: str = "no progress bar", view: bool = False) -> None:
     g.add_argument("--out", default=out, help=f"output folder (default: {out})")
     if plots:
         g.add_argument("--no-plots", action="store_true", help=f"do not write {plots}")
     g.add_argument("--quiet", action="store_true", help=quiet)
+    if view:
+        g.add_argument("--view", action="store_true", help="stream the run to a rerun viewer (spawned, or one already "
+                                                           "running; needs pip install rerun-sdk)")
+        g.add_argument("--view-save", metavar="FILE.rrd", help="save the rerun recording of the run to this file")
 
 
 def _add_synthetic_options(g) -> None:
     g.add_argument("--frames", type=int, help="number of frames around the object (builtin: 36)")
     g.add_argument("--noise", help="sensor noise preset: none, sr300, d435, zivid (builtin: sr300)")
     g.add_argument("--seed", type=int, help="random seed of the sensor noise (builtin: 0)")
-    _add_robot_options(g)
-
-
-def _add_robot_options(g) -> None:
     g.add_argument("--robot", help="robot arm that moves the camera: ur5 (default), ur3, ur10, ur3e, ur5e, ur10e, "
                                    "kr6_r900_sixx, or 'none' (the planned camera poses, no arm). An arm's joints "
                                    "come from IK (closest to the previous frame, rad, written to joints.csv), the "
@@ -160,17 +145,15 @@ def _box(values: Any) -> Any:
     return tuple(float(v) for v in values)
 
 
-def _box_preset(name: str) -> Any:
-    return Box.free_hand_preset() if name == "free_hand" else Box.banana_preset()
-
-
+_Q = ("Q1", "Q2", "Q3", "Q4", "Q5", "Q6")  # the metavars of six joint values and of a box
+_BOX = ("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX")
 _F = "frame_to_model."
 #: The reconstruct command's settings: one ReconstructionSettings; its flags are aliases of fields.
 RECONSTRUCT = Command(ReconstructionSettings, (
     Alias("--min-depth", "min_depth", "depth images"),
     Alias("--max-depth", "max_depth", "depth images"),
     Alias("--pixel-stride", "pixel_stride", "depth images"),
-    Alias("--crop", _F + "crop_box", "depth images", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+    Alias("--crop", _F + "crop_box", "depth images", nargs=6, metavar=_BOX,
           value=_box, help="keep only points inside this box in camera coordinates (x right, y down, z forward)"),
     Alias("--depth-filter", "filter_depth", "reconstruction"),
     Alias("--normal-radius", _F + "normal_radius", "reconstruction"),
@@ -187,10 +170,10 @@ RECONSTRUCT = Command(ReconstructionSettings, (
     Alias("--estimator", _F + "icp.estimator", "registration", choices=["point_to_plane", "point_to_point"]),
     Alias("--max-distance", _F + "icp.max_correspondence_distance", "registration"),
     Alias("--max-iterations", _F + "icp.max_iterations", "registration"),
-    Alias("--box", _F + "icp.box", "registration", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"),
+    Alias("--box", _F + "icp.box", "registration", nargs=6, metavar=_BOX,
           value=_box, help="box correspondence rejector in camera coordinates (eye-in-hand paper §3.4)"),
-    Alias("--box-preset", _F + "icp.box", "registration", choices=["free_hand", "banana"], value=_box_preset,
-          help="the eye-in-hand paper's box rejector values"),
+    Alias("--box-preset", _F + "icp.box", "registration", choices=["free_hand", "banana"],
+          value=lambda name: getattr(Box, name + "_preset")(), help="the eye-in-hand paper's box rejector values"),
     Alias("--threads", _F + "num_threads", "registration"),
 ))
 
@@ -235,8 +218,7 @@ REGISTER = Command(_register_root, (
     Alias("--max-iterations", "icp.max_iterations"),
     Alias("--estimator", "icp.estimator", choices=["point_to_plane", "point_to_point"]),
     Alias("--normal-radius", "normals.radius"),
-    Alias("--box", "icp.box", nargs=6, metavar=("XMIN", "XMAX", "YMIN", "YMAX", "ZMIN", "ZMAX"), value=_box,
-          help="box rejector in the source camera frame"),
+    Alias("--box", "icp.box", nargs=6, metavar=_BOX, value=_box, help="box rejector in the source camera frame"),
 ))
 
 #: The commands whose settings are C++ structs (``--config``, ``--set``, ``dump-config``).
@@ -244,17 +226,8 @@ COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER, "pose": POSE, "pic
 
 
 def _viewer(args: argparse.Namespace) -> Any:
-    """The rerun live view of ``--view`` / ``--view-save FILE.rrd`` as a context manager
-    (yielding None without either)."""
-    if not (args.view or args.view_save):
-        return contextlib.nullcontext()
-    return Viewer(spawn=args.view, save=args.view_save)
-
-
-def _add_view_options(g) -> None:
-    g.add_argument("--view", action="store_true", help="stream the run to a rerun viewer (spawned, or one already "
-                                                       "running; needs pip install rerun-sdk)")
-    g.add_argument("--view-save", metavar="FILE.rrd", help="save the rerun recording of the run to this file")
+    """The rerun live view of ``--view`` / ``--view-save FILE.rrd`` (a context yielding None without either)."""
+    return Viewer(spawn=args.view, save=args.view_save) if args.view or args.view_save else contextlib.nullcontext()
 
 
 def reconstruct_command(args: argparse.Namespace) -> int:
@@ -292,9 +265,8 @@ def _print_summary(summary: dict, paths: dict) -> None:
               f"median {summary['iterations_median']:.0f} ICP iterations; total {summary['seconds_total']:.1f} s")
     print(f"  model: {summary['model_points']} points")
     if "ate_m" in summary:
-        print(f"  ATE: rmse {mm(summary['ate_m']['rmse'])}, max {mm(summary['ate_m']['max'])};  "
-              f"RPE (1 frame): rmse {mm(summary['rpe_translation_m']['rmse'])}, "
-              f"{summary['rpe_rotation_deg']['rmse']:.3f} deg")
+        print(f"  ATE: rmse {mm(summary['ate_m']['rmse'])}, max {mm(summary['ate_m']['max'])};  RPE (1 frame): rmse "
+              f"{mm(summary['rpe_translation_m']['rmse'])}, {summary['rpe_rotation_deg']['rmse']:.3f} deg")
     if "model_to_mesh_m" in summary:
         q = summary["model_to_mesh_m"]
         print(f"  model to mesh: mean {mm(q['mean'])}, 95th percentile {mm(q['p95'])}")
@@ -303,9 +275,8 @@ def _print_summary(summary: dict, paths: dict) -> None:
 
 def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> None:
     g = p.add_argument_group("output")
-    _add_output_options(g, out_default, "trajectory.png / frames.png", quiet="print nothing but errors")
+    _add_output_options(g, out_default, "trajectory.png / frames.png", quiet="print nothing but errors", view=True)
     g.add_argument("--no-progress", action="store_true", help="no progress bar")
-    _add_view_options(g)
     _add_synthetic_options(p.add_argument_group("synthetic scans (builtin or a config file)"))
     g = p.add_argument_group("real sequences (TUM RGB-D folder)")
     g.add_argument("--intrinsics", help="intrinsics preset (tum_fr1, tum_fr2, tum_fr3, tum_default, sr300, d435) or "
@@ -341,15 +312,13 @@ def ik_command(args: argparse.Namespace) -> int:
         raise ValueError("give exactly one of --pose X Y Z RX RY RZ or --joints Q1 ... Q6")
     if args.joints is not None:
         q_in = np.asarray(args.joints, dtype=np.float64)
-        T = robot.fk(q_in)
-        source = f"FK of q = {np.array2string(q_in, precision=4)} rad"
+        T, source = robot.fk(q_in), f"FK of q = {np.array2string(q_in, precision=4)} rad"
     else:
         v = np.asarray(args.pose, dtype=np.float64)
         if not np.all(np.isfinite(v)):
             raise ValueError("--pose: non-finite value")
         theta = float(np.linalg.norm(v[3:]))  # rotation vector: axis * angle
-        T = se3.rigid(v[3:] if theta > 0 else (0.0, 0.0, 1.0), theta, v[:3])
-        source = "the given pose"
+        T, source = se3.rigid(v[3:] if theta > 0 else (0.0, 0.0, 1.0), theta, v[:3]), "the given pose"
     sol = robot.ik(T, respect_limits=not args.ignore_limits)
     p = T[:3, 3]
     print(f"{robot.name} ({robot.geometry}): tool at ({p[0]:.4f}, {p[1]:.4f}, {p[2]:.4f}) m in the robot base "
@@ -370,8 +339,7 @@ def ik_command(args: argparse.Namespace) -> int:
         print(line)
     print(f"  {len(sol)} solution(s) ok, {len(sol.distinct())} distinct")
     if args.closest is not None:
-        best = robot.ik_closest(T, np.asarray(args.closest, dtype=np.float64),
-                                respect_limits=not args.ignore_limits)
+        best = robot.ik_closest(T, np.asarray(args.closest, dtype=np.float64), respect_limits=not args.ignore_limits)
         print(f"  closest to {np.array2string(np.asarray(args.closest), precision=4)}: {best.status}"
               + (" q = " + " ".join(f"{x:+.4f}" for x in best.q) if best.ok else ""))
     if args.plot:
@@ -404,8 +372,7 @@ def pose_command(args: argparse.Namespace) -> int:
         results, objects = found.poses, found.objects
         if not results:
             print("scanalign pose: no object cluster above the table", file=sys.stderr)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
+    (out := Path(args.out)).mkdir(parents=True, exist_ok=True)
     report = []
     for k, (r, idx) in enumerate(zip(results, objects)):
         report.append({**r.as_dict(), "object": k, "object_points": int(len(idx))})
@@ -423,8 +390,7 @@ def pose_command(args: argparse.Namespace) -> int:
 
 
 def pick_command(args: argparse.Namespace) -> int:
-    """``scanalign pick``: scan -> part poses -> grasps -> joint targets; exit status 1 when
-    nothing can be picked."""
+    """``scanalign pick``: scan -> part poses -> grasps -> joint targets; exit status 1 when nothing can be picked."""
     truth = None
     if args.demo:
         cell = pick_cell(args.robot or "ur5", noise=args.noise, seed=args.seed)
@@ -455,11 +421,10 @@ def demo_command(args: argparse.Namespace) -> int:
     """``scanalign demo``: the built-in reconstruction, or with ``--pick`` the pick demo."""
     if not args.pick:
         return reconstruct_command(args)
-    ns = argparse.Namespace(demo=True, robot=args.robot, noise=args.noise or "sr300", seed=args.seed or 0,
-                            q_current=None, out=args.out if args.out != "scanalign-demo" else "scanalign-pick",
-                            no_plots=args.no_plots, quiet=args.quiet, joints=None,
-                            view=args.view, view_save=args.view_save)
-    return pick_command(ns)
+    # pick --demo with demo's --robot, --noise, --seed and output flags; no settings: the defaults
+    vars(args).update(demo=True, noise=args.noise or "sr300", seed=args.seed or 0, q_current=None, joints=None,
+                      settings=None, out=args.out if args.out != "scanalign-demo" else "scanalign-pick")
+    return pick_command(args)
 
 
 def _add_pick_options(p: argparse.ArgumentParser) -> None:
@@ -474,10 +439,9 @@ def _add_pick_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--noise", default="sr300", choices=["sr300", "zivid", "d435", "none"],
                    help="demo: sensor noise preset (sr300)")
     p.add_argument("--seed", type=int, default=0, help="demo: noise seed (0)")
-    p.add_argument("--q-current", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
+    p.add_argument("--q-current", type=float, nargs=6, metavar=_Q,
                    help="the robot's joints now, rad (default: the scan's last)")
-    _add_output_options(p, "scanalign-pick", "pick.png", quiet="no progress bars")
-    _add_view_options(p)
+    _add_output_options(p, "scanalign-pick", "pick.png", quiet="no progress bars", view=True)
     add_settings_options(p, PICK)
 
 
@@ -506,19 +470,12 @@ def batch_command(args: argparse.Namespace) -> int:
     return 0 if all(r["status"] == "ok" for r in result.records) else 1
 
 
-def _version_line() -> str:
-    pcl = "with the PCL baselines" if _core.built_with_pcl else "without PCL (SCANALIGN_WITH_PCL=OFF)"
-    return f"scanalign {_core.__version__} ({pcl})"
-
-
 def _record_config(args: argparse.Namespace, rc: int) -> int:
-    """Writes the settings a run used beside its outputs (``config.yaml`` in ``--out``;
-    ``register``: ``NAME.config.yaml`` beside ``--out NAME.ply``, none without ``--out``);
-    returns ``rc``."""
+    """Writes the settings a run used beside its outputs (``config.yaml`` in ``--out``; ``register``:
+    ``NAME.config.yaml`` beside ``--out NAME.ply``, none without ``--out``); returns ``rc``."""
     if args.command not in COMMANDS or not args.out:
         return rc
-    out = Path(args.out)
-    path = out.with_suffix(".config.yaml") if args.command == "register" else out / "config.yaml"
+    path = Path(args.out).with_suffix(".config.yaml") if args.command == "register" else Path(args.out) / "config.yaml"
     inputs = [a for a in (getattr(args, "source", None), getattr(args, "target", None)) if a]
     write_effective(args.command, args.settings, args, inputs, path)
     if args.command != "register" and not args.quiet:  # register's stdout is JSON
@@ -545,7 +502,8 @@ HANDLERS = {"demo": demo_command, "pick": pick_command, "reconstruct": reconstru
 def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="scanalign", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--version", action="version", version=_version_line(),
+    pcl = "with the PCL baselines" if _core.built_with_pcl else "without PCL (SCANALIGN_WITH_PCL=OFF)"
+    parser.add_argument("--version", action="version", version=f"scanalign {_core.__version__} ({pcl})",
                         help="print the version and whether the PCL baselines are built, then exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     p = sub.add_parser("demo", help="reconstruct a built-in synthetic eye-in-hand scan (no download needed)",
@@ -594,10 +552,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     p.add_argument("--pose", type=float, nargs=6, metavar=("X", "Y", "Z", "RX", "RY", "RZ"),
                    help="tool pose in the robot base frame: position (m) and rotation vector (axis times angle, "
                         "rad), as a UR controller shows it")
-    p.add_argument("--joints", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
-                   help="use the pose of these joint values (radians, forward kinematics)")
-    p.add_argument("--closest", type=float, nargs=6, metavar=("Q1", "Q2", "Q3", "Q4", "Q5", "Q6"),
-                   help="also print the solution nearest these joints (radians)")
+    p.add_argument("--joints", type=float, nargs=6, metavar=_Q, help="use the pose of these joint values (radians, "
+                                                                     "forward kinematics)")
+    p.add_argument("--closest", type=float, nargs=6, metavar=_Q, help="also print the solution nearest these joints "
+                                                                      "(radians)")
     p.add_argument("--ignore-limits", action="store_true", help="ignore the joint limits")
     p.add_argument("--plot", help="write a PNG with every configuration drawn as a stick figure")
     p = sub.add_parser("pose", help="find a CAD part in a scan (CBD or a PCL baseline, then ICP; thesis ch. 6)",
@@ -620,8 +578,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "with the same --out skips the jobs already done. Exit status 1 when a job failed.")
     p.add_argument("manifest", help="manifest file (.yaml/.yml or .csv)")
     p.add_argument("--executor", choices=["local", "ray"], default="local", help="where the jobs run (local)")
-    p.add_argument("--address", help="Ray cluster address ('auto', 'ray://head:10001'); default: a local Ray "
-                                     "instance")
+    p.add_argument("--address", help="Ray cluster address ('auto', 'ray://head:10001'); default: a local Ray instance")
     p.add_argument("--workers", type=int, help="parallel jobs (default: cores / --threads-per-job)")
     p.add_argument("--threads-per-job", type=int, default=1, help="OpenMP threads (and Ray CPUs) per job (1)")
     p.add_argument("--retries", type=int, default=1, help="times a failed or crashed job is tried again (1)")
@@ -632,8 +589,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "COMMAND ... --config FILE'; flags and --set PATH=VALUE override the file. Every "
                                    "run of these commands writes the settings it used beside its outputs "
                                    "(config.yaml in --out; register: NAME.config.yaml beside --out).")
-    p.add_argument("config_command", metavar="COMMAND", choices=tuple(COMMANDS),
-                   help="one of " + ", ".join(COMMANDS))
+    p.add_argument("config_command", metavar="COMMAND", choices=tuple(COMMANDS), help="one of " + ", ".join(COMMANDS))
     args = parser.parse_args(argv)
     try:
         if args.command in COMMANDS or args.command == "demo":
@@ -643,7 +599,3 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     except (ValueError, TypeError, OSError, RuntimeError, ImportError) as e:  # OSError: unreadable input, unwritable output
         print(f"scanalign {args.command}: error: {e}", file=sys.stderr)
         return 2
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -1,9 +1,8 @@
-"""The settings of the ``scanalign`` commands: a *root* of C++ structs
-(:mod:`scanalign.common.settings`) set, each overriding the one before, from the structs'
-C++ defaults (and a command's preset), ``--config FILE`` (nested YAML / JSON, as
-``dump-config COMMAND`` writes it), the command's alias flags (``--max-distance``: help, unit
-and default from the field) and ``--set PATH=VALUE``. The settings a run used are written
-beside its outputs (``config.yaml``); ``--config`` on that file repeats the run.
+"""The settings of the ``scanalign`` commands: a *root* of C++ structs (:mod:`scanalign.common.settings`) set, each
+overriding the one before, from the structs' C++ defaults (and a command's preset), ``--config FILE`` (nested YAML /
+JSON, as ``dump-config COMMAND`` writes it), the command's alias flags (``--max-distance``: help, unit and default from
+the field) and ``--set PATH=VALUE``. The settings a run used are written beside its outputs (``config.yaml``);
+``--config`` on that file repeats the run.
 """
 
 from __future__ import annotations
@@ -54,12 +53,8 @@ def _help(root: Any, alias: Alias) -> str:
     text = alias.help or doc
     if schema.is_struct(default) and schema.field_names(default):  # an alias that sets several fields
         return f"{text} (--set {alias.path}.FIELD=VALUE)".replace("%", "%%")
-    return f"{text}{', ' + unit if unit else ''} (default {_shown(default)}; --set {alias.path})".replace("%", "%%")
-
-
-def _shown(value: Any) -> str:
-    """A default as YAML writes it (``0.02``, ``point_to_plane``, ``null``)."""
-    return schema.dump_yaml({"v": value}, comments=False).strip()[len("v: "):]
+    shown = schema.dump_yaml({"v": default}, comments=False).strip()[len("v: "):]  # as YAML: 0.02, point_to_plane, null
+    return f"{text}{', ' + unit if unit else ''} (default {shown}; --set {alias.path})".replace("%", "%%")
 
 
 def add_settings_options(parser: argparse.ArgumentParser, command: Command) -> None:
@@ -74,23 +69,17 @@ def add_settings_options(parser: argparse.ArgumentParser, command: Command) -> N
     for a in command.aliases:
         target = parser if a.group is None else groups.setdefault(a.group, parser.add_argument_group(a.group))
         kwargs: Dict[str, Any] = dict(dest=f"alias:{a.path}", default=None, help=_help(root, a))
+        default = schema.get_path(root, a.path)
         if a.flag is not None:
             kwargs.update(action="store_const", const=a.flag)
-        elif isinstance(schema.get_path(root, a.path), bool) and a.nargs is None:
+        elif isinstance(default, bool) and a.nargs is None:
             kwargs.update(action=argparse.BooleanOptionalAction)
         else:
-            kwargs.update(nargs=a.nargs, metavar=a.metavar or (None if a.choices else a.option[2:].upper().replace("-", "_")),
-                          choices=a.choices,
-                          type=_type_of(schema.get_path(root, a.path)) if a.value is None else str)
+            kind = str if a.value or default is None or isinstance(default, (bool, str)) else (
+                int if isinstance(default, int) else float)
+            metavar = a.metavar or (None if a.choices else a.option[2:].upper().replace("-", "_"))
+            kwargs.update(nargs=a.nargs, metavar=metavar, choices=a.choices, type=kind)
         target.add_argument(a.option, **kwargs)
-
-
-def _type_of(default: Any) -> Callable[[str], Any]:
-    if isinstance(default, bool) or default is None or isinstance(default, str):
-        return str
-    if isinstance(default, int):
-        return int
-    return float
 
 
 def resolve(command: Command, args: argparse.Namespace, preset: Optional[Dict[str, Any]] = None) -> Any:
@@ -113,8 +102,7 @@ def resolve(command: Command, args: argparse.Namespace, preset: Optional[Dict[st
             except (TypeError, ValueError) as e:
                 raise ValueError(f"{a.option}: {str(e).removeprefix(a.path + ': ')}") from None
     for text in getattr(args, "set_values", []):
-        path, value = schema.parse_assignment(text)
-        schema.set_path(root, path, value)
+        schema.set_path(root, *schema.parse_assignment(text))
     _validate(root)
     return root
 
@@ -134,8 +122,7 @@ def dump(command_name: str, root: Any, header: Sequence[str] = ()) -> str:
     return schema.dump_yaml(root, header=lines + [""])
 
 
-def write_effective(command_name: str, root: Any, args: argparse.Namespace, inputs: Sequence[str],
-                    path: Path) -> Path:
+def write_effective(command_name: str, root: Any, args: argparse.Namespace, inputs: Sequence[str], path: Path) -> Path:
     """Writes the settings of this run beside its outputs, with the command that repeats it."""
     repeat = shlex.join(["scanalign", command_name, *inputs, "--config", str(path)])
     source = f" (defaults < {args.config} < flags)" if getattr(args, "config", None) else " (defaults < flags)"

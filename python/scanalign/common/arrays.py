@@ -9,17 +9,11 @@ from typing import Optional, Tuple
 
 import numpy as np
 
-_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
-
-
 # --- Open3D and trimesh objects, duck-typed: neither package is imported here ---------------
-
-_FOREIGN = ("open3d", "trimesh")
-
 
 def is_foreign(obj: object) -> bool:
     """Whether ``obj`` is an Open3D or trimesh object (by its type's module)."""
-    return type(obj).__module__.startswith(_FOREIGN) and not isinstance(obj, np.ndarray)
+    return type(obj).__module__.startswith(("open3d", "trimesh")) and not isinstance(obj, np.ndarray)
 
 
 def _tensor(t: object) -> np.ndarray:
@@ -77,11 +71,8 @@ def mesh_arrays(obj: object) -> Optional[Tuple[np.ndarray, np.ndarray]]:
     if foreign_kind(obj) != "mesh":
         return None
     origin = _origin(obj)
-    if origin == "o3d.t":
-        v, f = _tensor(obj.vertex.positions), _tensor(obj.triangle.indices)
-    else:
-        v, f = np.asarray(obj.vertices), np.asarray(obj.triangles if origin == "o3d" else obj.faces)
-    return np.asarray(v, dtype=np.float64), np.asarray(f, dtype=np.int64).reshape(-1, 3)
+    f = _tensor(obj.triangle.indices) if origin == "o3d.t" else obj.triangles if origin == "o3d" else obj.faces
+    return np.asarray(foreign_points(obj), dtype=np.float64), np.asarray(f, dtype=np.int64).reshape(-1, 3)
 
 
 def native(obj: object) -> object:

@@ -88,9 +88,8 @@ def pose_error(T_est: np.ndarray, T_ref: np.ndarray) -> Tuple[float, float]:
 
 
 def rigid_problem(m: np.ndarray) -> Optional[str]:
-    """Why the 4x4 matrix ``m`` is not a rigid transform, or None when it is: finite, last
-    row (0, 0, 0, 1) to ROW_TOLERANCE, rotation part orthonormal to ROTATION_TOLERANCE with
-    determinant +1. The check is the C++ core's (``rigidProblem``), called directly."""
+    """Why the 4x4 matrix ``m`` is not a rigid transform, or None when it is: finite, last row
+    (0, 0, 0, 1) to ROW_TOLERANCE, rotation part orthonormal to ROTATION_TOLERANCE, determinant +1."""
     if (a := _real(m, "m", 4, 4)).ndim != 2:
         raise ValueError(f"m: expected a 4x4 matrix, got shape {a.shape}")
     return _core.common.rigid_problem(a)
@@ -100,8 +99,7 @@ def require_rigid(T: object, name: str) -> np.ndarray:
     """``T`` as a 4x4 float64 rigid transform; ValueError naming ``name`` and the failed
     property otherwise (shape, finiteness, last row, orthonormality, reflection)."""
     m = as_transform(T, name)
-    why = rigid_problem(m)
-    if why is not None:
+    if (why := rigid_problem(m)) is not None:
         raise ValueError(f"{name}: {why}")
     return m
 

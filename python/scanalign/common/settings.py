@@ -4,15 +4,11 @@ Every bound struct lists its fields in ``__fields__`` (``(name, unit, doc, writa
 one field table of its binding), so nothing here restates a field, a unit or a default: a new
 C++ field with its doc is a new key of every config file, ``--set`` path and ``dump-config``
 line at once. A *root* is one struct or a mapping ``{name: struct}`` (a command that uses two
-structs side by side).
-
-- :func:`to_dict` / :func:`update`: a struct as a nested dict of plain values, and back onto a
-  struct, each value checked by the C++ field's setter;
-- :func:`with_overrides`: what the Python API functions do with ``settings=`` and keyword
-  overrides (nested structs take a dict);
-- :func:`set_path` / :func:`parse_assignment`: ``--set frame_to_model.icp.max_iterations=30``;
-- :func:`leaves`: every leaf field with its path, unit, doc and value;
-- :func:`dump_yaml` / :func:`load_yaml`: the commented YAML of ``dump-config`` and config files.
+structs side by side). :func:`to_dict` / :func:`update` convert to and from nested dicts (each
+value checked by the C++ field's setter), :func:`with_overrides` is what the API functions do with
+``settings=`` and keywords, :func:`set_path` / :func:`parse_assignment` serve ``--set a.b=value``,
+:func:`leaves` lists every leaf field (path, unit, doc, value), and :func:`dump_yaml` /
+:func:`load_yaml` write and read the commented YAML of ``dump-config`` and config files.
 """
 
 from __future__ import annotations
@@ -165,7 +161,6 @@ def set_path(root: Root, path: str, value: Any) -> None:
 def parse_assignment(text: str) -> Tuple[str, Any]:
     """``"a.b=value"`` as ``("a.b", value)``, the value read as YAML (``0.02``, ``true``,
     ``[1, 2, 3]``, ``point_to_point``)."""
-
     path, sep, raw = text.partition("=")
     if not sep or not path.strip():
         raise ValueError(f"--set {text!r}: expected PATH=VALUE, e.g. frame_to_model.icp.max_iterations=30")
@@ -188,7 +183,6 @@ def leaves(root: Root, prefix: str = "") -> Iterator[Tuple[str, str, str, Any]]:
 
 
 def _yaml_scalar(value: Any) -> str:
-
     return yaml.safe_dump(value, default_flow_style=True, width=10**9).strip().removesuffix("\n...").strip()
 
 
@@ -221,7 +215,6 @@ def dump_yaml(root: Root, header: Sequence[str] = (), comments: bool = True) -> 
 def load_yaml(path: Union[str, Path]) -> Dict[str, Any]:
     """A YAML / JSON settings file as a mapping; ValueError naming the file (and line) when it
     cannot be read or is not a mapping."""
-
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")

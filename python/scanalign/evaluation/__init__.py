@@ -1,8 +1,6 @@
-"""Trajectory and reconstruction accuracy: ATE, RPE (Sturm et al., "A Benchmark for the
-Evaluation of RGB-D SLAM Systems", IROS 2012), cloud-to-mesh distance.
-
-Inputs in metres and radians; a pose ``T_world_camera`` maps camera coordinates into the
-trajectory's world frame.  Error statistics report translations in metres and rotations in
+"""Trajectory and reconstruction accuracy: ATE, RPE (Sturm et al., "A Benchmark for the Evaluation of RGB-D SLAM
+Systems", IROS 2012), cloud-to-mesh distance.  Inputs in metres and radians; a pose ``T_world_camera`` maps camera
+coordinates into the trajectory's world frame.  Error statistics report translations in metres and rotations in
 **degrees** (as the TUM tools and ``evo``, whose APE ``translation_part`` and RPE these equal).
 """
 
@@ -17,12 +15,8 @@ from scanalign import _core
 from scanalign._core.evaluation import ErrorStats
 from scanalign.common import rigid as se3
 from scanalign.common.arrays import mesh_arrays
-from scanalign.evaluation.mesh_distance import (
-    MeshDistanceIndex,
-    MeshDistanceStats,
-    mesh_distance_stats,
-    point_to_mesh_distance,
-)
+from scanalign.evaluation.mesh_distance import (MeshDistanceIndex, MeshDistanceStats, mesh_distance_stats,
+                                                point_to_mesh_distance)
 from scanalign.evaluation.trajectory import Trajectory, associate_timestamps
 
 __all__ = ["umeyama_alignment", "associate", "ErrorStats", "AteResult", "RpeResult",
@@ -44,8 +38,8 @@ def _as_trajectory(x: TrajectoryLike, name: str) -> Trajectory:
 
 def _paired(estimate: TrajectoryLike, reference: TrajectoryLike, associate: bool, max_difference: float,
             offset: float, minimum: int, what: str) -> Tuple[Trajectory, Trajectory]:
-    """The two trajectories, paired by timestamps with ``associate`` (else by index, so they
-    must have equal lengths), with at least ``minimum`` pairs."""
+    """The two trajectories, paired by timestamps with ``associate`` (else by index, so they must have equal lengths),
+    with at least ``minimum`` pairs."""
     est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
     if associate:
         est, ref = _associate(est, ref, max_difference=max_difference, offset=offset)
@@ -60,18 +54,12 @@ def _paired(estimate: TrajectoryLike, reference: TrajectoryLike, associate: bool
 
 def umeyama_alignment(source: np.ndarray, target: np.ndarray,
                       with_scale: bool = False) -> Tuple[np.ndarray, np.ndarray, float]:
-    """Least-squares similarity (or rigid) transform taking ``source`` onto ``target`` (Umeyama
-    1991; the C++ core's one implementation): minimises ``sum_i || target_i - (s R source_i +
-    t) ||^2`` over rotations R (det +1), translations t and, with ``with_scale``, a scale s > 0
-    (else s = 1).  ``source`` and ``target`` are (N, 3) corresponding points in one unit.
-
-    Returns:
-        (R (3, 3), t (3,), s float): the 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.
-
-    Raises:
-        ValueError: shape mismatch, N < 3, non-finite values, or all points coincident or
-            collinear in source or target (the rotation is not determined).
-    """
+    """``(R (3, 3), t (3,), s)``, the least-squares similarity (or rigid) transform taking ``source`` onto ``target``
+    ((N, 3) corresponding points in one unit; Umeyama 1991, the C++ core's one implementation): it minimises
+    ``sum_i || target_i - (s R source_i + t) ||^2`` over rotations R (det +1), translations t and, with
+    ``with_scale``, a scale s > 0 (else s = 1).  The 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.  ValueError:
+    shape mismatch, N < 3, non-finite values, or all points coincident or collinear in source or target (the rotation
+    is not determined)."""
     R, t, s = _core.registration.fit_similarity(np.ascontiguousarray(source, dtype=np.float64),
                                                 np.ascontiguousarray(target, dtype=np.float64), bool(with_scale))
     return np.asarray(R), np.asarray(t), float(s)
@@ -79,31 +67,21 @@ def umeyama_alignment(source: np.ndarray, target: np.ndarray,
 
 def associate(estimate: Trajectory, reference: Trajectory, max_difference: float = 0.02, offset: float = 0.0,
               method: str = "greedy", return_indices: bool = False):
-    """Pairs the poses of two trajectories by timestamp (s).
+    """Pairs the poses of two trajectories by timestamp (s): ``(estimate_matched, reference_matched)``, with
+    ``return_indices`` also the index arrays into the inputs, ``(est, ref, idx_est, idx_ref)``.
 
-    ``offset`` (s) is added to the estimate's timestamps before matching (the TUM tools'
-    ``--offset``); the returned trajectories keep their own timestamps.  ``method``:
-    ``"greedy"`` (default), :func:`scanalign.evaluation.trajectory.associate_timestamps`
-    (pairs with ``|t_ref - (t_est + offset)| <= max_difference``, closest first, every pose
-    used at most once); ``"nearest"``, ``evo.core.sync.associate_trajectories(reference,
-    estimate, max_diff=max_difference, offset_2=offset)``: every pose of the shorter
-    trajectory (the estimate on a tie) takes the nearest pose of the other within
-    ``max_difference``, which may be used more than once.
-
-    Returns:
-        ``(estimate_matched, reference_matched)`` in reference time order (``"greedy"``) or the
-        shorter trajectory's order (``"nearest"``); with ``return_indices`` also the index
-        arrays into the inputs, ``(est, ref, idx_est, idx_ref)``.
-
-    Raises:
-        ValueError: no pair within ``max_difference``, a negative ``max_difference``, a
-            non-finite ``offset``, an unknown method.
-    """
+    ``offset`` (s) is added to the estimate's timestamps before matching (the TUM tools' ``--offset``); the returned
+    trajectories keep their own timestamps.  ``method``: ``"greedy"`` (default; pairs in reference time order),
+    :func:`scanalign.evaluation.trajectory.associate_timestamps` (pairs with
+    ``|t_ref - (t_est + offset)| <= max_difference``, closest first, every pose used at most once); ``"nearest"``
+    (pairs in the shorter trajectory's order), ``evo.core.sync.associate_trajectories(reference, estimate,
+    max_diff=max_difference, offset_2=offset)``: every pose of the shorter trajectory (the estimate on a tie) takes
+    the nearest pose of the other within ``max_difference``, which may be used more than once.  ValueError: no pair
+    within ``max_difference``, a negative ``max_difference``, a non-finite ``offset``, an unknown method."""
     est, ref = _as_trajectory(estimate, "estimate"), _as_trajectory(reference, "reference")
     if not np.isfinite(offset):  # max_difference is checked by both C++ association rules
         raise ValueError(f"offset must be finite, got {offset}")
-    te = est.timestamps + float(offset)
-    tr = ref.timestamps
+    te, tr = est.timestamps + float(offset), ref.timestamps
     if method == "greedy":
         # Trajectories need not be time-sorted: match in time order, map back to rows.
         o_r, o_e = np.argsort(tr, kind="stable"), np.argsort(te, kind="stable")
@@ -119,21 +97,18 @@ def associate(estimate: Trajectory, reference: Trajectory, max_difference: float
     else:
         raise ValueError(f"unknown association method {method!r} (use 'greedy' or 'nearest')")
     if ie.size == 0:
-        raise ValueError(
-            f"associate: no timestamps match within max_difference={max_difference} s (offset {offset} s); "
-            f"estimate spans [{est.timestamps.min() if len(est) else 'empty'}, "
-            f"{est.timestamps.max() if len(est) else ''}] s, reference "
-            f"[{tr.min() if len(ref) else 'empty'}, {tr.max() if len(ref) else ''}] s")
+        span = [f"[{t.min()}, {t.max()}]" if len(t) else "[empty, ]" for t in (est.timestamps, tr)]
+        raise ValueError(f"associate: no timestamps match within max_difference={max_difference} s (offset "
+                         f"{offset} s); estimate spans {span[0]} s, reference {span[1]} s")
     return (est[ie], ref[ir], ie, ir) if return_indices else (est[ie], ref[ir])
 
 
 @dataclass
 class AteResult:
-    """Absolute trajectory error: ``translation`` (m) and ``rotation`` (degrees) statistics, the
-    alignment ``T_reference_estimate`` = ``[[s R, t], [0, 1]]`` applied to the estimate's world
-    frame (identity without ``align``) with its ``scale`` s, the estimate ``aligned`` to the
-    reference frame (rotations ``R R_i``, centres ``s R p_i + t``) and the ``reference`` poses
-    paired with it (after association, if any)."""
+    """Absolute trajectory error: ``translation`` (m) and ``rotation`` (degrees) statistics, the alignment
+    ``T_reference_estimate`` = ``[[s R, t], [0, 1]]`` applied to the estimate's world frame (identity without
+    ``align``) with its ``scale`` s, the estimate ``aligned`` to the reference frame (rotations ``R R_i``, centres
+    ``s R p_i + t``) and the ``reference`` poses paired with it (after association, if any)."""
 
     translation: ErrorStats
     rotation: ErrorStats
@@ -155,9 +130,8 @@ class AteResult:
 
 @dataclass
 class RpeResult:
-    """Relative pose error: ``translation`` (m) and ``rotation`` (degrees) statistics over the
-    (M, 2) index ``pairs`` (i, j) of the compared trajectories, chosen by ``delta``,
-    ``delta_unit`` and ``all_pairs``."""
+    """Relative pose error: ``translation`` (m) and ``rotation`` (degrees) statistics over the (M, 2) index ``pairs``
+    (i, j) of the compared trajectories, chosen by ``delta``, ``delta_unit`` and ``all_pairs``."""
 
     translation: ErrorStats
     rotation: ErrorStats
@@ -167,6 +141,7 @@ class RpeResult:
     all_pairs: bool
 
     def as_dict(self) -> Dict[str, Any]:
+        """JSON-ready: statistics (m, degrees) and how the pairs were chosen."""
         return {"translation_m": self.translation.as_dict(), "rotation_deg": self.rotation.as_dict(),
                 "delta": self.delta, "delta_unit": self.delta_unit, "all_pairs": self.all_pairs}
 
@@ -174,22 +149,16 @@ class RpeResult:
 def absolute_trajectory_error(estimate: TrajectoryLike, reference: TrajectoryLike, align: bool = True,
                               with_scale: bool = False, associate: bool = False,
                               max_difference: float = 0.02, offset: float = 0.0) -> AteResult:
-    """Absolute trajectory error (Sturm et al. 2012), translational (m) and rotational (degrees).
+    """Absolute trajectory error (Sturm et al. 2012), translational (m) and rotational (degrees), of ``estimate``
+    against ``reference`` (``T_world_camera`` poses, :class:`Trajectory` or (N, 4, 4)) paired by index (equal
+    lengths), or with ``associate`` by timestamps (greedy :func:`associate`, ``max_difference`` s, ``offset`` s added
+    to the estimate's times).
 
-    With ``align``, the estimated camera centres are fitted to the reference ones by
-    :func:`umeyama_alignment` (a similarity with ``with_scale``); the error of pose i is
-    ``|| q_i - (s R p_i + t) ||`` (evo's APE ``translation_part`` after ``align``) and the
-    angle of ``R_ref_i^T (R R_est_i)``.
-
-    Args:
-        estimate, reference: ``T_world_camera`` poses (:class:`Trajectory` or (N, 4, 4)),
-            paired by index (equal lengths), or with ``associate`` by timestamps
-            (greedy :func:`associate`, ``max_difference`` s, ``offset`` s added to the estimate's times).
-
-    Raises:
-        ValueError: different lengths without ``associate``, fewer than 3 poses (with
-            ``align``; 1 without), degenerate (collinear) centres with ``align``.
-    """
+    With ``align``, the estimated camera centres are fitted to the reference ones by :func:`umeyama_alignment` (a
+    similarity with ``with_scale``); the error of pose i is ``|| q_i - (s R p_i + t) ||`` (evo's APE
+    ``translation_part`` after ``align``) and the angle of ``R_ref_i^T (R R_est_i)``.  ValueError: different lengths
+    without ``associate``, fewer than 3 poses (with ``align``; 1 without), degenerate (collinear) centres with
+    ``align``."""
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 3 if align else 1,
                        "absolute_trajectory_error")
     R, t, s = umeyama_alignment(est.positions, ref.positions, with_scale) if align else (np.eye(3), np.zeros(3), 1.0)
@@ -210,24 +179,18 @@ def relative_pose_error(estimate: TrajectoryLike, reference: TrajectoryLike, del
                         delta_unit: str = "frames", all_pairs: bool = False, rel_delta_tol: float = 0.1,
                         pairs_from_reference: bool = False, associate: bool = False,
                         max_difference: float = 0.02, offset: float = 0.0) -> RpeResult:
-    """Relative pose error (Sturm et al. 2012), translational (m) and rotational (degrees): for
-    each pair (i, j), ``E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`` with Q the reference and P
-    the estimate poses (``T_world_camera``); errors are ``|| trans(E_ij) ||`` (m) and the
-    rotation angle of ``E_ij`` (degrees).  No alignment is needed: RPE is invariant to a
-    rigid change of either world frame.
+    """Relative pose error (Sturm et al. 2012), translational (m) and rotational (degrees): for each pair (i, j),
+    ``E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)`` with Q the reference and P the estimate poses (``T_world_camera``); errors
+    are ``|| trans(E_ij) ||`` (m) and the rotation angle of ``E_ij`` (degrees).  No alignment is needed: RPE is
+    invariant to a rigid change of either world frame.
 
-    Pairs are chosen as ``evo.core.metrics.RPE`` chooses them, ``delta`` apart in
-    ``delta_unit``: ``"frames"`` (a positive integer; Sturm's script is ``all_pairs=True``),
-    ``"meters"`` along the camera-centre path (of the estimate, or of the reference with
-    ``pairs_from_reference``) or ``"seconds"`` (not in evo).  ``all_pairs=False``: the chain
-    of pairs, each starting where the last ended and ending at the first pose at least
-    ``delta`` further; ``all_pairs=True``: for every i the first j > i closest to ``delta``
-    away, kept within ``rel_delta_tol * delta`` (exactly ``delta`` for frames).  Poses are
-    paired as in :func:`absolute_trajectory_error`.
-
-    Raises:
-        ValueError: different lengths, fewer than 2 poses, bad delta / unit, no pair found.
-    """
+    Pairs are chosen as ``evo.core.metrics.RPE`` chooses them, ``delta`` apart in ``delta_unit``: ``"frames"`` (a
+    positive integer; Sturm's script is ``all_pairs=True``), ``"meters"`` along the camera-centre path (of the
+    estimate, or of the reference with ``pairs_from_reference``) or ``"seconds"`` (not in evo).  ``all_pairs=False``:
+    the chain of pairs, each starting where the last ended and ending at the first pose at least ``delta`` further;
+    ``all_pairs=True``: for every i the first j > i closest to ``delta`` away, kept within ``rel_delta_tol * delta``
+    (exactly ``delta`` for frames).  Poses are paired as in :func:`absolute_trajectory_error`.  ValueError: different
+    lengths, fewer than 2 poses, bad delta / unit, no pair found."""
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 2, "relative_pose_error")
     if delta_unit not in _DELTA_UNITS:
         raise ValueError(f"delta_unit must be one of {_DELTA_UNITS}, got {delta_unit!r}")
@@ -262,13 +225,10 @@ def evaluate_reconstruction(estimate: TrajectoryLike, reference: TrajectoryLike,
                             rpe_delta: float = 1, rpe_delta_unit: str = "frames", rpe_all_pairs: bool = True,
                             points: Optional[np.ndarray] = None,
                             mesh: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> Dict[str, Any]:
-    """ATE and RPE (and optionally cloud-to-mesh distances) as a JSON-ready dict (m, degrees).
-
-    The defaults are the TUM benchmark's: ATE after rigid alignment, RPE over every pair
-    (i, i + 1 frame).  Keys: ``poses``, ``ate`` (:meth:`AteResult.as_dict`), ``rpe``
-    (:meth:`RpeResult.as_dict`) and, given ``points`` (the reconstructed cloud, in the mesh's
-    frame) and ``mesh`` ``(vertices, faces)`` (or an Open3D / trimesh mesh), ``cloud_to_mesh_m``.
-    """
+    """ATE and RPE (and optionally cloud-to-mesh distances) as a JSON-ready dict (m, degrees), by default as in the
+    TUM benchmark: ATE after rigid alignment, RPE over every pair (i, i + 1 frame).  Keys: ``poses``, ``ate``
+    (:meth:`AteResult.as_dict`), ``rpe`` (:meth:`RpeResult.as_dict`) and, given ``points`` (the reconstructed cloud, in
+    the mesh's frame) and ``mesh`` ``(vertices, faces)`` (or an Open3D / trimesh mesh), ``cloud_to_mesh_m``."""
     if (points is None) != (mesh is None):
         raise ValueError("pass both points and mesh=(vertices, faces) for the cloud-to-mesh distance, or neither")
     est, ref = _paired(estimate, reference, associate, max_difference, offset, 0, "evaluate_reconstruction")

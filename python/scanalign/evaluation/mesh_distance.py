@@ -17,8 +17,6 @@ def point_to_mesh_distance(points: np.ndarray, vertices: np.ndarray, faces: np.n
 
 
 def mesh_distance_stats(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray) -> MeshDistanceStats:
-    """:meth:`MeshDistanceIndex.stats` of ``points`` to the mesh ``(vertices, faces)``: mean,
-    median, p95 (``numpy.percentile``'s linear interpolation), max and rmse (m) over the
-    finite points; rows with NaN/Inf are dropped (counted).  ValueError when no point is
-    finite (besides the input errors of :class:`MeshDistanceIndex`)."""
+    """:meth:`MeshDistanceIndex.stats` of ``points`` to the mesh ``(vertices, faces)``: mean, median, p95, max and
+    rmse (m) over the finite points (rows with NaN/Inf are dropped, counted; ValueError when none is finite)."""
     return MeshDistanceIndex(vertices, faces).stats(points)

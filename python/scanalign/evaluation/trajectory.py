@@ -1,9 +1,7 @@
-"""Camera trajectories: timestamped poses ``T_world_camera`` (camera -> world, metres;
-seconds) in the TUM, KITTI and EuRoC text formats and ``evo``'s types, interpolated.
-
-The TUM RGB-D format has one pose per line, ``timestamp tx ty tz qx qy qz qw``: the camera
-centre and the unit quaternion (Hamilton, scalar last) of its orientation in the world frame.
-:func:`associate_timestamps` is the package's one rule for pairing two timestamp streams.
+"""Camera trajectories: timestamped poses ``T_world_camera`` (camera -> world, metres; seconds) in the TUM, KITTI and
+EuRoC text formats and ``evo``'s types, interpolated.  The TUM RGB-D format has one pose per line,
+``timestamp tx ty tz qx qy qz qw``: the camera centre and the unit quaternion (Hamilton, scalar last) of its
+orientation in the world frame.  :func:`associate_timestamps` is the package's one rule for pairing timestamp streams.
 """
 
 from __future__ import annotations
@@ -20,9 +18,8 @@ from scanalign import _core
 from scanalign.common.arrays import as_transform
 from scanalign.io import atomic_open
 
-__all__ = ["Trajectory", "quaternion_from_matrix", "matrix_from_quaternion", "pose_from_tum",
-           "read_tum_trajectory", "write_tum_trajectory", "associate_timestamps", "TumFormatError",
-           "read_tum_rows", "time_order"]
+__all__ = ["Trajectory", "quaternion_from_matrix", "matrix_from_quaternion", "pose_from_tum", "read_tum_trajectory",
+           "write_tum_trajectory", "associate_timestamps", "TumFormatError", "read_tum_rows", "time_order"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -46,12 +43,8 @@ def pose_from_tum(values: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Trajectory:
-    """Timestamped camera poses.
-
-    Attributes:
-        timestamps: (N,) float64 seconds, non-decreasing.
-        poses: (N, 4, 4) float64 ``T_world_camera`` (camera -> world, metres).
-    """
+    """Timestamped camera poses: ``timestamps`` (N,) float64 seconds, non-decreasing, and ``poses`` (N, 4, 4) float64
+    ``T_world_camera`` (camera -> world, metres)."""
 
     timestamps: np.ndarray
     poses: np.ndarray
@@ -88,8 +81,7 @@ class Trajectory:
         return float(np.linalg.norm(np.diff(self.positions, axis=0), axis=1).sum()) if len(self) > 1 else 0.0
 
     def transformed(self, T_new_world: np.ndarray) -> "Trajectory":
-        """The same trajectory expressed in another world frame: poses ``T_new_world @ T``
-        (ValueError for a matrix that is not a finite 4x4)."""
+        """The same trajectory in another world frame: poses ``T_new_world @ T`` (ValueError unless a finite 4x4)."""
         return Trajectory(self.timestamps.copy(), as_transform(T_new_world, "T_new_world") @ self.poses)
 
     def to_tum_rows(self) -> np.ndarray:
@@ -98,22 +90,25 @@ class Trajectory:
 
     @classmethod
     def from_tum_rows(cls, rows: np.ndarray) -> "Trajectory":
+        """From rows ``timestamp tx ty tz qx qy qz qw`` (:meth:`to_tum_rows`)."""
         rows = np.asarray(rows, dtype=np.float64).reshape(-1, 8)
         return cls(rows[:, 0], pose_from_tum(rows[:, 1:]))
 
     @classmethod
     def read_tum(cls, path: PathLike) -> "Trajectory":
-        """:func:`read_tum_trajectory`."""
-        return read_tum_trajectory(path)
+        """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, in file order:
+        :meth:`interpolate` refuses one that is not time-sorted).  TumFormatError (a ValueError)
+        names the file and line without 8 finite numbers or with a zero quaternion."""
+        return cls.from_tum_rows(read_tum_rows(path, 8, "8 values (timestamp tx ty tz qx qy qz qw)")[0])
 
     def write_tum(self, path: PathLike, header: Optional[str] = None) -> None:
         """:func:`write_tum_trajectory`."""
         write_tum_trajectory(path, self, header)
 
     def write_kitti(self, path: PathLike, times_path: Optional[PathLike] = None) -> None:
-        """Writes the KITTI odometry format: per pose the first three rows of ``T_world_camera``,
-        12 numbers row-major (full double precision). KITTI keeps no timestamps in it: they go
-        to ``times_path`` (one time in seconds per line, KITTI's ``times.txt``) when given."""
+        """Writes the KITTI odometry format: per pose the first three rows of ``T_world_camera``, 12 numbers row-major
+        (full double precision).  KITTI keeps no timestamps in it: they go to ``times_path`` (one time in seconds per
+        line, KITTI's ``times.txt``) when given."""
         with atomic_open(path, "w", encoding="utf-8") as f:
             f.writelines(" ".join(f"{v:.17g}" for v in T[:3].ravel()) + "\n" for T in self.poses)
         if times_path is not None:
@@ -122,10 +117,9 @@ class Trajectory:
 
     @classmethod
     def read_kitti(cls, path: PathLike, times_path: Optional[PathLike] = None) -> "Trajectory":
-        """Reads a KITTI pose file (12 numbers per line, see :meth:`write_kitti`); timestamps
-        from ``times_path`` (one per line), else the frame numbers 0, 1, 2, ...  TumFormatError
-        (a ValueError) names the file and line without 12 finite numbers, or a times file with
-        another number of lines."""
+        """Reads a KITTI pose file (12 numbers per line, see :meth:`write_kitti`); timestamps from ``times_path`` (one
+        per line), else the frame numbers 0, 1, 2, ...  TumFormatError (a ValueError) names the file and line without
+        12 finite numbers, or a times file with another number of lines."""
         values, _, _ = read_tum_rows(path, 12, "12 values (a 3x4 pose, row-major)")
         times = np.arange(len(values), dtype=np.float64)
         if times_path is not None:
@@ -137,24 +131,20 @@ class Trajectory:
         return cls(times, poses)
 
     def write_euroc(self, path: PathLike) -> None:
-        """Writes the EuRoC MAV ground-truth CSV: ``#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],
-        p_RS_R_z [m],q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []`` (integer nanoseconds; position and
-        Hamilton quaternion, scalar first, of the camera in the world frame)."""
+        """Writes the EuRoC MAV ground-truth CSV: integer nanoseconds, then the position and Hamilton quaternion
+        (scalar first) of the camera in the world frame."""
         whole = np.floor(self.timestamps)
         ns = [int(a) * 10**9 + int(round(b)) for a, b in zip(whole, (self.timestamps - whole) * 1e9)]
-        q = quaternion_from_matrix(self.rotations)[:, [3, 0, 1, 2]]
+        rows = np.c_[self.positions, quaternion_from_matrix(self.rotations)[:, [3, 0, 1, 2]]]  # w x y z
         with atomic_open(path, "w", encoding="utf-8") as f:
-            f.write(",".join(["#timestamp [ns]", *(f"p_RS_R_{a} [m]" for a in "xyz"),
-                              *(f"q_RS_{a} []" for a in "wxyz")]) + "\n")
-            rows = np.c_[self.positions, q]
+            f.write("#timestamp [ns],p_RS_R_x [m],p_RS_R_y [m],p_RS_R_z [m],q_RS_w [],q_RS_x [],q_RS_y [],q_RS_z []\n")
             f.writelines(f"{t}," + ",".join(f"{v:.17g}" for v in row) + "\n" for t, row in zip(ns, rows))
 
     @classmethod
     def read_euroc(cls, path: PathLike) -> "Trajectory":
         """Reads a EuRoC MAV pose CSV (``vicon0/data.csv``: 8 columns, or the 17 of
-        ``state_groundtruth_estimate0/data.csv``, whose velocities and biases are ignored):
-        nanosecond timestamps, position, quaternion ``w x y z``.  TumFormatError (a ValueError)
-        names the file and line of a malformed line."""
+        ``state_groundtruth_estimate0/data.csv``, whose velocities and biases are ignored): nanosecond timestamps,
+        position, quaternion ``w x y z``.  TumFormatError (a ValueError) names the file and line of a malformed line."""
         ns, values = [], []
         for n, line in enumerate(Path(path).read_text(encoding="utf-8").splitlines(), 1):
             if not line.strip() or line.lstrip().startswith("#"):
@@ -188,18 +178,12 @@ class Trajectory:
         numbers 0, 1, 2, ... as timestamps)."""
         poses = np.array(trajectory.poses_se3, dtype=np.float64).reshape(-1, 4, 4)
         times = getattr(trajectory, "timestamps", None)
-        times = np.arange(len(poses)) if times is None else times
-        return cls(np.array(times, dtype=np.float64), poses)
+        return cls(np.array(np.arange(len(poses)) if times is None else times, dtype=np.float64), poses)
 
     def interpolate(self, timestamps: Sequence[float], max_gap: float = np.inf) -> "Trajectory":
-        """Poses at ``timestamps`` (s, within the trajectory's span): linear in position,
-        spherical-linear in rotation.
-
-        Raises:
-            ValueError: a query outside the span, or between poses more than ``max_gap`` s apart
-                (a gap in a ground truth is not papered over); timestamps that decrease (sort
-                them first); a NaN or negative ``max_gap``.
-        """
+        """Poses at ``timestamps`` (s, within the trajectory's span): linear in position, spherical-linear in rotation.
+        ValueError: a query outside the span, or between poses more than ``max_gap`` s apart (a gap in a ground truth
+        is not papered over); timestamps that decrease (sort them first); a NaN or negative ``max_gap``."""
         t = np.asarray(timestamps, dtype=np.float64).reshape(-1)
         if len(self) == 0:
             raise ValueError("cannot interpolate an empty trajectory")
@@ -219,31 +203,21 @@ class Trajectory:
 
 
 class TumFormatError(ValueError):
-    """A file does not follow the TUM RGB-D benchmark's formats.
-
-    Attributes:
-        path: the offending file (or folder), or None.
-        line: 1-based line number in ``path`` where applicable, else None.
-    """
+    """A file does not follow the TUM RGB-D benchmark's formats: ``path`` is the offending file (or folder) or None,
+    ``line`` the 1-based line number in it where applicable, else None."""
 
     def __init__(self, message: str, path: Optional[PathLike] = None, line: Optional[int] = None) -> None:
         where = "" if path is None else f"{os.fspath(path)}:{line}: " if line is not None else f"{os.fspath(path)}: "
         super().__init__(where + message)
-        self.path = None if path is None else os.fspath(path)
-        self.line = line
+        self.path, self.line = (None if path is None else os.fspath(path)), line
 
 
 def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarray, List[str], np.ndarray]:
-    """The TUM benchmark's text files, one rule for all (its ``associate.py``'s): ``#`` starts
-    a comment, blank lines are skipped, commas and tabs separate fields.  Every data line has
-    ``fields`` fields: numbers, but the last is a name when ``expected`` starts with
-    "'timestamp filename'".  Returns (values (N, k) float64, those names (else empty),
-    1-based line numbers (N,)).
-
-    Raises:
-        TumFormatError: not UTF-8 text, a line with another number of fields, a value that
-            is not a finite number, a zero quaternion (8 fields) (the file and line are named).
-    """
+    """The TUM benchmark's text files, one rule for all (its ``associate.py``'s): ``#`` starts a comment, blank lines
+    are skipped, commas and tabs separate fields.  Every data line has ``fields`` fields: numbers, but the last is a
+    name when ``expected`` starts with "'timestamp filename'".  Returns (values (N, k) float64, those names (else
+    empty), 1-based line numbers (N,)).  TumFormatError, naming the file and line: not UTF-8 text, a line with another
+    number of fields, a value that is not a finite number, a zero quaternion (8 fields)."""
     try:
         text = Path(path).read_text(encoding="utf-8")
     except UnicodeDecodeError as e:
@@ -272,8 +246,8 @@ def read_tum_rows(path: PathLike, fields: int, expected: str) -> Tuple[np.ndarra
 
 
 def time_order(timestamps: np.ndarray, path: PathLike, lines: np.ndarray) -> np.ndarray:
-    """The stable order sorting ``timestamps`` (recorders sometimes flush out of order);
-    TumFormatError naming both lines of a timestamp that appears twice."""
+    """The stable order sorting ``timestamps`` (recorders sometimes flush out of order); TumFormatError naming both
+    lines of a timestamp that appears twice."""
     order = np.argsort(timestamps, kind="stable")
     dup = np.flatnonzero(np.diff(timestamps[order]) == 0)
     if dup.size:
@@ -283,16 +257,13 @@ def time_order(timestamps: np.ndarray, path: PathLike, lines: np.ndarray) -> np.
     return order
 
 
-def read_tum_trajectory(path: PathLike) -> Trajectory:
-    """Reads a TUM trajectory file (``timestamp tx ty tz qx qy qz qw`` per line, in file order:
-    :meth:`Trajectory.interpolate` refuses one that is not time-sorted).  TumFormatError (a
-    ValueError) names the file and line without 8 finite numbers or with a zero quaternion."""
-    return Trajectory.from_tum_rows(read_tum_rows(path, 8, "8 values (timestamp tx ty tz qx qy qz qw)")[0])
+#: Reads a TUM trajectory file (:meth:`Trajectory.read_tum`).
+read_tum_trajectory = Trajectory.read_tum
 
 
 def write_tum_trajectory(path: PathLike, trajectory: Trajectory, header: Optional[str] = None) -> None:
-    """Writes a trajectory in the TUM format: timestamps to the microsecond, poses in full
-    double precision; ``header`` lines become ``#`` comments."""
+    """Writes a trajectory in the TUM format: timestamps to the microsecond, poses in full double precision;
+    ``header`` lines become ``#`` comments."""
     with atomic_open(path, "w", encoding="utf-8") as f:
         f.writelines(f"# {line}\n" for line in (header or "").splitlines())
         f.write("# timestamp tx ty tz qx qy qz qw\n")

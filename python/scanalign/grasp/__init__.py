@@ -28,12 +28,8 @@ __all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCan
            "PartGrasps", "plan_grasp", "read_part_grasps", "write_part_grasps", "symmetric_pose_error"]
 
 _G = _core.grasp
-Grasp = _G.Grasp
-Gripper = _G.Gripper
-PartSymmetry = _core.pose.PartSymmetry
-GraspPlannerSettings = _G.GraspPlannerSettings
-GraspCandidate = _G.GraspCandidate
-GraspPlanResult = _G.GraspPlanResult
+Grasp, Gripper, GraspPlannerSettings = _G.Grasp, _G.Gripper, _G.GraspPlannerSettings
+GraspCandidate, GraspPlanResult, PartSymmetry = _G.GraspCandidate, _G.GraspPlanResult, _core.pose.PartSymmetry
 #: ``symmetric_pose_error(T_a, T_b, symmetry)`` -> (rad, m): the pose error of a part up to its
 #: symmetry, translation measured at the symmetry point.
 symmetric_pose_error = _core.pose.symmetric_pose_error
@@ -45,13 +41,12 @@ def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmet
                **overrides: Any) -> GraspPlanResult:
     """Joint targets to pick a part at ``T_base_model`` (4x4, m, base frame).
 
-    ``robot``: a :class:`scanalign.kinematics.Robot` (its ``T_base_dh0`` places it in the
-    cell; its tool is replaced by ``gripper.T_flange_tcp``) or a name. ``symmetry``: default
-    none; ``gripper``: default :meth:`Gripper.parallel_jaw`; ``table_plane``: (nx, ny, nz, d),
-    unit normal pointing up, ``n.p + d = 0`` in the base frame; ``q_current``: joints now (rad,
-    default zeros); ``settings``: a :class:`GraspPlannerSettings` (default its C++ defaults),
-    ``overrides`` its fields by name.
-    Raises ValueError / TypeError naming the argument or field.
+    ``robot``: a :class:`scanalign.kinematics.Robot` (its ``T_base_dh0`` places it in the cell; its
+    tool is replaced by ``gripper.T_flange_tcp``) or a name. ``symmetry``: default none;
+    ``gripper``: default :meth:`Gripper.parallel_jaw`; ``table_plane``: (nx, ny, nz, d), unit normal
+    pointing up, ``n.p + d = 0`` in the base frame; ``q_current``: joints now (rad, default zeros);
+    ``settings``: a :class:`GraspPlannerSettings` (default its C++ defaults), ``overrides`` its
+    fields by name. Raises ValueError / TypeError naming the argument or field.
     """
     if isinstance(robot, str):
         robot = kinematics.Robot.by_name(robot)
@@ -88,12 +83,10 @@ def _build(where: str, cls: Any, fields: dict, allowed: set, required: Sequence[
     """cls(**fields), every error a ValueError naming ``where`` and the field."""
     if not isinstance(fields, dict):
         raise ValueError(f"{where}: expected a mapping, got {type(fields).__name__}")
-    for key in fields:
-        if key not in allowed:
-            raise ValueError(f"{where}: unknown field {key!r} (expected {sorted(allowed)})")
-    for key in required:
-        if key not in fields:
-            raise ValueError(f"{where}: missing field {key!r}")
+    if (key := next((k for k in fields if k not in allowed), None)) is not None:
+        raise ValueError(f"{where}: unknown field {key!r} (expected {sorted(allowed)})")
+    if (key := next((k for k in required if k not in fields), None)) is not None:
+        raise ValueError(f"{where}: missing field {key!r}")
     args = {}
     for key, value in fields.items():
         try:
@@ -120,16 +113,13 @@ def read_part_grasps(path: Any) -> PartGrasps:
         raise ValueError(f"{p}: not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'}: {e}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{p}: expected a mapping at the top level")
-    unknown = set(data) - {"name", "mesh", "scale", "symmetry", "gripper", "grasps"}
-    if unknown:
+    if unknown := set(data) - {"name", "mesh", "scale", "symmetry", "gripper", "grasps"}:
         raise ValueError(f"{p}: unknown field(s) {sorted(unknown)}")
     grasps = data.get("grasps")
     if not isinstance(grasps, list) or not grasps:
         raise ValueError(f"{p}: field 'grasps' must be a non-empty list")
-    out = []
-    for i, g in enumerate(grasps):
-        label = f"{p}: grasps[{i}]" + (f" ({g['name']!r})" if isinstance(g, dict) and "name" in g else "")
-        out.append(_build(label, Grasp, g, _GRASP_KEYS, ["T_model_grasp"]))
+    out = [_build(f"{p}: grasps[{i}]" + (f" ({g['name']!r})" if isinstance(g, dict) and "name" in g else ""), Grasp, g,
+                  _GRASP_KEYS, ["T_model_grasp"]) for i, g in enumerate(grasps)]
     scale = data.get("scale", 1.0)
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 < scale < float("inf"):
         raise ValueError(f"{p}: field 'scale' must be a positive number, got {scale!r}")

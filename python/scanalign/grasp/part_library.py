@@ -89,9 +89,8 @@ class PartLibrary:
             arrays.update({p + "vertices": np.asarray(part.mesh.vertices), p + "faces": np.asarray(part.mesh.faces),
                            p + "symmetry": np.r_[s.axis, s.point, s.order].astype(np.float64),
                            p + "views": np.array(len(part.views))})
-            for k, view in enumerate(part.views):
-                for key, value in view.__getstate__().items():
-                    arrays[f"{p}view{k}/{key}"] = np.asarray(value)
+            arrays.update({f"{p}view{k}/{key}": np.asarray(value) for k, view in enumerate(part.views)
+                           for key, value in view.__getstate__().items()})
         path = Path(path)
         with io.atomic_open(path, "wb") as f:
             np.savez(f, **arrays)
@@ -127,9 +126,11 @@ def build_part_library(parts: Sequence[Any], *, resolution: Optional[int] = None
     return PartLibrary(out, int(resolution), dict(pose_settings))
 
 
-def _view(state: Dict[str, np.ndarray]) -> Any:
+def _view(data: Dict[str, np.ndarray], prefix: str) -> Any:
+    """The ModelView saved under ``prefix``: its state dict, one entry per key."""
     view = _P.ModelView.__new__(_P.ModelView)
-    view.__setstate__({k: (v.item() if v.ndim == 0 else v) for k, v in state.items()})
+    view.__setstate__({k[len(prefix):]: v.item() if v.ndim == 0 else v for k, v in data.items()
+                       if k.startswith(prefix)})
     return view
 
 
@@ -156,10 +157,7 @@ def load_part_library(path: PathLike) -> PartLibrary:
         parts: Dict[str, LibraryPart] = {}
         for i, name in enumerate(meta["parts"]):
             p = f"part{i}/"
-            views = []
-            for k in range(int(data[p + "views"])):
-                prefix = f"{p}view{k}/"
-                views.append(_view({key[len(prefix):]: v for key, v in data.items() if key.startswith(prefix)}))
+            views = [_view(data, f"{p}view{k}/") for k in range(int(data[p + "views"]))]
             s = data[p + "symmetry"]
             parts[name] = LibraryPart(name, io.Mesh(data[p + "vertices"], data[p + "faces"]),
                                       PartSymmetry(axis=s[:3], point=s[3:6], order=int(s[6])), views)

@@ -55,13 +55,12 @@ def read_pcd(path: PathLike) -> dict[str, np.ndarray]:
 
     Returns:
         Field name -> array, in header order, with the dtype given by the header
-        (``TYPE``/``SIZE``).  A field with ``COUNT 1`` has shape ``(N,)``, otherwise
-        ``(N, COUNT)``.  Organised clouds (``HEIGHT > 1``) are flattened row by row to
-        ``N = WIDTH * HEIGHT``; invalid points stay in place as NaN.  Coordinates
-        (``x``, ``y``, ``z``) are in the file's unit (metres for PCL's own data).
-        Normals come back as their own fields (``normal_x``, ``normal_y``, ``normal_z``).
-        Packed colours (``rgb``/``rgba``) are returned raw; see :func:`unpack_rgb`.
-        PCL's padding fields named ``_`` are dropped.
+        (``TYPE``/``SIZE``).  A field with ``COUNT 1`` has shape ``(N,)``, otherwise ``(N, COUNT)``.
+        Organised clouds (``HEIGHT > 1``) are flattened row by row to ``N = WIDTH * HEIGHT``;
+        invalid points stay in place as NaN.  Coordinates (``x``, ``y``, ``z``) are in the file's
+        unit (metres for PCL's own data). Normals come back as their own fields (``normal_x``,
+        ``normal_y``, ``normal_z``). Packed colours (``rgb``/``rgba``) are returned raw; see
+        :func:`unpack_rgb`. PCL's padding fields named ``_`` are dropped.
 
     Raises:
         ValueError: malformed header, unknown DATA type, truncated or corrupt payload,
@@ -89,17 +88,18 @@ def read_pcd_points(path: PathLike, dtype: npt.DTypeLike = np.float64, remove_na
         ValueError: the file is not a valid PCD file, has no ``x``, ``y``, ``z`` fields, or
             one of them has ``COUNT`` above 1.
     """
-    fields = read_pcd(path)
-    missing = [axis for axis in "xyz" if axis not in fields]
-    if missing:
-        raise _error(path, f"PCD file has no {'/'.join(missing)} field(s)")
-    shaped = [axis for axis in "xyz" if fields[axis].ndim != 1]
-    if shaped:  # COUNT > 1 makes a field (N, COUNT): not one coordinate per point
+    points = _pcd_xyz(path, read_pcd(path)).astype(dtype)
+    return points[np.isfinite(points).all(axis=1)] if remove_nan else points
+
+
+def _pcd_xyz(path: PathLike, fields: dict[str, np.ndarray]) -> np.ndarray:
+    """The (N, 3) x y z of PCD ``fields``; ValueError naming the file for a missing one or a COUNT above 1."""
+    if missing := [k for k in "xyz" if k not in fields]:
+        raise _error(path, f"PCD file has no x, y, z fields (missing {'/'.join(missing)}; it has "
+                     f"{', '.join(fields) or 'none'})")
+    if shaped := [axis for axis in "xyz" if fields[axis].ndim != 1]:  # COUNT > 1: (N, COUNT), not a coordinate
         raise _error(path, f"PCD field(s) {'/'.join(shaped)} must have COUNT 1 to be coordinates")
-    points = np.stack([fields["x"], fields["y"], fields["z"]], axis=1).astype(dtype)
-    if remove_nan:
-        points = points[np.isfinite(points).all(axis=1)]
-    return points
+    return np.column_stack([fields[k] for k in "xyz"])
 
 
 def unpack_rgb(field: npt.ArrayLike) -> np.ndarray:
@@ -169,9 +169,12 @@ def _read_ply(path: PathLike, triangles: bool = True) -> PlyData:
         raise _error(path, f"{what} ({exc})") from None
 
 
-def _ply_vertex_columns(path: PathLike, ply: PlyData, names: tuple[str, ...]) -> np.ndarray | None:
-    """Stack scalar vertex properties ``names`` into ``(N, len(names))``, or None."""
+def _ply_vertex_columns(path: PathLike, ply: PlyData, names: tuple[str, ...] = ("x", "y", "z")) -> np.ndarray | None:
+    """Stack scalar vertex properties ``names`` into ``(N, len(names))``; None when absent, but x y z are
+    required (a ValueError)."""
     if "vertex" not in ply or any(name not in ply["vertex"].data.dtype.names for name in names):
+        if names == ("x", "y", "z"):
+            raise _error(path, "PLY file has no vertex element with x, y, z")
         return None
     columns = [ply["vertex"][name] for name in names]
     if any(c.dtype == object for c in columns):
@@ -182,14 +185,11 @@ def _ply_vertex_columns(path: PathLike, ply: PlyData, names: tuple[str, ...]) ->
 
 def _read_ply_mesh(path: PathLike) -> Mesh:
     ply = _read_ply(path)
-    vertices = _ply_vertex_columns(path, ply, ("x", "y", "z"))
-    if vertices is None:
-        raise _error(path, "PLY file has no vertex element with x, y, z")
+    vertices = _ply_vertex_columns(path, ply)
     if "face" not in ply:
         return Mesh(vertices, np.empty((0, 3), dtype=np.int64))
     names = ply["face"].data.dtype.names
-    key = next((k for k in ("vertex_indices", "vertex_index") if k in names), None)
-    if key is None:
+    if (key := next((k for k in ("vertex_indices", "vertex_index") if k in names), None)) is None:
         raise _error(path, "PLY face element has no vertex_indices/vertex_index list")
     polygons = ply["face"][key]
     if polygons.dtype != object:  # fixed length, read in one go
@@ -255,13 +255,8 @@ def atomic_open(path: PathLike, mode: str = "w", **kwargs):
         partial.unlink(missing_ok=True)
 
 
-def write_ply(
-    path: PathLike,
-    points: npt.ArrayLike,
-    normals: npt.ArrayLike | None = None,
-    colors: npt.ArrayLike | None = None,
-    binary: bool = True,
-) -> None:
+def write_ply(path: PathLike, points: npt.ArrayLike, normals: npt.ArrayLike | None = None,
+              colors: npt.ArrayLike | None = None, binary: bool = True) -> None:
     """Write a point cloud as PLY (readable by MeshLab, CloudCompare, Open3D).
 
     The vertex element has ``float x y z``, then optionally ``float nx ny nz``, then
@@ -316,10 +311,7 @@ def write_ply(
             fh.write(table.tobytes())
         else:
             fmt = " ".join("%.9g" if c.dtype.kind == "f" else "%d" for _, c in columns)
-            table = np.empty((n, len(columns)), dtype=object)
-            for j, (_, c) in enumerate(columns):
-                table[:, j] = c.tolist()
-            np.savetxt(fh, table, fmt=fmt)
+            np.savetxt(fh, np.column_stack([c.astype(np.float64) for _, c in columns]), fmt=fmt)
 
 
 def read_ply_points(path: PathLike) -> dict[str, np.ndarray]:
@@ -337,15 +329,10 @@ def read_ply_points(path: PathLike) -> dict[str, np.ndarray]:
         ValueError: malformed file or no ``x y z`` vertex properties.
     """
     ply = _read_ply(path)
-    points = _ply_vertex_columns(path, ply, ("x", "y", "z"))
-    if points is None:
-        raise _error(path, "PLY file has no vertex element with x, y, z")
-    result = {"points": points.astype(np.float64)}
-    normals = _ply_vertex_columns(path, ply, ("nx", "ny", "nz"))
-    if normals is not None:
+    result = {"points": _ply_vertex_columns(path, ply).astype(np.float64)}
+    if (normals := _ply_vertex_columns(path, ply, ("nx", "ny", "nz"))) is not None:
         result["normals"] = normals.astype(np.float64)
-    colors = _ply_vertex_columns(path, ply, ("red", "green", "blue"))
-    if colors is not None:
+    if (colors := _ply_vertex_columns(path, ply, ("red", "green", "blue"))) is not None:
         if colors.dtype.kind == "f":
             colors = np.rint(np.clip(colors, 0.0, 1.0) * 255.0)
         result["colors"] = np.clip(colors, 0, 255).astype(np.uint8)
@@ -359,10 +346,8 @@ def read_cloud(path: PathLike) -> tuple:
     suffix = path.suffix.lower()
     if suffix == ".pcd":
         fields, n = read_pcd(path), ("normal_x", "normal_y", "normal_z")
-        if not all(k in fields for k in "xyz"):
-            raise ValueError(f"{path}: PCD file has no x, y, z fields (it has {', '.join(fields) or 'none'})")
         normals = np.column_stack([fields[k] for k in n]) if all(k in fields for k in n) else None
-        return np.column_stack([fields[k] for k in "xyz"]).astype(np.float64), normals
+        return _pcd_xyz(path, fields).astype(np.float64), normals
     if suffix == ".ply":
         d = read_ply_points(path)
         return d["points"], d.get("normals")

@@ -2,12 +2,8 @@
 
 Every scanalign function that takes points or a mesh also takes these objects directly
 (``scanalign.common.arrays`` converts them, by duck typing: neither package is imported unless
-the object is one of theirs); the functions here convert explicitly, for the other way:
-
-- :func:`to_open3d` (``open3d.geometry.PointCloud`` / ``TriangleMesh``), :func:`to_trimesh`
-  (``trimesh.Trimesh`` / ``trimesh.PointCloud``);
-- :func:`from_open3d` / :func:`from_trimesh`: a :class:`Cloud` ``(points, normals, colors)``
-  for a cloud, a :class:`scanalign.io.Mesh` for a mesh.
+the object is one of theirs); :func:`to_open3d` / :func:`to_trimesh` convert the other way, and
+:func:`from_open3d` / :func:`from_trimesh` explicitly (a :class:`Cloud` or a :class:`scanalign.io.Mesh`).
 
 Open3D and trimesh are optional: the functions that build their objects import them on
 first use and raise ImportError naming the PyPI package. Trajectories convert to ``evo``
@@ -81,18 +77,14 @@ def to_open3d(points_or_mesh: Union[np.ndarray, io.Mesh, tuple, Any], normals: O
     vec3 = o3d.utility.Vector3dVector
     if mesh is not None:
         out = o3d.geometry.TriangleMesh(vec3(mesh.vertices), o3d.utility.Vector3iVector(mesh.faces.astype(np.int32)))
-        n = len(mesh.vertices)
-        if normals is not None:
-            out.vertex_normals = vec3(as_points(normals, "normals", np.dtype(np.float64)))
-        if colors is not None:
-            out.vertex_colors = vec3(_unit_colors(colors, n))
-        return out
-    p = as_points(points_or_mesh, "points", np.dtype(np.float64))
-    out = o3d.geometry.PointCloud(vec3(p))
+        n, prefix = len(mesh.vertices), "vertex_"
+    else:
+        p = as_points(points_or_mesh, "points", np.dtype(np.float64))
+        out, n, prefix = o3d.geometry.PointCloud(vec3(p)), len(p), ""
     if normals is not None:
-        out.normals = vec3(as_points(normals, "normals", np.dtype(np.float64)))
+        setattr(out, prefix + "normals", vec3(as_points(normals, "normals", np.dtype(np.float64))))
     if colors is not None:
-        out.colors = vec3(_unit_colors(colors, len(p)))
+        setattr(out, prefix + "colors", vec3(_unit_colors(colors, n)))
     return out
 
 
@@ -120,12 +112,7 @@ def from_open3d(geometry: Any) -> Union[Cloud, io.Mesh]:
     Raises:
         TypeError: not an Open3D point cloud or triangle mesh.
     """
-    if not type(geometry).__module__.startswith("open3d") or foreign_kind(geometry) not in ("cloud", "mesh"):
-        raise TypeError(f"expected an Open3D PointCloud or TriangleMesh, got {type(geometry).__name__}")
-    if foreign_kind(geometry) == "mesh":
-        return io.Mesh(*mesh_arrays(geometry))
-    g = geometry
-    return Cloud(foreign_points(g), foreign_attribute(g, "normals"), foreign_attribute(g, "colors"))
+    return _from(geometry, "open3d", "an Open3D PointCloud or TriangleMesh")
 
 
 def from_trimesh(geometry: Any) -> Union[Cloud, io.Mesh]:
@@ -135,8 +122,14 @@ def from_trimesh(geometry: Any) -> Union[Cloud, io.Mesh]:
     Raises:
         TypeError: not a trimesh mesh or point cloud.
     """
-    if not type(geometry).__module__.startswith("trimesh") or foreign_kind(geometry) not in ("cloud", "mesh"):
-        raise TypeError(f"expected a trimesh Trimesh or PointCloud, got {type(geometry).__name__}")
-    if foreign_kind(geometry) == "mesh":
+    return _from(geometry, "trimesh", "a trimesh Trimesh or PointCloud")
+
+
+def _from(geometry: Any, package: str, expected: str) -> Union[Cloud, io.Mesh]:
+    kind = foreign_kind(geometry)
+    if not type(geometry).__module__.startswith(package) or kind not in ("cloud", "mesh"):
+        raise TypeError(f"expected {expected}, got {type(geometry).__name__}")
+    if kind == "mesh":
         return io.Mesh(*mesh_arrays(geometry))
-    return Cloud(foreign_points(geometry), None, foreign_attribute(geometry, "colors"))
+    g = geometry
+    return Cloud(foreign_points(g), foreign_attribute(g, "normals"), foreign_attribute(g, "colors"))

@@ -1,5 +1,6 @@
 """Serial 6R robots: forward kinematics and analytic inverse kinematics with conformal
-geometric algebra (Kleppe, PhD thesis, NTNU 2018, Ch. 5.3 and Paper 1).
+geometric algebra (Kleppe, PhD thesis, NTNU 2018, Ch. 5.3 and Paper 1); docs/api/kinematics.md
+has the details (statuses, singularities, corrections to the printed construction).
 
 A :class:`Robot` is a standard Denavit-Hartenberg (DH) table with joint limits and two
 fixed transforms. Frames and units (metres and radians everywhere):
@@ -17,7 +18,7 @@ Inverse kinematics is solved in closed form for two arm layouts (``Robot.geometr
 offset a1, elbow offset a3, spherical wrist) and ``"universal_robots"`` (three parallel
 axes and an offset wrist). The joint points of the arm are intersections of CGA spheres and
 planes (point pairs); an imaginary point pair (Q^2 < 0) reports the configuration as
-``"unreachable"`` instead of returning wrong angles.
+``"unreachable"`` (``q`` NaN) instead of returning wrong angles.
 
 Every pose has up to 8 solutions, stored at a fixed index
 ``4*(shoulder<0) + 2*(elbow<0) + (wrist<0)`` (:meth:`IKResult.index`). The labels are
@@ -32,20 +33,10 @@ geometric:
   reaching forward (towards the wrist centre); -1 ("down").
 - ``wrist`` +1 ("no flip"): ``sin(theta5) > 0`` (DH angle); -1 ("flip").
 
-Singular poses are solved with a documented free angle (``q_free``): KUKA shoulder
-(wrist centre on the first axis) ``q1 = q_free[0]`` ("back": ``+ pi``); KUKA wrist
-(``a_e`` parallel to ``z3``) ``q4 = q_free[3]`` ("flip": ``+ pi``); UR wrist
-(``a_e`` parallel to ``z1``) ``q6 = q_free[5]`` ("flip": ``+ pi``), or the nearest q6 for
-which the elbow still reaches (q6 moves the UR wrist points). At the elbow singularity (arm
-stretched or folded) the two elbow labels give the same angles; at the UR shoulder
-singularity (``P_c`` on the first axis) the solutions with shoulder and elbow labels both
-flipped coincide. :attr:`IKResult.singular` names which applied, per solution (a pose
-singular for one configuration is usually regular for the others).
-
-Statuses: ``"ok"`` (reaches the pose, inside the limits), ``"outside_limits"`` (reaches the
-pose, but some joint has no 2*pi multiple inside its limits), ``"unreachable"`` (a point
-pair of the construction is imaginary; ``q`` is NaN), ``"invalid_input"`` (batch only: a
-non-finite or non-rigid pose).
+Singular poses are solved with a free angle (``q_free``): KUKA shoulder (wrist centre on the
+first axis) ``q1 = q_free[0]``, KUKA wrist ``q4 = q_free[3]``, UR wrist ``q6 = q_free[5]`` (or
+the nearest q6 for which the elbow still reaches), ``+ pi`` for "back" / "flip";
+:attr:`IKResult.singular` names which applied, per solution.
 
 The classes are the C++ structs, bound directly (``scanalign._core.kinematics``): every
 argument is checked once, at the C++ boundary, and a bad one raises TypeError / ValueError
@@ -54,7 +45,7 @@ naming it. Results are values with read-only arrays.
 
 from __future__ import annotations
 
-from typing import Tuple
+from typing import Callable, Tuple
 
 import numpy as np
 
@@ -66,14 +57,8 @@ __all__ = [
     "kuka_kr6_r900_sixx", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis", "robot_from_urdf"]
 
 _K = _core.kinematics
-
-Robot = _K.Robot
-IKResult = _K.IKResult
-IKSolution = _K.IKSolution
-IKBatchResult = _K.IKBatchResult
-JointTrajectoryResult = _K.JointTrajectoryResult
-IKConstruction = _K.IKConstruction
-config_index = _K.config_index
+Robot, IKResult, IKSolution, IKBatchResult = _K.Robot, _K.IKResult, _K.IKSolution, _K.IKBatchResult
+JointTrajectoryResult, IKConstruction, config_index = _K.JointTrajectoryResult, _K.IKConstruction, _K.config_index
 
 from scanalign.kinematics.urdf import robot_from_urdf  # noqa: E402  (imports yourdfpy only when called)
 
@@ -91,48 +76,25 @@ STEP_NAMES: Tuple[str, ...] = _K.STEP_NAMES
 #: (8, 3) int8, read-only: the configuration (shoulder, elbow, wrist) stored at each solution index.
 CONFIGS: np.ndarray = _K.CONFIGS
 #: Names accepted by :meth:`Robot.by_name` ("agilus" is an alias of "kr6_r900_sixx").
-BUILTIN_ROBOTS: Tuple[str, ...] = ("kr6_r900_sixx", "agilus", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e", "ur5_thesis")
+BUILTIN_ROBOTS: Tuple[str, ...] = ("kr6_r900_sixx", "agilus", "ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e",
+                                   "ur5_thesis")
 
 
-def kuka_kr6_r900_sixx() -> Robot:
-    """KUKA KR6 R900 sixx ("Agilus"): the DH table of the thesis authors' code (thesis Paper 1
-    Table 1 is garbled in print), q = KUKA's axis values A1..A6; home q = (0, -pi/2, pi/2, 0,
-    0, 0) puts the flange at (0.525, 0, 0.890) m pointing along +x. Limits from KUKA's data
-    sheet."""
-    return Robot.by_name("kr6_r900_sixx")
+def _builtin(function: str, name: str, doc: str) -> Callable[[], Robot]:
+    """A function named ``function`` returning the built-in robot ``name`` (:meth:`Robot.by_name`)."""
+    def builtin() -> Robot:
+        return Robot.by_name(name)
+    builtin.__name__ = builtin.__qualname__ = function
+    builtin.__doc__ = doc
+    return builtin
 
 
-def ur3() -> Robot:
-    """Universal Robots UR3 (CB series), UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur3")
-
-
-def ur5() -> Robot:
-    """Universal Robots UR5 (CB series), UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur5")
-
-
-def ur10() -> Robot:
-    """Universal Robots UR10 (CB series), UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur10")
-
-
-def ur3e() -> Robot:
-    """Universal Robots UR3e, UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur3e")
-
-
-def ur5e() -> Robot:
-    """Universal Robots UR5e, UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur5e")
-
-
-def ur10e() -> Robot:
-    """Universal Robots UR10e, UR's published DH table, limits +-2*pi."""
-    return Robot.by_name("ur10e")
-
-
-def ur5_thesis() -> Robot:
-    """The UR5 with the numbers printed in the thesis (Paper 1 Table 2), for reproducing its
-    zero pose: q = 0 puts the flange at (-0.81743, -0.19145, -0.00545) m."""
-    return Robot.by_name("ur5_thesis")
+kuka_kr6_r900_sixx = _builtin("kuka_kr6_r900_sixx", "kr6_r900_sixx", """KUKA KR6 R900 sixx ("Agilus"): the DH table
+    of the thesis authors' code (thesis Paper 1 Table 1 is garbled in print), q = KUKA's axis values A1..A6; home
+    q = (0, -pi/2, pi/2, 0, 0, 0) puts the flange at (0.525, 0, 0.890) m pointing along +x. Limits from KUKA's data
+    sheet.""")
+ur3, ur5, ur10, ur3e, ur5e, ur10e = (
+    _builtin(n, n, f"Universal Robots {n[:2].upper() + n[2:]}{'' if n.endswith('e') else ' (CB series)'}, UR's "
+             "published DH table, limits +-2*pi.") for n in ("ur3", "ur5", "ur10", "ur3e", "ur5e", "ur10e"))
+ur5_thesis = _builtin("ur5_thesis", "ur5_thesis", """The UR5 with the numbers printed in the thesis (Paper 1
+    Table 2), for reproducing its zero pose: q = 0 puts the flange at (-0.81743, -0.19145, -0.00545) m.""")

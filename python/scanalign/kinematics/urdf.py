@@ -1,13 +1,12 @@
 """Robots from URDF files: ``Robot.from_urdf(path, base_link, tip_link)``.
 
-A URDF describes an arm as a tree of links joined by joints, each joint placed by an
-arbitrary ``<origin>`` and turning about an arbitrary ``<axis>``. This module reads the file
-(with the ``yourdfpy`` parser), walks the chain ``base_link -> tip_link`` and folds the fixed
-joints into their neighbours; :meth:`Robot.from_joint_chain` (C++,
-``scanalign/kinematics/joint_chain.hpp``) then derives the standard DH table the analytic
-inverse kinematics needs, ``T_base_dh0`` and ``T_flange_tool`` from the joint axes, so that
-``robot.fk(q)`` is the pose of ``tip_link`` in ``base_link`` for the URDF's joint values q,
-limits included.
+A URDF describes an arm as a tree of links joined by joints, each joint placed by an arbitrary
+``<origin>`` and turning about an arbitrary ``<axis>``. This module reads the file (with the
+``yourdfpy`` parser), walks the chain ``base_link -> tip_link`` and folds the fixed joints into
+their neighbours; :meth:`Robot.from_joint_chain` (C++, ``scanalign/kinematics/joint_chain.hpp``)
+then derives the standard DH table the analytic inverse kinematics needs, ``T_base_dh0`` and
+``T_flange_tool`` from the joint axes, so that ``robot.fk(q)`` is the pose of ``tip_link`` in
+``base_link`` for the URDF's joint values q, limits included.
 
 The DH z axes follow the URDF joint axes, so q maps 1:1 onto the URDF joints unless
 ``joint_signs`` reverses some. Each DH x axis has a free sign (it flips alpha_i and a_i and
@@ -94,15 +93,13 @@ def _segments(path: str, chain, where: str):
         axis = np.asarray(j.axis if j.axis is not None else (1.0, 0.0, 0.0), float)
         if not (axis.shape == (3,) and np.all(np.isfinite(axis)) and np.linalg.norm(axis) > 1e-12):
             raise ValueError(f"{path}: joint '{j.name}' has no valid axis ({j.axis})")
-        if j.type == "continuous":  # unlimited: the IK then wraps to the 2*pi multiple nearest 0
-            lim = (-np.inf, np.inf)
-        else:
-            if j.limit is None:  # urdfdom refuses this too
-                raise ValueError(f"{path}: revolute joint '{j.name}' has no <limit>")
-            # The URDF specification's defaults for a missing lower / upper are 0.
-            lim = (j.limit.lower or 0.0, j.limit.upper or 0.0)
-            if not lim[0] <= lim[1]:
-                raise ValueError(f"{path}: joint '{j.name}' has the limits lower {lim[0]} > upper {lim[1]}")
+        if j.type == "revolute" and j.limit is None:  # urdfdom refuses this too
+            raise ValueError(f"{path}: revolute joint '{j.name}' has no <limit>")
+        # Continuous joints are unlimited (the IK then wraps to the 2*pi multiple nearest 0); the URDF
+        # specification's defaults for a missing lower / upper are 0.
+        lim = (-np.inf, np.inf) if j.type == "continuous" else (j.limit.lower or 0.0, j.limit.upper or 0.0)
+        if not lim[0] <= lim[1]:
+            raise ValueError(f"{path}: joint '{j.name}' has the limits lower {lim[0]} > upper {lim[1]}")
         offsets.append(pending @ origin)
         axes.append(axis / np.linalg.norm(axis))
         limits.append(lim)

@@ -35,7 +35,6 @@ from scanalign import _core, datasets, io, pose
 from scanalign import grasp as _grasp
 from scanalign.common import rigid as se3
 from scanalign.common.arrays import as_points, foreign_kind
-from scanalign.common.rigid import transform_points
 from scanalign.common.settings import is_struct, with_overrides
 from scanalign.data.parts import sample_mesh
 from scanalign.grasp.parts import load_part
@@ -138,19 +137,20 @@ class PickResult:
         """Writes ``picks.json`` (every part, its pose, chosen grasp, joint targets and rejected
         candidates with their reasons), ``joints.csv`` (each chosen approach's joint path, rad)
         and ``scene.ply`` (the scene, each placed part coloured); returns their paths."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
+        (out := Path(out_dir)).mkdir(parents=True, exist_ok=True)
         paths = {"picks": out / "picks.json", "joints": out / "joints.csv", "scene": out / "scene.ply"}
         with io.atomic_open(paths["picks"], "w", encoding="utf-8") as f:
             json.dump(self.as_dict(), f, indent=1)
         with io.atomic_open(paths["joints"], "w", newline="", encoding="utf-8") as f:
-            w = csv.writer(f)
-            w.writerow(["part", "step", "q1", "q2", "q3", "q4", "q5", "q6"])
-            for p in self.picks:
-                if p.status == "picked":
-                    for k, q in enumerate(p.plan.approach_q):
-                        w.writerow([p.part, k] + [repr(float(v)) for v in q])
-        _write_scene(paths["scene"], self)
+            csv.writer(f).writerows([["part", "step", "q1", "q2", "q3", "q4", "q5", "q6"]] + [
+                [p.part, k] + [repr(float(v)) for v in q]
+                for p in self.picks if p.status == "picked" for k, q in enumerate(p.plan.approach_q)])
+        # the scene (grey) and every posed part's surface (one colour per pick)
+        palette = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189]], np.uint8)
+        placed = placed_parts(self)
+        io.write_ply(paths["scene"], np.vstack([self.points] + [v for _, v in placed]).astype(np.float32),
+                     colors=np.vstack([np.full((len(self.points), 3), 150, np.uint8)]
+                                      + [np.tile(palette[k % len(palette)], (len(v), 1)) for k, v in placed]))
         return paths
 
 
@@ -219,12 +219,11 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
                progress: bool = True, on_frame: Any = None) -> tuple:
     """The scene in the robot's base frame, metres: ``(points (N, 3), reconstruction or None)``.
 
-    ``scene`` is a :class:`scanalign.synthetic.SyntheticScan` (its robot and hand-eye
-    transform are used unless given), a list of :class:`scanalign.reconstruction.camera.Frame`
-    or a recording :func:`scanalign.datasets.open_source` reads (with ``joints``, a joint log,
-    unless the frames carry their joints), a :class:`ReconstructionResult` built in the base
-    frame, or a PLY / PCD file, (N, 3) array, Open3D or trimesh cloud in the base frame.
-    ``on_frame``: the per-frame hook of :func:`scanalign.pipelines.reconstruct.reconstruct`."""
+    ``scene`` is a :class:`scanalign.synthetic.SyntheticScan` (its robot and hand-eye transform are used unless given),
+    a list of :class:`scanalign.reconstruction.camera.Frame` or a recording :func:`scanalign.datasets.open_source` reads
+    (with ``joints``, a joint log, unless the frames carry their joints), a :class:`ReconstructionResult` built in the
+    base frame, or a PLY / PCD file, (N, 3) array, Open3D or trimesh cloud in the base frame. ``on_frame``: the
+    per-frame hook of :func:`scanalign.pipelines.reconstruct.reconstruct`."""
     s = with_overrides(PickSettings, settings, (), "pick")
     if isinstance(scene, pipeline.ReconstructionResult):
         return np.asarray(scene.model.points, dtype=np.float64), scene
@@ -232,11 +231,9 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
         return io.read_cloud(scene)[0].astype(np.float64), None
     if isinstance(scene, np.ndarray) or foreign_kind(scene) == "cloud":
         return as_points(scene, "scene", np.dtype(np.float64)), None
-    frames = scene.frames if hasattr(scene, "frames") else scene
-    if isinstance(scene, (str, Path)):  # a TUM folder, a ROS bag or an image folder
-        frames = list(datasets.open_source(scene))
-    if T_flange_camera is None:
-        T_flange_camera = getattr(scene, "T_flange_camera", None)
+    # a recording (a TUM folder, a ROS bag or an image folder), a synthetic scan or frames
+    frames = datasets.open_source(scene) if isinstance(scene, (str, Path)) else getattr(scene, "frames", scene)
+    T_flange_camera = getattr(scene, "T_flange_camera", None) if T_flange_camera is None else T_flange_camera
     if T_flange_camera is None:
         raise ValueError("T_flange_camera (camera -> flange, the hand-eye calibration) is needed to place the frames")
     if robot is None:
@@ -290,16 +287,9 @@ def upper_views() -> List[int]:
 
 
 def part_models(parts: Sequence[Any], library: Any = None) -> List[Any]:
-    """What :func:`scanalign.pose.find_parts` matches per part: its described views from
-    ``library`` (a :class:`scanalign.grasp.part_library.PartLibrary`) when it holds them, else
-    its mesh."""
+    """What :func:`scanalign.pose.find_parts` matches per part: its described views from ``library`` (a
+    :class:`scanalign.grasp.part_library.PartLibrary`) when it holds them, else its mesh."""
     return [library[p.name].views if library is not None and p.name in library else p.mesh for p in parts]
-
-
-def _parts(parts: Sequence[Any]) -> List[Any]:
-    if isinstance(parts, (str, Path)) or not parts:
-        raise ValueError("parts: give a list of at least one part (a part file, a built-in part name or a PartGrasps)")
-    return [load_part(p) for p in parts]
 
 
 def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: Optional[np.ndarray] = None,
@@ -333,11 +323,12 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     """
     s = with_overrides(PickSettings, settings, overrides, "pick")
     t0 = time.perf_counter()
-    part_list = _parts(parts)
+    if isinstance(parts, (str, Path)) or not parts:
+        raise ValueError("parts: give a list of at least one part (a part file, a built-in part name or a PartGrasps)")
+    part_list = [load_part(p) for p in parts]
+    robot = getattr(scene, "robot", None) if robot is None else robot
     if robot is None:
-        robot = getattr(scene, "robot", None)
-        if robot is None:
-            raise ValueError("robot: give the picking robot (a Robot or a name such as 'ur5')")
+        raise ValueError("robot: give the picking robot (a Robot or a name such as 'ur5')")
     arm = _robot(robot, T_base_robot)
     reach = float(np.sum(np.abs(arm.a)) + np.sum(np.abs(arm.d)))
     for p in part_list:
@@ -361,9 +352,8 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
         q_current = q_last[-1] if q_last is not None and len(q_last) else np.zeros(6)
     picks = plan_picks(detections, part_list, arm, gripper=gripper, q_current=q_current, planner=s.planner)
     t3 = time.perf_counter()
-    seconds = {"scan": t1 - t0, "detect": t2 - t1, "plan": t3 - t2, "total": t3 - t0}
-    q_current = np.asarray(q_current, dtype=np.float64)
-    result = PickResult(picks, points, detections, arm, q_current, part_list, seconds, rec)
+    result = PickResult(picks, points, detections, arm, np.asarray(q_current, dtype=np.float64), part_list,
+                        {"scan": t1 - t0, "detect": t2 - t1, "plan": t3 - t2, "total": t3 - t0}, rec)
     if viewer is not None:
         viewer.log_pick(result)
     return result
@@ -373,19 +363,8 @@ def placed_parts(result: PickResult, samples: int = 5000) -> List[tuple]:
     """(pick index, (samples, 3) points of the part's surface at its found pose, base frame, m)
     for every part with a pose."""
     meshes = {p.name: p.mesh for p in result.parts}
-    return [(k, transform_points(p.T_base_model, sample_mesh(meshes[p.part], samples, seed=0)[0]))
+    return [(k, se3.transform_points(p.T_base_model, sample_mesh(meshes[p.part], samples, seed=0)[0]))
             for k, p in enumerate(result.picks) if p.T_base_model is not None]
-
-
-def _write_scene(path: Path, result: PickResult) -> None:
-    """The scene (grey) and every posed part's surface (one colour per pick), base frame."""
-    palette = np.array([[31, 119, 180], [255, 127, 14], [44, 160, 44], [214, 39, 40], [148, 103, 189]], np.uint8)
-    pts = [result.points.astype(np.float32)]
-    cols = [np.full((len(result.points), 3), 150, np.uint8)]
-    for k, v in placed_parts(result):
-        pts.append(v.astype(np.float32))
-        cols.append(np.tile(palette[k % len(palette)], (len(v), 1)))
-    io.write_ply(path, np.vstack(pts), colors=np.vstack(cols))
 
 
 def print_picks(result: PickResult, file: Any = sys.stdout) -> None:

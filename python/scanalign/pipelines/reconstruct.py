@@ -1,6 +1,5 @@
-"""The reconstruction job: :func:`reconstruct` runs a
-:class:`scanalign.reconstruction.Reconstructor` over frames and evaluates the trajectory
-against their reference poses (``Frame.T_base_camera``); :meth:`ReconstructionResult.save`
+"""The reconstruction job: :func:`reconstruct` runs a :class:`scanalign.reconstruction.Reconstructor` over frames and
+evaluates the trajectory against their reference poses (``Frame.T_base_camera``); :meth:`ReconstructionResult.save`
 writes the model, trajectories, per-frame table and report.
 """
 
@@ -23,13 +22,8 @@ from scanalign.common.settings import to_dict
 from scanalign.evaluation import absolute_trajectory_error, mesh_distance_stats, relative_pose_error
 from scanalign.evaluation.trajectory import Trajectory
 from scanalign.io import atomic_open
-from scanalign.reconstruction import (
-    FrameResult,
-    Model,
-    ReconstructionSettings,
-    Reconstructor,
-    make_reconstruction_settings,
-)
+from scanalign.reconstruction import (FrameResult, Model, ReconstructionSettings, Reconstructor,
+                                      make_reconstruction_settings)
 from scanalign.reconstruction.camera import Frame
 
 __all__ = ["DEMO_SETTINGS", "ReconstructionResult", "reconstruct", "write_joints_csv"]
@@ -76,22 +70,16 @@ class ReconstructionResult:
         return [r for r in self.records if not r.merged]
 
     def summary(self) -> Dict[str, Any]:
-        """JSON-able summary: counts, seconds per registered frame, model size, ATE/RPE when
-        a reference exists."""
-        t = np.array([r.total_seconds for r in self.records if r.status == "registered"])
+        """JSON-able summary: counts, seconds per registered frame, model size, ATE/RPE when a reference exists."""
+        registered = [r for r in self.records if r.status == "registered"]
+        t = np.array([r.total_seconds for r in registered])
         out: Dict[str, Any] = {
-            "frames": len(self.records),
-            "merged": sum(r.merged for r in self.records),
+            "frames": len(self.records), "merged": sum(r.merged for r in self.records),
             "skipped": {s: sum(r.status == s for r in self.records) for s in sorted({r.status for r in self.skipped})},
-            "registration": self.settings.registration,
-            "model_points": len(self.model),
-            "seconds_total": self.seconds,
-            "seconds_per_frame_median": float(np.median(t)) if t.size else None,
-            "seconds_per_frame_mean": float(np.mean(t)) if t.size else None,
-            "seconds_per_frame_max": float(np.max(t)) if t.size else None,
-            "iterations_median": float(np.median([r.iterations for r in self.records if r.status == "registered"]))
-            if t.size else None,
-        }
+            "registration": self.settings.registration, "model_points": len(self.model), "seconds_total": self.seconds,
+            **{f"seconds_per_frame_{k}": float(f(t)) if t.size else None
+               for k, f in (("median", np.median), ("mean", np.mean), ("max", np.max))},
+            "iterations_median": float(np.median([r.iterations for r in registered])) if t.size else None}
         if self.joints is not None:
             out["robot"] = self.robot
         out.update(self.metrics)
@@ -114,13 +102,10 @@ class ReconstructionResult:
             paths["joints"] = out / "joints.csv"
             write_joints_csv(paths["joints"], [r.index for r in self.records], [r.timestamp for r in self.records],
                              self.joints)
-        report = {
-            "summary": self.summary(),
-            "settings": to_dict(self.settings),
-            "T_model_camera0": np.asarray(self.T_model_camera0).tolist(),
-            "frames": [{k: v for k, v in r.to_dict().items() if k != "T_model_camera"} for r in self.records],
-            "units": "metres, radians, seconds",
-        }
+        report = {"summary": self.summary(), "settings": to_dict(self.settings),
+                  "T_model_camera0": np.asarray(self.T_model_camera0).tolist(),
+                  "frames": [{k: v for k, v in r.to_dict().items() if k != "T_model_camera"} for r in self.records],
+                  "units": "metres, radians, seconds"}
         paths["report"] = out / "report.json"
         with atomic_open(paths["report"], "w", encoding="utf-8") as f:
             json.dump(_jsonable(report), f, indent=2)
@@ -130,8 +115,7 @@ class ReconstructionResult:
         """The estimated poses of exactly the frames in :attr:`reference` (same order)."""
         if self.reference is None:
             return self.estimate
-        keep = np.isin(self.estimate.timestamps, self.reference.timestamps)
-        return self.estimate[np.nonzero(keep)[0]]
+        return self.estimate[np.nonzero(np.isin(self.estimate.timestamps, self.reference.timestamps))[0]]
 
 
 def write_joints_csv(path: Union[str, Path], indices: Iterable[int], timestamps: Iterable[float],
@@ -140,10 +124,9 @@ def write_joints_csv(path: Union[str, Path], indices: Iterable[int], timestamps:
     significant digits, so the values read back exactly; empty cells for unknown joints)."""
     q = np.asarray(joints, dtype=np.float64)
     with atomic_open(path, "w", newline="", encoding="utf-8") as f:
-        w = csv.writer(f)
-        w.writerow(["index", "timestamp", "q1", "q2", "q3", "q4", "q5", "q6"])
-        for i, t, row in zip(indices, timestamps, q):
-            w.writerow([int(i), repr(float(t))] + [repr(float(v)) if math.isfinite(v) else "" for v in row])
+        csv.writer(f).writerows([["index", "timestamp", "q1", "q2", "q3", "q4", "q5", "q6"]] + [
+            [int(i), repr(float(t))] + [repr(float(v)) if math.isfinite(v) else "" for v in row]
+            for i, t, row in zip(indices, timestamps, q)])
     return Path(path)
 
 
@@ -168,11 +151,10 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
 
     Args:
         frames: the captures, in order (a list, a synthetic scan's frames, a TUM sequence).
-        settings: :class:`scanalign.reconstruction.ReconstructionSettings` (default: its C++
-            defaults); keyword ``overrides`` as
-            :func:`scanalign.reconstruction.make_reconstruction_settings` takes them. With
-            motion model ``reference`` each frame starts from the robot's reference motion
-            since the last merged frame (needs reference poses on every frame).
+        settings: :class:`scanalign.reconstruction.ReconstructionSettings` (default: its C++ defaults); keyword
+            ``overrides`` as :func:`scanalign.reconstruction.make_reconstruction_settings` takes them. With motion model
+            ``reference`` each frame starts from the robot's reference motion since the last merged frame (needs
+            reference poses on every frame).
         progress: show a progress bar (True), none (False), or a callable per record.
         evaluate: compute ATE/RPE against the reference poses when available; when that
             fails (a reference that never moves), ``metrics["evaluation_error"]`` says why.
@@ -187,16 +169,14 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
     job = make_reconstruction_settings(settings, **overrides)
     model_frame, by_reference = job.model_frame, job.frame_to_model.motion_model == "reference"
     t_start = time.perf_counter()
-    total = len(frames) if hasattr(frames, "__len__") else None  # type: ignore[arg-type]
     rec: Optional[Reconstructor] = None
-    bar = (tqdm(total=total, desc="reconstruct", unit="frame", file=sys.stderr, dynamic_ncols=True)
-           if progress is True else None)
-    callback = progress if callable(progress) else None
     ref_of: Dict[int, np.ndarray] = {}
     last_ref: Optional[np.ndarray] = None
     joints: List[Optional[np.ndarray]] = []
     robot_name: Optional[str] = None
-    try:
+    total = len(frames) if hasattr(frames, "__len__") else None  # type: ignore[arg-type]
+    with tqdm(total=total, desc="reconstruct", unit="frame", file=sys.stderr, dynamic_ncols=True,
+              disable=progress is not True) as bar:
         for k, frame in enumerate(frames):
             if not isinstance(frame, Frame):
                 raise TypeError(f"frames: item {k} is a {type(frame).__name__}, not a scanalign.reconstruction.camera.Frame")
@@ -212,8 +192,7 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
                     raise ValueError(f"frame {frame.index}: motion model 'reference' (initial_guess) needs "
                                      "T_base_camera on every frame")
                 if last_ref is not None and rec.model_size:
-                    # The robot's relative motion since the last merged frame, applied to
-                    # that frame's estimate.
+                    # The robot's relative motion since the last merged frame, applied to that frame's estimate.
                     guess = rec.last_pose @ inverse(last_ref) @ np.asarray(frame.T_base_camera)
             record = rec.integrate(frame, guess=guess)
             meta = getattr(frame, "meta", None) or {}
@@ -225,17 +204,12 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
                 ref_of[record.index] = np.asarray(frame.T_base_camera, dtype=np.float64)
                 if record.merged:
                     last_ref = ref_of[record.index]
-            if bar is not None:
-                bar.set_postfix_str(f"{record.status} fit={record.fitness:.2f} model={record.model_points}",
-                                    refresh=False)
-                bar.update(1)
-            if callback is not None:
-                callback(record)
+            bar.set_postfix_str(f"{record.status} fit={record.fitness:.2f} model={record.model_points}", refresh=False)
+            bar.update(1)
+            if callable(progress):
+                progress(record)
             if on_frame is not None:
                 on_frame(frame, record, rec)
-    finally:
-        if bar is not None:
-            bar.close()
     if rec is None:
         raise ValueError("no frames to reconstruct")
     with_ref = [r for r in rec.records if r.merged and r.index in ref_of]
@@ -255,16 +229,16 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
     return result
 
 
+def _floats(stats: Any, names: Iterable[str] = ("rmse", "mean", "median", "std", "min", "max")) -> Dict[str, float]:
+    return {k: float(getattr(stats, k)) for k in names}
+
+
 def trajectory_metrics(estimate: Trajectory, reference: Trajectory) -> Dict[str, Any]:
     """ATE (after rigid alignment) and RPE (1-frame) of matching trajectories (m, degrees)."""
     ate = absolute_trajectory_error(estimate, reference)
     rpe = relative_pose_error(estimate, reference, delta=1)
-
-    def stats(s: Any) -> Dict[str, float]:
-        return {k: float(getattr(s, k)) for k in ("rmse", "mean", "median", "std", "min", "max")}
-
-    return {"ate_m": stats(ate.translation), "rpe_translation_m": stats(rpe.translation),
-            "rpe_rotation_deg": stats(rpe.rotation), "path_length_m": reference.path_length()}
+    return {"ate_m": _floats(ate.translation), "rpe_translation_m": _floats(rpe.translation),
+            "rpe_rotation_deg": _floats(rpe.rotation), "path_length_m": reference.path_length()}
 
 
 def model_mesh_distance(result: ReconstructionResult, vertices_base: np.ndarray, faces: np.ndarray) -> Dict[str, float]:
@@ -279,5 +253,4 @@ def model_mesh_distance(result: ReconstructionResult, vertices_base: np.ndarray,
         if k.size:
             T_base_model = ref.poses[k[0]] @ inverse(first.T_model_camera)
     pts = transform_points(T_base_model, result.model.points.astype(np.float64))
-    s = mesh_distance_stats(pts, vertices_base, faces)
-    return {k: float(getattr(s, k)) for k in ("mean", "median", "p95", "max", "rmse")}
+    return _floats(mesh_distance_stats(pts, vertices_base, faces), ("mean", "median", "p95", "max", "rmse"))

@@ -1,16 +1,10 @@
 """Pose of a known part from its CAD model (Kleppe, PhD thesis, NTNU 2018, ch. 6-7; papers 4-5).
 
 Everything runs in C++ (``cpp/include/scanalign/pose``); this module converts arrays and
-keyword arguments. Building blocks:
-
-* :func:`estimate_motor` -- Valkenburg-Dorst motor estimation from point pairs, equal to
-  :func:`estimate_rigid_svd` (Kabsch) to numerical precision.
-* :func:`ransac_rigid_motion` -- RANSAC over putative pairs with a motor refit.
-* :func:`align_cbd` -- curvature-based descriptor matching + RANSAC (paper 5).
-* :func:`align_flags` -- paper 4's correspondence-free initial alignment with motors
-  (centroid + average normal line; partial views only, closed surfaces are refused).
-* :func:`pcl_feature_alignment` -- the stock PCL baselines of the thesis (FPFH, SHOT, 3DSC
-  with SampleConsensusPrerejective or SAC-IA, and PPF) with its preset.
+keyword arguments. Building blocks: Valkenburg-Dorst motors from point pairs
+(:func:`estimate_motor`), RANSAC over putative pairs (:func:`ransac_rigid_motion`) and the coarse
+alignments :func:`align_cbd` (curvature-based descriptors, paper 5), :func:`align_flags`
+(paper 4's normal-line flags) and :func:`pcl_feature_alignment` (the thesis's PCL baselines).
 
 Pipeline: :func:`estimate_pose` matches a model (a mesh rendered from the 42 vertices of a
 tessellated sphere, see :mod:`scanalign.pose.model_views`, or a cloud) against one object cloud, refines
@@ -27,50 +21,29 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import Any, Dict, List, Literal, Optional, Sequence, Tuple
+from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple
 
 import numpy as np
 
 from scanalign import _core, io
 from scanalign.common.arrays import as_points, as_transform, foreign_kind
-from scanalign.common.settings import (
-    UnknownSettingError,
-    field_names,
-    is_struct,
-    set_fields,
-    set_path,
-    update,
-    with_overrides,
-)
+from scanalign.common.settings import (UnknownSettingError, field_names, is_struct, set_fields, set_path, update,
+                                      with_overrides)
 from scanalign.features import estimate_normals
 from scanalign.pose import cbd as _cbd
 from scanalign.pose import model_views as cad
 
-__all__ = [
-    "MotorEstimationResult", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag", "FlagAlignmentResult",
-    "PclFeatureAlignmentResult", "PoseSettings", "PoseResult", "PoseCandidate", "FindObjectsResult", "DetectionStatus",
-    "PartDetection", "FindPartsResult", "FindPartsSettings", "find_parts", "pose_task_settings", "POSE_KEYWORDS",
-    "TABLE_KEYWORDS",
-    "estimate_motor", "estimate_rigid_svd", "motor_to_matrix", "ransac_rigid_motion", "align_cbd",
-    "normal_line_flag", "align_flags", "pcl_feature_alignment", "alignment_fitness", "estimate_pose",
-    "find_objects", "METHODS", "THESIS_PCL_PRESET",
-]
+#: The bound C++ result and settings types, as they are (each field documented there).
+_BOUND = ("MotorEstimationResult", "CorrespondenceRansacResult", "CbdAlignmentResult", "NormalLineFlag",
+          "FlagAlignmentResult", "PclFeatureAlignmentResult", "PoseSettings", "PoseResult", "PoseCandidate",
+          "FindObjectsResult", "DetectionStatus", "PartDetection", "FindPartsResult", "FindPartsSettings")
+__all__ = [*_BOUND, "find_parts", "pose_task_settings", "POSE_KEYWORDS", "TABLE_KEYWORDS", "estimate_motor",
+           "estimate_rigid_svd", "motor_to_matrix", "ransac_rigid_motion", "align_cbd", "normal_line_flag",
+           "align_flags", "pcl_feature_alignment", "alignment_fitness", "estimate_pose", "find_objects", "METHODS",
+           "THESIS_PCL_PRESET"]
 
 _P = _core.pose
-MotorEstimationResult = _P.MotorEstimationResult
-CorrespondenceRansacResult = _P.CorrespondenceRansacResult
-CbdAlignmentResult = _P.CbdAlignmentResult
-NormalLineFlag = _P.NormalLineFlag
-FlagAlignmentResult = _P.FlagAlignmentResult
-PclFeatureAlignmentResult = _P.PclFeatureAlignmentResult
-PoseSettings = _P.PoseSettings
-FindPartsSettings = _P.FindPartsSettings
-PoseResult = _P.PoseResult
-PoseCandidate = _P.PoseCandidate
-FindObjectsResult = _P.FindObjectsResult
-DetectionStatus = _P.DetectionStatus
-PartDetection = _P.PartDetection
-FindPartsResult = _P.FindPartsResult
+globals().update({name: getattr(_P, name) for name in _BOUND})
 
 Method = Literal["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags"]
 METHODS: Tuple[str, ...] = ("cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags")
@@ -105,7 +78,8 @@ def estimate_motor(source: np.ndarray, target: np.ndarray, weights: Optional[np.
     return _P.estimate_motor(s, t, weights, bool(normalize))
 
 
-def estimate_rigid_svd(source: np.ndarray, target: np.ndarray, weights: Optional[np.ndarray] = None) -> MotorEstimationResult:
+def estimate_rigid_svd(source: np.ndarray, target: np.ndarray,
+                       weights: Optional[np.ndarray] = None) -> MotorEstimationResult:
     """Kabsch/Umeyama (SVD) estimate from the same pairs: the oracle of :func:`estimate_motor`."""
     s, t = _pairs(source, target)
     return _P.estimate_rigid_svd(s, t, weights)
@@ -200,12 +174,6 @@ def align_flags(source: np.ndarray, source_normals: np.ndarray, target: np.ndarr
     return _P.align_flags(*clouds, with_overrides(_P.FlagAlignmentSettings, settings, overrides, "flag alignment"))
 
 
-def _pcl_settings(method: str, overrides: Dict[str, object]) -> Any:
-    if method not in _PCL_METHODS:
-        raise ValueError(f"method: expected one of {sorted(_PCL_METHODS)}, got {method!r}")
-    return set_fields(_pcl_preset(method), overrides, "PCL")
-
-
 def pcl_feature_alignment(source: np.ndarray, target: np.ndarray, method: str = "fpfh",
                           **settings: object) -> PclFeatureAlignmentResult:
     """A stock PCL 1.13 coarse registration of ``source`` onto ``target`` ((N, 3) metres, run in
@@ -213,7 +181,9 @@ def pcl_feature_alignment(source: np.ndarray, target: np.ndarray, method: str = 
     SampleConsensusPrerejective), ``"fpfh_sac_ia"`` (SAC-IA), ``"shot"``, ``"3dsc"`` or ``"ppf"``
     (PPFRegistration). ``**settings`` override fields of the method's
     :data:`THESIS_PCL_PRESET` (``PclFeatureAlignmentSettings``, each field with its unit)."""
-    st = _pcl_settings(method, settings)
+    if method not in _PCL_METHODS:
+        raise ValueError(f"method: expected one of {sorted(_PCL_METHODS)}, got {method!r}")
+    st = set_fields(_pcl_preset(method), settings, "PCL")
     s = as_points(source, "source", np.dtype(np.float32))
     t = as_points(target, "target", np.dtype(np.float32))
     if len(s) == 0 or len(t) == 0:
@@ -239,21 +209,24 @@ def _model_views(model: object, views: Any) -> Tuple[List[Any], bool]:
     return _P.render_model_views(*cad._mesh_arrays(model), views), False
 
 
-class _Progress:
-    """A tqdm bar per object, fed by the C++ progress callback (done, total)."""
+def _progress(what: str, pose_settings: Any, enabled: bool) -> Optional[Callable[[int, int], None]]:
+    """When ``enabled``, the C++ progress callback (done, total): a tqdm bar per object on stderr."""
+    if not enabled:
+        return None
+    method = getattr(pose_settings.method, "name", pose_settings.method)
+    bar: Any = None
 
-    def __init__(self, desc: str, enabled: bool):
-        self.desc, self.enabled, self.bar = desc, enabled, None
-
-    def __call__(self, done: int, total: int) -> None:
+    def update(done: int, total: int) -> None:
+        nonlocal bar
         from tqdm.auto import tqdm
 
         if done == 1:
-            self.bar = tqdm(total=total, desc=self.desc, unit="view", file=sys.stderr, dynamic_ncols=True,
-                            disable=total < 2)
-        self.bar.update(1)
+            bar = tqdm(total=total, desc=f"{what} ({method})", unit="view", file=sys.stderr, dynamic_ncols=True,
+                       disable=total < 2)
+        bar.update(1)
         if done == total:
-            self.bar.close()
+            bar.close()
+    return update
 
 
 #: Short keywords of :func:`estimate_pose`, :func:`find_objects` and :func:`find_parts`: field
@@ -294,26 +267,20 @@ def pose_task_settings(cls: type, settings: Any = None, **overrides: Any) -> Any
     (every step's). Raises UnknownSettingError / TypeError / ValueError naming the field."""
     s = with_overrides(cls, settings, (), "pose")
     pose = "" if cls is PoseSettings else "pose."
-    method = overrides.pop("method", None)
-    if method is not None:
+    if (method := overrides.pop("method", None)) is not None:
         if method not in METHODS and method != "pcl":
             raise ValueError(f"method: expected one of {METHODS}, got {method!r}")
         set_path(s, pose + "method", method if method in ("cbd", "flags", "pcl") else "pcl")
         if method in _PCL_METHODS:
             set_path(s, pose + "pcl", _pcl_preset(method))
-    threads = overrides.pop("num_threads", None)
-    if threads is not None:
-        for path in (pose + "num_threads", pose + "views.num_threads", "table.plane.num_threads"):
-            if path != "table.plane.num_threads" or hasattr(s, "table"):
-                set_path(s, path, threads)
+    if (threads := overrides.pop("num_threads", None)) is not None:  # every step's
+        table = ["table.plane.num_threads"] if hasattr(s, "table") else []
+        for path in [pose + "num_threads", pose + "views.num_threads", *table]:
+            set_path(s, path, threads)
     # whole structs first (cbd_settings=CbdSettings(...)), then the fields that refine them
     for key, value in sorted(overrides.items(), key=lambda kv: not is_struct(kv[1])):
         set_path(s, _path(s, key, pose), value)
     return s
-
-
-def _method_name(pose_settings: Any) -> str:
-    return pose_settings.method.name if hasattr(pose_settings.method, "name") else str(pose_settings.method)
 
 
 def estimate_pose(model: object, scene: np.ndarray, settings: Optional[PoseSettings] = None, *,
@@ -343,8 +310,7 @@ def estimate_pose(model: object, scene: np.ndarray, settings: Optional[PoseSetti
     s = pose_task_settings(PoseSettings, settings, **overrides)
     model_views, is_cloud = _model_views(model, s.views)
     scene = as_points(scene, "scene", np.dtype(np.float64))
-    r = _P.estimate_pose(model_views, scene, s, [int(i) for i in views or []],
-                         _Progress(f"pose ({_method_name(s)})", True) if progress else None)
+    r = _P.estimate_pose(model_views, scene, s, [int(i) for i in views or []], _progress("pose", s, progress))
     if is_cloud:
         r.view = None
     return r
@@ -370,8 +336,7 @@ def find_objects(model: object, scene: np.ndarray, settings: Optional[Any] = Non
     s = pose_task_settings(_P.FindObjectsSettings, settings, **overrides)
     pts = as_points(scene, "scene", np.dtype(np.float64))
     model_views, is_cloud = _model_views(model, s.pose.views)
-    found = _P.find_objects(model_views, pts, s, [int(i) for i in views or []],
-                            _Progress(f"pose ({_method_name(s.pose)})", True) if progress else None)
+    found = _P.find_objects(model_views, pts, s, [int(i) for i in views or []], _progress("pose", s.pose, progress))
     if is_cloud:  # a model cloud has no views to name
         poses = found.poses
         for r in poses:
@@ -414,5 +379,4 @@ def find_parts(models: Sequence[object], scene: np.ndarray, settings: Optional[F
     pts = as_points(scene, "scene", np.dtype(np.float64))
     model_views = [_model_views(m, s.pose.views)[0] for m in models]
     return _P.find_parts(model_views, pts, s, None if symmetries is None else list(symmetries),
-                         [int(i) for i in views or []],
-                         _Progress(f"parts ({_method_name(s.pose)})", True) if progress else None)
+                         [int(i) for i in views or []], _progress("parts", s.pose, progress))

@@ -8,9 +8,8 @@ plane normal to v2 and one for the plane normal to v1. The descriptors are
 ``(r1, d1, r2, d2)`` (sphere radius, distance from the sphere centre to the keypoint; paper 5
 (29)-(32)) and the scalar ``F = (S1 + S2)·P = ½(r1² − d1²) + ½(r2² − d2²)`` (6.14)-(6.16).
 
-Units: metres (points, radius, r, d), 1/m (gamma: the thesis's 0.2 per mm is 200),
-m² (F). Descriptors are invariant to rigid motions of the cloud and to the signs of the
-PCA eigenvectors.
+Units: metres (points, radius, r, d), 1/m (gamma: the thesis's 0.2 per mm is 200), m² (F).
+Descriptors are invariant to rigid motions of the cloud and to the signs of the PCA eigenvectors.
 
 Example::
 
@@ -27,7 +26,7 @@ import numpy as np
 
 from scanalign import _core
 from scanalign.common.arrays import as_points
-from scanalign.common.settings import fields_of, set_fields
+from scanalign.common.settings import with_overrides
 
 __all__ = ["CbdSettings", "ShapeThresholds", "CbdFeatures", "make_settings", "compute", "neighbourhood_pca",
            "keypoint_scores", "select_keypoints", "automatic_keypoints", "match"]
@@ -42,10 +41,9 @@ def make_settings(settings: Optional[CbdSettings] = None, **overrides: object) -
     """A copy of ``settings`` (or the defaults) with fields overridden by keyword; enum fields
     take their names (``keypoint_mode="automatic"``, ``variant="scalar"``), ``thresholds`` a
     3-tuple. TypeError for an unknown field; values are checked in C++ when used."""
-    s = set_fields(CbdSettings(), fields_of(settings) if settings is not None else {}, "CBD")
     if "thresholds" in overrides and not isinstance(overrides["thresholds"], ShapeThresholds):
         overrides["thresholds"] = ShapeThresholds(*(float(v) for v in overrides["thresholds"]))  # type: ignore
-    return set_fields(s, overrides, "CBD")
+    return with_overrides(CbdSettings, settings, overrides, "CBD")
 
 
 def compute(points: np.ndarray, settings: Optional[CbdSettings] = None, *,

@@ -48,14 +48,13 @@ def view_intrinsics(resolution: int, view_angle: float = DEFAULT_VIEW_ANGLE):
 
 
 def _mesh_arrays(mesh: object) -> Tuple[np.ndarray, np.ndarray]:
-    if (foreign := mesh_arrays(mesh)) is not None:  # an Open3D or trimesh mesh
-        vertices, faces = foreign
-    elif isinstance(mesh, tuple) and len(mesh) == 2:
-        vertices, faces = mesh
-    else:
-        vertices, faces = getattr(mesh, "vertices", None), getattr(mesh, "faces", None)
-        if vertices is None or faces is None:
-            raise TypeError("mesh: expected a scanalign.io.Mesh or a (vertices, faces) pair")
+    """(vertices float64, faces int64) of a Mesh, a (vertices, faces) pair or an Open3D / trimesh mesh."""
+    if (pair := mesh_arrays(mesh)) is None:  # not an Open3D or trimesh mesh
+        pair = mesh if isinstance(mesh, tuple) and len(mesh) == 2 else (getattr(mesh, "vertices", None),
+                                                                        getattr(mesh, "faces", None))
+    vertices, faces = pair
+    if vertices is None or faces is None:
+        raise TypeError("mesh: expected a scanalign.io.Mesh or a (vertices, faces) pair")
     F = np.asarray(faces)
     if F.size and F.dtype.kind not in "iu":
         raise TypeError(f"mesh faces: expected integers, got {F.dtype}")

@@ -99,14 +99,12 @@ def undistorted_rays(intrinsics: Intrinsics) -> np.ndarray:
     """(H, W, 2) float64: the normalised coordinates ``(x, y) = (X/Z, Y/Z)`` of the ray through
     every pixel centre ``(u, v)`` (``[v, u]``), as :func:`depth_to_cloud` uses them.
 
-    Pinhole (zero distortion): ``((u - cx) / fx, (v - cy) / fy)``. With Brown-Conrady
-    distortion ``(k1, k2, p1, p2, k3)`` each pixel is undistorted by OpenCV's
-    ``undistortPoints`` fixed-point iteration, run until a step changes nothing (at most 100
-    steps): equal to ``cv2.undistortPointsIter`` with 100 COUNT iterations. A pixel whose ray
-    does not re-project onto it within 1e-3 pixels (diverged, or beyond the field of view
-    where the radial factor folds over) is NaN and gives no point. The table is computed once
-    per intrinsics (C++, all threads; under 0.1 s for 640x480) and cached in C++ (8 cameras),
-    the table :func:`depth_to_cloud` uses; a copy is returned."""
+    Pinhole (zero distortion): ``((u - cx) / fx, (v - cy) / fy)``. With Brown-Conrady distortion
+    ``(k1, k2, p1, p2, k3)`` each pixel is undistorted by OpenCV's ``undistortPoints`` fixed-point
+    iteration until a step changes nothing (at most 100 steps: ``cv2.undistortPointsIter``); a
+    pixel whose ray does not re-project onto it within 1e-3 pixels (diverged, or beyond the field
+    of view where the radial factor folds over) is NaN and gives no point. Computed once per
+    intrinsics (under 0.1 s for 640x480) and cached in C++ (8 cameras); a copy is returned."""
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.reconstruction.camera.Intrinsics")
     if intrinsics.has_distortion:
@@ -123,12 +121,10 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, settings: Optional
                    rgb: Optional[np.ndarray] = None, return_pixels: bool = False, **overrides: Any):
     """Back-projects a depth image into a cloud in the camera frame.
 
-    ``p = (z (u - cx) / fx, z (v - cy) / fy, z)`` for every valid pixel ``(u, v)``
-    (column, row); invalid pixels (0, NaN, outside ``[min_depth, max_depth]``) are dropped.
-    With lens distortion (``intrinsics.distortion`` not zero) ``p = (z x, z y, z)`` with the
-    pixel's undistorted ray ``(x, y)`` from :func:`undistorted_rays` (computed once per
-    camera and cached in C++, so a frame costs what a pinhole frame costs); a pixel without a valid
-    ray is dropped. Zero distortion takes the pinhole formula, bit for bit as before.
+    ``p = (z (u - cx) / fx, z (v - cy) / fy, z)`` for every valid pixel ``(u, v)`` (column, row);
+    invalid pixels (0, NaN, outside ``[min_depth, max_depth]``) are dropped. With lens distortion
+    ``p = (z x, z y, z)``, ``(x, y)`` the pixel's undistorted ray (:func:`undistorted_rays`, cached
+    in C++: a frame costs what a pinhole frame costs); a pixel without a valid ray is dropped.
 
     Args:
         depth: (H, W) uint16 in units of ``depth_scale`` metres, or float32/float64 in
@@ -214,11 +210,8 @@ def make_reconstruction_settings(settings: Union[ReconstructionSettings, FrameTo
         TypeError: an unknown field or a value of the wrong type.
         ValueError: an invalid value (the message names the field).
     """
-    if isinstance(settings, FrameToModelSettings):
-        s = ReconstructionSettings()
-        s.frame_to_model = settings
-    else:
-        s = with_overrides(ReconstructionSettings, settings, (), "reconstruction")
+    s = (ReconstructionSettings(frame_to_model=settings) if isinstance(settings, FrameToModelSettings)
+         else with_overrides(ReconstructionSettings, settings, (), "reconstruction"))
     job, engine = {}, {}
     for key, value in overrides.items():
         if key == "depth_filter" and (value is None or isinstance(value, str)):

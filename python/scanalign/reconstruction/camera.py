@@ -29,17 +29,11 @@ __all__ = ["Intrinsics", "Frame", "INTRINSICS_PRESETS", "read_camera_file", "rea
 NO_DISTORTION: Tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
 
-#: Intrinsics of a depth image: the C++ ``PinholeIntrinsics``, the library's one intrinsics
-#: type, bound as it is. ``Intrinsics(width, height, fx, fy, cx, cy, distortion=(0,)*5)``
-#: validates (ValueError naming the field); fields ``width, height`` (pixels), ``fx, fy``
-#: (focal lengths, pixels), ``cx, cy`` (principal point, pixels), ``distortion`` (Brown-Conrady
-#: ``(k1, k2, p1, p2, k3)`` of normalised image coordinates, OpenCV's order, ROS "plumb_bob";
-#: zero for a pinhole camera or rectified images: back-projection
-#: (:func:`scanalign.reconstruction.depth_to_cloud`) undistorts every pixel's ray as OpenCV's
-#: ``undistortPoints`` does); ``K`` (3x3), ``shape`` ``(height, width)``, ``has_distortion``,
-#: ``scaled(factor)``, ``to_dict()`` (the keys :func:`intrinsics_from_dict` reads; distortion
-#: only when not zero). Immutable and hashable. Presets: :func:`intrinsics_preset`; camera
-#: files: :func:`read_camera`.
+#: Intrinsics of a depth image: the C++ ``PinholeIntrinsics``, the library's one intrinsics type,
+#: bound as it is (its fields, units and methods documented there: ``help(Intrinsics)``).
+#: ``Intrinsics(width, height, fx, fy, cx, cy, distortion=(0,)*5)`` validates (ValueError naming
+#: the field); ``distortion`` is Brown-Conrady ``(k1, k2, p1, p2, k3)``, OpenCV's order, which
+#: back-projection undoes. Presets: :func:`intrinsics_preset`; camera files: :func:`read_camera`.
 Intrinsics = _core.reconstruction.PinholeIntrinsics
 
 
@@ -47,14 +41,13 @@ def intrinsics_from_dict(d: Mapping[str, Any]) -> Intrinsics:
     """Intrinsics from a mapping with keys width, height, fx, fy, cx, cy and optional
     distortion (k1, k2, p1, p2, k3); other keys are ignored. :func:`camera_from_dict` also
     reads ROS ``camera_info`` and OpenCV calibration layouts."""
-    missing = [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]
-    if missing:
+    if missing := [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]:
         raise ValueError(f"intrinsics: missing keys {missing}")
     dist = d.get("distortion")
     # No int() / float() here: the constructor checks each value and names it (a string or an
     # infinite size is an error, not parsed or an OverflowError).
-    return Intrinsics(d["width"], d["height"], d["fx"], d["fy"], d["cx"],
-                      d["cy"], NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
+    return Intrinsics(d["width"], d["height"], d["fx"], d["fy"], d["cx"], d["cy"],
+                      NO_DISTORTION if dist is None else _distortion5(dist, d.get("distortion_model")))
 
 
 def intrinsics_preset(name: str) -> Intrinsics:
@@ -66,10 +59,9 @@ def intrinsics_preset(name: str) -> Intrinsics:
 
 
 class _CameraYamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader plus what camera files need: numbers in exponent notation without
-    a dot or an exponent sign (``1e-3``, ``5.25e2``: floats in YAML 1.2 and JSON, text in
-    YAML 1.1) are floats, and OpenCV's ``!!opencv-matrix`` mappings (rows, cols, dt, data)
-    become (rows, cols) float64 arrays."""
+    """PyYAML's safe loader plus what camera files need (:func:`read_camera_file`): OpenCV's
+    ``!!opencv-matrix`` and exponent notation without a dot or sign (``1e-3``: a float in YAML 1.2
+    and JSON, text in YAML 1.1)."""
 
 
 _CameraYamlLoader.add_implicit_resolver(
@@ -123,10 +115,7 @@ _BROWN_CONRADY = ("plumb_bob", "brown_conrady", "modified_brown_conrady", "ratio
 def _distortion5(values: Any, model: Any = None) -> Tuple[float, ...]:
     """(k1, k2, p1, p2, k3) from a coefficient list (4, 5, 8, 12 or 14 numbers, OpenCV's
     order; beyond the fifth they must be zero) of a Brown-Conrady model."""
-    try:
-        v = np.asarray(values, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        raise ValueError(f"distortion coefficients must be numbers, got {values!r}") from None
+    v = _numbers(values, None, "distortion coefficients")
     if v.size == 0 or not np.any(v != 0):
         return NO_DISTORTION
     name = None if model is None else str(model).strip().lower().replace(" ", "_").replace("-", "_")
@@ -139,9 +128,7 @@ def _distortion5(values: Any, model: Any = None) -> Tuple[float, ...]:
     if np.any(v[5:] != 0):
         raise ValueError(f"distortion coefficients beyond k1 k2 p1 p2 k3 are not supported (rational / thin-prism / "
                          f"tilt terms {v[5:].tolist()} must be zero)")
-    out = np.zeros(5)
-    out[:min(5, v.size)] = v[:5]
-    return tuple(float(x) for x in out)
+    return tuple(float(x) for x in np.r_[v, 0.0][:5])  # k3 = 0 when 4 are given
 
 
 def _first(d: Mapping[str, Any], *keys: str) -> Any:
@@ -202,7 +189,7 @@ def camera_from_dict(d: Mapping[str, Any]) -> Tuple[Intrinsics, Optional[float]]
     width, height = _first(d, "image_width", "width", "imageWidth"), _first(d, "image_height", "height", "imageHeight")
     if width is None or height is None:
         raise ValueError("camera: missing the image size (image_width and image_height, or width and height)")
-    distortion = NO_DISTORTION if dist is None else _distortion5(_numbers(dist, None, "distortion_coefficients"), model)
+    distortion = NO_DISTORTION if dist is None else _distortion5(dist, model)
     return Intrinsics(width, height, K[0], K[4], K[2], K[5], distortion), scale
 
 

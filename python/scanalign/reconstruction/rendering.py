@@ -28,9 +28,8 @@ class RenderResult:
         depth: float32 depth z along the optical axis, metres; NaN where nothing is hit.
         face_id: int32 index (row of ``faces``) of the visible triangle; -1 where nothing is hit.
         cos_incidence: float32 cosine between the visible face's normal (right-hand rule on
-            its winding) and the direction from the surface point to the camera: 1 head on,
-            about 0 at grazing angles, negative when the back of a face is seen; 0 where
-            nothing is hit.
+            its winding) and the direction from the surface point to the camera: 1 head on, about 0
+            at grazing angles, negative when the back of a face is seen; 0 where nothing is hit.
     """
 
     depth: np.ndarray
@@ -53,22 +52,14 @@ def as_intrinsics(intrinsics: object) -> Intrinsics:
         raise ValueError("intrinsics: the renderer draws pinhole images; give intrinsics without distortion "
                          f"(got distortion={intrinsics.distortion})")
     if not isinstance(intrinsics, Intrinsics):
-        raise TypeError(
-            f"intrinsics: expected scanalign.reconstruction.camera.Intrinsics or a preset name, got {type(intrinsics)!r}")
+        raise TypeError("intrinsics: expected scanalign.reconstruction.camera.Intrinsics or a preset name, "
+                        f"got {type(intrinsics)!r}")
     return intrinsics
 
 
-def render_depth(
-    vertices: np.ndarray,
-    faces: np.ndarray,
-    intrinsics: Union[Intrinsics, str],
-    T_camera_world: np.ndarray,
-    *,
-    near: float = 0.01,
-    far: float = math.inf,
-    cull_backfaces: bool = False,
-    num_threads: int = 0,
-) -> RenderResult:
+def render_depth(vertices: np.ndarray, faces: np.ndarray, intrinsics: Union[Intrinsics, str],
+                 T_camera_world: np.ndarray, *, near: float = 0.01, far: float = math.inf,
+                 cull_backfaces: bool = False, num_threads: int = 0) -> RenderResult:
     """Renders a triangle mesh with a z-buffer: depth, visible face and incidence per pixel.
 
     Pixel ``(u, v)`` samples the ray through its centre. Depth is the exact intersection of

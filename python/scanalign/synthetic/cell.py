@@ -1,9 +1,8 @@
 """The built-in pick cell: known parts at known poses on a table, a robot with a camera on its
 hand that scans them, and the ground truth a pick is scored against.
 
-Two cells, both with the parts of :data:`scanalign.grasp.parts.BUILTIN_PART_FILES` (the machined
-block, the angle bracket and the hexagonal standoff) and the camera at
-:data:`~scanalign.synthetic.DEFAULT_T_FLANGE_CAMERA`:
+Two cells, both with the parts of :data:`scanalign.grasp.parts.BUILTIN_PART_FILES` (the machined block, the angle
+bracket and the hexagonal standoff) and the camera at :data:`~scanalign.synthetic.DEFAULT_T_FLANGE_CAMERA`:
 
 * ``"ur5"``: a UR5 hanging 0.75 m above the table centre, as on a gantry; the parts lie
   0.16 m from its first axis, outside the shoulder singularity (wrist within d4 = 0.11 m).
@@ -50,8 +49,8 @@ class PickCell:
         scan: the robot's scan (frames with joints, flange poses, the hand-eye transform).
         parts: one :class:`scanalign.grasp.PartGrasps` (mesh, grasps, symmetry) per placed part.
         truth: part name -> true ``T_base_model`` (model -> base, m).
-        robot: the arm, placed in the cell (``robot.T_base_dh0`` includes the mount), its tool
-            the flange.
+        robot: the arm, placed in the cell (``robot.T_base_dh0`` includes the mount), its tool the flange.
+        scene: the rendered :class:`Scene` (table and parts, base frame, m).
     """
 
     scan: SyntheticScan
@@ -63,34 +62,26 @@ class PickCell:
 
 def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_frames: int = 24,
               placements: Optional[Sequence[Tuple[str, Tuple[float, float], float]]] = None) -> PickCell:
-    """Renders the built-in cell (see the module docstring).
-
-    Args:
-        robot: ``"ur5"`` or ``"kr6_r900_sixx"`` (the two cells of :data:`CELL_MOUNTS`).
-        noise, seed: sensor noise preset (``"sr300"``, ``"zivid"``, ``"d435"``, ``"none"``) and seed.
-        placements: (part name, (x, y) m, yaw rad) per part; default :data:`DEFAULT_PLACEMENTS`.
-    """
+    """Renders the built-in cell (see the module docstring) of ``robot``, ``"ur5"`` or ``"kr6_r900_sixx"`` (the keys
+    of :data:`CELL_MOUNTS`), with a sensor ``noise`` preset (``"sr300"``, ``"zivid"``, ``"d435"``, ``"none"``) and its
+    ``seed``, and ``placements`` (part name, (x, y) m, yaw rad) per part (default :data:`DEFAULT_PLACEMENTS`)."""
     if robot not in CELL_MOUNTS:
         raise ValueError(f"robot: the built-in cells are {sorted(CELL_MOUNTS)}, got {robot!r}")
     scene = Scene(table_size=(0.6, 0.6))
-    parts, truth = [], {}
-    for name, xy, yaw in placements or DEFAULT_PLACEMENTS:
-        part = load_part(name)
-        obj = scene.add_object(part.mesh, position=xy, yaw=yaw, name=name)
-        parts.append(part)
-        truth[name] = np.array(obj.T_base_object)
+    placed = [(load_part(name), name, xy, yaw) for name, xy, yaw in placements or DEFAULT_PLACEMENTS]
+    truth = {name: np.array(scene.add_object(part.mesh, position=xy, yaw=yaw, name=name).T_base_object)
+             for part, name, xy, yaw in placed}
     start, sweep = CELL_SCAN_ARCS[robot]
     traj = loop_trajectory(n_frames, center=(0.5, 0.0, 0.0), height=0.35, radius=0.2, robot=robot,
                            T_base_robot=CELL_MOUNTS[robot], start_angle=start, sweep=sweep)
     scan = render_scan(scene, traj, "sr300", noise=noise, seed=seed)
-    return PickCell(scan, parts, truth, scan.robot, scene)
+    return PickCell(scan, [p[0] for p in placed], truth, scan.robot, scene)
 
 
 def score_picks(result: Any, truth: Dict[str, np.ndarray]) -> Dict[str, Dict[str, float]]:
-    """Errors of a :class:`scanalign.pipelines.pick.PickResult` against the cell's truth, per picked part:
-    ``tcp_m`` / ``tcp_deg``, the TCP pose at the chosen grasp against the same grasp on the
-    truly placed part (the nearest of its symmetric copies), and ``pose_m`` / ``pose_deg``,
-    the part's pose error (up to its symmetry)."""
+    """Errors of a :class:`scanalign.pipelines.pick.PickResult` against the cell's truth, per picked part: ``tcp_m`` /
+    ``tcp_deg``, the TCP pose at the chosen grasp against the same grasp on the truly placed part (the nearest of its
+    symmetric copies), and ``pose_m`` / ``pose_deg``, the part's pose error (up to its symmetry)."""
     out = {}
     parts = {p.name: p for p in result.parts}
     for p in result.picks:

@@ -15,25 +15,13 @@ import numpy as np
 from scanalign import io
 from scanalign.data import downloads as datasets  # the downloader, only for CGAL mesh names
 from scanalign.data.parts import builtin_mesh, normalize_mesh
-from scanalign.reconstruction.camera import (
-    INTRINSICS_PRESETS,
-    Intrinsics,
-    intrinsics_from_dict,
-    intrinsics_preset,
-    read_camera_file,
-)
+from scanalign.reconstruction.camera import (INTRINSICS_PRESETS, Intrinsics, intrinsics_from_dict, intrinsics_preset,
+                                             read_camera_file)
 from scanalign.synthetic.noise import NOISE_PRESETS
 from scanalign.synthetic.scan import SyntheticScan, render_scan
 from scanalign.synthetic.scene import Scene
-from scanalign.synthetic.trajectories import (
-    DEFAULT_ROBOT_HEIGHT,
-    ScanTrajectory,
-    as_robot,
-    attach_robot,
-    hemisphere_trajectory,
-    loop_trajectory,
-    robot_mount,
-)
+from scanalign.synthetic.trajectories import (DEFAULT_ROBOT_HEIGHT, ScanTrajectory, as_robot, attach_robot,
+                                              hemisphere_trajectory, loop_trajectory, robot_mount)
 
 __all__ = ["SyntheticConfig", "builtin_scan"]
 
@@ -60,28 +48,24 @@ class SyntheticConfig:
     """Everything that defines a synthetic scan; read from JSON or flat YAML (``key: value``).
 
     Attributes:
-        mesh: ``"builtin"`` (:func:`scanalign.data.parts.builtin_mesh`), a CGAL demo mesh name
-            (``"bunny00"``, ``"fandisk"``, ... fetched by :mod:`scanalign.data.downloads`), or a path
-            to a .ply/.off/.stl/.obj file.
-        object_size: largest extent of the object (m) after scaling; None keeps the builtin
-            part's size (80 mm) and scales other meshes to 0.15 m.
-        object_x, object_y, object_yaw: object position on the table (base frame, m) and
-            rotation about the vertical (rad).
+        mesh: ``"builtin"`` (:func:`scanalign.data.parts.builtin_mesh`), a CGAL demo mesh name (``"bunny00"``,
+            ``"fandisk"``, ... fetched by :mod:`scanalign.data.downloads`), or a path to a .ply/.off/.stl/.obj file.
+        object_size: largest extent of the object (m) after scaling; None keeps the builtin part's size (80 mm) and
+            scales other meshes to 0.15 m.
+        object_x, object_y, object_yaw: position on the table (base frame, m) and rotation about the vertical (rad).
         table_size: side of the square table top (m); 0 for no table.
-        trajectory: ``"loop"`` (``height``, ``radius``: :func:`loop_trajectory`) or
-            ``"hemisphere"`` (``distance``, default ``hypot(height, radius)``, and ``rings``
-            elevations evenly spaced in [``min_elevation``, ``max_elevation``]:
-            :func:`hemisphere_trajectory`) of ``n_frames`` from ``start_angle`` at ``frame_rate``
+        trajectory: ``"loop"`` (``height``, ``radius``: :func:`loop_trajectory`) or ``"hemisphere"`` (``distance``,
+            default ``hypot(height, radius)``, and ``rings`` elevations evenly spaced in [``min_elevation``,
+            ``max_elevation``]: :func:`hemisphere_trajectory`) of ``n_frames`` from ``start_angle`` at ``frame_rate``
             (Hz); lengths in m, angles in rad.
-        intrinsics: a preset name of :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a
-            mapping width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
+        intrinsics: a preset name of :data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS` or a mapping
+            width/height/fx/fy/cx/cy; resolution_scale: image resize factor (0.5: 320x240).
         noise, seed: a preset name of ``NOISE_PRESETS`` and the noise seed.
-        depth_unit: metres per uint16 depth unit; ``"auto"`` for the sensor's own unit (0.1 mm
-            without one); 0 stores float32 metres.
-        robot, robot_elbow: a name of :meth:`scanalign.kinematics.Robot.by_name` (``"none"``: no
-            arm) and its start configuration, ``"up"``, ``"down"`` or ``"any"`` (:func:`attach_robot`).
-        robot_x, robot_y, robot_z, robot_roll, robot_pitch, robot_yaw: :func:`robot_mount` of the
-            robot base in the scene; x, y None = above the object.
+        depth_unit: metres per uint16 depth unit; ``"auto"``: the sensor's own (0.1 mm without one); 0: float32 metres.
+        robot, robot_elbow: a name of :meth:`scanalign.kinematics.Robot.by_name` (``"none"``: no arm) and its start
+            configuration, ``"up"``, ``"down"`` or ``"any"`` (:func:`attach_robot`).
+        robot_x, robot_y, robot_z, robot_roll, robot_pitch, robot_yaw: :func:`robot_mount` of the robot base in the
+            scene; x, y None = above the object.
     """
 
     mesh: str = "builtin"
@@ -141,14 +125,10 @@ class SyntheticConfig:
     def from_dict(cls, d: Mapping[str, Any]) -> "SyntheticConfig":
         """From a mapping of field names to values; unknown keys raise ValueError."""
         known = {f.name for f in dataclasses.fields(cls)}
-        unknown = sorted(set(d) - known)
-        if unknown:
+        if unknown := sorted(set(d) - known):
             raise ValueError(f"unknown synthetic config keys {unknown}; known: {sorted(known)}")
-        values = dict(d)
-        for key in ("object_size", "distance", "robot_x", "robot_y"):
-            if isinstance(values.get(key), str) and values[key].lower() in ("null", "none", "~", ""):
-                values[key] = None
-        return cls(**values)
+        return cls(**{k: None if k in ("object_size", "distance", "robot_x", "robot_y") and isinstance(v, str)
+                      and v.lower() in ("null", "none", "~", "") else v for k, v in d.items()})
 
     @classmethod
     def from_file(cls, path: PathLike) -> "SyntheticConfig":
@@ -166,8 +146,7 @@ class SyntheticConfig:
     def load_mesh(self) -> io.Mesh:
         """The object mesh in metres, in its own frame (scaled per ``object_size``)."""
         if self.mesh == "builtin":
-            m = builtin_mesh()
-            return m if self.object_size is None else normalize_mesh(m, self.object_size)
+            return builtin_mesh() if self.object_size is None else normalize_mesh(builtin_mesh(), self.object_size)
         if os.path.exists(self.mesh):
             m = io.read_mesh(self.mesh)
         elif os.sep in self.mesh or (os.altsep and os.altsep in self.mesh):
@@ -186,25 +165,20 @@ class SyntheticConfig:
         """The table (if any) with the object standing on it."""
         scene = Scene(table_size=(self.table_size, self.table_size) if self.table_size > 0 else None,
                       table_center=(self.object_x, self.object_y))
-        name = Path(self.mesh).stem if self.mesh != "builtin" else "builtin"
-        scene.add_object(self.load_mesh(), position=(self.object_x, self.object_y), yaw=self.object_yaw, name=name)
+        scene.add_object(self.load_mesh(), position=(self.object_x, self.object_y), yaw=self.object_yaw,
+                         name=Path(self.mesh).stem)
         return scene
 
     def T_base_robot(self) -> Optional[np.ndarray]:
         """The robot's mounting in the scene (robot base -> base, 4x4, m), or None without a robot."""
-        if self.robot == "none":
-            return None
-        return robot_mount(self.object_x if self.robot_x is None else self.robot_x,
-                           self.object_y if self.robot_y is None else self.robot_y,
-                           self.robot_z, self.robot_roll, self.robot_pitch, self.robot_yaw)
+        return None if self.robot == "none" else robot_mount(
+            self.object_x if self.robot_x is None else self.robot_x,
+            self.object_y if self.robot_y is None else self.robot_y,
+            self.robot_z, self.robot_roll, self.robot_pitch, self.robot_yaw)
 
     def build_trajectory(self, scene: Scene) -> ScanTrajectory:
-        """The planned camera path; with a robot, followed by the arm (``attach_robot``).
-
-        Raises:
-            ValueError: a pose the robot cannot reach from its mount (naming the frame and the
-                IK status).
-        """
+        """The planned camera path; with a robot, followed by the arm (:func:`attach_robot`: ValueError naming the
+        frame and the IK status of a pose the robot cannot reach from its mount)."""
         if self.trajectory == "loop":
             traj = loop_trajectory(self.n_frames, center=scene.center, height=self.height, radius=self.radius,
                                    start_angle=self.start_angle, frame_rate=self.frame_rate)
@@ -213,9 +187,8 @@ class SyntheticConfig:
             traj = hemisphere_trajectory(self.n_frames, center=scene.center, distance=distance,
                                          elevations=np.linspace(self.min_elevation, self.max_elevation, self.rings),
                                          start_angle=self.start_angle, frame_rate=self.frame_rate)
-        if self.robot == "none":
-            return traj
-        return attach_robot(traj, self.robot, T_base_robot=self.T_base_robot(), elbow=self.robot_elbow)
+        return traj if self.robot == "none" else attach_robot(traj, self.robot, T_base_robot=self.T_base_robot(),
+                                                              elbow=self.robot_elbow)
 
     def build(self, *, keep_ground_truth: bool = False) -> SyntheticScan:
         """Builds the scene and trajectory and renders the scan (``keep_ground_truth``: noise-free
@@ -229,9 +202,8 @@ class SyntheticConfig:
 def builtin_scan(n_frames: int = 36, noise: str = "sr300", seed: int = 0, *, trajectory: str = "loop",
                  intrinsics: str = "sr300", resolution_scale: float = 1.0, keep_ground_truth: bool = False,
                  robot: str = "ur5") -> SyntheticScan:
-    """The demo scan, no download needed: the built-in part on a 60 cm table, seen by an
-    SR300-like camera on a loop 40 cm above the table (radius 20 cm), 10 Hz, carried by a UR5
-    hanging 0.9 m above the table.  The arguments are :class:`SyntheticConfig` fields and
-    :meth:`SyntheticConfig.build`'s ``keep_ground_truth``."""
+    """The demo scan, no download needed: the built-in part on a 60 cm table, seen by an SR300-like camera on a loop
+    40 cm above the table (radius 20 cm), 10 Hz, carried by a UR5 hanging 0.9 m above the table.  The arguments are
+    :class:`SyntheticConfig` fields and :meth:`SyntheticConfig.build`'s ``keep_ground_truth``."""
     return SyntheticConfig(n_frames=n_frames, noise=noise, seed=seed, trajectory=trajectory, intrinsics=intrinsics,
                            resolution_scale=resolution_scale, robot=robot).build(keep_ground_truth=keep_ground_truth)

@@ -22,11 +22,10 @@ SensorNoise = _core.synthetic.SensorNoise
 #: - ``"sr300"``: Intel RealSense SR300 (coded light): about 1 mm at 0.4 m; depth unit 1/8 mm
 #:   (its default depth scale); range 0.2-1.5 m (datasheet); it loses pixels beyond ~78 deg
 #:   incidence and one pixel around depth edges (projector shadow).
-#: - ``"d435"``: Intel RealSense D435 (active stereo) at 640x480: f = 385 px, b = 50 mm and a
-#:   typical sub-pixel disparity error of 0.15 px give 0.15 / (385 * 0.05) = 7.8e-3 /m, i.e.
-#:   1.95 mm at 0.5 m; depth unit 1 mm (its default); minimum depth about 0.175 m at this
-#:   resolution, 3 m useful maximum; stereo matching fails at grazing angles (~75 deg) and
-#:   fattens edges (2 pixels), plus 0.5 % random holes.
+#: - ``"d435"``: Intel RealSense D435 (active stereo) at 640x480: f = 385 px, b = 50 mm and a typical sub-pixel
+#:   disparity error of 0.15 px give 0.15 / (385 * 0.05) = 7.8e-3 /m, i.e. 1.95 mm at 0.5 m; depth unit 1 mm (its
+#:   default); minimum depth about 0.175 m at this resolution, 3 m useful maximum; stereo matching fails at grazing
+#:   angles (~75 deg) and fattens edges (2 pixels), plus 0.5 % random holes.
 #: - ``"zivid"``: Zivid Two-like structured-light industrial camera: about 0.1 mm at 0.5 m,
 #:   no quantisation of its float output, working range 0.3-1.2 m, few holes.
 #: - ``"none"``: the exact rendered depth.
@@ -43,13 +42,9 @@ NOISE_PRESETS: Dict[str, SensorNoise] = {
 
 def as_noise(noise: Union[SensorNoise, str, None]) -> SensorNoise:
     """A :class:`SensorNoise`, a preset name, or None ("none") as a :class:`SensorNoise`."""
-    if noise is None:
-        return NOISE_PRESETS["none"]
-    if isinstance(noise, str):
-        try:
-            return NOISE_PRESETS[noise]
-        except KeyError:
-            raise ValueError(f"unknown noise preset {noise!r}; known: {sorted(NOISE_PRESETS)}") from None
-    if not isinstance(noise, SensorNoise):
+    noise = "none" if noise is None else noise
+    if not isinstance(noise, (str, SensorNoise)):
         raise TypeError(f"noise: expected SensorNoise or a preset name, got {type(noise)!r}")
-    return noise
+    if isinstance(noise, str) and noise not in NOISE_PRESETS:
+        raise ValueError(f"unknown noise preset {noise!r}; known: {sorted(NOISE_PRESETS)}")
+    return NOISE_PRESETS[noise] if isinstance(noise, str) else noise

@@ -29,16 +29,14 @@ class SyntheticScan:
     """A rendered scan with its ground truth (``intrinsics``, ``noise``, ``scene`` and ``seed`` as rendered).
 
     Attributes:
-        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose (depth and
-            registered rgb as :func:`render_scan` stores them, ``timestamp`` (s), the exact
-            ``T_base_camera`` (camera -> base), ``index``); ``meta`` holds ``noise``,
-            ``T_base_flange``, ``joints`` (6, rad) and ``robot`` (its name) when known, and with
-            ``keep_ground_truth`` ``depth_true`` (float32 m, NaN = no hit) and ``face_id``
-            (int32, indexes :attr:`mesh`).
+        frames: one :class:`scanalign.reconstruction.camera.Frame` per pose (depth and registered rgb as stored by
+            :func:`render_scan`, ``timestamp`` (s), the exact ``T_base_camera`` (camera -> base), ``index``); ``meta``
+            holds ``noise``, ``T_base_flange``, ``joints`` (6, rad) and ``robot`` (its name) when known, and with
+            ``keep_ground_truth`` ``depth_true`` (float32 m, NaN = no hit) and ``face_id`` (int32, into :attr:`mesh`).
         reference: the exact camera trajectory, ``T_base_camera`` per frame.
         mesh, object_mesh: the whole scene (objects and table), the objects only: base frame, m.
-        T_flange_camera, T_base_flange, joints, robot, T_base_robot: those of the
-            :class:`ScanTrajectory` rendered, else None.
+        T_flange_camera, T_base_flange, joints, robot, T_base_robot: those of the :class:`ScanTrajectory` rendered,
+            else None.
     """
 
     frames: List[Frame]
@@ -59,13 +57,11 @@ class SyntheticScan:
         return len(self.frames)
 
     def points(self, index: int, in_base: bool = False) -> np.ndarray:
-        """(N, 3) float64 points of frame ``index``'s valid depth pixels (metres), in the
-        camera frame, or in the base frame with ``in_base``. Back-projected by the C++
-        ``depth_to_cloud``, so camera-frame coordinates carry its float32 rounding (~1e-7 m)."""
+        """(N, 3) float64 points (m) of frame ``index``'s valid depth pixels in the camera frame (the base frame with
+        ``in_base``), back-projected by the C++ ``depth_to_cloud`` (so with its float32 rounding, ~1e-7 m)."""
         frame = self.frames[index]
-        p, _ = depth_to_cloud(frame.depth, self.intrinsics, depth_scale=frame.depth_scale, min_depth=0.0,
-                              max_depth=math.inf)
-        p = p.astype(np.float64)
+        p = depth_to_cloud(frame.depth, self.intrinsics, depth_scale=frame.depth_scale, min_depth=0.0,
+                           max_depth=math.inf)[0].astype(np.float64)
         return _core.common.transform_points(frame.T_base_camera, p) if in_base else p
 
 
@@ -93,24 +89,21 @@ def render_scan(scene: Scene, poses: Union[ScanTrajectory, Trajectory, np.ndarra
     """Renders a scan: noisy depth and shaded colour for every camera pose.
 
     Args:
-        poses: a :class:`ScanTrajectory` (its hand-eye transform, flange poses and robot are
-            kept in the scan and each frame's meta), a :class:`Trajectory` of ``T_base_camera``,
-            or an (N, 4, 4) array of ``T_base_camera`` (camera -> base, m; timestamps
-            ``k / frame_rate``, Hz).
+        poses: a :class:`ScanTrajectory` (its hand-eye transform, flange poses and robot are kept in the scan and each
+            frame's meta), a :class:`Trajectory` of ``T_base_camera``, or an (N, 4, 4) array of ``T_base_camera``
+            (camera -> base, m; timestamps ``k / frame_rate``, Hz).
         intrinsics: camera intrinsics or a preset name (:data:`scanalign.reconstruction.camera.INTRINSICS_PRESETS`).
         noise: a :class:`SensorNoise` or a preset name (``NOISE_PRESETS``); None = "none".
-        seed: frame ``k``'s noise is seeded from ``numpy.random.SeedSequence(seed).spawn(N)[k]``:
-            equal seeds give bit-identical frames, whatever the number of frames rendered.
-        depth_unit: metres per unit of the stored uint16 depth (0 = missing, as are depths above
-            65535 units); ``"auto"``: the sensor's own step when it has one (1/8 mm for the
-            SR300, 1 mm for the D435), else 0.1 mm; None: float32 metres, NaN = missing.
+        seed: frame ``k``'s noise is seeded from ``numpy.random.SeedSequence(seed).spawn(N)[k]``: equal seeds give
+            bit-identical frames, whatever the number of frames rendered.
+        depth_unit: metres per unit of the stored uint16 depth (0, and depths over 65535 units, = missing); ``"auto"``:
+            the sensor's own step if any (1/8 mm SR300, 1 mm D435), else 0.1 mm; None: float32 metres, NaN = missing.
         near: renderer near plane (m).
         keep_ground_truth: also store the noise-free depth and face ids in ``frame.meta``.
         num_threads: frames rendered concurrently (each on one thread); 0 = one per CPU.
 
-    Raises:
-        TypeError, ValueError: bad arguments (unknown preset, malformed poses, non-positive
-            depth unit, frames that would not fit in half the machine's memory ...).
+    TypeError, ValueError: bad arguments (unknown preset, malformed poses, non-positive depth unit, frames that would
+    not fit in half the machine's memory ...).
     """
     if not isinstance(scene, Scene):
         raise TypeError(f"scene: expected Scene, got {type(scene)!r}")
@@ -122,10 +115,9 @@ def render_scan(scene: Scene, poses: Union[ScanTrajectory, Trajectory, np.ndarra
         depth_unit = model.depth_unit if model.depth_unit > 0 else 1e-4
     elif depth_unit is not None and not (math.isfinite(depth_unit) and depth_unit > 0):
         raise ValueError(f"depth_unit must be a positive length in metres, 'auto' or None, got {depth_unit!r}")
-    if int(seed) != seed or seed < 0:
-        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
-    if int(num_threads) != num_threads or num_threads < 0:
-        raise ValueError(f"num_threads must be a non-negative integer, got {num_threads!r}")
+    for name, v in (("seed", seed), ("num_threads", num_threads)):
+        if int(v) != v or v < 0:
+            raise ValueError(f"{name} must be a non-negative integer, got {v!r}")
     T_cams, stamps = _camera_poses(poses, frame_rate)
     need = len(T_cams) * K.width * K.height * (3 + (4 if depth_unit is None else 2) + 8 * keep_ground_truth)
     require_memory(need, f"{len(T_cams)} frames of {K.width}x{K.height}")  # frames are kept in memory

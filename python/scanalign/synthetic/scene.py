@@ -17,18 +17,16 @@ from scanalign.reconstruction.rendering import RenderResult, as_intrinsics, rend
 __all__ = ["SceneObject", "Scene"]
 
 
-def _as_color(color: Sequence[float], name: str = "color") -> np.ndarray:
-    c = np.asarray(color, dtype=np.float64)
-    if c.shape != (3,) or not np.all(np.isfinite(c)) or c.min() < 0 or c.max() > 1:
-        raise ValueError(f"{name}: expected three values in [0, 1] (linear RGB), got {color!r}")
-    return c
-
-
-def _finite(value: object, shape: Tuple[int, ...], name: str, what: str) -> np.ndarray:
+def _finite(value: object, shape: Tuple[int, ...], name: str, what: str, lo: float = -math.inf,
+            hi: float = math.inf) -> np.ndarray:
     a = np.asarray(value, dtype=np.float64)
-    if a.shape != shape or not np.all(np.isfinite(a)):
+    if a.shape != shape or not np.all(np.isfinite(a)) or a.min() < lo or a.max() > hi:
         raise ValueError(f"{name}: expected {what}, got {value!r}")
     return a
+
+
+def _as_color(color: Sequence[float], name: str = "color") -> np.ndarray:
+    return _finite(color, (3,), name, "three values in [0, 1] (linear RGB)", 0.0, 1.0)
 
 
 @dataclass
@@ -43,14 +41,12 @@ class SceneObject:
 
 
 class Scene:
-    """Objects on a table, in the robot base frame (z up, metres): the table top (``table_size``
-    (x, y), None for none, centred at ``table_center`` (x, y), at z = ``table_height``) is two
-    triangles, normal +z, with a checker pattern of ``checker_size`` squares in the two RGB
-    albedos ``checker_colors`` (in [0, 1]) in the colour image.  Shading is two-sided
-    Lambertian under a distant light in direction ``light_direction`` (base frame, normalised
-    here) plus an ``ambient`` fraction in [0, 1].  Rendering uses one combined mesh
-    (:attr:`mesh`; :attr:`face_object`, :attr:`face_source`).
-    """
+    """Objects on a table, in the robot base frame (z up, metres): the table top (``table_size`` (x, y), None for
+    none, centred at ``table_center`` (x, y), at z = ``table_height``) is two triangles, normal +z, with a checker
+    pattern of ``checker_size`` squares in the two RGB albedos ``checker_colors`` (in [0, 1]) in the colour image.
+    Shading is two-sided Lambertian under a distant light in direction ``light_direction`` (base frame, normalised
+    here) plus an ``ambient`` fraction in [0, 1].  Rendering uses one combined mesh (:attr:`mesh`;
+    :attr:`face_object`, :attr:`face_source`)."""
 
     def __init__(self, table_size: Optional[Tuple[float, float]] = (0.6, 0.6),
                  table_center: Tuple[float, float] = (0.5, 0.0), table_height: float = 0.0, checker_size: float = 0.05,
@@ -77,12 +73,10 @@ class Scene:
     def add_object(self, mesh: io.Mesh, T_base_object: Optional[np.ndarray] = None, *,
                    position: Optional[Tuple[float, float]] = None, yaw: float = 0.0,
                    color: Sequence[float] = (0.75, 0.45, 0.20), name: Optional[str] = None) -> SceneObject:
-        """Places a mesh (metres, its own frame) in the scene and returns its :class:`SceneObject`.
-
-        Either give ``T_base_object`` (object -> base), or let the object stand on the table:
-        rotated by ``yaw`` (rad) about the vertical, its lowest vertex on the table top, the
-        centre of its bounding box at ``position`` (x, y, base frame, m; default the table centre).
-        """
+        """Places a mesh (metres, its own frame) in the scene and returns its :class:`SceneObject`: at ``T_base_object``
+        (object -> base) if given, else standing on the table, rotated by ``yaw`` (rad) about the vertical, its lowest
+        vertex on the table top, the centre of its bounding box at ``position`` (x, y, base frame, m; default the
+        table centre)."""
         if not isinstance(mesh, io.Mesh):
             raise TypeError(f"mesh: expected scanalign.io.Mesh, got {type(mesh)!r}")
         if mesh.faces.shape[0] == 0:
@@ -110,16 +104,15 @@ class Scene:
 
     @property
     def center(self) -> np.ndarray:
-        """(3,) centre of the objects' bounding box in the base frame, at table height (the
-        default target of trajectories); the table centre when there are no objects."""
+        """(3,) centre of the objects' bounding box in the base frame (m) at table height, the default target of
+        trajectories; the table centre when there are no objects."""
         if not self.objects:
             return np.array([*self.table_center, self.table_height])
         v = self.object_mesh.vertices[:, :2]
         return np.append((v.min(axis=0) + v.max(axis=0)) / 2, self.table_height)
 
     def _build(self) -> Dict[str, np.ndarray]:
-        """The combined mesh, built once by C++ ``_core.synthetic.compose_scene`` (faces in Morton
-        order, for the renderer's cache)."""
+        """The combined mesh, built once by C++ ``compose_scene`` (faces in Morton order, for the renderer's cache)."""
         if self._combined is not None:
             return self._combined
         objects = [(obj.mesh.vertices, obj.mesh.faces, obj.T_base_object, obj.color) for obj in self.objects]
@@ -145,39 +138,33 @@ class Scene:
 
     @property
     def face_object(self) -> np.ndarray:
-        """(F,) int32: for each face of :attr:`mesh`, its object's index in :attr:`objects`,
-        or -1 for the table."""
+        """(F,) int32: for each face of :attr:`mesh`, its object's index in :attr:`objects`, or -1 for the table."""
         return self._build()["owner"].copy()
 
     @property
     def face_source(self) -> np.ndarray:
-        """(F,) int64: for each face of :attr:`mesh`, its row in its object's own mesh (or in
-        the table's two triangles)."""
+        """(F,) int64: for each face of :attr:`mesh`, its row in its object's mesh (or in the table's two triangles)."""
         return self._build()["source"].copy()
 
     def render(self, T_base_camera: np.ndarray, intrinsics: Union[Intrinsics, str], *, near: float = 0.01,
                far: float = math.inf, num_threads: int = 0) -> RenderResult:
-        """Noise-free depth, face ids and incidence for a camera at ``T_base_camera``
-        (camera -> base, m). Face ids index :attr:`mesh`."""
-        c = self._build()
-        T = se3.require_rigid(T_base_camera, "T_base_camera")
+        """Noise-free depth, face ids (into :attr:`mesh`) and incidence for a camera at ``T_base_camera``
+        (camera -> base, m)."""
+        c, T = self._build(), se3.require_rigid(T_base_camera, "T_base_camera")
         return render_depth(c["vertices"], c["faces"], intrinsics, se3.inverse(T), near=near, far=far,
                             num_threads=num_threads)
 
     def _prepare_shading(self) -> None:
         """Colour of every face for both checker albedos, built once (C++ ``_core.synthetic.scene_colors``)."""
-        c = self._build()
-        if "lut" in c:
-            return
-        c["lut"], c["lut_alt"] = _core.synthetic.scene_colors(c["normals"], c["albedo"], c["owner"],
-                                                              int(c["n_object_faces"]), self.light_direction,
-                                                              self.ambient, self.checker_colors[1])
+        if "lut" not in (c := self._build()):
+            c["lut"], c["lut_alt"] = _core.synthetic.scene_colors(c["normals"], c["albedo"], c["owner"],
+                                                                  int(c["n_object_faces"]), self.light_direction,
+                                                                  self.ambient, self.checker_colors[1])
 
     def shade(self, result: RenderResult, T_base_camera: np.ndarray,
               intrinsics: Union[Intrinsics, str]) -> np.ndarray:
-        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels), rendered at
-        ``T_base_camera`` (camera -> base, m): each face's shaded albedo (the table's checker
-        at the point hit); black where nothing is hit."""
+        """(H, W, 3) uint8 colour image registered to ``result`` (same pixels), seen from ``T_base_camera``
+        (camera -> base, m): each face's shaded albedo (the table's checker at the point hit); black where no hit."""
         c = self._build()
         K = as_intrinsics(intrinsics)
         T = as_transform(T_base_camera, "T_base_camera")

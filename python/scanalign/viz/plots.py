@@ -1,8 +1,6 @@
-"""Figures for reports and benchmarks: trajectories, per-frame statistics, curves.
-
-matplotlib is imported on first use, only through its object-oriented API with the Agg
-canvas (no pyplot, no display, no global backend switch): these functions work headless and
-leave an interactive session alone.  Every function writes a PNG to ``path`` (creating its
+"""Figures for reports and benchmarks: trajectories, per-frame statistics, curves.  matplotlib is imported on first
+use, only through its object-oriented API with the Agg canvas (no pyplot, no display, no global backend switch): these
+functions work headless and leave an interactive session alone.  Every function writes a PNG to ``path`` (creating its
 folder) and returns that path; ``title`` is the figure's title.  Inputs in metres and seconds.
 """
 
@@ -22,7 +20,6 @@ __all__ = ["plot_batch", "plot_trajectory_topdown", "plot_frame_stats", "plot_se
            "plot_joint_trajectory", "pose_overlay", "plot_pick"]
 
 PathLike = Union[str, os.PathLike]
-_AXES = {"x": 0, "y": 1, "z": 2}
 
 
 def _figure(figsize: Tuple[float, float]):
@@ -31,9 +28,8 @@ def _figure(figsize: Tuple[float, float]):
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
     except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise ImportError(
-            "scanalign.viz.plots needs matplotlib (pip install matplotlib); the rest of scanalign "
-            "works without it") from exc
+        raise ImportError("scanalign.viz.plots needs matplotlib (pip install matplotlib); the rest of scanalign "
+                          "works without it") from exc
     fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
@@ -51,17 +47,9 @@ def _plane_axes(plane: Optional[str], positions: np.ndarray) -> Tuple[int, int]:
     if plane is None:
         ext = np.ptp(positions, axis=0) if positions.shape[0] else np.zeros(3)
         return tuple(sorted(np.argsort(-ext, kind="stable")[:2].tolist()))
-    if len(plane) != 2 or plane[0] not in _AXES or plane[1] not in _AXES or plane[0] == plane[1]:
+    if len(plane) != 2 or not set(plane) <= set("xyz") or plane[0] == plane[1]:
         raise ValueError(f"plane must be two different letters of 'xyz' such as 'xy' or 'xz', got {plane!r}")
-    return _AXES[plane[0]], _AXES[plane[1]]
-
-
-def _length_unit(units: str, extent: float) -> Tuple[str, float]:
-    if units == "auto":
-        units = "mm" if extent < 0.5 else "m"
-    if units not in ("m", "mm"):
-        raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
-    return units, 1000.0 if units == "mm" else 1.0
+    return "xyz".index(plane[0]), "xyz".index(plane[1])
 
 
 def _cube(pts: np.ndarray) -> Tuple[np.ndarray, float]:
@@ -101,10 +89,12 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory
     i, j = _plane_axes(plane, ref if ate else est)
     both = np.concatenate([est, ref])
     extent = float(np.ptp(both[:, [i, j]], axis=0).max()) if both.shape[0] else 0.0
-    unit, k = _length_unit(units, extent)
+    if units not in ("auto", "m", "mm"):
+        raise ValueError(f"units must be 'auto', 'm' or 'mm', got {units!r}")
+    unit = ("mm" if extent < 0.5 else "m") if units == "auto" else units
+    k = 1000.0 if unit == "mm" else 1.0
     e2, r2 = est[:, [i, j]] * k, ref[:, [i, j]] * k
-    fig = _figure((6.4, 5.6))
-    ax = fig.add_subplot(1, 1, 1)
+    ax = _figure((6.4, 5.6)).add_subplot(1, 1, 1)
     if ate:
         from matplotlib.collections import LineCollection
 
@@ -122,15 +112,13 @@ def plot_trajectory_topdown(estimate: Trajectory, reference: Optional[Trajectory
     ax.set_aspect("equal", adjustable="datalim")
     ax.autoscale_view()
     ax.grid(True, lw=0.3, alpha=0.5)
-    if ate:
-        label = "ATE" if aligned else "RMS distance (unaligned)"
-        summary = (f"{label} RMSE {ate.translation.rmse * k:.3g} {unit}, max {ate.translation.max * k:.3g} {unit}, "
-                   f"{ate.translation.count} poses")
-    else:
-        summary = f"estimated camera path (model frame), {len(estimate)} poses, no reference"
+    label = "ATE" if aligned else "RMS distance (unaligned)"
+    summary = (f"{label} RMSE {ate.translation.rmse * k:.3g} {unit}, max {ate.translation.max * k:.3g} {unit}, "
+               f"{ate.translation.count} poses" if ate else
+               f"estimated camera path (model frame), {len(estimate)} poses, no reference")
     ax.set_title(f"{title + chr(10) if title else ''}{summary}")
     ax.legend(loc="best", fontsize=8)
-    return _save(fig, path, dpi)
+    return _save(ax.figure, path, dpi)
 
 
 _ALIASES = {"time": ("time", "seconds"), "iterations": ("iterations",), "fitness": ("fitness",),
@@ -158,14 +146,11 @@ def _columns(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence
 
 def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, Sequence[Any]]], path: PathLike,
                      title: Optional[str] = None, dpi: int = 150) -> Path:
-    """Per-frame registration cost and model growth, two panels sharing the frame axis.
-
-    Top: registration time (ms, bars) and ICP iterations.  Bottom: model size (points) and
-    ICP fitness.  Skipped frames (``skipped`` true, or a missing / NaN time) are shaded red.
-    ``per_frame``: one dict per frame, or a dict of equal-length columns, with the time in
-    seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``, the model size
-    in points (``model_size`` or ``model_points``) and ``skipped``.
-    """
+    """Per-frame registration cost and model growth, two panels sharing the frame axis.  Top: registration time (ms,
+    bars) and ICP iterations.  Bottom: model size (points) and ICP fitness.  Skipped frames (``skipped`` true, or a
+    missing / NaN time) are shaded red.  ``per_frame``: one dict per frame, or a dict of equal-length columns, with the
+    time in seconds (``time`` or ``seconds``, required), ``iterations``, ``fitness``, the model size in points
+    (``model_size`` or ``model_points``) and ``skipped``."""
     n, cols = _columns(per_frame)
     if n == 0:
         raise ValueError("per_frame: no frames")
@@ -183,19 +168,17 @@ def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, 
     ax1.bar(frames[ok], t_ms[ok], width=0.8, color="tab:blue", label="registration time")
     ax1.set_ylabel("time (ms)")
     handles, h2s = ax1.containers[:1], []
-    if "iterations" in cols:
-        ax1b = ax1.twinx()
-        handles += ax1b.plot(frames, cols["iterations"], ".-", color="tab:orange", lw=0.8, ms=3, label="iterations")
-        ax1b.set_ylabel("ICP iterations")
     if "model_size" in cols:
         h2s += ax2.plot(frames, cols["model_size"], "-", color="tab:green", lw=1.2, label="model size")
         ax2.set_ylabel("model size (points)")
     else:
         ax2.set_yticks([])
-    if "fitness" in cols:
-        ax2b = ax2.twinx()
-        h2s += ax2b.plot(frames, cols["fitness"], ".", color="tab:purple", ms=3, label="fitness")
-        ax2b.set_ylabel("fitness")
+    for ax, hs, key, style, colour, ylabel in ((ax1, handles, "iterations", ".-", "tab:orange", "ICP iterations"),
+                                               (ax2, h2s, "fitness", ".", "tab:purple", "fitness")):
+        if key in cols:  # on a second y axis of the panel (lw only shows on the iterations' line)
+            twin = ax.twinx()
+            hs += twin.plot(frames, cols[key], style, color=colour, lw=0.8, ms=3, label=key)
+            twin.set_ylabel(ylabel)
     for ax in (ax1, ax2):
         for f in frames[skipped]:
             ax.axvspan(f - 0.5, f + 0.5, color="tab:red", alpha=0.15, lw=0)
@@ -208,9 +191,8 @@ def plot_frame_stats(per_frame: Union[Sequence[Mapping[str, Any]], Mapping[str, 
         ax1.legend(handles=handles, loc="upper left", fontsize=8)
     if h2s:
         ax2.legend(handles=h2s, loc="upper left", fontsize=8)
-    total = np.nansum(cols["time"])
     ax1.set_title(f"{title + chr(10) if title else ''}{n} frames, {int(skipped.sum())} skipped, "
-                  f"registration {total:.3g} s total")
+                  f"registration {np.nansum(cols['time']):.3g} s total")
     return _save(fig, path, dpi)
 
 
@@ -228,14 +210,12 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
         logx, logy: logarithmic axes (non-positive values are not drawn).
         errors: optional label -> (M,) symmetric error bars (e.g. standard deviations).
 
-    Raises:
-        ValueError: no series, or a series whose length differs from ``x``.
+    ValueError: no series, or a series (or its errors) whose length differs from ``x``.
     """
     xv = np.asarray(x, dtype=np.float64).reshape(-1)
     if not series:
         raise ValueError("plot_series: no series given")
-    fig = _figure((6.4, 4.4))
-    ax = fig.add_subplot(1, 1, 1)
+    ax = _figure((6.4, 4.4)).add_subplot(1, 1, 1)
     style = "o-" if markers else "-"
     for label, y in series.items():
         yv = np.asarray(y, dtype=np.float64).reshape(-1)
@@ -258,18 +238,17 @@ def plot_series(x: Sequence[float], series: Mapping[str, Sequence[float]], path:
             ax.xaxis.set_minor_formatter(NullFormatter())
     if logy:
         ax.set_yscale("log")
-    ax.set(xlabel=xlabel, ylabel=ylabel)
-    if title:
-        ax.set_title(title)
+    ax.set(xlabel=xlabel, ylabel=ylabel, title=title or "")
     ax.grid(True, which="both", lw=0.3, alpha=0.5)
     ax.legend(loc="best", fontsize=8)
-    return _save(fig, path, dpi)
+    return _save(ax.figure, path, dpi)
 
 
 def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels: Optional[Sequence[str]] = None,
                             T_base_tool: Optional[np.ndarray] = None, title: Optional[str] = None,
                             dpi: int = 110) -> Path:
-    """Draws arm configurations (e.g. all IK solutions of one pose) as stick figures.
+    """Draws arm configurations (e.g. all IK solutions of one pose) as stick figures, one 3D panel each (metres, equal
+    axes).
 
     Args:
         robot: a :class:`scanalign.kinematics.Robot` (its ``joint_positions(q, tcp=True)``
@@ -277,8 +256,6 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
         q: (K, 6) joint values, radians; rows with NaN are skipped.
         labels: one caption per row (e.g. "shoulder +1 elbow +1 wrist -1").
         T_base_tool: (4, 4) target tool pose (tool -> base), drawn as a small RGB triad.
-
-    One 3D panel per configuration, metres, equal axes.
     """
     q = np.atleast_2d(np.asarray(q, dtype=np.float64))
     if q.ndim != 2 or q.shape[1] != 6:
@@ -287,21 +264,18 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
     if labels is not None and len(labels) != q.shape[0]:
         raise ValueError("labels: need one label per row of q")
     n = max(len(rows), 1)
-    cols = min(n, 4)
-    nrows = (n + cols - 1) // cols
+    cols, nrows = min(n, 4), -(-n // 4)
     fig = _figure((3.2 * cols, 3.2 * nrows))
     chains = [(k, np.asarray(robot.joint_positions(q[k], tcp=True))) for k in rows]
-    tool = [] if T_base_tool is None else [np.asarray(T_base_tool, dtype=np.float64)[None, :3, 3]]
-    centre, half = _cube(np.vstack([c for _, c in chains] + tool) if chains else np.zeros((1, 3)))
+    T = None if T_base_tool is None else np.asarray(T_base_tool, dtype=np.float64)
+    pts = [c for _, c in chains] + ([] if T is None else [T[None, :3, 3]])
+    centre, half = _cube(np.vstack(pts) if chains else np.zeros((1, 3)))
     for i, (k, chain) in enumerate(chains):
         ax = fig.add_subplot(nrows, cols, i + 1, projection="3d")
         ax.plot(chain[:, 0], chain[:, 1], chain[:, 2], "-o", color="0.25", lw=2.5, ms=3.5)
         ax.plot([chain[0, 0]], [chain[0, 1]], [chain[0, 2]], "s", color="k", ms=6)
-        if T_base_tool is not None:
-            T = np.asarray(T_base_tool, dtype=np.float64)
-            for a, colour in enumerate(("r", "g", "b")):
-                e = T[:3, 3] + 0.25 * half * T[:3, a]
-                ax.plot([T[0, 3], e[0]], [T[1, 3], e[1]], [T[2, 3], e[2]], color=colour, lw=1.5)
+        for a, colour in enumerate(("r", "g", "b") if T is not None else ()):  # the target tool triad
+            ax.plot(*np.stack([T[:3, 3], T[:3, 3] + 0.25 * half * T[:3, a]], axis=1), color=colour, lw=1.5)
         _set_cube(ax, centre, half)
         ax.tick_params(labelsize=6)
         ax.set_title(labels[k] if labels is not None else f"solution {k}", fontsize=8)
@@ -312,13 +286,8 @@ def plot_arm_configurations(robot: Any, q: np.ndarray, path: PathLike, *, labels
 
 def plot_joint_trajectory(t: Sequence[float], q: np.ndarray, path: PathLike, *,
                           limits: Optional[np.ndarray] = None, title: Optional[str] = None, dpi: int = 110) -> Path:
-    """Joint angles over time, one panel per joint, with the joint limits as dashed lines.
-
-    Args:
-        t: (N,) times, seconds.
-        q: (N, 6) joint values, radians (NaN rows: steps without a solution, left as gaps).
-        limits: (6, 2) lower / upper joint limits, radians.
-    """
+    """Joint angles (degrees) over ``t`` ((N,) s), one panel per joint of ``q`` ((N, 6) rad; NaN rows, steps without a
+    solution, are gaps), with the ``limits`` ((6, 2) lower / upper, rad) as dashed lines."""
     t = np.asarray(t, dtype=np.float64)
     q = np.asarray(q, dtype=np.float64)
     if q.ndim != 2 or q.shape[1] != 6 or t.shape != (q.shape[0],):
@@ -366,10 +335,9 @@ def pose_overlay(obj: np.ndarray, placed: np.ndarray, result: Any, path: PathLik
 
 
 def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
-    """The arm at each chosen grasp over the scene (a :class:`scanalign.pipelines.pick.PickResult`):
-    a 3D view and a top view in the base frame (m): scene points grey, placed parts coloured,
-    the arm as a stick figure from its base through the joints to the TCP, and the straight
-    approach from the pre-grasp (dashed)."""
+    """The arm at each chosen grasp over the scene (a :class:`scanalign.pipelines.pick.PickResult`): a 3D view and a
+    top view in the base frame (m): scene points grey, placed parts coloured, the arm as a stick figure from its base
+    through the joints to the TCP, and the straight approach from the pre-grasp (dashed)."""
     fig = _figure((13, 6))
     ax3, ax2 = fig.add_subplot(1, 2, 1, projection="3d"), fig.add_subplot(1, 2, 2)
     pts = result.points[:: max(1, len(result.points) // 20000)]
@@ -424,6 +392,5 @@ def plot_batch(records: Sequence[Mapping[str, Any]], path: PathLike, *, dpi: int
                         label=f"{kind} (n={v.size}, median {np.median(v):.3g})")
         ax.set(xlabel=label, ylabel="jobs")
         ax.legend(fontsize=7)
-    bad = sum(r.get("status") != "ok" for r in records)
-    fig.suptitle(f"batch: {len(records)} jobs, {bad} failed or crashed")
+    fig.suptitle(f"batch: {len(records)} jobs, {sum(r.get('status') != 'ok' for r in records)} failed or crashed")
     return _save(fig, path, dpi)

@@ -37,8 +37,7 @@ def save_report(result: Any, out_dir: Union[str, Path], plots_too: bool = True) 
 
 
 def reconstruction_figures(result: ReconstructionResult, out: Path) -> Dict[str, Path]:
-    """trajectory.png (aligned to the reference when there is one), frames.png and, with
-    joints, joints.png in ``out``."""
+    """trajectory.png (aligned to the reference if there is one), frames.png and, with joints, joints.png in ``out``."""
     paths: Dict[str, Path] = {}
     if result.reference is not None and len(result.reference) >= 3:
         try:  # aligned to the reference, unless it cannot be (it never moves: see metrics)
@@ -51,8 +50,7 @@ def reconstruction_figures(result: ReconstructionResult, out: Path) -> Dict[str,
         paths["trajectory_png"] = plots.plot_trajectory_topdown(result.estimate, None, out / "trajectory.png")
     rows = [dict(time=r.total_seconds, iterations=r.iterations, fitness=r.fitness,
                  model_points=r.model_points, skipped=not r.merged) for r in result.records]
-    paths["frames_png"] = plots.plot_frame_stats(rows, out / "frames.png",
-                                                  title="per-frame time and model size")
+    paths["frames_png"] = plots.plot_frame_stats(rows, out / "frames.png", title="per-frame time and model size")
     if result.joints is not None and len(result.records) >= 2:
         try:
             limits = Robot.by_name(result.robot).limits if result.robot is not None else None
@@ -66,24 +64,20 @@ def reconstruction_figures(result: ReconstructionResult, out: Path) -> Dict[str,
 
 def write_pose_outputs(model: object, scene: np.ndarray, result: Any, prefix: Union[str, Path], *,
                        object_indices: Optional[np.ndarray] = None, samples: int = 20000) -> Dict[str, Path]:
-    """Writes ``<prefix>_model.ply`` (the ``model`` -- a mesh, sampled, or an (N, 3) cloud --
-    placed in the scene frame by ``result.T_scene_model``), ``<prefix>_scene.ply`` (the (M, 3)
-    ``scene``, its ``object_indices`` (default all) orange, the rest grey, the model blue) and
-    ``<prefix>_overlay.png`` (three projections); metres. Returns the paths written."""
+    """Writes ``<prefix>_model.ply`` (the ``model`` -- a mesh, sampled, or an (N, 3) cloud -- placed in the scene
+    frame by ``result.T_scene_model``), ``<prefix>_scene.ply`` (the (M, 3) ``scene``, its ``object_indices`` (default
+    all) orange, the rest grey, the model blue) and ``<prefix>_overlay.png`` (three projections); metres. Returns the
+    paths written."""
     prefix = Path(prefix)
     prefix.parent.mkdir(parents=True, exist_ok=True)
     scene = as_points(scene, "scene", np.dtype(np.float64))
     if isinstance(model, (str, Path)):
         model = io.read_mesh(model)
-    if isinstance(model, np.ndarray) or foreign_kind(model) == "cloud":
-        mp = as_points(model, "model", np.dtype(np.float64))
-    else:
-        mp, _ = sample_mesh(model, samples, seed=0)
-    T = np.asarray(result.T_scene_model, dtype=np.float64)
-    placed = transform_points(T, mp)
-    paths = {"model_ply": prefix.with_name(prefix.name + "_model.ply"),
-             "scene_ply": prefix.with_name(prefix.name + "_scene.ply"),
-             "overlay_png": prefix.with_name(prefix.name + "_overlay.png")}
+    cloud = isinstance(model, np.ndarray) or foreign_kind(model) == "cloud"
+    mp = as_points(model, "model", np.dtype(np.float64)) if cloud else sample_mesh(model, samples, seed=0)[0]
+    placed = transform_points(np.asarray(result.T_scene_model, dtype=np.float64), mp)
+    paths = {f"{part}_{ext}": prefix.with_name(f"{prefix.name}_{part}.{ext}")
+             for part, ext in (("model", "ply"), ("scene", "ply"), ("overlay", "png"))}
     io.write_ply(paths["model_ply"], placed.astype(np.float32))
     idx = np.arange(len(scene)) if object_indices is None else np.asarray(object_indices, dtype=np.int64)
     colours = np.full((len(scene), 3), 160, np.uint8)

@@ -1,6 +1,5 @@
-"""A live 3D view in rerun (https://rerun.io, optional: ``pip install rerun-sdk``) of a
-reconstruction while it runs and of the outcome of a pick, in a viewer, a ``.rrd`` recording
-or both::
+"""A live 3D view in rerun (https://rerun.io, optional: ``pip install rerun-sdk``) of a reconstruction while it runs
+and of the outcome of a pick, in a viewer, a ``.rrd`` recording or both::
 
     from scanalign.pipelines.reconstruct import reconstruct
     from scanalign.viz.viewer import Viewer
@@ -12,12 +11,11 @@ or both::
 ``scanalign reconstruct|pick --view`` and ``--view-save FILE.rrd`` do the same from the
 command line; :func:`scanalign.pipelines.pick.pick` takes ``viewer=``.
 
-Entities (world = the model / robot base frame, metres): ``world/model`` (points),
-``world/camera`` (pose and pinhole), ``world/camera_path`` and ``world/reference_path`` (the
-estimated and the robot's camera centres), ``world/arm`` (the arm's joint origins, a line
-strip), ``world/scene``, ``world/parts/<k>_<name>`` (pick: the part's mesh at its pose) and
-``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (index)
-and ``time`` (timestamp, s).
+Entities (world = the model / robot base frame, metres): ``world/model`` (points), ``world/camera`` (pose and
+pinhole), ``world/camera_path`` and ``world/reference_path`` (the estimated and the robot's camera centres),
+``world/arm`` (the arm's joint origins, a line strip), ``world/scene``, ``world/parts/<k>_<name>`` (pick: the part's
+mesh at its pose) and ``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (index) and
+``time`` (timestamp, s).
 """
 
 from __future__ import annotations
@@ -61,19 +59,17 @@ def _colors(c: Optional[np.ndarray]) -> Optional[np.ndarray]:
 
 
 class Viewer:
-    """A rerun recording of scanalign runs.
+    """A rerun recording of scanalign runs (ImportError when rerun-sdk is not installed).
 
     Args:
         name: the rerun application id.
         spawn: start a rerun viewer (or connect to one already listening on its port).
         save: write the recording to this ``.rrd`` file (as well, with ``spawn``).
         connect: a rerun gRPC URL to stream to (a viewer on another machine).
-        robot: the :class:`scanalign.kinematics.Robot` drawn from the frames' joints (default:
-            ``Frame.meta["robot"]`` by name).
+        robot: the :class:`scanalign.kinematics.Robot` drawn from the frames' joints (default: by name from
+            ``Frame.meta["robot"]``).
         model_every, max_model_points: log the growing model every this many merged frames,
             at most this many points (evenly subsampled).
-
-    Raises ImportError when rerun-sdk is not installed.
     """
 
     def __init__(self, name: str = "scanalign", *, spawn: bool = False, save: Optional[Union[str, os.PathLike]] = None,
@@ -81,14 +77,10 @@ class Viewer:
                  max_model_points: int = 500_000) -> None:
         rr = self.rr = _rerun()
         self.rec = rr.RecordingStream(name)
-        sinks = []
         if spawn:
             self.rec.spawn(connect=False)
-            sinks.append(rr.GrpcSink())
-        if connect:
-            sinks.append(rr.GrpcSink(connect))
-        if save is not None:
-            sinks.append(rr.FileSink(os.fspath(save)))
+        sinks = (([rr.GrpcSink()] if spawn else []) + ([rr.GrpcSink(connect)] if connect else [])
+                 + ([rr.FileSink(os.fspath(save))] if save is not None else []))
         if sinks:
             self.rec.set_sinks(*sinks)
         self.robot, self.model_every, self.max_model_points = robot, max(1, int(model_every)), int(max_model_points)
@@ -113,8 +105,7 @@ class Viewer:
     def log_arm(self, path: str, robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = None) -> None:
         """The arm at joints ``q`` (rad) as a line strip through :func:`arm_points`."""
         pts = arm_points(robot, q, T_base_flange)
-        if self._T_world_base is not None:
-            pts = transform_points(self._T_world_base, pts)
+        pts = pts if self._T_world_base is None else transform_points(self._T_world_base, pts)
         self.rec.log(path, self.rr.LineStrips3D([pts], radii=0.006, colors=[[255, 140, 0]]),
                      self.rr.Points3D(pts, radii=0.01))
 
@@ -123,23 +114,20 @@ class Viewer:
         rr = self.rr
         self.rec.set_time("frame", sequence=int(record.index))
         self.rec.set_time("time", duration=float(record.timestamp))
-        T_base_camera = getattr(frame, "T_base_camera", None)
-        if self._T_world_base is None and record.merged and T_base_camera is not None:
-            self._T_world_base = np.asarray(record.T_model_camera) @ np.linalg.inv(np.asarray(T_base_camera))
+        if self._T_world_base is None and record.merged and (T_bc := getattr(frame, "T_base_camera", None)) is not None:
+            self._T_world_base = np.asarray(record.T_model_camera) @ np.linalg.inv(np.asarray(T_bc))
         if record.merged:
             T = np.asarray(record.T_model_camera, dtype=np.float64)
             self._path.append(T[:3, 3].copy())
             self.rec.log("world/camera", rr.Transform3D(translation=T[:3, 3], mat3x3=T[:3, :3]))
-            K = getattr(frame, "intrinsics", None)
-            if K is not None and self._merged == 0:  # the camera's image, once
+            if (K := getattr(frame, "intrinsics", None)) is not None and self._merged == 0:  # the camera's image, once
                 self.rec.log("world/camera", rr.Pinhole(focal_length=[K.fx, K.fy], principal_point=[K.cx, K.cy],
                                                         width=K.width, height=K.height, image_plane_distance=0.05))
             self.rec.log("world/camera_path", rr.LineStrips3D([np.array(self._path)], radii=0.001,
                                                               colors=[[30, 120, 220]]))
             self._merged += 1
             if self._merged % self.model_every == 1 or self.model_every == 1:
-                model = reconstructor.model
-                self.log_points("world/model", model.points, model.colors, radii=0.0008)
+                self.log_points("world/model", reconstructor.model.points, reconstructor.model.colors, radii=0.0008)
         meta = getattr(frame, "meta", None) or {}
         if self.robot is None and meta.get("robot") is not None:
             self.robot = Robot.by_name(str(meta["robot"]))
@@ -155,8 +143,7 @@ class Viewer:
                                                                colors=[[30, 120, 220]]))
         if result.reference is not None and len(result.reference):
             ref = result.reference.positions
-            if self._T_world_base is not None:
-                ref = transform_points(self._T_world_base, ref)
+            ref = ref if self._T_world_base is None else transform_points(self._T_world_base, ref)
             self.rec.log("world/reference_path", self.rr.LineStrips3D([ref], radii=0.001, colors=[[40, 170, 60]]))
 
     def log_pick(self, result: Any) -> None:
@@ -165,8 +152,7 @@ class Viewer:
         self._T_world_base = None  # the pick's world is its base frame
         self.rec.set_time("frame", sequence=int(result.reconstruction.records[-1].index) + 1
                           if result.reconstruction is not None and result.reconstruction.records else 0)
-        grey = np.full((len(result.points), 3), 160, np.uint8)
-        self.log_points("world/scene", result.points, grey, radii=0.0008)
+        self.log_points("world/scene", result.points, np.full((len(result.points), 3), 160, np.uint8), radii=0.0008)
         meshes = {p.name: p.mesh for p in result.parts}
         for k, p in enumerate(result.picks):
             if p.T_base_model is None:
@@ -177,9 +163,8 @@ class Viewer:
             self.rec.log(f"world/parts/{key}", rr.Mesh3D(vertex_positions=m.vertices, triangle_indices=m.faces,
                                                          albedo_factor=[70, 130, 230, 255]))
             if p.status == "picked":
-                c = p.chosen
-                self.log_arm(f"world/grasps/{key}/arm", result.robot, c.q_grasp)
-                self.log_pose(f"world/grasps/{key}/tcp", np.asarray(c.T_base_tcp_grasp), axis_length=0.03)
+                self.log_arm(f"world/grasps/{key}/arm", result.robot, p.chosen.q_grasp)
+                self.log_pose(f"world/grasps/{key}/tcp", np.asarray(p.chosen.T_base_tcp_grasp), axis_length=0.03)
 
     def close(self) -> None:
         """Flushes everything to the viewer / file and disconnects."""

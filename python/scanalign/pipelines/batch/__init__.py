@@ -1,9 +1,8 @@
 """Batch runs: many reconstruction, pose and pick jobs on a process pool or a Ray cluster.
 
-``scanalign batch MANIFEST --executor local|ray --out DIR`` reads a manifest
-(:func:`read_manifest`), builds the part library once (:mod:`scanalign.grasp.part_library`), runs
-every job (:func:`run_job`, a pure function of the job and the library) on the executor,
-and writes one results table (see docs/batch.md).
+``scanalign batch MANIFEST --executor local|ray --out DIR`` reads a manifest (:func:`read_manifest`), builds the part
+library once (:mod:`scanalign.grasp.part_library`), runs every job (:func:`run_job`, a pure function of the job and the
+library) on the executor, and writes one results table (see docs/batch.md).
 """
 
 from scanalign.pipelines.batch.executors import EXECUTORS, LocalExecutor, RayExecutor

@@ -1,11 +1,10 @@
 """Where batch jobs run: a local process pool, or a Ray cluster.
 
-Both yield ``(job, record)`` as jobs finish, in any order; each job runs with
-``threads_per_job`` OpenMP threads (the count the scheduler reserves). The part library
-reaches each worker once (local: loaded from its ``.npz`` at worker start-up; Ray: put in the
-object store once). A worker that dies (a native crash, the OOM killer) does not end the
-batch: the local pool's jobs in flight are run again one at a time, so only the job that
-breaks a pool of its own is recorded ``crashed``; a Ray task whose ``ray.get`` raises is.
+Both yield ``(job, record)`` as jobs finish, in any order; each job runs with ``threads_per_job`` OpenMP threads (the
+count the scheduler reserves). The part library reaches each worker once (local: loaded from its ``.npz`` at worker
+start-up; Ray: put in the object store once). A worker that dies (a native crash, the OOM killer) does not end the
+batch: the local pool's jobs in flight are run again one at a time, so only the job that breaks a pool of its own is
+recorded ``crashed``; a Ray task whose ``ray.get`` raises is.
 """
 
 from __future__ import annotations
@@ -108,16 +107,14 @@ class RayExecutor:
             import ray
         except ImportError:
             raise ImportError("the ray executor needs Ray: pip install 'scanalign[ray]' (or pip install ray)") from None
-        self.ray = ray
-        self.threads = threads_per_job
-        self.workers = workers
+        self.ray, self.threads, self.workers = ray, threads_per_job, workers
         self._started = not ray.is_initialized()
         if self._started:
             kw: Dict[str, Any] = dict(include_dashboard=False, log_to_driver=False, configure_logging=False)
             if address is None and workers:
                 kw["num_cpus"] = workers * threads_per_job
             # the workers import scanalign from where this process does (a source checkout too)
-            kw["runtime_env"] = {"env_vars": {"PYTHONPATH": _package_root()}}
+            kw["runtime_env"] = {"env_vars": {"PYTHONPATH": str(Path(scanalign.__file__).resolve().parent.parent)}}
             ray.init(address=address, **kw)
         self._task = ray.remote(num_cpus=threads_per_job, max_retries=0)(_run_ray)
 
@@ -147,8 +144,3 @@ class RayExecutor:
     def close(self) -> None:
         if self._started:
             self.ray.shutdown()
-
-
-def _package_root() -> str:
-    """The folder holding the scanalign package this process imported."""
-    return str(Path(scanalign.__file__).resolve().parent.parent)

@@ -1,17 +1,14 @@
 """Batch jobs: a small serialisable :class:`Job` in, one flat record of numbers and strings out.
 
-:func:`run_job` is a pure function of the job and the part library: it writes files only
-into ``save`` and catches every error into the record (``status`` ``"failed"``, ``error``),
-so one bad input never stops a batch. Kinds:
+:func:`run_job` is a pure function of the job and the part library: it writes files only into ``save`` and catches every
+error into the record (``status`` ``"failed"``, ``error``), so one bad input never stops a batch. Kinds:
 
-* ``reconstruct`` (:func:`scanalign.pipelines.reconstruct.reconstruct`) of a synthetic scan or
-  a recording: ATE/RPE against the reference poses, and for synthetic scans the model's
-  distance to the true surface;
+* ``reconstruct`` (:func:`scanalign.pipelines.reconstruct.reconstruct`) of a synthetic scan or a recording: ATE/RPE
+  against the reference poses, and for synthetic scans the model's distance to the true surface;
 * ``pose``: :func:`scanalign.pose.find_parts` on a cloud file (base frame) or the built-in
   pick cell seen from ``frames`` viewpoints; pose errors against the cell's truth;
-* ``pick`` (:func:`scanalign.pipelines.pick.pick`) on the built-in cell, or on a TUM folder
-  with ``joints``, ``hand_eye`` and ``robot_base`` files in ``settings``; grasp and pose
-  errors against the cell's truth.
+* ``pick`` (:func:`scanalign.pipelines.pick.pick`) on the built-in cell, or on a TUM folder with ``joints``,
+  ``hand_eye`` and ``robot_base`` files in ``settings``; grasp and pose errors against the cell's truth.
 """
 
 from __future__ import annotations
@@ -33,8 +30,7 @@ from scanalign.common.settings import with_overrides
 from scanalign.datasets import open_source
 from scanalign.grasp import symmetric_pose_error
 from scanalign.grasp.parts import load_part
-from scanalign.pipelines import pick
-from scanalign.pipelines.pick import PickSettings, part_models, read_transform, upper_views
+from scanalign.pipelines.pick import PickSettings, part_models, pick, read_transform, upper_views
 from scanalign.pipelines.reconstruct import DEMO_SETTINGS, model_mesh_distance, reconstruct
 from scanalign.reconstruction import FrameToModelSettings, make_reconstruction_settings
 from scanalign.synthetic import SyntheticConfig
@@ -49,8 +45,7 @@ DEFAULT_PARTS = ("block", "bracket", "standoff")
 _DEFAULT_FRAMES = {"reconstruct": 36, "pose": 4, "pick": 24}
 #: Columns every record has, in table order (metrics not applying to a kind are NaN).
 RECORD_FIELDS = (
-    "id", "kind", "source", "robot", "noise", "seed", "frames", "status", "error", "attempts", "seconds",
-    "worker",
+    "id", "kind", "source", "robot", "noise", "seed", "frames", "status", "error", "attempts", "seconds", "worker",
     # reconstruct
     "merged", "model_points", "ate_rmse_m", "ate_max_m", "rpe_translation_rmse_m", "rpe_rotation_rmse_deg",
     "model_to_mesh_mean_m", "seconds_per_frame",
@@ -59,8 +54,7 @@ RECORD_FIELDS = (
     # pick
     "picked", "tcp_error_max_m", "tcp_error_max_deg",
     # per part, as JSON: {part: {status, pose_m, pose_deg[, tcp_m, tcp_deg]}}
-    "detail",
-)
+    "detail")
 #: Columns holding text; the others hold numbers (NaN where they do not apply).
 TEXT_FIELDS = frozenset({"id", "kind", "source", "robot", "noise", "status", "error", "worker", "detail"})
 #: Columns holding counts (integers; empty where they do not apply).
@@ -157,16 +151,11 @@ def run_job(job: Job, library: Any = None) -> Dict[str, Any]:
     return record
 
 
-# ----------------------------------------------------------------------------------- kinds
-
-
 def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
-    scan = None
-    if job.synthetic:
-        scan = SyntheticConfig(n_frames=job.n_frames, noise=job.noise, seed=job.seed, robot=job.robot).build()
-        frames: Any = scan.frames
-    else:
-        frames = open_source(job.source)  # a TUM folder, a ROS bag or a folder of PNGs + camera file
+    scan = (SyntheticConfig(n_frames=job.n_frames, noise=job.noise, seed=job.seed, robot=job.robot).build()
+            if job.synthetic else None)
+    # a TUM folder, a ROS bag or a folder of PNGs + camera file
+    frames: Any = scan.frames if scan is not None else open_source(job.source)
     # the engine's own settings (motion model 'previous', as batch jobs always ran) with the demo's workspace
     base = make_reconstruction_settings(FrameToModelSettings(), **DEMO_SETTINGS) if job.synthetic else None
     result = reconstruct(frames, base, progress=False, **job.settings)
@@ -237,10 +226,9 @@ def _pick(job: Job, library: Any) -> Dict[str, Any]:
     if job.synthetic:
         cell = _cell(job)
         truth = cell.truth
-        result = pick.pick(cell.scan, [p.name for p in cell.parts], cell.robot, settings=s, progress=False,
-                           library=library)
+        result = pick(cell.scan, [p.name for p in cell.parts], cell.robot, settings=s, progress=False, library=library)
     else:
-        result = pick.pick(job.source, list(job.part_names), job.robot, joints=files["joints"],
+        result = pick(job.source, list(job.part_names), job.robot, joints=files["joints"],
                            T_flange_camera=read_transform(files["hand_eye"], "hand_eye"),
                            T_base_robot=read_transform(files["robot_base"], "robot_base"),
                            settings=s, progress=False, library=library)

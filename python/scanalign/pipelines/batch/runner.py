@@ -1,7 +1,6 @@
-"""A batch: read the manifest, build the part library once (``parts.npz``), run the jobs on
-an executor, journal each record as it arrives (``records.jsonl``: a re-run with the same
-folder skips the jobs recorded ``ok``), and write ``results.csv``, ``results.parquet``
-(pyarrow) and ``summary.json``: the last record of every job, in manifest order.
+"""A batch: read the manifest, build the part library once (``parts.npz``), run the jobs on an executor, journal each
+record as it arrives (``records.jsonl``: a re-run with the same folder skips the jobs recorded ``ok``), and write
+``results.csv``, ``results.parquet`` (pyarrow) and ``summary.json``: the last record of every job, in manifest order.
 """
 
 from __future__ import annotations
@@ -21,15 +20,8 @@ from typing import Any, Dict, List, Optional, Sequence, Union
 from scanalign.grasp.part_library import build_part_library, load_part_library
 from scanalign.io import atomic_open
 from scanalign.pipelines.batch.executors import EXECUTORS, LocalExecutor, RayExecutor, Runner
-from scanalign.pipelines.batch.jobs import (
-    COUNT_FIELDS,
-    KINDS,
-    LIBRARY_SETTINGS,
-    RECORD_FIELDS,
-    TEXT_FIELDS,
-    Job,
-    run_job,
-)
+from scanalign.pipelines.batch.jobs import (COUNT_FIELDS, KINDS, LIBRARY_SETTINGS, RECORD_FIELDS, TEXT_FIELDS, Job,
+                                            run_job)
 
 __all__ = ["BatchResult", "read_manifest", "run_batch"]
 
@@ -66,26 +58,22 @@ def _jobs_from_entry(entry: Dict[str, Any], defaults: Dict[str, Any], where: str
 
 
 def _csv_entries(path: Path) -> List[Dict[str, Any]]:
-    entries = []
     with open(path, newline="", encoding="utf-8") as f:
-        for row in csv.DictReader(f):
-            e: Dict[str, Any] = {k.strip(): v.strip() for k, v in row.items() if k and v is not None and v.strip()}
-            for key in ("seed", "frames", "seeds"):
-                if key in e:
-                    e[key] = int(e[key])
-            if "parts" in e:
-                e["parts"] = [p for p in e["parts"].split(";") if p]
-            if "settings" in e:
-                e["settings"] = json.loads(e["settings"])
-            entries.append(e)
+        entries = [{k.strip(): v.strip() for k, v in row.items() if k and v is not None and v.strip()}
+                   for row in csv.DictReader(f)]
+    for e in entries:
+        e.update({key: int(e[key]) for key in ("seed", "frames", "seeds") if key in e})
+        if "parts" in e:
+            e["parts"] = [p for p in e["parts"].split(";") if p]
+        if "settings" in e:
+            e["settings"] = json.loads(e["settings"])
     return entries
 
 
 def read_manifest(path: Union[str, Path]) -> List[Job]:
-    """The jobs of a manifest file (format in docs/batch.md): YAML (``jobs:``, optional
-    ``defaults:``; ``seeds`` repeats a job per seed, ids suffixed ``-s<seed>``) or CSV (a
-    header naming the fields; ``parts`` separated by ``;``, ``settings`` as JSON). Relative
-    paths are relative to the manifest's folder.
+    """The jobs of a manifest file (format in docs/batch.md): YAML (``jobs:``, optional ``defaults:``; ``seeds`` repeats
+    a job per seed, ids suffixed ``-s<seed>``) or CSV (a header naming the fields; ``parts`` separated by ``;``,
+    ``settings`` as JSON). Relative paths are relative to the manifest's folder.
 
     Raises:
         ValueError: unreadable or malformed manifest, an unknown field or kind, or two jobs
@@ -108,11 +96,9 @@ def read_manifest(path: Union[str, Path]) -> List[Job]:
             _jobs_from_entry(e, defaults, f"job {i}", path.parent) for i, e in enumerate(entries)))
     except (OSError, yaml.YAMLError, ValueError, TypeError, json.JSONDecodeError) as e:
         raise ValueError(f"{path}: {e}") from None
-    seen = set()
-    for job in jobs:
-        if job.id in seen:
-            raise ValueError(f"{path}: job id {job.id!r} appears twice (ids are the resume key)")
-        seen.add(job.id)
+    twice = [i for i, n in Counter(j.id for j in jobs).items() if n > 1]
+    if twice:
+        raise ValueError(f"{path}: job id {twice[0]!r} appears twice (ids are the resume key)")
     if not jobs:
         raise ValueError(f"{path}: no jobs")
     return jobs
@@ -120,9 +106,8 @@ def read_manifest(path: Union[str, Path]) -> List[Job]:
 
 @dataclass
 class BatchResult:
-    """What :func:`run_batch` did: ``records`` (one per job, manifest order), ``paths`` of
-    the files written, ``seconds`` of wall time, ``skipped`` jobs already done before, and
-    ``executor`` described."""
+    """What :func:`run_batch` did: ``records`` (one per job, manifest order), ``paths`` of the files written,
+    ``seconds`` of wall time, ``skipped`` jobs already done before, and ``executor`` described."""
 
     records: List[Dict[str, Any]]
     paths: Dict[str, Path]
@@ -191,13 +176,11 @@ def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "lo
         executor: ``"local"`` (a process pool) or ``"ray"``.
         workers: local: processes (default cores / threads_per_job); ray: at most this many
             jobs at once (default: as the cluster's CPUs take).
-        address: Ray cluster address (``"auto"``, ``"ray://head:10001"``); None starts a
-            local Ray instance.
+        address: Ray cluster address (``"auto"``, ``"ray://head:10001"``); None starts a local Ray instance.
         threads_per_job: OpenMP threads of each job, and CPUs it reserves (Ray).
         retries: times a failed or crashed job is tried again (0: none).
-        runner: ``(job, library) -> record`` (default :func:`run_job`), a module-level
-            function (sent to the workers by reference); fields of :data:`RECORD_FIELDS` it
-            leaves out are empty in the table.
+        runner: ``(job, library) -> record`` (default :func:`run_job`), a module-level function (sent to the workers by
+            reference); fields of :data:`RECORD_FIELDS` it leaves out are empty in the table.
 
     Raises:
         ValueError: bad arguments or duplicate job ids. A failing job never raises: its
@@ -220,8 +203,8 @@ def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "lo
     todo = [j for j in jobs if last.get(j.id, {}).get("status") != "ok"]
     library, library_path = _library(todo, out, progress)
     engine = _executor(executor, workers, address, threads_per_job)
-    attempts = {j.id: int(last.get(j.id, {}).get("attempts", 0)) if j.id in last else 0 for j in todo}
-    first = {j.id: attempts[j.id] for j in todo}
+    attempts = {j.id: int(last.get(j.id, {}).get("attempts", 0)) for j in todo}
+    first = dict(attempts)
     try:
         with open(out / "records.jsonl", "a+", encoding="utf-8") as journal, \
                 tqdm(total=len(todo), desc="batch", unit="job", file=sys.stderr, disable=not progress) as bar:
@@ -246,9 +229,10 @@ def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "lo
         engine.close()
     records = [last[j.id] for j in jobs]
     seconds = time.perf_counter() - t0
-    paths = _write_tables(records, out)
-    result = BatchResult(records, paths, seconds, len(jobs) - len(todo), description)
-    paths["summary"] = _write_summary(result, out)
+    result = BatchResult(records, _write_tables(records, out), seconds, len(jobs) - len(todo), description)
+    result.paths["summary"] = out / "summary.json"
+    with atomic_open(result.paths["summary"], "w", encoding="utf-8") as f:
+        json.dump(summarize(result), f, indent=2, default=float)
     return result
 
 
@@ -289,21 +273,13 @@ def summarize(result: BatchResult) -> Dict[str, Any]:
     for kind in KINDS:
         rs = [r for r in result.records if r["kind"] == kind]
         if rs:
+            medians = {key + "_median": _median([r.get(key) for r in rs])
+                       for key in ("ate_rmse_m", "pose_error_max_m", "pose_error_max_deg", "tcp_error_max_m")}
             kinds[kind] = {"jobs": len(rs), "ok": sum(r["status"] == "ok" for r in rs),
-                           "seconds_median": _median([r["seconds"] for r in rs])}
-            for key in ("ate_rmse_m", "pose_error_max_m", "pose_error_max_deg", "tcp_error_max_m"):
-                m = _median([r.get(key) for r in rs])
-                if math.isfinite(m):
-                    kinds[kind][key + "_median"] = m
+                           "seconds_median": _median([r["seconds"] for r in rs]),
+                           **{k: m for k, m in medians.items() if math.isfinite(m)}}
     return {"jobs": len(result.records), "status": dict(Counter(r["status"] for r in result.records)), "skipped_as_done": result.skipped,
             "wall_seconds": result.seconds, "executor": result.executor,
             "jobs_per_minute": 60 * (len(result.records) - result.skipped) / result.seconds if result.seconds else None,
             "job_seconds_total": sum(r["seconds"] for r in ran), "kinds": kinds,
             "failures": {r["id"]: r["error"] for r in result.records if r["status"] != "ok"}}
-
-
-def _write_summary(result: BatchResult, out: Path) -> Path:
-    path = out / "summary.json"
-    with atomic_open(path, "w", encoding="utf-8") as f:
-        json.dump(summarize(result), f, indent=2, default=float)
-    return path
