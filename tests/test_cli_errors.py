@@ -115,3 +115,73 @@ def test_a_good_register_run_still_succeeds(files, capsys):
     result = json.loads(capsys.readouterr().out)
     np.testing.assert_allclose(result["T_target_source"], T, atol=1e-5)
     assert Path("aligned.ply").stat().st_size > 4000 * 12
+
+
+@pytest.fixture()
+def no_work(monkeypatch):
+    """Every entry point of a command's work fails the test if called: the checks below must
+    stop the command before any scene is rendered or loaded, or any registration runs."""
+    from scanalign import datasets, pose
+    from scanalign.cli import commands
+    from scanalign.pipelines import pick
+
+    def forbidden(name):
+        def call(*args, **kwargs):
+            raise AssertionError(f"work started ({name}) before the input was checked")
+        return call
+
+    for owner, name in [(datasets, "open_source"), (commands, "pick_cell"), (pick, "pick"), (pose, "find_objects"),
+                        (pose, "estimate_pose"), (commands, "icp"), (commands, "reconstruct")]:
+        monkeypatch.setattr(owner, name, forbidden(name))
+
+
+BEFORE_WORK = [  # argv (all with --out out), what the one-line message must contain
+    (["reconstruct", "builtin", "--intrinsics", "tum_fr9"], "--intrinsics 'tum_fr9': neither a preset (tum_default, "),
+    (["reconstruct", "builtin", "--intrinsics", "tum_fr1"], "--intrinsics applies to recordings"),  # was ignored
+    (["reconstruct", "builtin", "--limit", "3"], "--limit applies to recordings"),
+    (["reconstruct", "tum", "--frames", "3"], "--frames applies to synthetic scans"),
+    (["reconstruct", "builtin", "--max-distance", "-1"], "--max-distance -1: reconstruction: frame_to_model: ICP"),
+    (["demo", "--max-distance", "-1"], "--max-distance -1: "),
+    (["reconstruct", "builtin", "--min-depth", "5"], "--min-depth 5: reconstruction: need 0 <= min_depth"),
+    (["reconstruct", "builtin", "--set", "frame_to_model.min_fitness=2"], "--set frame_to_model.min_fitness=2: "),
+    (["register", "ok.pcd", "ok.pcd", "--max-distance", "-1"], "--max-distance -1: ICP settings: max_corr"),
+    (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--up", "nan", "0", "1"], "--up nan 0 1: table"),
+    (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--inlier-threshold", "-1"], "--inlier-threshold -1: "),
+    (["pick", "--scene", "tum", "--parts", "block"], "missing --robot: pick needs --scene, --parts and --robot"),
+    (["pick", "--scene", "tum", "--robot", "ur5"], "missing --parts: "),
+    (["pick", "--parts", "block", "--robot", "ur5"], "missing --scene: "),
+    (["pick", "--robot", "ur5"], "missing --scene, --parts: "),
+    (["pick", "--scene", "tum", "--parts", "block", "--robot", "ur5", "--joints", "no.csv"], "--joints no.csv: no such"),
+    (["pick", "--scene", "tum", "--parts", "block", "--robot", "ur5", "--noise", "zivid"], "--noise applies to --demo"),
+    (["pick", "--demo", "--scene", "tum"], "--scene does not apply to the built-in pick cell"),
+    (["pick", "--demo", "--q-current", "nan", "0", "0", "0", "0", "0"], "--q-current nan 0 0 0 0 0: "),
+    (["demo", "--view-save", "file.txt/x.rrd"], "--view-save file.txt/x.rrd: file.txt is not a folder"),
+    (["reconstruct", "builtin", "--out", "file.txt/o"], "--out file.txt/o: file.txt is not a folder"),
+    (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--out", "file.txt/o"], "--out file.txt/o: file.txt"),
+]
+
+
+@pytest.mark.parametrize("argv, fragment", BEFORE_WORK, ids=[" ".join(c[0]) for c in BEFORE_WORK])
+def test_a_mistake_is_named_as_typed_before_any_work(files, no_work, capsys, argv, fragment):
+    """Unknown presets, settings a flag or --set made invalid, missing or misplaced inputs and
+    unwritable outputs: exit 2 with the option as typed (not only the C++ field), nothing run,
+    nothing written (a run used to render for minutes, or to fail at the end, or to ignore it)."""
+    before = sorted(os.listdir())
+    rc = cli.main(argv + ([] if "--out" in argv else ["--out", "out"]))
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("scanalign") == 1 and fragment in err, err
+    assert sorted(os.listdir()) == before
+
+
+def test_box_flags_set_the_box(files, monkeypatch):
+    """--box and --box-preset, two flags of one field, each set it (each used to read the
+    other's value: 'could not convert string to float')."""
+    from scanalign.cli import commands
+    from scanalign.registration import Box
+
+    got = []
+    monkeypatch.setitem(commands.HANDLERS, "reconstruct", lambda args: got.append(args.settings) or 0)
+    assert cli.main(["reconstruct", "builtin", "--box-preset", "banana", "--out", "a"]) == 0
+    assert cli.main(["reconstruct", "builtin", "--box", "-1", "1", "-2", "2", "0", "3", "--out", "b"]) == 0
+    assert got[0].frame_to_model.icp.box.as_tuple() == Box.banana_preset().as_tuple()
+    assert got[1].frame_to_model.icp.box.as_tuple() == (-1, 1, -2, 2, 0, 3)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -27,6 +28,7 @@ from scanalign.pipelines import batch
 from scanalign.pipelines import pick as _pick
 from scanalign.pipelines.reconstruct import DEMO_SETTINGS, model_mesh_distance, reconstruct, write_joints_csv
 from scanalign.reconstruction import ReconstructionSettings
+from scanalign.reconstruction.camera import INTRINSICS_PRESETS
 from scanalign.registration import Box, IcpSettings, icp, pcl_icp
 from scanalign.synthetic.cell import pick_cell, score_picks
 from scanalign.viz import plots
@@ -392,14 +394,14 @@ def pose_command(args: argparse.Namespace) -> int:
 def pick_command(args: argparse.Namespace) -> int:
     """``scanalign pick``: scan -> part poses -> grasps -> joint targets; exit status 1 when nothing can be picked."""
     truth = None
+    if args.q_current is not None and not np.all(np.isfinite(args.q_current)):
+        raise ValueError(f"--q-current {' '.join(f'{q:g}' for q in args.q_current)}: joint values must be finite (rad)")
     if args.demo:
-        cell = pick_cell(args.robot or "ur5", noise=args.noise, seed=args.seed)
+        cell = pick_cell(args.robot or "ur5", noise=args.noise or "sr300", seed=args.seed or 0)
         scene, parts, robot, T_base_robot, T_fc, truth = cell.scan, cell.parts, cell.robot, None, None, cell.truth
         print(f"scanalign pick: built-in cell: {cell.robot.name}, {len(cell.parts)} parts on the table, "
-              f"{len(cell.scan)} frames with {args.noise} noise")
+              f"{len(cell.scan)} frames with {args.noise or 'sr300'} noise")
     else:
-        if args.scene is None or not args.parts or args.robot is None:
-            raise ValueError("give --scene, --parts and --robot (or --demo)")
         scene, parts, robot = args.scene, args.parts, args.robot
         T_base_robot = _pick.read_transform(args.robot_base, "--robot-base")
         T_fc = _pick.read_transform(args.hand_eye, "--hand-eye")
@@ -436,9 +438,8 @@ def _add_pick_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--hand-eye", help="text file: T_flange_camera, 4x4 (camera -> flange, m)")
     p.add_argument("--robot-base", help="text file: T_base_robot, 4x4 (robot base -> cell base, m)")
     p.add_argument("--robot", help="the arm: ur5, kr6_r900_sixx, ... (demo: ur5)")
-    p.add_argument("--noise", default="sr300", choices=["sr300", "zivid", "d435", "none"],
-                   help="demo: sensor noise preset (sr300)")
-    p.add_argument("--seed", type=int, default=0, help="demo: noise seed (0)")
+    p.add_argument("--noise", choices=["sr300", "zivid", "d435", "none"], help="demo: sensor noise preset (sr300)")
+    p.add_argument("--seed", type=int, help="demo: noise seed (0)")
     p.add_argument("--q-current", type=float, nargs=6, metavar=_Q,
                    help="the robot's joints now, rad (default: the scan's last)")
     _add_output_options(p, "scanalign-pick", "pick.png", quiet="no progress bars", view=True)
@@ -468,6 +469,51 @@ def batch_command(args: argparse.Namespace) -> int:
         print(f"  {job_id}: {error}", file=sys.stderr)
     print("wrote " + ", ".join(str(p) for p in result.paths.values()))
     return 0 if all(r["status"] == "ok" for r in result.records) else 1
+
+
+def _writable(path: str, flag: str, folder: bool = True) -> None:
+    """Refuses an output that cannot be written before the run, not after it."""
+    target = Path(path) if folder else Path(path).parent
+    existing = next(p for p in (target, *target.parents) if p.exists())
+    if not existing.is_dir() or not os.access(existing, os.W_OK):
+        raise ValueError(f"{flag} {path}: {existing} is {'not a folder' if not existing.is_dir() else 'read-only'}")
+
+
+def _given(args: argparse.Namespace, *flags: str) -> list:
+    """Those of ``flags`` given on the command line (their value not None, [] or the default)."""
+    defaults = {"--start": 0, "--frame-stride": 1}
+    return [f for f in flags if getattr(args, f[2:].replace("-", "_"), None) not in (None, [], defaults.get(f))]
+
+
+def _preflight(args: argparse.Namespace) -> None:
+    """The checks that need no work, so that a mistake stops a command in its first second: outputs
+    that cannot be written, inputs missing or unknown, options that do not apply to the source."""
+    for flag, path, folder in (("OUT" if args.command == "synth" else "--out", getattr(args, "out", None),
+                                args.command != "register"), ("--view-save", getattr(args, "view_save", None), False)):
+        if path:
+            _writable(path, flag, folder)
+    demo = getattr(args, "demo", True)  # demo --pick too
+    if (args.command == "pick" or args.command == "demo" and args.pick) and demo:
+        if extra := _given(args, "--scene", "--parts", "--joints", "--hand-eye", "--robot-base", "--frames", "--limit"):
+            raise ValueError(f"{extra[0]} does not apply to the built-in pick cell (--demo)")
+    elif args.command == "pick":
+        if missing := [f for f in ("--scene", "--parts", "--robot") if not _given(args, f)]:
+            raise ValueError(f"missing {', '.join(missing)}: pick needs --scene, --parts and --robot (or --demo)")
+        if extra := _given(args, "--noise", "--seed"):
+            raise ValueError(f"{extra[0]} applies to --demo only")
+        if args.joints and not Path(args.joints).is_file():
+            raise FileNotFoundError(f"--joints {args.joints}: no such file")
+    elif args.command in ("demo", "reconstruct"):
+        source = "builtin" if args.command == "demo" else args.source
+        if args.intrinsics and args.intrinsics not in INTRINSICS_PRESETS and not Path(args.intrinsics).is_file():
+            raise ValueError(f"--intrinsics {args.intrinsics!r}: neither a preset ({', '.join(INTRINSICS_PRESETS)}) "
+                             "nor a camera file")
+        if source == "builtin" or Path(source).is_file() and Path(source).suffix.lower() in datasets.SYNTHETIC_SUFFIXES:
+            if extra := _given(args, "--intrinsics", "--depth-scale", "--start", "--frame-stride", "--limit"):
+                raise ValueError(f"{extra[0]} applies to recordings (TUM RGB-D folder, bag, image folder), not to the "
+                                 f"synthetic scan {source!r}: its camera and frames are set in a synthetic config file")
+        elif extra := _given(args, "--frames", "--noise", "--seed", "--robot", "--robot-base"):
+            raise ValueError(f"{extra[0]} applies to synthetic scans ('builtin' or a config file), not to {source!r}")
 
 
 def _record_config(args: argparse.Namespace, rc: int) -> int:
@@ -595,6 +641,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         if args.command in COMMANDS or args.command == "demo":
             args.settings = resolve(COMMANDS.get(args.command, RECONSTRUCT), args,
                                     DEMO_SETTINGS if args.command == "demo" else None)
+        _preflight(args)
         return _record_config(args, HANDLERS[args.command](args))
     except (ValueError, TypeError, OSError, RuntimeError, ImportError) as e:  # OSError: unreadable input, unwritable output
         print(f"scanalign {args.command}: error: {e}", file=sys.stderr)

@@ -8,11 +8,13 @@ the field) and ``--set PATH=VALUE``. The settings a run used are written beside 
 from __future__ import annotations
 
 import argparse
+import re
 import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, Optional, Sequence, Tuple
 
+from scanalign import _core
 from scanalign.common import settings as schema
 
 __all__ = ["Alias", "Command", "add_settings_options", "resolve", "dump", "write_effective"]
@@ -68,7 +70,7 @@ def add_settings_options(parser: argparse.ArgumentParser, command: Command) -> N
     groups: Dict[str, Any] = {}
     for a in command.aliases:
         target = parser if a.group is None else groups.setdefault(a.group, parser.add_argument_group(a.group))
-        kwargs: Dict[str, Any] = dict(dest=f"alias:{a.path}", default=None, help=_help(root, a))
+        kwargs: Dict[str, Any] = dict(dest=f"alias:{a.option}", default=None, help=_help(root, a))
         default = schema.get_path(root, a.path)
         if a.flag is not None:
             kwargs.update(action="store_const", const=a.flag)
@@ -83,8 +85,9 @@ def add_settings_options(parser: argparse.ArgumentParser, command: Command) -> N
 
 
 def resolve(command: Command, args: argparse.Namespace, preset: Optional[Dict[str, Any]] = None) -> Any:
-    """The settings of a parsed command line: defaults < preset < --config < flags < --set.
-    ValueError / TypeError name the file, flag or path of a bad value, before any work."""
+    """The settings of a parsed command line: defaults < preset < --config < flags < --set, validated
+    by the structs' C++ checks. ValueError / TypeError name the file, the flag as typed and its value
+    (``--max-distance -1``), or the ``--set`` of a bad value, before any work."""
     root = command.root()
     if preset:
         schema.update(root, preset)
@@ -94,23 +97,49 @@ def resolve(command: Command, args: argparse.Namespace, preset: Optional[Dict[st
             _validate(root)
         except (TypeError, ValueError) as e:
             raise ValueError(f"{args.config}: {e}") if not str(e).startswith(str(args.config)) else e from None
+    given = []  # (the flag or --set as typed, the path it sets), in the order they apply
     for a in command.aliases:
-        given = getattr(args, f"alias:{a.path}", None)
-        if given is not None:
+        value = getattr(args, f"alias:{a.option}", None)
+        if value is not None:
+            typed = a.option if a.flag is not None else f"{a.option} {_shown(value)}"
             try:
-                schema.set_path(root, a.path, a.value(given) if a.value else given)
+                schema.set_path(root, a.path, a.value(value) if a.value else value)
             except (TypeError, ValueError) as e:
-                raise ValueError(f"{a.option}: {str(e).removeprefix(a.path + ': ')}") from None
+                raise ValueError(f"{typed}: {str(e).removeprefix(a.path + ': ')}") from None
+            given.append((typed, a.path))
     for text in getattr(args, "set_values", []):
-        schema.set_path(root, *schema.parse_assignment(text))
-    _validate(root)
+        path, value = schema.parse_assignment(text)
+        try:
+            schema.set_path(root, path, value)
+        except (TypeError, ValueError) as e:
+            raise type(e)(f"--set {e}") from None
+        given.append((f"--set {text}", path))
+    try:
+        _validate(root)
+    except ValueError as e:  # the C++ check names a field: name the flag that set it, as typed
+        culprit = [typed for typed, path in given if re.search(rf"\b{path.rpartition('.')[2]}\b", str(e))]
+        if not culprit:
+            raise
+        raise ValueError(f"{culprit[-1]}: {e}") from None
     return root
 
 
-def _validate(root: Any) -> None:
-    for value in ([root] if not isinstance(root, dict) else root.values()):
-        if hasattr(value, "validate"):
-            value.validate()
+def _shown(value: Any) -> str:
+    """A flag's value as typed: -1, not -1.0; a list space-separated."""
+    return " ".join(map(_shown, value)) if isinstance(value, list) else str(value).removesuffix(".0")
+
+
+def _validate(node: Any) -> None:
+    """The C++ checks of every struct of a root, nested ones too (FindObjectsSettings has no
+    ``validate`` of its own, its ``table`` has). PoseSettings binds none, but
+    ``describe_model_views`` runs its C++ check first, and with no views nothing else."""
+    if hasattr(node, "validate"):
+        node.validate()
+    elif isinstance(node, _core.pose.PoseSettings):
+        _core.pose.describe_model_views([], node)
+    for value in (node if isinstance(node, dict) else schema.fields_of(node)).values():
+        if schema.is_struct(value) and schema.field_names(value):
+            _validate(value)
 
 
 def dump(command_name: str, root: Any, header: Sequence[str] = ()) -> str:
