@@ -467,7 +467,9 @@ def batch_command(args: argparse.Namespace) -> int:
     for job_id, error in s["failures"].items():
         print(f"  {job_id}: {error}", file=sys.stderr)
     print("wrote " + ", ".join(str(p) for p in result.paths.values()))
-    return 0 if all(r["status"] == "ok" for r in result.records) else 1
+    if not result.ok:
+        print(f"scanalign batch: {s['verdict']}", file=sys.stderr)
+    return 0 if result.ok else 1
 
 
 def _record_config(args: argparse.Namespace, rc: int) -> int:
@@ -575,7 +577,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                        description="Runs every job of MANIFEST (YAML or CSV, see docs/batch.md) on a local process "
                                    "pool or a Ray cluster, the part library built once and shared; writes "
                                    "results.csv, results.parquet, summary.json and results.png into --out. A re-run "
-                                   "with the same --out skips the jobs already done. Exit status 1 when a job failed.")
+                                   "with the same --out skips the jobs already done. Exit status 1 when a job failed "
+                                   "or crashed, 2 on an error (a malformed manifest, workers that cannot start).")
     p.add_argument("manifest", help="manifest file (.yaml/.yml or .csv)")
     p.add_argument("--executor", choices=["local", "ray"], default="local", help="where the jobs run (local)")
     p.add_argument("--address", help="Ray cluster address ('auto', 'ray://head:10001'); default: a local Ray instance")
