@@ -290,18 +290,23 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
 
 
 def synth(args: argparse.Namespace) -> int:
-    """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder."""
+    """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder, a ROS bag or a PNG folder."""
     scan = datasets.open_source(args.config, synthetic_overrides=_synthetic_overrides(args))
     if not isinstance(scan, synthetic.SyntheticScan):
         raise ValueError(f"{args.config}: expected a synthetic config file (.json/.yaml) or 'builtin'")
-    folder = tum.write_tum_sequence(args.out, scan.frames, intrinsics=scan.intrinsics,
-                                    depth_scale=scan.frames[0].depth_scale)
-    extra = ""
-    if scan.joints is not None:
-        write_joints_csv(Path(folder) / "joints.csv", [f.index for f in scan.frames],
-                         [f.timestamp for f in scan.frames], scan.joints)
-        extra = f", {scan.robot.name} joints in joints.csv (rad)"
-    print(f"scanalign: wrote {len(scan.frames)} frames to {folder} (TUM RGB-D layout, ground truth included{extra})")
+    extra, layout = "", {"tum": "TUM RGB-D layout, ground truth included", "bag": "ROS bag, ground truth in /tf",
+                         "png": "PNG image folder, ground truth in groundtruth.txt"}
+    if args.format == "bag":
+        folder = datasets.sources.write_bag(args.out, scan.frames)
+        extra = "" if scan.joints is None else f", {scan.robot.name} joints in /joint_states (rad)"
+    else:
+        write = tum.write_tum_sequence if args.format == "tum" else datasets.sources.write_image_folder
+        folder = write(args.out, scan.frames, intrinsics=scan.intrinsics, depth_scale=scan.frames[0].depth_scale)
+        if scan.joints is not None:
+            write_joints_csv(Path(folder) / "joints.csv", [f.index for f in scan.frames],
+                             [f.timestamp for f in scan.frames], scan.joints)
+            extra = f", {scan.robot.name} joints in joints.csv (rad)"
+    print(f"scanalign: wrote {len(scan.frames)} frames to {folder} ({layout[args.format]}{extra})")
     return 0
 
 
@@ -529,9 +534,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "Writes the outputs of 'scanalign demo'.")
     p.add_argument("source", help="TUM RGB-D folder, ROS bag, PNG folder, synthetic config file, or 'builtin'")
     _add_reconstruct_options(p, "scanalign-out")
-    p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder")
+    p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder, a ROS bag or a PNG folder")
     p.add_argument("config", help="synthetic config file (.json/.yaml) or 'builtin'")
-    p.add_argument("out", help="output folder")
+    p.add_argument("out", help="output folder (--format bag: a ROS 1 file when it ends in .bag, else a ROS 2 bag)")
+    p.add_argument("--format", choices=["tum", "bag", "png"], default="tum",
+                   help="tum: a TUM RGB-D folder (default); bag: a ROS bag (needs rosbags); png: a folder of "
+                        "depth/ and rgb/ PNGs with camera.json")
     _add_synthetic_options(p)
     p = sub.add_parser("register", help="ICP between two clouds (PCD or PLY, metres)")
     p.add_argument("source", help="source cloud (its camera frame)")
