@@ -21,7 +21,6 @@ mesh at its pose) and ``world/grasps/<k>_<name>/arm`` (the arm at the chosen gra
 from __future__ import annotations
 
 import os
-import shutil
 import socket
 import sys
 import warnings
@@ -93,7 +92,7 @@ class Viewer:
         rr = self.rr = _rerun()
         self.rec = rr.RecordingStream(name)
         if spawn:
-            self._spawn(rr)
+            self._spawn()
         sinks = (([rr.GrpcSink()] if spawn else []) + ([rr.GrpcSink(connect)] if connect else [])
                  + ([rr.FileSink(os.fspath(save))] if save is not None else []))
         if sinks:
@@ -104,7 +103,7 @@ class Viewer:
         self._T_world_base: Optional[np.ndarray] = None
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
 
-    def _spawn(self, rr: Any, port: int = 9876) -> None:
+    def _spawn(self, port: int = 9876) -> None:
         # A viewer without a window dies at once while the run goes on, streaming into nothing.
         fix = ("set DISPLAY (e.g. ssh -X), or record to a file instead, save='scan.rrd' (on the command line "
                "--view-save scan.rrd), and open it with 'rerun scan.rrd' where there is a display")
@@ -113,9 +112,7 @@ class Viewer:
                 and not _listening(port)):
             raise RuntimeError(f"cannot show a rerun viewer (spawn=True / --view): no display (DISPLAY and "
                                f"WAYLAND_DISPLAY are unset) and no viewer listening on port {port}; {fix}")
-        # rerun-sdk installs the viewer beside the interpreter, which need not be on PATH.
-        exe = shutil.which("rerun") or shutil.which("rerun", path=os.path.dirname(sys.executable))
-        rr.spawn(port=port, connect=False, executable_path=exe, recording=self.rec)
+        self.rec.spawn(port=port, connect=False)
         if not _listening(port):  # rerun waits a few seconds for the port, then goes on without a viewer
             raise RuntimeError(f"the rerun viewer did not start or exited at once (see its messages above); {fix}")
 
