@@ -1,9 +1,14 @@
 """The rerun live view (scanalign.viz.viewer): recordings hold the expected entities; the arm's
-joint chain matches the robot's forward kinematics. Skipped without rerun-sdk."""
+joint chain matches the robot's forward kinematics; no display is refused before the run and a
+lost viewer never hides the caller's exception. Skipped without rerun-sdk."""
 
 from __future__ import annotations
 
+import os
+import socket
+import subprocess
 import sys
+import textwrap
 from types import SimpleNamespace
 
 import numpy as np
@@ -110,3 +115,58 @@ def test_missing_rerun_is_named(monkeypatch, tmp_path, capsys):
     assert main(["reconstruct", "builtin", "--frames", "2", "--out", str(tmp_path), "--quiet",
                  "--view-save", str(tmp_path / "x.rrd")]) == 2
     assert "pip install rerun-sdk" in capsys.readouterr().err
+
+
+def _run(args, tmp_path, **env):
+    """``python args`` in a subprocess with this sys.path and ``env`` over os.environ (None: unset),
+    the interpreter's folder (rerun-sdk's ``rerun`` viewer) first on PATH; a hang fails the test."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path),
+           "PATH": os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")]), **env}
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True, cwd=tmp_path, timeout=180,
+                          env={k: v for k, v in env.items() if v is not None})
+
+
+def test_view_without_a_display_is_refused_before_the_run(tmp_path):
+    """``--view`` where no window can open: a clear error naming the fix, before anything runs
+    (was: a viewer that dies at once, the run going on, a gRPC error at the end)."""
+    pytest.importorskip("rerun")
+    if not sys.platform.startswith("linux"):
+        pytest.skip("DISPLAY / WAYLAND_DISPLAY decide only on Linux")
+    with socket.socket() as s:
+        if s.connect_ex(("127.0.0.1", 9876)) == 0:
+            pytest.skip("a rerun viewer is listening on port 9876")
+    r = _run(["-m", "scanalign.cli", "reconstruct", "builtin", "--frames", "2", "--pixel-stride", "4", "--out", "out",
+              "--quiet", "--no-plots", "--view"], tmp_path, DISPLAY=None, WAYLAND_DISPLAY=None, WAYLAND_SOCKET=None)
+    assert r.returncode == 2, r.stderr
+    assert "no display (DISPLAY and WAYLAND_DISPLAY are unset)" in r.stderr and "--view-save scan.rrd" in r.stderr
+    assert not (tmp_path / "out").exists()  # refused before the run
+
+
+def test_a_lost_viewer_never_hides_the_callers_exception(tmp_path):
+    """A viewer that is gone (nothing listens on its port): the body's exception propagates
+    unchanged, the .rrd file still gets everything, and a good run ends with a warning only."""
+    pytest.importorskip("rerun")
+    script = textwrap.dedent("""
+        import socket, warnings
+        from scanalign.viz.viewer import Viewer
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            url = f"rerun+http://127.0.0.1:{s.getsockname()[1]}/proxy"  # closed again: nobody listens
+        mine = KeyError("mine")
+        try:
+            with Viewer(connect=url, save="lost.rrd") as view:
+                view.log_points("world/p", [[0.0, 0.0, 0.0]])
+                raise mine
+        except KeyError as e:
+            print("body exception propagated:", e is mine)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with Viewer(connect=url) as view:
+                view.log_points("world/p", [[0.0, 0.0, 0.0]])
+        print("warned:", [str(w.message) for w in caught])
+    """)
+    r = _run(["-c", script], tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "body exception propagated: True" in r.stdout, r.stdout
+    assert "warned: ['the rerun viewer did not receive the whole recording (" in r.stdout, r.stdout
+    assert "Points3D:positions" in _contents(tmp_path / "lost.rrd")["/world/p"]

@@ -292,18 +292,23 @@ def _add_reconstruct_options(p: argparse.ArgumentParser, out_default: str) -> No
 
 
 def synth(args: argparse.Namespace) -> int:
-    """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder."""
+    """``scanalign synth``: render a synthetic scan into a TUM RGB-D folder, a ROS bag or a PNG folder."""
     scan = datasets.open_source(args.config, synthetic_overrides=_synthetic_overrides(args))
     if not isinstance(scan, synthetic.SyntheticScan):
         raise ValueError(f"{args.config}: expected a synthetic config file (.json/.yaml) or 'builtin'")
-    folder = tum.write_tum_sequence(args.out, scan.frames, intrinsics=scan.intrinsics,
-                                    depth_scale=scan.frames[0].depth_scale)
-    extra = ""
-    if scan.joints is not None:
-        write_joints_csv(Path(folder) / "joints.csv", [f.index for f in scan.frames],
-                         [f.timestamp for f in scan.frames], scan.joints)
-        extra = f", {scan.robot.name} joints in joints.csv (rad)"
-    print(f"scanalign: wrote {len(scan.frames)} frames to {folder} (TUM RGB-D layout, ground truth included{extra})")
+    extra, layout = "", {"tum": "TUM RGB-D layout, ground truth included", "bag": "ROS bag, ground truth in /tf",
+                         "png": "PNG image folder, ground truth in groundtruth.txt"}
+    if args.format == "bag":
+        folder = datasets.sources.write_bag(args.out, scan.frames)
+        extra = "" if scan.joints is None else f", {scan.robot.name} joints in /joint_states (rad)"
+    else:
+        write = tum.write_tum_sequence if args.format == "tum" else datasets.sources.write_image_folder
+        folder = write(args.out, scan.frames, intrinsics=scan.intrinsics, depth_scale=scan.frames[0].depth_scale)
+        if scan.joints is not None:
+            write_joints_csv(Path(folder) / "joints.csv", [f.index for f in scan.frames],
+                             [f.timestamp for f in scan.frames], scan.joints)
+            extra = f", {scan.robot.name} joints in joints.csv (rad)"
+    print(f"scanalign: wrote {len(scan.frames)} frames to {folder} ({layout[args.format]}{extra})")
     return 0
 
 
@@ -468,7 +473,9 @@ def batch_command(args: argparse.Namespace) -> int:
     for job_id, error in s["failures"].items():
         print(f"  {job_id}: {error}", file=sys.stderr)
     print("wrote " + ", ".join(str(p) for p in result.paths.values()))
-    return 0 if all(r["status"] == "ok" for r in result.records) else 1
+    if not result.ok:
+        print(f"scanalign batch: {s['verdict']}", file=sys.stderr)
+    return 0 if result.ok else 1
 
 
 def _writable(path: str, flag: str, folder: bool = True) -> None:
@@ -575,9 +582,12 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "Writes the outputs of 'scanalign demo'.")
     p.add_argument("source", help="TUM RGB-D folder, ROS bag, PNG folder, synthetic config file, or 'builtin'")
     _add_reconstruct_options(p, "scanalign-out")
-    p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder")
+    p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder, a ROS bag or a PNG folder")
     p.add_argument("config", help="synthetic config file (.json/.yaml) or 'builtin'")
-    p.add_argument("out", help="output folder")
+    p.add_argument("out", help="output folder (--format bag: a ROS 1 file when it ends in .bag, else a ROS 2 bag)")
+    p.add_argument("--format", choices=["tum", "bag", "png"], default="tum",
+                   help="tum: a TUM RGB-D folder (default); bag: a ROS bag (needs rosbags); png: a folder of "
+                        "depth/ and rgb/ PNGs with camera.json")
     _add_synthetic_options(p)
     p = sub.add_parser("register", help="ICP between two clouds (PCD or PLY, metres)")
     p.add_argument("source", help="source cloud (its camera frame)")
@@ -621,7 +631,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                        description="Runs every job of MANIFEST (YAML or CSV, see docs/batch.md) on a local process "
                                    "pool or a Ray cluster, the part library built once and shared; writes "
                                    "results.csv, results.parquet, summary.json and results.png into --out. A re-run "
-                                   "with the same --out skips the jobs already done. Exit status 1 when a job failed.")
+                                   "with the same --out skips the jobs already done. Exit status 1 when a job failed "
+                                   "or crashed, 2 on an error (a malformed manifest, workers that cannot start).")
     p.add_argument("manifest", help="manifest file (.yaml/.yml or .csv)")
     p.add_argument("--executor", choices=["local", "ray"], default="local", help="where the jobs run (local)")
     p.add_argument("--address", help="Ray cluster address ('auto', 'ray://head:10001'); default: a local Ray instance")

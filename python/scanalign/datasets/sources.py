@@ -3,7 +3,8 @@
 :func:`scanalign.datasets.open_source`: ROS 1 and ROS 2 bags (RealSense recordings included) as
 :class:`BagSequence`, read with the pure-Python ``rosbags`` package (``pip install
 'scanalign[ros]'``, no ROS install), and folders of PNG images with a camera file as
-:class:`ImageFolderSequence`."""
+:class:`ImageFolderSequence`; :func:`write_bag` and :func:`write_image_folder` write both (samples from the
+synthetic scanner: ``scanalign synth builtin OUT --format bag|png``)."""
 
 from __future__ import annotations
 
@@ -21,15 +22,17 @@ from scanalign.datasets.tum import (
     camera_argument,
     check_number,
     check_selection,
+    depth_units,
     interpolate,
     pair_frames,
     resolve_camera,
+    write_tum_sequence,
 )
 from scanalign.evaluation.trajectory import Trajectory, pose_from_tum
 from scanalign.reconstruction.camera import Frame, camera_from_dict, sequence_index
 
-__all__ = ["BagSequence", "ImageFolderSequence", "is_bag", "is_image_folder", "DEPTH_ENCODINGS",
-           "COLOR_ENCODINGS"]
+__all__ = ["BagSequence", "ImageFolderSequence", "is_bag", "is_image_folder", "write_bag", "write_image_folder",
+           "DEPTH_ENCODINGS", "COLOR_ENCODINGS"]
 
 #: Depth image encodings read from bags: numpy dtype and whether the values are metres.
 DEPTH_ENCODINGS = {"16UC1": ("u2", False), "mono16": ("u2", False), "32FC1": ("f4", True)}
@@ -578,3 +581,74 @@ class ImageFolderSequence(ImageFileSequence):
     def __repr__(self) -> str:
         return (f"ImageFolderSequence({os.fspath(self.folder)!r}, frames={len(self)}, rgb={self.rgb_files is not None},"
                 f" intrinsics={self.intrinsics}, depth_scale={self.depth_scale})")
+
+
+def write_image_folder(folder: PathLike, frames: Sequence[Frame], depth_scale: Optional[float] = None,
+                       **options: Any) -> str:
+    """Writes frames as the folder :class:`ImageFolderSequence` reads (``depth/`` and ``rgb/`` PNGs
+    named by timestamp, ``camera.json``; ``groundtruth.txt``, unread): :func:`~scanalign.datasets.tum.
+    write_tum_sequence` without image lists, depth in units of ``depth_scale`` m (default: frame 0's)."""
+    if not (frames := list(frames)):
+        raise ValueError(f"{folder}: no frames to write")
+    scale = frames[0].depth_scale if depth_scale is None else depth_scale
+    return write_tum_sequence(folder, frames, depth_scale=scale, lists=False, **options)
+
+
+def write_bag(path: PathLike, frames: Sequence[Frame]) -> str:
+    """Writes frames as a ROS bag that :class:`BagSequence` reads back (needs ``rosbags``): a ROS 1
+    file when ``path`` ends in ``.bag``, else a ROS 2 bag folder. Topics: ``/camera/depth/image_raw``
+    (16UC1 in units of frame 0's ``depth_scale``, stated as RealSense's ``Depth Units`` option),
+    ``/camera/color/image_raw`` (rgb8, when the frames have colour), ``/camera/depth/camera_info``,
+    ``/tf`` (``base_link`` -> ``camera``: ``T_base_camera``, when known) and
+    ``/joint_states`` (``meta["joints"]``, when known), all stamped with the frames' timestamps (s).
+    FileExistsError when ``path`` exists; ValueError for no frames or a depth beyond 16 bits."""
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import Writer as Writer2
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    path, frames = Path(path), list(frames)
+    if path.exists():
+        raise FileExistsError(f"{path}: exists; write the bag to a new path")
+    if not frames:
+        raise ValueError(f"{path}: no frames to write")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    ros1, K, scale, cam = path.suffix.lower() == ".bag", frames[0].intrinsics, float(frames[0].depth_scale), "camera"
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if ros1:  # Noetic's store lacks tf2_msgs
+        store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", _TF))
+    ty, ser = store.types, store.serialize_ros1 if ros1 else store.serialize_cdr
+    names = _UR_JOINTS if str(frames[0].meta.get("robot", "")).startswith("ur") else [f"joint_{k}" for k in range(1, 7)]
+
+    def header(ns: int, frame_id: str) -> Any:
+        return ty["std_msgs/msg/Header"](*(0,) * ros1, ty["builtin_interfaces/msg/Time"](*divmod(ns, 10**9)), frame_id)
+
+    def image(ns: int, a: np.ndarray, encoding: str) -> Any:
+        data = np.ascontiguousarray(a).view(np.uint8).reshape(-1)
+        return ty[_IMAGE](header(ns, cam), a.shape[0], a.shape[1], encoding, 0, data.size // a.shape[0], data)
+
+    with (Writer1(path) if ros1 else Writer2(path, version=9)) as w:
+        conns: Dict[str, Any] = {}
+
+        def put(topic: str, ns: int, msg: Any) -> None:
+            if topic not in conns:  # a topic only when it has messages
+                conns[topic] = w.add_connection(topic, msg.__msgtype__, typestore=store)
+            w.write(conns[topic], ns, ser(msg, msg.__msgtype__))
+
+        put("/camera/depth/option/Depth Units/value", 0, ty[_FLOAT32](scale))
+        info = (K.height, K.width, "plumb_bob", np.array(K.distortion, float), K.K.reshape(-1), np.eye(3).reshape(-1),
+                np.c_[K.K, np.zeros(3)].reshape(-1), 0, 0, ty["sensor_msgs/msg/RegionOfInterest"](0, 0, 0, 0, False))
+        for k, f in enumerate(frames):
+            ns = int(round(float(f.timestamp) * 1e9))
+            put("/camera/depth/image_raw", ns, image(ns, depth_units(f, scale, f"frame {k}").astype("<u2"), "16UC1"))
+            if f.rgb is not None:
+                put("/camera/color/image_raw", ns, image(ns, np.asarray(f.rgb, np.uint8), "rgb8"))
+            put("/camera/depth/camera_info", ns, ty[_INFO](header(ns, cam), *info))
+            if f.T_base_camera is not None:
+                r = Trajectory(np.zeros(1), np.asarray(f.T_base_camera)[None]).to_tum_rows()[0, 1:]
+                tr = ty["geometry_msgs/msg/Transform"](ty["geometry_msgs/msg/Vector3"](*r[:3]),
+                                                       ty["geometry_msgs/msg/Quaternion"](*r[3:]))
+                put("/tf", ns, ty[_TF]([ty["geometry_msgs/msg/TransformStamped"](header(ns, "base_link"), cam, tr)]))
+            if (q := f.meta.get("joints")) is not None:
+                none = np.zeros(0)  # velocity, effort
+                put("/joint_states", ns, ty[_JOINTS](header(ns, ""), names, np.asarray(q, float), none, none))
+    return os.fspath(path)

@@ -400,7 +400,7 @@ def is_tum_folder(path: Any) -> bool:
         return False
 
 
-def _depth_units(frame: Frame, depth_scale: float, where: str) -> np.ndarray:
+def depth_units(frame: Frame, depth_scale: float, where: str) -> np.ndarray:
     """A frame's depth as uint16 in units of ``depth_scale`` m (nearest, ties to even;
     0 where there is no measurement)."""
     d = np.asarray(frame.depth)
@@ -422,14 +422,15 @@ def _depth_units(frame: Frame, depth_scale: float, where: str) -> np.ndarray:
 
 
 def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Optional[Intrinsics] = None,
-                       depth_scale: float = TUM_DEPTH_SCALE, write_groundtruth: bool = True) -> str:
+                       depth_scale: float = TUM_DEPTH_SCALE, write_groundtruth: bool = True, lists: bool = True) -> str:
     """Writes RGB-D frames into the TUM RGB-D layout, readable by :class:`TumSequence`:
     ``depth/<timestamp>.png`` (16-bit, units of ``depth_scale`` m; integer images converted
     from ``Frame.depth_scale``, float images in metres; rounded, with 0/negative/NaN/Inf
     written as 0) and ``depth.txt``; with colour, ``rgb/<timestamp>.png`` and ``rgb.txt``;
     ``camera.json`` (``intrinsics``, default the frames' own, which must then agree, and
     ``depth_scale``); and, unless ``write_groundtruth`` is False, ``groundtruth.txt`` with
-    each frame's ``T_base_camera`` (as ``T_world_camera``, metres) when it has one.
+    each frame's ``T_base_camera`` (as ``T_world_camera``, metres) when it has one; ``lists=False``:
+    no ``depth.txt`` / ``rgb.txt`` (the image folder of :class:`~scanalign.datasets.ImageFolderSequence`).
     Timestamps get 6 decimals; frames are written in time order; PNGs use zlib level 1.
     Returns the folder path. Raises TypeError (not a :class:`Frame`, bad ``intrinsics``),
     ValueError (no frames, mixed intrinsics or colour, size mismatch, malformed colour or
@@ -476,7 +477,7 @@ def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Op
     depth_lines, rgb_lines, gt_t, gt_T = [], [], [], []
     for k, label in zip(order, labels):
         f, where = frames[k], f"frame {k} (t={label})"
-        units = _depth_units(f, depth_scale, where)
+        units = depth_units(f, depth_scale, where)
         if units.shape != intrinsics.shape:
             raise ValueError(f"{where}: depth image {units.shape[1]}x{units.shape[0]} does not match the "
                              f"intrinsics {intrinsics.width}x{intrinsics.height}")
@@ -501,7 +502,7 @@ def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Op
     depth_header = f"# depth maps\n# file: '{title}' (scanalign, depth_scale {depth_scale!r} m per unit)\n"
     for name, header, lines in (("depth.txt", depth_header, depth_lines),
                                 ("rgb.txt", f"# color images\n# file: '{title}' (scanalign)\n", rgb_lines)):
-        if lines:
+        if lines and lists:
             (out / name).write_text(header + "# timestamp filename\n" + "".join(lines), encoding="utf-8")
     (out / "camera.json").write_text(json.dumps({**intrinsics.to_dict(), "depth_scale": depth_scale}, indent=2) + "\n",
                                      encoding="utf-8")

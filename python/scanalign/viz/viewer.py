@@ -21,6 +21,9 @@ mesh at its pose) and ``world/grasps/<k>_<name>/arm`` (the arm at the chosen gra
 from __future__ import annotations
 
 import os
+import socket
+import sys
+import warnings
 from typing import Any, List, Optional, Union
 
 import numpy as np
@@ -37,6 +40,15 @@ def _rerun() -> Any:
     except ImportError as e:
         raise ImportError("the live view needs the optional package 'rerun-sdk': pip install rerun-sdk") from e
     return rerun
+
+
+def _listening(port: int) -> bool:
+    """True when something takes TCP connections on localhost:``port`` (a rerun viewer running)."""
+    try:
+        with socket.create_connection(("127.0.0.1", port), timeout=1.0):
+            return True
+    except OSError:
+        return False
 
 
 def arm_points(robot: Any, q: np.ndarray, T_base_flange: Optional[np.ndarray] = None) -> np.ndarray:
@@ -63,7 +75,9 @@ class Viewer:
 
     Args:
         name: the rerun application id.
-        spawn: start a rerun viewer (or connect to one already listening on its port).
+        spawn: start a rerun viewer (or connect to one already listening on its port, 9876). RuntimeError,
+            before anything runs, when none can be shown: on Linux without a display (``DISPLAY`` /
+            ``WAYLAND_DISPLAY`` unset), or when the viewer exits at once; use ``save=`` there.
         save: write the recording to this ``.rrd`` file (as well, with ``spawn``).
         connect: a rerun gRPC URL to stream to (a viewer on another machine).
         robot: the :class:`scanalign.kinematics.Robot` drawn from the frames' joints (default: by name from
@@ -78,7 +92,7 @@ class Viewer:
         rr = self.rr = _rerun()
         self.rec = rr.RecordingStream(name)
         if spawn:
-            self.rec.spawn(connect=False)
+            self._spawn()
         sinks = (([rr.GrpcSink()] if spawn else []) + ([rr.GrpcSink(connect)] if connect else [])
                  + ([rr.FileSink(os.fspath(save))] if save is not None else []))
         if sinks:
@@ -88,6 +102,19 @@ class Viewer:
         self._merged = 0
         self._T_world_base: Optional[np.ndarray] = None
         self.rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
+
+    def _spawn(self, port: int = 9876) -> None:
+        # A viewer without a window dies at once while the run goes on, streaming into nothing.
+        fix = ("set DISPLAY (e.g. ssh -X), or record to a file instead, save='scan.rrd' (on the command line "
+               "--view-save scan.rrd), and open it with 'rerun scan.rrd' where there is a display")
+        if (sys.platform.startswith("linux") and not any(map(os.environ.get, ("DISPLAY", "WAYLAND_DISPLAY",
+                                                                              "WAYLAND_SOCKET")))
+                and not _listening(port)):
+            raise RuntimeError(f"cannot show a rerun viewer (spawn=True / --view): no display (DISPLAY and "
+                               f"WAYLAND_DISPLAY are unset) and no viewer listening on port {port}; {fix}")
+        self.rec.spawn(port=port, connect=False)
+        if not _listening(port):  # rerun waits a few seconds for the port, then goes on without a viewer
+            raise RuntimeError(f"the rerun viewer did not start or exited at once (see its messages above); {fix}")
 
     def log_points(self, path: str, points: np.ndarray, colors: Optional[np.ndarray] = None, **kw: Any) -> None:
         """(N, 3) points (metres; optional (N, 3) colours, uint8 or float in [0, 1]) at ``path``."""
@@ -166,13 +193,20 @@ class Viewer:
                 self.log_arm(f"world/grasps/{key}/arm", result.robot, p.chosen.q_grasp)
                 self.log_pose(f"world/grasps/{key}/tcp", np.asarray(p.chosen.T_base_tcp_grasp), axis_length=0.03)
 
-    def close(self) -> None:
-        """Flushes everything to the viewer / file and disconnects."""
-        self.rec.flush()
-        self.rec.disconnect()
+    def close(self, timeout: float = 60.0) -> None:
+        """Flushes everything to the viewer / file, waiting at most ``timeout`` s, and disconnects
+        (rerun waits at most 5 s for a viewer); rerun's RuntimeError when the viewer did not take it all."""
+        try:
+            self.rec.flush(timeout_sec=timeout)
+        finally:
+            self.rec.disconnect()
 
     def __enter__(self) -> "Viewer":
         return self
 
     def __exit__(self, *exc: Any) -> None:
-        self.close()
+        # A lost viewer must neither hide the caller's own exception nor fail a run that finished: a warning.
+        try:
+            self.close()
+        except Exception as e:  # rerun's errors: a viewer gone, a timeout
+            warnings.warn(f"the rerun viewer did not receive the whole recording ({e})", RuntimeWarning, stacklevel=2)

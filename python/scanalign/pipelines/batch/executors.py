@@ -4,7 +4,7 @@ Both yield ``(job, record)`` as jobs finish, in any order; each job runs with ``
 count the scheduler reserves). The part library reaches each worker once (local: loaded from its ``.npz`` at worker
 start-up; Ray: put in the object store once). A worker that dies (a native crash, the OOM killer) does not end the
 batch: the local pool's jobs in flight are run again one at a time, so only the job that breaks a pool of its own is
-recorded ``crashed``; a Ray task whose ``ray.get`` raises is.
+recorded ``crashed``; a Ray task whose ``ray.get`` raises is. Workers dying as they start raise (no job is to blame).
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import concurrent.futures as cf
 import multiprocessing
 import os
 import platform
+import sys
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple
 
@@ -44,11 +45,27 @@ def _limit_threads(threads: int) -> None:
     threadpool_limits(limits=threads, user_api="openmp")
 
 
-def _init_local_worker(library_path: Optional[str], threads: int) -> None:
+def _init_local_worker(library_path: Optional[str], threads: int, stage: Any) -> None:
     global _worker_library
+    with stage.get_lock():  # this worker imported the main script and scanalign
+        stage.value = max(stage.value, 1)
     _limit_threads(threads)
     if library_path:
         _worker_library = load_part_library(library_path)
+    stage.value = 2  # ready for jobs
+
+
+def _startup_error(stage: int, library_path: Optional[str]) -> RuntimeError:
+    """Why the local pool broke before any worker was ready (``stage``: how far the furthest got)."""
+    if stage == 1:
+        return RuntimeError(f"the local pool's workers died loading the part library {library_path} (or limiting "
+                            "their OpenMP threads), before running any job; their error is printed above")
+    main = getattr(sys.modules["__main__"], "__file__", None)
+    return RuntimeError(
+        "the local pool's workers died while starting, before running any job: a worker (start method 'spawn') "
+        f"first imports the main script{f' {main}' if main else ''} again, then scanalign, and that failed (the "
+        "error is printed above). A script that calls run_batch must call it under 'if __name__ == \"__main__\":' "
+        "(docs/batch.md), else every worker runs the script again instead of its jobs.")
 
 
 def _run_local(job: Job, runner: Runner) -> Dict[str, Any]:
@@ -65,23 +82,26 @@ class LocalExecutor:
     def describe(self) -> str:
         return f"local pool, {self.workers} worker(s) x {self.threads} thread(s) on {platform.node()}"
 
-    def _pool(self, workers: int, library_path: Optional[str]) -> cf.ProcessPoolExecutor:
+    def _pool(self, workers: int, library_path: Optional[str], stage: Any) -> cf.ProcessPoolExecutor:
         return cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
-                                      initializer=_init_local_worker, initargs=(library_path, self.threads))
+                                      initializer=_init_local_worker, initargs=(library_path, self.threads, stage))
 
     def run(self, jobs: Sequence[Job], library_path: Optional[Path], library: Any = None, runner: Runner = run_job
             ) -> Iterator[Tuple[Job, Dict[str, Any]]]:
         path = str(library_path) if library_path else None
         suspects: List[Job] = []
-        with self._pool(self.workers, path) as pool:
+        stage = multiprocessing.get_context("spawn").Value("i", 0)  # how far the workers' start-up got (0, 1, 2)
+        with self._pool(self.workers, path, stage) as pool:
             futures = {pool.submit(_run_local, job, runner): job for job in jobs}
             for future in cf.as_completed(futures):
                 try:
                     yield futures[future], future.result()
                 except cf.process.BrokenProcessPool:
+                    if stage.value < 2:  # no worker got as far as a job: not the jobs' fault
+                        raise _startup_error(stage.value, path) from None
                     suspects.append(futures[future])
         for job in suspects:  # one at a time: the crash is the job's own
-            with self._pool(1, path) as pool:
+            with self._pool(1, path, stage) as pool:
                 try:
                     yield job, pool.submit(_run_local, job, runner).result()
                 except cf.process.BrokenProcessPool:

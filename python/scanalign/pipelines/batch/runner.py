@@ -9,6 +9,7 @@ import csv
 import itertools
 import json
 import math
+import multiprocessing
 import statistics
 import sys
 import time
@@ -115,6 +116,11 @@ class BatchResult:
     skipped: int
     executor: str
 
+    @property
+    def ok(self) -> bool:
+        """Every job's last record says ``ok``."""
+        return all(r["status"] == "ok" for r in self.records)
+
 
 def _journal(out: Path) -> Dict[str, Dict[str, Any]]:
     """Last record per job id from records.jsonl (a torn last line is ignored)."""
@@ -183,11 +189,16 @@ def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "lo
             reference); fields of :data:`RECORD_FIELDS` it leaves out are empty in the table.
 
     Raises:
-        ValueError: bad arguments or duplicate job ids. A failing job never raises: its
-        record says ``failed`` or ``crashed``.
+        ValueError: bad arguments or duplicate job ids.
+        RuntimeError: the local pool's workers died while starting, before any job (most often: a script that calls
+            run_batch without ``if __name__ == "__main__":``). A failing job never raises: its record says ``failed``
+            or ``crashed``, :attr:`BatchResult.ok` is False and :func:`summarize`'s ``verdict`` counts them.
     """
     from tqdm.auto import tqdm
 
+    if getattr(multiprocessing.current_process(), "_inheriting", False):  # multiprocessing's own test (spawn.py)
+        raise RuntimeError("run_batch was called by a worker process of the local pool while it imported the main "
+                           "script again (start method 'spawn'): call run_batch under 'if __name__ == \"__main__\":'")
     if not isinstance(threads_per_job, int) or threads_per_job < 1:
         raise ValueError(f"threads_per_job must be an integer >= 1, got {threads_per_job!r}")
     if not isinstance(retries, int) or not 0 <= retries <= 100:
@@ -267,7 +278,8 @@ def _median(values: List[float]) -> float:
 
 
 def summarize(result: BatchResult) -> Dict[str, Any]:
-    """Counts, throughput and per-kind medians of a batch (what summary.json holds)."""
+    """Counts, throughput and per-kind medians of a batch (what summary.json holds); ``verdict``: how many jobs
+    failed or crashed, in words ("all 3 jobs ok", "1 of 3 ...", "every job failed or crashed (3 of 3)")."""
     ran = [r for r in result.records if isinstance(r.get("seconds"), float) and math.isfinite(r["seconds"])]
     kinds = {}
     for kind in KINDS:
@@ -278,7 +290,11 @@ def summarize(result: BatchResult) -> Dict[str, Any]:
             kinds[kind] = {"jobs": len(rs), "ok": sum(r["status"] == "ok" for r in rs),
                            "seconds_median": _median([r["seconds"] for r in rs]),
                            **{k: m for k, m in medians.items() if math.isfinite(m)}}
-    return {"jobs": len(result.records), "status": dict(Counter(r["status"] for r in result.records)), "skipped_as_done": result.skipped,
+    n, bad = len(result.records), sum(r["status"] != "ok" for r in result.records)
+    verdict = (f"all {n} jobs ok" if not bad else f"{bad} of {n} jobs failed or crashed" if bad < n
+               else f"every job failed or crashed ({n} of {n})")
+    return {"jobs": n, "verdict": verdict, "status": dict(Counter(r["status"] for r in result.records)),
+            "skipped_as_done": result.skipped,
             "wall_seconds": result.seconds, "executor": result.executor,
             "jobs_per_minute": 60 * (len(result.records) - result.skipped) / result.seconds if result.seconds else None,
             "job_seconds_total": sum(r["seconds"] for r in ran), "kinds": kinds,
