@@ -152,7 +152,7 @@ def test_trajectory_functions_take_a_robot():
         syn.loop_trajectory(4, T_base_robot=np.eye(4))
 
 
-def test_unreachable_placement_raises_a_clear_error():
+def test_unreachable_placement_raises_a_clear_error(tmp_path: Path, capsys):
     # Too far away for every frame: the first frame is named, with its IK status.
     with pytest.raises(ValueError, match=r"cannot reach frame 0 \(t = 0\.000 s.*'unreachable'"):
         syn.SyntheticConfig(robot_x=2.5, robot_z=0.5, robot_roll=0.0).build_trajectory(syn.Scene())
@@ -176,7 +176,8 @@ def test_unreachable_placement_raises_a_clear_error():
     with pytest.raises(ValueError, match=r"frame 4\d \(t = 4\.\d+ s.*'unreachable' \(45 of 48 frames reachable\)"):
         cfg.build_trajectory(cfg.build_scene())
     # The command line reports it as an error, not a traceback.
-    assert cli.main(["demo", "--robot-base", "1.3", "0", "0", "0", "0", "0", "--quiet", "--out", "/nonexistent"]) == 2
+    assert cli.main(["demo", "--robot-base", "1.3", "0", "0", "0", "0", "0", "--quiet", "--out", str(tmp_path)]) == 2
+    assert "unreachable" in capsys.readouterr().err
 
 
 def test_config_round_trip_with_the_robot_fields(tmp_path: Path):
