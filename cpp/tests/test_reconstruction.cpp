@@ -760,10 +760,13 @@ TEST(ReconstructionSettings, DefaultsAndValidation) {
   EXPECT_EQ(s.min_depth, 0.1);
   EXPECT_EQ(s.max_depth, 2.0);
   EXPECT_EQ(s.pixel_stride, 1);
-  EXPECT_FALSE(s.filter_depth);
+  EXPECT_TRUE(s.filter_depth);  // consumer sensors' noise (the paper had no filter)
   EXPECT_EQ(s.depth_filter.radius, BilateralFilterSettings{}.radius);
   EXPECT_EQ(s.frame_to_model.motion_model, MotionModel::ConstantVelocity);  // the reconstruct command's default
-  EXPECT_EQ(s.frame_to_model.normal_radius, FrameToModelSettings{}.normal_radius);
+  EXPECT_EQ(s.frame_to_model.normal_radius, 0.01);
+  ASSERT_TRUE(s.frame_to_model.icp.box.has_value());  // the paper's box rejector, a part's workspace
+  EXPECT_EQ(s.frame_to_model.icp.box->max.x(), 0.1);
+  EXPECT_EQ(s.min_merged_fraction, 0.5);
   EXPECT_EQ(s.model_frame, ModelFrame::Auto);
   EXPECT_EQ(s.registration, RegistrationMethod::Scanalign);
   EXPECT_NO_THROW(validate(s));
@@ -801,6 +804,11 @@ TEST(ReconstructionSettings, DefaultsAndValidation) {
   r = s;
   r.registration = static_cast<RegistrationMethod>(-1);
   refused(r, "registration");
+  for (const double f : {-0.1, 1.5, std::nan("")}) {
+    r = s;
+    r.min_merged_fraction = f;
+    refused(r, "min_merged_fraction");
+  }
 }
 
 TEST(FrameToModel, ReferenceWithoutAGuessActsAsConstantVelocity) {

@@ -14,19 +14,17 @@ import numpy as np
 
 from scanalign import synthetic
 from scanalign.evaluation import absolute_trajectory_error
-from scanalign.reconstruction import BilateralFilterSettings, Reconstructor
+from scanalign.reconstruction import Reconstructor
 
 out = sys.argv[1] if len(sys.argv) > 1 else "example-02"
 scan = synthetic.builtin_scan(n_frames=36, noise="sr300", seed=0)
 
 rec = Reconstructor(
     T_model_camera0=scan.frames[0].T_base_camera,    # model frame = robot base frame
-    crop_box=(-0.1, 0.1, -0.1, 0.1, 0.1, 1.0),       # the workspace in the camera's view (m)
-    normal_radius=0.01,                              # see the README: noisy consumer sensor
-    depth_filter=BilateralFilterSettings(),
-)
+    crop_box=(-0.1, 0.1, -0.1, 0.1, 0.1, 1.0),       # the part's workspace in the camera's view (m)
+)                                                    # the rest: ReconstructionSettings' defaults
 for frame in scan.frames:
-    record = rec.integrate(frame)                    # guess: the previous registration
+    record = rec.integrate(frame)                    # guess: constant velocity
     error = np.linalg.norm(record.T_model_camera[:3, 3] - frame.T_base_camera[:3, 3])
     print(f"frame {record.index:2d} {record.status:12s} {record.iterations:2d} it  "
           f"fitness {record.fitness:.3f}  model {record.model_points:6d}  error {error * 1000:5.2f} mm")

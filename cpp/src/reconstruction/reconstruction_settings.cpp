@@ -43,6 +43,9 @@ void validate(const ReconstructionSettings& s) {
   }
   if (s.model_frame != ModelFrame::Auto && s.model_frame != ModelFrame::Camera && s.model_frame != ModelFrame::Base)
     throw std::invalid_argument("reconstruction: model_frame must be auto, camera or base");
+  if (!(s.min_merged_fraction >= 0.0 && s.min_merged_fraction <= 1.0))
+    throw std::invalid_argument("reconstruction: min_merged_fraction must be in [0, 1], got " +
+                                std::to_string(s.min_merged_fraction));
   const int r = static_cast<int>(s.registration);
   if (r < 0 || r > static_cast<int>(RegistrationMethod::PclPointToPlaneLls))
     throw std::invalid_argument("reconstruction: registration out of range");

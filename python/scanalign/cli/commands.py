@@ -10,6 +10,7 @@ import json
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 from typing import Any, Optional, Sequence
 
@@ -26,7 +27,8 @@ from scanalign.datasets import tum
 from scanalign.features import NormalEstimationSettings, estimate_normals
 from scanalign.pipelines import batch
 from scanalign.pipelines import pick as _pick
-from scanalign.pipelines.reconstruct import DEMO_SETTINGS, model_mesh_distance, reconstruct, write_joints_csv
+from scanalign.pipelines.reconstruct import (DEMO_SETTINGS, ReconstructionFailed, model_mesh_distance, reconstruct,
+                                             write_joints_csv)
 from scanalign.reconstruction import ReconstructionSettings
 from scanalign.reconstruction.camera import INTRINSICS_PRESETS
 from scanalign.registration import Box, IcpSettings, icp, pcl_icp
@@ -241,7 +243,8 @@ def reconstruct_command(args: argparse.Namespace) -> int:
         n = len(frames) if hasattr(frames, "__len__") else "?"
         print(f"scanalign: reconstructing {what}: {n} frames"
               + (f" (rendered in {load_seconds:.2f} s)" if scan is not None else ""))
-    with _viewer(args) as view:
+    with _viewer(args) as view, warnings.catch_warnings():
+        warnings.simplefilter("ignore", ReconstructionFailed)  # said below, after the summary
         result = reconstruct(frames, args.settings, progress=not (args.no_progress or args.quiet),
                              on_frame=None if view is None else view.on_frame)
         if view is not None:
@@ -252,6 +255,9 @@ def reconstruct_command(args: argparse.Namespace) -> int:
     paths = save_report(result, args.out, plots_too=not args.no_plots)
     if not args.quiet:
         _print_summary(result.summary(), paths)
+    if (why := result.failure()) is not None:
+        print(f"scanalign {args.command}: {why}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -563,7 +569,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                        description="Renders a built-in synthetic scan (a camera on a UR5's hand circling a part, "
                                    "SR300-like noise, reference poses from forward kinematics), reconstructs it and "
                                    "writes model.ply, trajectory.txt, reference.txt, frames.csv, joints.csv, "
-                                   "report.json, trajectory.png and frames.png.")
+                                   "report.json, trajectory.png and frames.png. The library's default settings, frames "
+                                   "cropped to the part's workspace (fast: no table in the model). Exit status 1 when "
+                                   "fewer than min_merged_fraction of the frames merged.")
     _add_reconstruct_options(p, "scanalign-demo")
     p.add_argument("--pick", action="store_true", help="instead: the pick demo (as 'scanalign pick --demo')")
     p = sub.add_parser("pick", help="scan, find the known parts, plan grasps and joint targets to pick them",
@@ -579,7 +587,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "groundtruth.txt), a ROS 1 .bag or ROS 2 bag (depth, colour, camera_info, "
                                    "/joint_states, /tf; RealSense recordings too), a folder of PNG depth and colour "
                                    "images with a camera YAML, a synthetic-scan config (.json/.yaml), or 'builtin'. "
-                                   "Writes the outputs of 'scanalign demo'.")
+                                   "Writes the outputs of 'scanalign demo'. Exit status 1 when fewer than "
+                                   "min_merged_fraction of the frames merged.")
     p.add_argument("source", help="TUM RGB-D folder, ROS bag, PNG folder, synthetic config file, or 'builtin'")
     _add_reconstruct_options(p, "scanalign-out")
     p = sub.add_parser("synth", help="render a synthetic scan into a TUM RGB-D folder, a ROS bag or a PNG folder")

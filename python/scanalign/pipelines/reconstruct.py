@@ -10,6 +10,7 @@ import json
 import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Dict, Iterable, List, Optional, Union
@@ -26,13 +27,16 @@ from scanalign.reconstruction import (FrameResult, Model, ReconstructionSettings
                                       make_reconstruction_settings)
 from scanalign.reconstruction.camera import Frame
 
-__all__ = ["DEMO_SETTINGS", "ReconstructionResult", "reconstruct", "write_joints_csv"]
+__all__ = ["DEMO_SETTINGS", "ReconstructionFailed", "ReconstructionResult", "reconstruct", "write_joints_csv"]
 
-#: ``ReconstructionSettings`` fields for the built-in synthetic scans (``scanalign demo``, batch
-#: jobs): the workspace around the part (20 x 20 cm), 10 mm normals (5 mm: 12 mm ATE against 4
-#: mm with SR300-like noise) and the bilateral depth filter (ATE 12.6 -> 4.1 mm).
-DEMO_SETTINGS = {"filter_depth": True, "frame_to_model": {"crop_box": (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0),
-                                                          "normal_radius": 0.01}}
+
+class ReconstructionFailed(RuntimeWarning):
+    """Warned by :func:`reconstruct` when a run failed (:attr:`ReconstructionResult.status`)."""
+
+#: What ``scanalign demo`` and the batch's synthetic jobs change from the ``ReconstructionSettings``
+#: defaults: frames cropped to the part's workspace (the defaults' ICP box, 20 x 20 cm), so that the
+#: model holds no table and a run takes a few seconds (same ATE; the defaults merge the whole table).
+DEMO_SETTINGS = {"frame_to_model": {"crop_box": (-0.1, 0.1, -0.1, 0.1, 0.1, 1.0)}}
 
 
 @dataclass
@@ -69,12 +73,29 @@ class ReconstructionResult:
     def skipped(self) -> List[FrameResult]:
         return [r for r in self.records if not r.merged]
 
+    @property
+    def status(self) -> str:
+        """``"ok"``, or ``"failed"`` when fewer than ``settings.min_merged_fraction`` of the frames merged."""
+        merged = sum(r.merged for r in self.records)
+        return "ok" if merged >= self.settings.min_merged_fraction * len(self.records) else "failed"
+
+    def failure(self) -> Optional[str]:
+        """Why the run failed (None when :attr:`status` is ``"ok"``): the counts and what to try."""
+        if self.status == "ok":
+            return None
+        skipped = self.summary()["skipped"]
+        return (f"reconstruction failed: {len(self.records) - len(self.skipped)} of {len(self.records)} frames merged "
+                f"(settings.min_merged_fraction {self.settings.min_merged_fraction:g}), skipped {skipped}. "
+                "Frames that do not converge moved further than frame_to_model.icp.max_correspondence_distance "
+                "between captures, or their noise needs a larger frame_to_model.normal_radius or filter_depth; "
+                "the workspace box frame_to_model.icp.box must hold the scanned part")
+
     def summary(self) -> Dict[str, Any]:
         """JSON-able summary: counts, seconds per registered frame, model size, ATE/RPE when a reference exists."""
         registered = [r for r in self.records if r.status == "registered"]
         t = np.array([r.total_seconds for r in registered])
         out: Dict[str, Any] = {
-            "frames": len(self.records), "merged": sum(r.merged for r in self.records),
+            "status": self.status, "frames": len(self.records), "merged": sum(r.merged for r in self.records),
             "skipped": {s: sum(r.status == s for r in self.records) for s in sorted({r.status for r in self.skipped})},
             "registration": self.settings.registration, "model_points": len(self.model), "seconds_total": self.seconds,
             **{f"seconds_per_frame_{k}": float(f(t)) if t.size else None
@@ -165,6 +186,10 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
         ValueError: bad settings, ``model_frame="base"`` without a reference pose on the
         first frame, or a malformed frame (e.g. image size not matching the intrinsics).
         TypeError: an item of ``frames`` that is not a Frame.
+
+    Warns:
+        ReconstructionFailed: fewer than ``min_merged_fraction`` of the frames merged (the result's
+        ``status`` is ``"failed"``; :meth:`ReconstructionResult.failure` says why).
     """
     job = make_reconstruction_settings(settings, **overrides)
     model_frame, by_reference = job.model_frame, job.frame_to_model.motion_model == "reference"
@@ -221,6 +246,8 @@ def reconstruct(frames: Iterable[Frame], settings: Optional[ReconstructionSettin
     if any(q is not None for q in joints):
         result.joints = np.array([np.full(6, np.nan) if q is None else q for q in joints])
         result.robot = robot_name
+    if (why := result.failure()) is not None:
+        warnings.warn(why, ReconstructionFailed, stacklevel=2)
     if evaluate and reference is not None and len(reference) >= 3:
         try:  # a failed evaluation (e.g. a reference that never moves) must not lose the reconstruction
             result.metrics.update(trajectory_metrics(result.estimate_at_reference(), reference))

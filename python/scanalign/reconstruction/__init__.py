@@ -11,7 +11,7 @@ given as ``T_model_camera0`` (e.g. the robot base frame via the first frame's
 Example::
 
     from scanalign.reconstruction import Reconstructor
-    rec = Reconstructor()                       # defaults: 5 mm normals, 1 mm grid
+    rec = Reconstructor()                       # ReconstructionSettings' defaults: 10 mm normals, 1 mm grid
     for frame in frames:                        # scanalign.reconstruction.camera.Frame objects
         record = rec.integrate(frame)
         if not record.merged:
@@ -158,9 +158,8 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, settings: Optional
 #: ICP drifts; the filter removes most of that noise while keeping depth edges, but rounds small
 #: curved features slightly (it smooths along each camera's rays). Measured on the synthetic
 #: scans (36-frame loops): SR300 noise, 10 mm normals: ATE 12.6 mm without, 4.1 mm with; 0.3 mm
-#: noise at 320x240 on small spheres: worst pose error 0.23 mm without, 2.0 mm with. Off by
-#: default (``ReconstructionSettings.filter_depth``, the eye-in-hand paper's pipeline); on in
-#: ``scanalign demo``.
+#: noise at 320x240 on small spheres: worst pose error 0.23 mm without, 2.0 mm with. On by
+#: default (``ReconstructionSettings.filter_depth``; the eye-in-hand paper's pipeline had none).
 BilateralFilterSettings = _core.reconstruction.BilateralFilterSettings
 
 
@@ -263,14 +262,14 @@ class Reconstructor:
     """Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper), one frame at a time.
 
     Each :meth:`integrate` call back-projects the frame, crops and downsamples it,
-    estimates normals (5 mm), registers it to the model starting from the previous
-    registration, checks the result, merges it and voxel-grids the model (1 mm). A frame
+    estimates normals, registers it to the model starting from the motion model's guess,
+    checks the result, merges it and voxel-grids the model (1 mm). A frame
     that fails is recorded with a ``skipped_*`` status and leaves the model untouched.
 
     Args:
-        settings: :class:`ReconstructionSettings`, or a :class:`FrameToModelSettings` (default:
-            the engine's own, the eye-in-hand paper's: motion model ``previous``); keyword
-            ``overrides`` as :func:`make_reconstruction_settings` takes them.
+        settings: :class:`ReconstructionSettings` (default: its defaults, as :func:`reconstruct`'s), or a
+            :class:`FrameToModelSettings` (the eye-in-hand paper's engine, with the job's other fields at their
+            defaults); keyword ``overrides`` as :func:`make_reconstruction_settings` takes them.
         T_model_camera0: pose of the first frame's camera in the model frame (4x4,
             camera -> model). Identity (default): the model frame is the first camera's.
 
@@ -280,7 +279,7 @@ class Reconstructor:
 
     def __init__(self, settings: Union[ReconstructionSettings, FrameToModelSettings, None] = None, *,
                  T_model_camera0: Optional[np.ndarray] = None, **overrides: Any) -> None:
-        self.job = make_reconstruction_settings(FrameToModelSettings() if settings is None else settings, **overrides)
+        self.job = make_reconstruction_settings(settings, **overrides)
         self.settings = self.job.frame_to_model
         self._core = _core.reconstruction.FrameToModel(self.settings)
         self.records: List[FrameResult] = []

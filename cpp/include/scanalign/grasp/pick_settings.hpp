@@ -42,6 +42,11 @@ struct PickSettings {
     r.frame_to_model.icp.max_correspondence_distance = 0.003;
     r.frame_to_model.model_voxel_size = 0.001;
     r.frame_to_model.motion_model = MotionModel::Reference;
+    // The robot's pose and the 3 mm distance already hold each frame: the scan keeps the
+    // paper's 5 mm normals, no depth filter and no box (the cell's parts span the table).
+    r.filter_depth = false;
+    r.frame_to_model.normal_radius = 0.005;
+    r.frame_to_model.icp.box.reset();
     return r;
   }();
   /// The parts in the scan: table plane (4 mm), normal up (+z of the base frame), object

@@ -19,6 +19,7 @@ import os
 import platform
 import time
 import traceback
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Tuple
@@ -31,8 +32,8 @@ from scanalign.datasets import open_source
 from scanalign.grasp import symmetric_pose_error
 from scanalign.grasp.parts import load_part
 from scanalign.pipelines.pick import PickSettings, part_models, pick, read_transform, upper_views
-from scanalign.pipelines.reconstruct import DEMO_SETTINGS, model_mesh_distance, reconstruct
-from scanalign.reconstruction import FrameToModelSettings, make_reconstruction_settings
+from scanalign.pipelines.reconstruct import DEMO_SETTINGS, ReconstructionFailed, model_mesh_distance, reconstruct
+from scanalign.reconstruction import make_reconstruction_settings
 from scanalign.synthetic import SyntheticConfig
 from scanalign.synthetic.cell import pick_cell, score_picks
 
@@ -156,11 +157,14 @@ def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
             if job.synthetic else None)
     # a TUM folder, a ROS bag or a folder of PNGs + camera file
     frames: Any = scan.frames if scan is not None else open_source(job.source)
-    # the engine's own settings (motion model 'previous', as batch jobs always ran) with the demo's workspace
-    base = make_reconstruction_settings(FrameToModelSettings(), **DEMO_SETTINGS) if job.synthetic else None
-    result = reconstruct(frames, base, progress=False, **job.settings)
+    # the demo's settings, with motion model 'previous' (the eye-in-hand paper's, as batch jobs always ran)
+    base = make_reconstruction_settings(None, initial_guess="previous", **DEMO_SETTINGS) if job.synthetic else None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ReconstructionFailed)  # the record's reconstruction_status says it
+        result = reconstruct(frames, base, progress=False, **job.settings)
     s = result.summary()
-    out = {"frames": s["frames"], "merged": s["merged"], "model_points": s["model_points"],
+    out = {"reconstruction_status": s["status"], "frames": s["frames"], "merged": s["merged"],
+           "model_points": s["model_points"],
            "seconds_per_frame": s["seconds_per_frame_median"]}
     if "ate_m" in s:
         out.update(ate_rmse_m=s["ate_m"]["rmse"], ate_max_m=s["ate_m"]["max"],
