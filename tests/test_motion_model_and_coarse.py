@@ -11,7 +11,7 @@ from helpers import apply, pose_error, rigid
 from scanalign import registration as reg
 from scanalign import synthetic
 from scanalign.pipelines.reconstruct import reconstruct
-from scanalign.reconstruction import Reconstructor, make_reconstruction_settings
+from scanalign.reconstruction import FrameToModelSettings, Reconstructor, make_reconstruction_settings
 
 CROP = [-0.1, 0.1, -0.1, 0.1, 0.1, 1.0]  # the demo settings: workspace box, 10 mm normals, filter
 
@@ -50,7 +50,7 @@ def test_predicted_pose_is_the_last_motion_applied_again(demo_frames):
         assert r.merged
         poses.append(r.T_model_camera)
     # The eye-in-hand paper's model (Comput. Electron. Agric. 180 (2021) 105929) predicts no motion.
-    baseline = Reconstructor(T_model_camera0=demo_frames[0].T_base_camera, crop_box=CROP)
+    baseline = Reconstructor(FrameToModelSettings(), T_model_camera0=demo_frames[0].T_base_camera, crop_box=CROP)
     assert baseline.settings.motion_model == "previous"
     for f in demo_frames[:2]:
         baseline.integrate(f)

@@ -248,7 +248,7 @@ def test_settings_overrides_and_crop_box():
     s = make_reconstruction_settings(icp=dict(max_iterations=7), min_fitness=0.5, crop_box=(-0.1, 0.1, -0.1, 0.1, 0, 1))
     e = s.frame_to_model  # the engine's fields, given for short
     assert e.icp.max_iterations == 7 and e.min_fitness == 0.5 and e.crop_box.as_tuple() == (-0.1, 0.1, -0.1, 0.1, 0, 1)
-    assert e.normal_radius == 0.005 and e.model_voxel_size == 0.001  # the eye-in-hand paper's defaults
+    assert e.normal_radius == 0.01 and e.model_voxel_size == 0.001  # the job's defaults (the paper's: 5 mm, 1 mm)
     # The crop box (camera frame) bounds what is merged.
     f = frames(1)[0]
     rec = Reconstructor(s)
