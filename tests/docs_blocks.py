@@ -57,11 +57,12 @@ def parse_page(page: Path) -> List[Block]:
         if m := _MARKER.match(lines[i]):
             key, value = m.group(1), m.group(2)
             if not m.group(3):  # a multi-line marker: its value runs to the line `-->`
-                body = [value] if value else []
-                while lines[i + 1].strip() != "-->":
-                    body.append(lines[i + 1])
-                    i += 1
-                value, i = "\n".join(body) + "\n", i + 1
+                start, body = i, [value] if value else []
+                while (i := i + 1) < len(lines) and lines[i].strip() != "-->":
+                    body.append(lines[i])
+                if i == len(lines):
+                    raise ValueError(f"{page.relative_to(ROOT)}:{start + 1}: a docs-test marker without its `-->` line")
+                value = "\n".join(body) + "\n"
             markers[key] = value
         elif m := _FENCE.match(lines[i]):
             end = next(j for j in range(i + 1, len(lines)) if lines[j].startswith("```"))

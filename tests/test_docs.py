@@ -13,11 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from docs_blocks import ROOT, Block, all_blocks, output_problem, undefined_names
+from docs_blocks import ROOT, Block, all_blocks, output_problem, parse_page, undefined_names
 
 BLOCKS = all_blocks()
 RUN = [b for b in BLOCKS if b.runnable]
-_done: dict = {}  # Block.id -> None (ran as the page says) or why not
+_results: dict = {}  # Block.id -> None (did what the page says) or why not
+_folders: dict = {}  # id of the first block of a folder -> the folder
 
 
 @pytest.fixture(scope="session")
@@ -80,22 +81,21 @@ def _run(block: Block, folder: Path, scripts: Path, env: dict) -> str | None:
 
 
 def _ensure(block: Block, tmp_path_factory, env: dict) -> str | None:
-    """Runs ``block`` after the blocks of its folder before it (once each)."""
-    if block.id not in _done:
-        first = block.chain or block
-        chain = [b for b in BLOCKS if b is first or b.chain is first]
-        folder = _done.setdefault(("folder", first.id), tmp_path_factory.mktemp("docs"))
-        for b in chain[:chain.index(block) + 1]:
-            if b.id in _done:
-                continue
-            if "skip" in b.markers or "sketch" in b.markers:
-                _done[b.id] = None
-            elif failed := next((p.id for p in chain[:chain.index(b)] if _done.get(p.id)), None):
-                _done[b.id] = f"not run: {failed}, whose folder it continues, failed"
-            else:
-                scripts = _done.setdefault("scripts", tmp_path_factory.mktemp("scripts"))
-                _done[b.id] = _run(b, folder, scripts, env)
-    return _done[block.id]
+    """Runs ``block`` after the blocks before it in its folder (each once); None when it did what the page says."""
+    first = block.chain or block
+    chain = [b for b in BLOCKS if b is first or b.chain is first]
+    folder = _folders.setdefault(first.id, tmp_path_factory.mktemp("docs"))
+    scripts = _folders.setdefault("scripts", tmp_path_factory.mktemp("scripts"))
+    for b in chain[:chain.index(block) + 1]:
+        if b.id in _results:
+            continue
+        if "skip" in b.markers or "sketch" in b.markers:
+            _results[b.id] = None
+        elif failed := next((p.id for p in chain[:chain.index(b)] if _results.get(p.id)), None):
+            _results[b.id] = f"not run: {failed}, whose folder it continues, failed"
+        else:
+            _results[b.id] = _run(b, folder, scripts, env)
+    return _results[block.id]
 
 
 @pytest.mark.parametrize("block", RUN, ids=[b.id for b in RUN])
@@ -124,3 +124,25 @@ def test_markers_are_known() -> None:
     for b in BLOCKS:
         assert set(b.markers) <= known, f"{b.id}: unknown docs-test marker(s) {set(b.markers) - known}"
         assert ROOT in b.page.parents or b.page.parent == ROOT
+
+
+def test_the_collector_reads_markers_and_catches_wrong_output(tmp_path, monkeypatch) -> None:
+    """The parser and the output check on a made-up page: a test of the docs that could not fail would be no test."""
+    monkeypatch.setattr("docs_blocks.ROOT", tmp_path)
+    page = tmp_path / "page.md"
+    page.write_text("<!-- docs-test: prelude\nx = 2\n-->\n```python\nprint(x * 1.01, 'mm')\n```\n\nIt prints:\n\n"
+                    "<!-- docs-test: tolerance: 5% -->\n```text\n2 mm\n```\n\n<!-- docs-test: file: a.yaml -->\n"
+                    "```yaml\nk: 1\n```\n<!-- docs-test: continue -->\n<!-- docs-test: timeout: 5 -->\n```bash\ncat a.yaml\n```\n"
+                    "\n## Later\n\n```text\nnot an output\n```\n")
+    first, file_block, last = parse_page(page)
+    assert (first.line, first.prelude, first.expected, first.tolerance) == (4, "x = 2\n", "2 mm\n", "5%")
+    assert file_block.markers["file"] == "a.yaml" and last.chain is file_block and last.markers["timeout"] == "5"
+    assert last.expected is None  # a ```text block under another heading is not an output
+    assert output_problem(first.expected, "2.02 mm\n", first.tolerance) is None
+    assert "not 2.0 within 5%" in output_problem(first.expected, "2.2 mm\n", first.tolerance)
+    assert "differs" in output_problem("converged ... 3\n", "converged 1 2 4\n")
+    assert output_problem("a\n...\nd\n", "a\nb\nc\nd  \n") is None
+    assert undefined_names("import numpy as np\nfor k in q:\n    np.f(points, k)\n") == ["points", "q"]
+    page.write_text("<!-- docs-test: prelude\nx = 1\n```python\n")
+    with pytest.raises(ValueError, match=r"page.md:1: a docs-test marker without its `-->` line"):
+        parse_page(page)
