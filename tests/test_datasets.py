@@ -401,6 +401,25 @@ def test_offline_folder_is_used(fake_pcl_deb: Path, tmp_path: Path, monkeypatch:
     assert not (tmp_path / "cache2" / "debs" / fake_pcl_deb.name).exists()
 
 
+def test_missing_offline_folder_is_an_error(monkeypatch: pytest.MonkeyPatch, tmp_path: Path,
+                                            capsys: pytest.CaptureFixture) -> None:
+    # A mistyped $SCANALIGN_OFFLINE_DATA is named, with its path, before any download is tried.
+    missing = tmp_path / "media" / "usb" / "scanalign-data"
+    monkeypatch.setenv(datasets.OFFLINE_ENV, str(missing))
+    monkeypatch.setenv("SCANALIGN_DATA", str(tmp_path / "cache"))
+    monkeypatch.setattr(datasets.subprocess, "run", lambda *a, **k: pytest.fail(f"ran {a[0]}"))
+    for fetch in (datasets.fetch_all, datasets.fetch_small_gicp):
+        with pytest.raises(datasets.DatasetUnavailableError, match="not a folder") as info:
+            fetch()
+        assert datasets.OFFLINE_ENV in str(info.value) and str(missing) in str(info.value)
+    assert datasets.main(["fetch"]) == 1
+    assert f"{datasets.OFFLINE_ENV} is '{missing}', which is not a folder" in capsys.readouterr().err
+    (tmp_path / "file").write_text("")  # a file is not a folder either
+    monkeypatch.setenv(datasets.OFFLINE_ENV, str(tmp_path / "file"))
+    with pytest.raises(datasets.DatasetUnavailableError, match="not a folder"):
+        datasets.offline_dir()
+
+
 def make_small_gicp_sdist(path: Path) -> Path:
     """A stand-in small_gicp sdist with a 3-point LiDAR pair and its pose."""
     root = path.parent / "sdist-tree" / "small_gicp-1.0.1" / "data"

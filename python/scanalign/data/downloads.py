@@ -104,9 +104,15 @@ def cache_dir() -> Path:
 
 
 def offline_dir() -> Path | None:
-    """The folder of pinned files supplied by hand, ``$SCANALIGN_OFFLINE_DATA``, or None."""
-    env = os.environ.get(OFFLINE_ENV)
-    return Path(env).expanduser() if env else None
+    """The folder of pinned files supplied by hand, ``$SCANALIGN_OFFLINE_DATA``, or None. Set to
+    something that is not a folder, it is an error: a mistyped path would otherwise send ``fetch``
+    to the network (or fail offline) without a word about the folder."""
+    if not (env := os.environ.get(OFFLINE_ENV)):
+        return None
+    if not (path := Path(env).expanduser()).is_dir():
+        raise DatasetUnavailableError(f"${OFFLINE_ENV} is {env!r}, which is not a folder: put the pinned files "
+                                      f"into an existing folder and name it there, or unset {OFFLINE_ENV}")
+    return path
 
 
 def sha256_file(path: Path) -> str:
@@ -266,8 +272,9 @@ def _extract(tarball: Path, members: dict[str, Path]) -> None:
 def fetch_all() -> list[Path]:
     """Downloads (or takes from the offline folder) and unpacks both Debian packages, each
     ``.deb`` verified (also when already cached); returns the unpacked package folders.
-    Raises DatasetUnavailableError when ``apt-get``/``dpkg-deb`` are missing or fail,
-    DatasetIntegrityError on a hash mismatch."""
+    Raises DatasetUnavailableError when ``apt-get``/``dpkg-deb`` are missing or fail, or
+    ``$SCANALIGN_OFFLINE_DATA`` names no folder; DatasetIntegrityError on a hash mismatch."""
+    offline_dir()  # checked even when everything is cached
     return [_package_root(CGAL_PACKAGE, download=True), _package_root(PCL_PACKAGE, download=True)]
 
 
@@ -385,6 +392,7 @@ def _small_gicp_data_dir(download: bool = False) -> Path:
 def fetch_small_gicp() -> Path:
     """As :func:`fetch_all`, for small_gicp's sdist (with ``pip download``); returns
     ``<cache>/small_gicp_data``, where its LiDAR pair is unpacked."""
+    offline_dir()
     return _small_gicp_data_dir(download=True)
 
 
