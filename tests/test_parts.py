@@ -30,8 +30,10 @@ def prism(sides, radius=0.02, height=0.02):
     a = np.arange(sides) * 2 * math.pi / sides
     ring = np.c_[radius * np.cos(a), radius * np.sin(a)]
     v = np.r_[np.c_[ring, np.zeros(sides)], np.c_[ring, np.full(sides, height)], [[0, 0, 0], [0, 0, height]]]
-    f = [t for i in range(sides) for j in [(i + 1) % sides]
-         for t in ([i, j, sides + j], [i, sides + j, sides + i], [2 * sides, j, i], [2 * sides + 1, sides + i, sides + j])]
+    n, f = sides, []
+    for i in range(n):  # two side triangles, one bottom and one top fan triangle, wound outwards
+        j = (i + 1) % n
+        f += [[i, j, n + j], [i, n + j, n + i], [2 * n, j, i], [2 * n + 1, n + i, n + j]]
     return v, np.array(f)
 
 

@@ -21,10 +21,9 @@ __all__ = ["BUILTIN_PART_FILES", "SYMMETRY_TOLERANCE", "check_symmetry", "load_p
 #: Built-in part name -> its part file (mesh, grasps, symmetry): the parts of
 #: :data:`scanalign.data.parts.BUILTIN_PARTS` with grasps for a parallel-jaw gripper.
 BUILTIN_PART_FILES: Dict[str, Path] = {p.stem: p for p in sorted((Path(__file__).parents[1] / "data" / "parts").glob("*.json"))}
-#: A declared symmetry may move the surface off itself by at most this fraction of the part's
-#: size (:func:`check_symmetry`): 1 %, e.g. 0.5 mm on a 50 mm part; a finely tessellated body of
-#: revolution passes (CGAL's spool: 0.24 %), a 6-fold symmetry on a regular 8-sided prism as tall as it is wide
-#: does not (3.4 %).
+#: How far a declared symmetry may move the surface off itself, as a fraction of the part's size
+#: (:func:`check_symmetry`): 0.5 mm on a 50 mm part. A 6-fold symmetry on a regular octagonal
+#: prism as tall as wide is off by 3.4 %; a cylinder of 16 or more segments is a body of revolution.
 SYMMETRY_TOLERANCE = 0.01
 
 
@@ -68,15 +67,14 @@ def check_symmetry(mesh: Any, symmetry: Any, what: str = "part") -> None:
     transforms = symmetry.transforms()[1:]
     if not transforms:
         return
-    v = np.asarray(mesh.vertices)[np.unique(mesh.faces)]
-    size = float(np.ptp(v, axis=0).max())
-    points = sample_mesh(mesh, 2000, seed=0)[0]
-    index = MeshDistanceIndex(mesh.vertices, mesh.faces)
+    size = float(np.ptp(np.asarray(mesh.vertices)[np.unique(mesh.faces)], axis=0).max())
+    points, index = sample_mesh(mesh, 2000, seed=0)[0], MeshDistanceIndex(mesh.vertices, mesh.faces)
     for k, S in enumerate(transforms, start=1):
         if (worst := float(index.distance(transform_points(np.asarray(S), points)).max())) > SYMMETRY_TOLERANCE * size:
+            axis, point = (np.round(v, 6).tolist() for v in (symmetry.axis, symmetry.point))
             raise ValueError(
-                f"{what}: symmetry (order {symmetry.order} about axis {np.round(symmetry.axis, 6).tolist()} through "
-                f"{np.round(symmetry.point, 6).tolist()} m) does not map the mesh onto itself: turned by "
-                f"{360 * k / (symmetry.order or len(transforms) + 1):.1f} deg, its surface lies up to {1000 * worst:.2f} mm off the mesh (tolerance "
-                f"{1000 * SYMMETRY_TOLERANCE * size:.2f} mm, {SYMMETRY_TOLERANCE:.0%} of the part's size "
-                f"{1000 * size:.1f} mm): check the axis, point and order (model frame, after scale and T_model_mesh)")
+                f"{what}: symmetry (order {symmetry.order} about axis {axis} through {point} m) does not map the mesh "
+                f"onto itself: turned by {360 * k / (symmetry.order or len(transforms) + 1):.1f} deg, its surface lies "
+                f"up to {1000 * worst:.2f} mm off the mesh (tolerance {1000 * SYMMETRY_TOLERANCE * size:.2f} mm, "
+                f"{SYMMETRY_TOLERANCE:.0%} of the part's size {1000 * size:.1f} mm): check the axis, point and order "
+                "(model frame, after scale and T_model_mesh)")
