@@ -11,7 +11,7 @@ import pytest
 from scanalign import grasp, io
 from scanalign.pipelines import pick
 from scanalign.common import rigid as se3
-from scanalign.grasp.parts import load_part
+from scanalign.grasp.parts import BUILTIN_PART_FILES, load_part
 from scanalign.synthetic.cell import CELL_MOUNTS, pick_cell, score_picks
 from scanalign.viz.reports import save_report
 
@@ -49,6 +49,15 @@ def test_every_part_is_picked_at_its_true_grasp(picked):
     assert set(errors) == set(cell.truth)
     for name, e in errors.items():
         assert e["tcp_m"] < 1e-3 and e["tcp_deg"] < 0.5, (name, e)
+
+
+def test_score_picks_refuses_a_truth_keyed_otherwise(ur5_cell):
+    """Truth keyed by part file, or without a picked part, is an error, never an empty score."""
+    cell, result = ur5_cell
+    with pytest.raises(ValueError, match="name no part of the pick"):
+        score_picks(result, {str(BUILTIN_PART_FILES[n]): T for n, T in cell.truth.items()})
+    with pytest.raises(ValueError, match="'block' was picked but has no true pose"):
+        score_picks(result, {n: T for n, T in cell.truth.items() if n != "block"})
 
 
 def test_joint_targets_reach_the_commanded_flange_poses(picked):

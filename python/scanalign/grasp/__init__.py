@@ -22,6 +22,7 @@ from typing import Any, List, Optional, Sequence
 import numpy as np
 
 from scanalign import _core, kinematics
+from scanalign.common.rigid import require_rigid
 from scanalign.common.settings import with_overrides
 
 __all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCandidate", "GraspPlanResult",
@@ -72,6 +73,9 @@ class PartGrasps:
     #: a mesh file path (relative to the grasp file's folder) or "builtin:<name>"; in memory also an io.Mesh
     mesh: Any = None
     scale: float = 1.0  #: mesh units -> metres (grasps are always in metres)
+    #: (4, 4) rigid, mesh -> model (m, applied after ``scale``): turns and moves the mesh into the
+    #: model frame, in which the grasps and symmetry are given and whose +z is up on the table
+    T_model_mesh: Any = None
 
 
 _GRASP_KEYS = {"name", "T_model_grasp", "approach", "pre_grasp_distance"}
@@ -113,7 +117,7 @@ def read_part_grasps(path: Any) -> PartGrasps:
         raise ValueError(f"{p}: not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'}: {e}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{p}: expected a mapping at the top level")
-    if unknown := set(data) - {"name", "mesh", "scale", "symmetry", "gripper", "grasps"}:
+    if unknown := set(data) - {"name", "mesh", "scale", "T_model_mesh", "symmetry", "gripper", "grasps"}:
         raise ValueError(f"{p}: unknown field(s) {sorted(unknown)}")
     grasps = data.get("grasps")
     if not isinstance(grasps, list) or not grasps:
@@ -126,10 +130,13 @@ def read_part_grasps(path: Any) -> PartGrasps:
     for key in ("name", "mesh"):
         if key in data and not isinstance(data[key], str):
             raise ValueError(f"{p}: field {key!r} must be a string, got {data[key]!r}")
-    sym = data.get("symmetry")
-    gripper = data.get("gripper")
+    sym, gripper, T = data.get("symmetry"), data.get("gripper"), data.get("T_model_mesh")
+    try:
+        T = None if T is None else require_rigid(T, "field 'T_model_mesh'")
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{p}: {e}") from None
     return PartGrasps(
-        name=data.get("name", p.stem), grasps=out, mesh=data.get("mesh"), scale=float(scale),
+        name=data.get("name", p.stem), grasps=out, mesh=data.get("mesh"), scale=float(scale), T_model_mesh=T,
         symmetry=None if sym is None else _build(f"{p}: symmetry", PartSymmetry, sym, {"axis", "point", "order"}),
         gripper=None if gripper is None else _build(f"{p}: gripper", Gripper, gripper, _GRIPPER_KEYS))
 
@@ -148,6 +155,8 @@ def write_part_grasps(path: Any, part: PartGrasps) -> None:
             raise ValueError(f"part.mesh: only a mesh file path or 'builtin:<name>' can be written, got "
                              f"{type(part.mesh).__name__}")
         data["mesh"] = part.mesh
+    if part.T_model_mesh is not None:
+        data["T_model_mesh"] = _list(part.T_model_mesh)
     if part.symmetry is not None:
         s = part.symmetry
         data["symmetry"] = {"axis": _list(s.axis), "point": _list(s.point), "order": int(s.order)}

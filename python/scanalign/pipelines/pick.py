@@ -63,6 +63,7 @@ class PartPick:
         T_base_model: (4, 4) the part's pose (model -> base), or None.
         fitness, coverage: the pose's scores.
         plan: the :class:`scanalign.grasp.GraspPlanResult` (every candidate with its reason).
+        gripper: the :class:`scanalign.grasp.Gripper` the plan used (its ``T_flange_tcp`` the tool).
     """
 
     part: str
@@ -74,6 +75,7 @@ class PartPick:
     coverage: float = 0.0
     plan: Any = None
     grasp_names: List[str] = field(default_factory=list)
+    gripper: Any = None
 
     @property
     def chosen(self) -> Any:
@@ -110,7 +112,8 @@ class PickResult:
         picks: one :class:`PartPick` per detected part, then one per known part not found.
         points: (N, 3) the scene in the base frame, metres.
         detections: the :func:`scanalign.pose.find_parts` result (table plane, clusters).
-        robot: the picking robot (placed in the base frame, its tool the gripper's TCP).
+        robot: the picking robot, placed in the base frame, its tool the flange (DH frame 6): ``robot.fk(q)``
+            is ``T_base_flange``; the TCP's pose is :meth:`tcp_robot` ``(pick).fk(q)``.
         q_current: (6,) the joints the motion cost was measured from, rad.
         parts: the parts as loaded, in the order given.
         seconds: wall time per stage (``scan``, ``detect``, ``plan``, ``total``).
@@ -125,6 +128,13 @@ class PickResult:
     parts: List[Any]
     seconds: Dict[str, float] = field(default_factory=dict)
     reconstruction: Any = None
+
+    def tcp_robot(self, pick: PartPick) -> Any:
+        """:attr:`robot` with the tool of the gripper that ``pick`` was planned with: its ``fk(q)`` is
+        ``T_base_tcp`` (e.g. ``fk(pick.chosen.q_grasp)`` equals ``pick.chosen.T_base_tcp_grasp``)."""
+        if pick.gripper is None:
+            raise ValueError(f"pick of {pick.part!r} ({pick.status}) was not planned: it has no gripper")
+        return self.robot.with_tool(np.asarray(pick.gripper.T_flange_tcp))
 
     def as_dict(self) -> Dict[str, Any]:
         return {"robot": self.robot.name, "q_current": self.q_current.tolist(), "seconds": self.seconds,
@@ -270,9 +280,9 @@ def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: An
         pp = PartPick(part.name, det.status.name, det.message, cluster=k, T_base_model=np.array(det.pose.T_scene_model),
                       fitness=det.pose.fitness, coverage=det.pose.coverage, grasp_names=[g.name for g in part.grasps])
         if det.status.name == "found":
+            pp.gripper = gripper or part.gripper
             pp.plan = _grasp.plan_grasp(robot, pp.T_base_model, part.grasps, symmetry=part.symmetry,
-                                        gripper=gripper or part.gripper, table_plane=plane, q_current=q0,
-                                        settings=planner)
+                                        gripper=pp.gripper, table_plane=plane, q_current=q0, settings=planner)
             pp.status, pp.message = ("picked", "") if pp.plan.found else ("no_grasp", pp.plan.message)
         out.append(pp)
     seen = {parts[d.part].name for d in detections.detections if d.status.name != "not_found"}
@@ -329,7 +339,7 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     robot = getattr(scene, "robot", None) if robot is None else robot
     if robot is None:
         raise ValueError("robot: give the picking robot (a Robot or a name such as 'ur5')")
-    arm = _robot(robot, T_base_robot)
+    arm = _robot(robot, T_base_robot).with_tool(np.eye(4))  # the flange: the planner puts each gripper's TCP on it
     reach = float(np.sum(np.abs(arm.a)) + np.sum(np.abs(arm.d)))
     for p in part_list:
         size = float(np.ptp(np.asarray(p.mesh.vertices), axis=0).max())

@@ -48,7 +48,7 @@ class PickCell:
     Attributes:
         scan: the robot's scan (frames with joints, flange poses, the hand-eye transform).
         parts: one :class:`scanalign.grasp.PartGrasps` (mesh, grasps, symmetry) per placed part.
-        truth: part name -> true ``T_base_model`` (model -> base, m).
+        truth: part name (``PartGrasps.name``, as in the picks) -> true ``T_base_model`` (model -> base, m).
         robot: the arm, placed in the cell (``robot.T_base_dh0`` includes the mount), its tool the flange.
         scene: the rendered :class:`Scene` (table and parts, base frame, m).
     """
@@ -64,13 +64,18 @@ def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_fram
               placements: Optional[Sequence[Tuple[str, Tuple[float, float], float]]] = None) -> PickCell:
     """Renders the built-in cell (see the module docstring) of ``robot``, ``"ur5"`` or ``"kr6_r900_sixx"`` (the keys
     of :data:`CELL_MOUNTS`), with a sensor ``noise`` preset (``"sr300"``, ``"zivid"``, ``"d435"``, ``"none"``) and its
-    ``seed``, and ``placements`` (part name, (x, y) m, yaw rad) per part (default :data:`DEFAULT_PLACEMENTS`)."""
+    ``seed``, and ``placements`` (part, (x, y) m, yaw rad) per part (default :data:`DEFAULT_PLACEMENTS`): the part as
+    :func:`scanalign.grasp.parts.load_part` takes it (a part file, a built-in name or a ``PartGrasps``), standing on
+    the table (model +z up, its lowest point on the table top), the centre of its bounding box at (x, y) in the base
+    frame, turned by yaw about the vertical. ValueError for two parts of one name (truth is keyed by part name)."""
     if robot not in CELL_MOUNTS:
         raise ValueError(f"robot: the built-in cells are {sorted(CELL_MOUNTS)}, got {robot!r}")
     scene = Scene(table_size=(0.6, 0.6))
-    placed = [(load_part(name), name, xy, yaw) for name, xy, yaw in placements or DEFAULT_PLACEMENTS]
-    truth = {name: np.array(scene.add_object(part.mesh, position=xy, yaw=yaw, name=name).T_base_object)
-             for part, name, xy, yaw in placed}
+    placed = [(load_part(source), xy, yaw) for source, xy, yaw in placements or DEFAULT_PLACEMENTS]
+    if len(names := [part.name for part, _, _ in placed]) != len(set(names)):
+        raise ValueError(f"placements: each part once (the truth is keyed by part name), got the parts {names}")
+    truth = {part.name: np.array(scene.add_object(part.mesh, position=xy, yaw=yaw, name=part.name).T_base_object)
+             for part, xy, yaw in placed}
     start, sweep = CELL_SCAN_ARCS[robot]
     traj = loop_trajectory(n_frames, center=(0.5, 0.0, 0.0), height=0.35, radius=0.2, robot=robot,
                            T_base_robot=CELL_MOUNTS[robot], start_angle=start, sweep=sweep)
@@ -81,12 +86,19 @@ def pick_cell(robot: str = "ur5", noise: str = "sr300", *, seed: int = 0, n_fram
 def score_picks(result: Any, truth: Dict[str, np.ndarray]) -> Dict[str, Dict[str, float]]:
     """Errors of a :class:`scanalign.pipelines.pick.PickResult` against the cell's truth, per picked part: ``tcp_m`` /
     ``tcp_deg``, the TCP pose at the chosen grasp against the same grasp on the truly placed part (the nearest of its
-    symmetric copies), and ``pose_m`` / ``pose_deg``, the part's pose error (up to its symmetry)."""
+    symmetric copies), and ``pose_m`` / ``pose_deg``, the part's pose error (up to its symmetry). ``truth`` is keyed by
+    part name (:attr:`PickCell.truth`); a truth entry for a part the pick did not know, or a picked part without
+    one, is a ValueError (so a mismatch never scores as nothing picked)."""
     out = {}
     parts = {p.name: p for p in result.parts}
+    if unknown := sorted(set(truth) - set(parts)):
+        raise ValueError(f"truth: {unknown} name no part of the pick ({sorted(parts)}): key the truth by part name "
+                         "(PartGrasps.name), as PickCell.truth is")
     for p in result.picks:
-        if p.status != "picked" or p.part not in truth:
+        if p.status != "picked":
             continue
+        if p.part not in truth:
+            raise ValueError(f"truth: part {p.part!r} was picked but has no true pose (truth holds {sorted(truth)})")
         part, c = parts[p.part], p.chosen
         G = np.asarray(part.grasps[c.grasp_index].T_model_grasp)
         tcp = min((se3.pose_error(np.asarray(c.T_base_tcp_grasp), truth[p.part] @ np.asarray(S) @ G)
