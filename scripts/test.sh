@@ -7,7 +7,7 @@ bash scripts/setup.sh -Ccmake.define.SCANALIGN_BUILD_TESTS=ON
 echo "[test] test-only and optional Python packages (evo: reference ATE/RPE; clifford: reference CGA; hypothesis and atheris: fuzzing; OpenCV: hand-eye reference; Ray and pyarrow: batch runs; yourdfpy, pin, example-robot-data: URDF robots and their FK oracle; rosbags: bags; rerun-sdk: viewer; Open3D, trimesh: interop; import-linter: the package's layers contract)"
 .venv/bin/python -m pip install -q "evo>=1.20" "clifford>=1.4" "eaik>=1.2" "ur-analytic-ik>=0.1" "hypothesis>=6.100" \
   "atheris>=2.3" "opencv-python-headless>=4.8,<5" "ray>=2.9" "pyarrow>=12" "yourdfpy>=0.0.60" "pin>=4.1" \
-  "example-robot-data>=6.0" "rosbags>=0.10" "rerun-sdk>=0.20" "trimesh>=4" "open3d>=0.18" "import-linter>=2.1"
+  "example-robot-data>=6.0" "rosbags>=0.10" "rerun-sdk>=0.41" "trimesh>=4" "open3d>=0.18" "import-linter>=2.1"
 echo "[test] the package's layers (pyproject.toml [tool.importlinter], docs/architecture.md)"
 .venv/bin/lint-imports --config pyproject.toml
 echo "[test] fetching test data (Debian packages libcgal-demo and python3-pcl)"
