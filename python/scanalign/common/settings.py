@@ -14,6 +14,7 @@ value checked by the C++ field's setter), :func:`with_overrides` is what the API
 from __future__ import annotations
 
 import difflib
+import functools
 import re
 import textwrap
 from pathlib import Path
@@ -72,11 +73,11 @@ def _plain(value: Any) -> Any:
 
 def _items(root: Root) -> Iterator[Tuple[str, Any]]:
     """(name, value) of a root's settable fields (a struct) or entries (a mapping of structs)."""
-    if isinstance(root, Mapping):
-        yield from root.items()
-    else:
-        for name in field_names(root):
-            yield name, getattr(root, name)
+    return iter((root if isinstance(root, Mapping) else fields_of(root)).items())
+
+
+def _child(node: Root, key: str) -> Any:
+    return node[key] if isinstance(node, Mapping) else getattr(node, key)
 
 
 def to_dict(root: Root) -> Dict[str, Any]:
@@ -102,7 +103,7 @@ def update(root: Root, values: Mapping[str, Any], where: str = "", what: str = "
     for key, value in values.items():
         if key not in known:
             raise _unknown(str(key), known, where, what)
-        current = root[key] if isinstance(root, Mapping) else getattr(root, key)
+        current = _child(root, key)
         if is_struct(current) and field_names(current) and not hasattr(current, "as_tuple"):
             if isinstance(value, Mapping):
                 update(current, value, f"{where}{key}.", what)
@@ -139,22 +140,17 @@ def with_overrides(cls: type, settings: Any = None, overrides: Mapping[str, Any]
 
 def get_path(root: Root, path: str) -> Any:
     """The value at a dotted path (``"frame_to_model.icp.max_iterations"``)."""
-    value = root
-    for key in path.split("."):
-        value = value[key] if isinstance(value, Mapping) else getattr(value, key)
-    return value
+    return functools.reduce(_child, path.split("."), root)
 
 
 def set_path(root: Root, path: str, value: Any) -> None:
     """Sets the field at a dotted path, checked as :func:`update` checks it."""
     head, _, last = path.rpartition(".")
-    parts = head.split(".") if head else []
     node, where = root, ""
-    for key in parts:
-        known = list(node) if isinstance(node, Mapping) else list(field_names(node))
-        if key not in known:
+    for key in head.split(".") if head else []:
+        if key not in (known := list(node) if isinstance(node, Mapping) else list(field_names(node))):
             raise _unknown(key, known, where)
-        node, where = (node[key] if isinstance(node, Mapping) else getattr(node, key)), f"{where}{key}."
+        node, where = _child(node, key), f"{where}{key}."
     update(node, {last: value}, where)
 
 
