@@ -10,9 +10,8 @@ gives its pose in a frame ``world`` that is fixed but unknown relative to the ba
   the scan's model frame; :func:`scanalign.pipelines.reconstruct.reconstruct` with
   ``model_frame="camera"``, whose model frame is the first camera's).
 
-Both unknowns are solved for: ``T_base_flange[i] @ T_flange_camera = T_base_world @
-T_world_camera[i]``. The closed form is Daniilidis' dual-quaternion method (1999) over all
-pose pairs, refined by Levenberg-Marquardt on SE(3) (the C++ core,
+Both unknowns are solved for: ``T_base_flange[i] @ T_flange_camera = T_base_world @ T_world_camera[i]``. The closed form
+is Daniilidis' dual-quaternion method (1999) over all pose pairs, refined by Levenberg-Marquardt on SE(3) (the C++ core,
 ``scanalign._core.calibration``). Metres and radians.
 """
 
@@ -52,9 +51,8 @@ def calibrate_hand_eye(T_base_flange: Any, T_camera_target: Any = None, *, T_wor
         ``max_rms_rotation``: poses paired wrongly, a bad view) with a message.
 
     Raises:
-        ValueError: both or neither camera-pose argument, a shape other than (N, 4, 4), a
-            different N, a pose that is not rigid or lies beyond 1e6 m (named with its index),
-            invalid settings.
+        ValueError: both or neither camera-pose argument, a shape other than (N, 4, 4), a different N, a pose that is
+            not rigid or lies beyond 1e6 m (named with its index), invalid settings.
         TypeError: a non-numeric array, an unknown setting.
     """
     if (T_camera_target is None) == (T_world_camera is None):

@@ -21,9 +21,8 @@ def estimate_normals(points: np.ndarray, radius: Optional[float] = None, viewpoi
                      **overrides: object) -> Union[np.ndarray, Tuple[np.ndarray, np.ndarray]]:
     """Unit normals by PCA over a radius neighbourhood, oriented towards a viewpoint.
 
-    The normal of point p is the eigenvector of the smallest eigenvalue of the covariance
-    of its neighbours within ``radius`` (Rusu 2009, as PCL's ``NormalEstimation``),
-    flipped so that ``n . (viewpoint - p) >= 0``.
+    The normal of point p is the eigenvector of the smallest eigenvalue of the covariance of its neighbours within
+    ``radius`` (Rusu 2009, as PCL's ``NormalEstimation``), flipped so that ``n . (viewpoint - p) >= 0``.
 
     Args:
         points: (N, 3) float32/float64 points, metres.
@@ -33,8 +32,7 @@ def estimate_normals(points: np.ndarray, radius: Optional[float] = None, viewpoi
         settings: :class:`NormalEstimationSettings` (default its C++ defaults); keyword
             ``overrides`` name its other fields (``min_neighbors``: fewer neighbours, the
             point included, give a NaN normal; ``num_threads``: 0 = all cores).
-        return_curvature: also return the surface variation
-            lambda_0 / (lambda_0 + lambda_1 + lambda_2) in [0, 1/3].
+        return_curvature: also return the surface variation lambda_0 / (lambda_0 + lambda_1 + lambda_2) in [0, 1/3].
 
     Returns:
         (N, 3) normals in the input dtype (NaN rows for non-finite points or too few
@@ -53,9 +51,8 @@ def estimate_normals(points: np.ndarray, radius: Optional[float] = None, viewpoi
 def shape_factors(eigenvalues) -> np.ndarray:
     """Shape factors (C_l, C_p, C_s) of PCA eigenvalues (thesis (6.1)-(6.3)).
 
-    With l1 >= l2 >= l3 >= 0 and S = l1 + l2 + l3:
-    ``C_l = (l1 - l2)/S``, ``C_p = 2 (l2 - l3)/S``, ``C_s = 3 l3/S``; they sum to 1
-    (1, 0, 0 for a line, 0, 1, 0 for a plane, 0, 0, 1 for an isotropic cloud).
+    With l1 >= l2 >= l3 >= 0 and S = l1 + l2 + l3: ``C_l = (l1 - l2)/S``, ``C_p = 2 (l2 - l3)/S``, ``C_s = 3 l3/S``;
+    they sum to 1 (1, 0, 0 for a line, 0, 1, 0 for a plane, 0, 0, 1 for an isotropic cloud).
 
     Args:
         eigenvalues: (3,) or (N, 3) covariance eigenvalues (m^2, any common scale; any

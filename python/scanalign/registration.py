@@ -1,10 +1,9 @@
 """Rigid registration: the fast ICP engine and stock PCL baselines.
 
-The engine follows the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)
-(Algorithm 1, §3.1-3.4): a k-d tree over the target, nearest neighbours, box and
-distance rejection, and Low's point-to-plane linear least squares (or closed-form
-point-to-point), iterated until PCL's convergence criteria hold. :class:`IcpSettings`,
-:class:`IcpResult` and :class:`Box` are the C++ structs; their fields carry their docs.
+The engine follows the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929) (Algorithm 1, §3.1-3.4): a k-d
+tree over the target, nearest neighbours, box and distance rejection, and Low's point-to-plane linear least squares (or
+closed-form point-to-point), iterated until PCL's convergence criteria hold. :class:`IcpSettings`, :class:`IcpResult`
+and :class:`Box` are the C++ structs; their fields carry their docs.
 
 Frames and units: points in metres; ``source`` is in the source frame (e.g. the camera of
 a new frame), ``target`` in the target frame (e.g. the model). Every transform returned
@@ -65,9 +64,8 @@ class Icp(_core.registration.Icp):
 
     Args:
         target: (N, 3) float32/float64 target points, metres, target frame.
-        target_normals: (N, 3) unit normals of the target (required for point-to-plane);
-            points whose normal is non-finite or zero are left out. Default: the normals of
-            an Open3D ``target`` cloud that has them.
+        target_normals: (N, 3) unit normals of the target (required for point-to-plane); points whose normal is
+            non-finite or zero are left out. Default: the normals of an Open3D ``target`` cloud that has them.
         settings: an :class:`IcpSettings`; keyword overrides are applied on top.
 
     The tree keeps the target's dtype (float32 if both arrays are: half the memory,
@@ -140,13 +138,12 @@ def pcl_icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.
             **overrides: object) -> IcpResult:
     """Stock PCL 1.13 ICP on the same inputs and criteria, for evaluation (eye-in-hand paper §4).
 
-    Variants: ``"svd"`` (``IterativeClosestPoint`` + SVD), ``"dual_quaternion"``,
-    ``"point_to_plane_lls"`` (``IterativeClosestPointWithNormals``, PCL's own LLS; needs
-    ``target_normals``), and ``"scanalign_point_to_plane_lls"`` (the same with scanalign's
-    ``PointToPlaneLLS`` plugged in). Clouds are converted to float32 PCL clouds. The
-    result's fitness / RMSE are measured like the engine's; ``seconds`` times PCL's tree
-    build and ``align``. Other arguments and errors as :func:`icp` (the estimator is the
-    variant's; ``search_stack_depth`` and ``warm_start`` do not apply).
+    Variants: ``"svd"`` (``IterativeClosestPoint`` + SVD), ``"dual_quaternion"``, ``"point_to_plane_lls"``
+    (``IterativeClosestPointWithNormals``, PCL's own LLS; needs ``target_normals``), and
+    ``"scanalign_point_to_plane_lls"`` (the same with scanalign's ``PointToPlaneLLS`` plugged in). Clouds are converted
+    to float32 PCL clouds. The result's fitness / RMSE are measured like the engine's; ``seconds`` times PCL's tree
+    build and ``align``. Other arguments and errors as :func:`icp` (the estimator is the variant's;
+    ``search_stack_depth`` and ``warm_start`` do not apply).
     """
     s = _settings(settings, overrides, max_correspondence_distance=max_correspondence_distance, box=box,
                   max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
@@ -161,10 +158,9 @@ def point_to_plane_lls(source: np.ndarray, target: np.ndarray, target_normals: n
                        degeneracy_threshold: float = 1e-10) -> tuple:
     """One point-to-plane LLS step (Low 2004, eye-in-hand paper §3.2) on given correspondences.
 
-    Row i of ``source`` is paired with row i of ``target`` / ``target_normals`` (metres,
-    unit normals; ValueError unless all have the same number of rows). Runs
-    ``scanalign::PointToPlaneLLS`` (the PCL plug-in, double precision). Needs at least 6
-    well-spread pairs to constrain all motions.
+    Row i of ``source`` is paired with row i of ``target`` / ``target_normals`` (metres, unit normals; ValueError unless
+    all have the same number of rows). Runs ``scanalign::PointToPlaneLLS`` (the PCL plug-in, double precision). Needs at
+    least 6 well-spread pairs to constrain all motions.
 
     Returns:
         ``(T_target_source, rank, conditioning, degenerate)``: the 4x4 transform; the

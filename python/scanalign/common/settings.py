@@ -1,14 +1,13 @@
 """The settings schema: the bound C++ settings structs as dicts, YAML files and dotted paths.
 
-Every bound struct lists its fields in ``__fields__`` (``(name, unit, doc, writable)``, from the
-one field table of its binding), so nothing here restates a field, a unit or a default: a new
-C++ field with its doc is a new key of every config file, ``--set`` path and ``dump-config``
-line at once. A *root* is one struct or a mapping ``{name: struct}`` (a command that uses two
-structs side by side). :func:`to_dict` / :func:`update` convert to and from nested dicts (each
-value checked by the C++ field's setter), :func:`with_overrides` is what the API functions do with
-``settings=`` and keywords, :func:`set_path` / :func:`parse_assignment` serve ``--set a.b=value``,
-:func:`leaves` lists every leaf field (path, unit, doc, value), and :func:`dump_yaml` /
-:func:`load_yaml` write and read the commented YAML of ``dump-config`` and config files.
+Every bound struct lists its fields in ``__fields__`` (``(name, unit, doc, writable)``, from the one field table of its
+binding), so nothing here restates a field, a unit or a default: a new C++ field with its doc is a new key of every
+config file, ``--set`` path and ``dump-config`` line at once. A *root* is one struct or a mapping ``{name: struct}`` (a
+command that uses two structs side by side). :func:`to_dict` / :func:`update` convert to and from nested dicts (each
+value checked by the C++ field's setter), :func:`with_overrides` is what the API functions do with ``settings=`` and
+keywords, :func:`set_path` / :func:`parse_assignment` serve ``--set a.b=value``, :func:`leaves` lists every leaf field
+(path, unit, doc, value), and :func:`dump_yaml` / :func:`load_yaml` write and read the commented YAML of ``dump-config``
+and config files.
 """
 
 from __future__ import annotations
@@ -93,10 +92,9 @@ def _unknown(key: str, known: Sequence[str], where: str, what: str = "") -> Unkn
 
 
 def update(root: Root, values: Mapping[str, Any], where: str = "", what: str = "") -> Root:
-    """Sets the fields named in ``values`` (nested mappings for nested structs) on ``root`` in
-    place and returns it. :class:`UnknownSettingError` names the path of an unknown key (``what``
-    names the settings in its message); a value of the wrong type or range raises the C++
-    setter's TypeError / ValueError, prefixed by its path."""
+    """Sets the fields named in ``values`` (nested mappings for nested structs) on ``root`` in place and returns it.
+    :class:`UnknownSettingError` names the path of an unknown key (``what`` names the settings in its message); a value
+    of the wrong type or range raises the C++ setter's TypeError / ValueError, prefixed by its path."""
     if not isinstance(values, Mapping):
         raise ValueError(f"{where or 'settings'}: expected a mapping of settings, got {type(values).__name__}")
     known = list(root) if isinstance(root, Mapping) else list(field_names(root))
@@ -202,9 +200,8 @@ def _dump(root: Root, indent: int, comments: bool) -> list:
 
 
 def dump_yaml(root: Root, header: Sequence[str] = (), comments: bool = True) -> str:
-    """YAML of every settable field of ``root`` with its value, each preceded (``comments``) by
-    ``# [unit] doc``; nested structs as nested blocks. :func:`load_yaml` + :func:`update`
-    read it back to the same values."""
+    """YAML of every settable field of ``root`` with its value, each preceded (``comments``) by ``# [unit] doc``; nested
+    structs as nested blocks. :func:`load_yaml` + :func:`update` read it back to the same values."""
     return "\n".join([*header, *_dump(root, 0, comments)]) + "\n"
 
 

@@ -2,9 +2,8 @@
 
 Formats:
 
-- **PCD** (PCL Point Cloud Data, v0.5-v0.7): :func:`read_pcd`, :func:`read_pcd_points`,
-  with ``DATA ascii``, ``binary`` and ``binary_compressed`` (LZF) payloads, parsed by the
-  C++ core (``scanalign/io/pcd.hpp``).
+- **PCD** (PCL Point Cloud Data, v0.5-v0.7): :func:`read_pcd`, :func:`read_pcd_points`, with ``DATA ascii``, ``binary``
+  and ``binary_compressed`` (LZF) payloads, parsed by the C++ core (``scanalign/io/pcd.hpp``).
 - **Meshes**: :func:`read_mesh` for ``.off``, ``.ply``, ``.stl`` and ``.obj``; polygons
   are fan-triangulated into a :class:`Mesh`.  PLY goes through the ``plyfile`` library,
   the others through the C++ core (``scanalign/io/mesh_text.hpp``).
@@ -78,8 +77,7 @@ def read_pcd_points(path: PathLike, dtype: npt.DTypeLike = np.float64, remove_na
     Args:
         path: the ``.pcd`` file.
         dtype: floating dtype of the result.
-        remove_nan: drop rows with any non-finite coordinate (invalid points of
-            organised clouds are stored as NaN).
+        remove_nan: drop rows with any non-finite coordinate (invalid points of organised clouds are stored as NaN).
 
     Returns:
         ``(N, 3)`` array of points in the file's unit (metres for PCL's own data).
@@ -259,10 +257,9 @@ def write_ply(path: PathLike, points: npt.ArrayLike, normals: npt.ArrayLike | No
               colors: npt.ArrayLike | None = None, binary: bool = True) -> None:
     """Write a point cloud as PLY (readable by MeshLab, CloudCompare, Open3D).
 
-    The vertex element has ``float x y z``, then optionally ``float nx ny nz``, then
-    optionally ``uchar red green blue``.  Binary output uses ``binary_little_endian 1.0``;
-    ASCII output prints floats with 9 significant digits, so float32 values survive.
-    (A short numpy writer: plyfile's ASCII writer is ten times slower.)
+    The vertex element has ``float x y z``, then optionally ``float nx ny nz``, then optionally
+    ``uchar red green blue``. Binary output uses ``binary_little_endian 1.0``; ASCII output prints floats with 9
+    significant digits, so float32 values survive. (A short numpy writer: plyfile's ASCII writer is ten times slower.)
 
     Args:
         path: output file.

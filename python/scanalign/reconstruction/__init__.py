@@ -1,11 +1,9 @@
-"""Eye-in-hand reconstruction: depth images to clouds, frame-to-model registration, and
-the voxel grid that keeps the model bounded (the eye-in-hand paper
-(Comput. Electron. Agric. 180 (2021) 105929), §3, Algorithm 1).
+"""Eye-in-hand reconstruction: depth images to clouds, frame-to-model registration, and the voxel grid that keeps the
+model bounded (the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), §3, Algorithm 1).
 
-Frames: a frame's points are in its camera frame (x right, y down, z forward, metres).
-The model lives in the *model frame*: the first camera's frame by default, or any frame
-given as ``T_model_camera0`` (e.g. the robot base frame via the first frame's
-``T_base_camera``). Every estimated pose is ``T_model_camera`` (camera -> model).
+Frames: a frame's points are in its camera frame (x right, y down, z forward, metres). The model lives in the *model
+frame*: the first camera's frame by default, or any frame given as ``T_model_camera0`` (e.g. the robot base frame via
+the first frame's ``T_base_camera``). Every estimated pose is ``T_model_camera`` (camera -> model).
 :class:`FrameToModelSettings` is the C++ struct; its fields carry their docs.
 
 Example::
@@ -100,11 +98,10 @@ def undistorted_rays(intrinsics: Intrinsics) -> np.ndarray:
     every pixel centre ``(u, v)`` (``[v, u]``), as :func:`depth_to_cloud` uses them.
 
     Pinhole (zero distortion): ``((u - cx) / fx, (v - cy) / fy)``. With Brown-Conrady distortion
-    ``(k1, k2, p1, p2, k3)`` each pixel is undistorted by OpenCV's ``undistortPoints`` fixed-point
-    iteration until a step changes nothing (at most 100 steps: ``cv2.undistortPointsIter``); a
-    pixel whose ray does not re-project onto it within 1e-3 pixels (diverged, or beyond the field
-    of view where the radial factor folds over) is NaN and gives no point. Computed once per
-    intrinsics (under 0.1 s for 640x480) and cached in C++ (8 cameras); a copy is returned."""
+    ``(k1, k2, p1, p2, k3)`` each pixel is undistorted by OpenCV's ``undistortPoints`` fixed-point iteration until a
+    step changes nothing (at most 100 steps: ``cv2.undistortPointsIter``); a pixel whose ray does not re-project onto it
+    within 1e-3 pixels (diverged, or beyond the field of view where the radial factor folds over) is NaN and gives no
+    point. Computed once per intrinsics (under 0.1 s for 640x480) and cached in C++ (8 cameras); a copy is returned."""
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.reconstruction.camera.Intrinsics")
     if intrinsics.has_distortion:
@@ -151,16 +148,14 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, settings: Optional
     return (points, colors, pixels) if return_pixels else (points, colors)
 
 
-#: Bilateral smoothing of depth images before back-projection (KinectFusion-style): ``radius``
-#: (pixels), ``sigma_space`` (pixels), ``sigma_depth`` (m). When to use it: axial sensor noise
-#: (about 1 mm at 0.4 m for an SR300) tilts 5 mm PCA normals by several degrees, and since each
-#: normal's error is correlated with the noise of the points it was fitted to, point-to-plane
-#: ICP drifts; the filter removes most of that noise while keeping depth edges, but rounds small
-#: curved features slightly (it smooths along each camera's rays). Measured on the synthetic
-#: scans (36-frame loops): SR300 noise, 10 mm normals: ATE 12.6 mm without, 4.1 mm with; 0.3 mm
-#: noise at 320x240 on small spheres: worst pose error 0.23 mm without, 2.0 mm with. Off by
-#: default (``ReconstructionSettings.filter_depth``, the eye-in-hand paper's pipeline); on in
-#: ``scanalign demo``.
+#: Bilateral smoothing of depth images before back-projection (KinectFusion-style): ``radius`` (pixels), ``sigma_space``
+#: (pixels), ``sigma_depth`` (m). When to use it: axial sensor noise (about 1 mm at 0.4 m for an SR300) tilts 5 mm PCA
+#: normals by several degrees, and since each normal's error is correlated with the noise of the points it was fitted
+#: to, point-to-plane ICP drifts; the filter removes most of that noise while keeping depth edges, but rounds small
+#: curved features slightly (it smooths along each camera's rays). Measured on the synthetic scans (36-frame loops):
+#: SR300 noise, 10 mm normals: ATE 12.6 mm without, 4.1 mm with; 0.3 mm noise at 320x240 on small spheres: worst pose
+#: error 0.23 mm without, 2.0 mm with. Off by default (``ReconstructionSettings.filter_depth``, the eye-in-hand paper's
+#: pipeline); on in ``scanalign demo``.
 BilateralFilterSettings = _core.reconstruction.BilateralFilterSettings
 
 
@@ -169,8 +164,7 @@ def bilateral_filter_depth(depth: np.ndarray, settings: Optional[BilateralFilter
     """Bilateral-filters a depth image (see :data:`BilateralFilterSettings`; default its defaults).
 
     Args:
-        depth: (H, W) uint16 in units of ``depth_scale`` metres (0 = invalid) or float
-            metres (0 / NaN = invalid).
+        depth: (H, W) uint16 in units of ``depth_scale`` metres (0 = invalid) or float metres (0 / NaN = invalid).
     Returns:
         (H, W) float32 metres, NaN where the input was invalid (empty for an empty image).
         ValueError beyond 2**27 pixels (checked before allocating) or for bad settings (named).
@@ -199,12 +193,11 @@ _ENGINE_FIELDS = frozenset(field_names(FrameToModelSettings))
 def make_reconstruction_settings(settings: Union[ReconstructionSettings, FrameToModelSettings, None] = None,
                                  **overrides: Any) -> ReconstructionSettings:
     """A copy of ``settings`` with fields overridden by keyword, validated. ``settings``: a
-    :class:`ReconstructionSettings` (default: its C++ defaults) or a
-    :class:`FrameToModelSettings` (the engine's, with the other fields at their defaults).
-    ``overrides`` name fields of :class:`ReconstructionSettings` or, for short, of its
-    ``frame_to_model`` (``crop_box=(6 numbers)``, ``icp=dict(max_iterations=30)``);
-    ``depth_filter`` also takes ``"default"`` (filter on, default filter) or None (off), and
-    ``initial_guess`` names ``frame_to_model.motion_model``.
+    :class:`ReconstructionSettings` (default: its C++ defaults) or a :class:`FrameToModelSettings` (the engine's, with
+    the other fields at their defaults). ``overrides`` name fields of :class:`ReconstructionSettings` or, for short, of
+    its ``frame_to_model`` (``crop_box=(6 numbers)``, ``icp=dict(max_iterations=30)``); ``depth_filter`` also takes
+    ``"default"`` (filter on, default filter) or None (off), and ``initial_guess`` names
+    ``frame_to_model.motion_model``.
 
     Raises:
         TypeError: an unknown field or a value of the wrong type.
@@ -262,10 +255,9 @@ class Model:
 class Reconstructor:
     """Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper), one frame at a time.
 
-    Each :meth:`integrate` call back-projects the frame, crops and downsamples it,
-    estimates normals (5 mm), registers it to the model starting from the previous
-    registration, checks the result, merges it and voxel-grids the model (1 mm). A frame
-    that fails is recorded with a ``skipped_*`` status and leaves the model untouched.
+    Each :meth:`integrate` call back-projects the frame, crops and downsamples it, estimates normals (5 mm), registers
+    it to the model starting from the previous registration, checks the result, merges it and voxel-grids the model (1
+    mm). A frame that fails is recorded with a ``skipped_*`` status and leaves the model untouched.
 
     Args:
         settings: :class:`ReconstructionSettings`, or a :class:`FrameToModelSettings` (default:

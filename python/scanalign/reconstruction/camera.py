@@ -1,10 +1,9 @@
 """Pinhole cameras and RGB-D frames: what a depth sensor hands to the reconstruction.
 
-Conventions (OpenCV / TUM): the camera frame has x to the right, y down and z along the
-optical axis towards the scene; pixel ``(u, v)`` is column ``u``, row ``v``, and the
-centre of pixel ``(0, 0)`` is at image coordinates ``(0, 0)``.  A point ``(x, y, z)``
-in the camera frame projects to ``u = fx * x / z + cx``, ``v = fy * y / z + cy``.
-Depth is the z coordinate (not the ray length), in metres.
+Conventions (OpenCV / TUM): the camera frame has x to the right, y down and z along the optical axis towards the scene;
+pixel ``(u, v)`` is column ``u``, row ``v``, and the centre of pixel ``(0, 0)`` is at image coordinates ``(0, 0)``. A
+point ``(x, y, z)`` in the camera frame projects to ``u = fx * x / z + cx``, ``v = fy * y / z + cy``. Depth is the z
+coordinate (not the ray length), in metres.
 """
 
 from __future__ import annotations
@@ -38,9 +37,8 @@ Intrinsics = _core.reconstruction.PinholeIntrinsics
 
 
 def intrinsics_from_dict(d: Mapping[str, Any]) -> Intrinsics:
-    """Intrinsics from a mapping with keys width, height, fx, fy, cx, cy and optional
-    distortion (k1, k2, p1, p2, k3); other keys are ignored. :func:`camera_from_dict` also
-    reads ROS ``camera_info`` and OpenCV calibration layouts."""
+    """Intrinsics from a mapping with keys width, height, fx, fy, cx, cy and optional distortion (k1, k2, p1, p2, k3);
+    other keys are ignored. :func:`camera_from_dict` also reads ROS ``camera_info`` and OpenCV calibration layouts."""
     if missing := [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]:
         raise ValueError(f"intrinsics: missing keys {missing}")
     dist = d.get("distortion")
@@ -59,9 +57,8 @@ def intrinsics_preset(name: str) -> Intrinsics:
 
 
 class _CameraYamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader plus what camera files need (:func:`read_camera_file`): OpenCV's
-    ``!!opencv-matrix`` and exponent notation without a dot or sign (``1e-3``: a float in YAML 1.2
-    and JSON, text in YAML 1.1)."""
+    """PyYAML's safe loader plus what camera files need (:func:`read_camera_file`): OpenCV's ``!!opencv-matrix`` and
+    exponent notation without a dot or sign (``1e-3``: a float in YAML 1.2 and JSON, text in YAML 1.1)."""
 
 
 _CameraYamlLoader.add_implicit_resolver(
@@ -84,10 +81,9 @@ _CameraYamlLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_mat
 
 
 def read_camera_file(path: Union[str, os.PathLike]) -> Dict[str, Any]:
-    """Reads a small camera description, JSON or YAML, as a mapping, with PyYAML: a leading
-    OpenCV ``%YAML:1.0`` line (a directive YAML parsers reject) is skipped, OpenCV's
-    ``!!opencv-matrix`` entries become float64 arrays of their shape, and numbers in
-    exponent notation (``1e-3``, which YAML 1.1 reads as text) are floats. The keys are as
+    """Reads a small camera description, JSON or YAML, as a mapping, with PyYAML: a leading OpenCV ``%YAML:1.0`` line (a
+    directive YAML parsers reject) is skipped, OpenCV's ``!!opencv-matrix`` entries become float64 arrays of their
+    shape, and numbers in exponent notation (``1e-3``, which YAML 1.1 reads as text) are floats. The keys are as
     written; :func:`read_camera` / :func:`camera_from_dict` interpret them.
 
     Raises:
@@ -136,8 +132,7 @@ def _first(d: Mapping[str, Any], *keys: str) -> Any:
 
 
 def _numbers(value: Any, n: Optional[int], what: str) -> np.ndarray:
-    """A matrix entry as a flat float64 array: a list, an array (OpenCV), or a ROS
-    ``{rows, cols, data}`` mapping."""
+    """A matrix entry as a flat float64 array: a list, an array (OpenCV), or a ROS ``{rows, cols, data}`` mapping."""
     if isinstance(value, Mapping):
         value = value.get("data")
     try:
@@ -153,15 +148,12 @@ def camera_from_dict(d: Mapping[str, Any]) -> Tuple[Intrinsics, Optional[float]]
     """Intrinsics (with distortion) and the optional ``depth_scale`` (m per unit) from a
     camera description in any of the layouts :func:`read_camera` reads:
 
-    - scanalign's flat keys: ``width height fx fy cx cy`` (+ optional ``distortion``:
-      k1 k2 p1 p2 k3, ``depth_scale``);
-    - a ROS ``camera_info`` YAML (``camera_calibration_parsers``): ``image_width``,
-      ``image_height``, ``camera_matrix: {rows, cols, data}``, ``distortion_model``,
-      ``distortion_coefficients: {rows, cols, data}``; or a CameraInfo message as YAML
-      (``width``, ``height``, ``K``/``k`` 9 numbers, ``D``/``d``, ``distortion_model``);
-    - an OpenCV calibration file (``%YAML:1.0``; ``camera_matrix`` / ``cameraMatrix`` /
-      ``K`` and ``distortion_coefficients`` / ``distCoeffs`` / ``D`` as ``!!opencv-matrix``,
-      ``image_width`` / ``image_height``).
+    - scanalign's flat keys: ``width height fx fy cx cy`` (+ optional ``distortion``: k1 k2 p1 p2 k3, ``depth_scale``);
+    - a ROS ``camera_info`` YAML (``camera_calibration_parsers``): ``image_width``, ``image_height``,
+      ``camera_matrix: {rows, cols, data}``, ``distortion_model``, ``distortion_coefficients: {rows, cols, data}``; or a
+      CameraInfo message as YAML (``width``, ``height``, ``K``/``k`` 9 numbers, ``D``/``d``, ``distortion_model``);
+    - an OpenCV calibration file (``%YAML:1.0``; ``camera_matrix`` / ``cameraMatrix`` / ``K`` and
+      ``distortion_coefficients`` / ``distCoeffs`` / ``D`` as ``!!opencv-matrix``, ``image_width`` / ``image_height``).
 
     Distortion: Brown-Conrady coefficients in OpenCV's order (4, 5, 8, 12 or 14 numbers,
     those after k3 zero); another non-zero model is a ValueError.
@@ -208,9 +200,8 @@ def read_camera(path: Union[str, os.PathLike]) -> Tuple[Intrinsics, Optional[flo
         raise ValueError(f"{path}: {e}") from None
 
 
-#: Named intrinsics. TUM values are from the TUM RGB-D benchmark's published calibration
-#: (depth images are registered to the colour camera); the sensor presets are typical
-#: factory values of the depth stream at 640x480.
+#: Named intrinsics. TUM values are from the TUM RGB-D benchmark's published calibration (depth images are registered to
+#: the colour camera); the sensor presets are typical factory values of the depth stream at 640x480.
 INTRINSICS_PRESETS: Dict[str, Intrinsics] = {
     "tum_default": Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5),
     "tum_fr1": Intrinsics(640, 480, 517.3, 516.5, 318.6, 255.3),

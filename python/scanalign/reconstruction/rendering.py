@@ -1,8 +1,7 @@
 """Depth rendering of triangle meshes: the C++ z-buffer renderer, and camera placement.
 
-Pinhole cameras in the OpenCV convention (:mod:`scanalign.reconstruction.camera`): x right, y down, z
-along the optical axis; depth is z, in metres. Used by the CAD view sampler and by the
-synthetic scanner.
+Pinhole cameras in the OpenCV convention (:mod:`scanalign.reconstruction.camera`): x right, y down, z along the optical
+axis; depth is z, in metres. Used by the CAD view sampler and by the synthetic scanner.
 """
 
 from __future__ import annotations
@@ -62,12 +61,11 @@ def render_depth(vertices: np.ndarray, faces: np.ndarray, intrinsics: Union[Intr
                  cull_backfaces: bool = False, num_threads: int = 0) -> RenderResult:
     """Renders a triangle mesh with a z-buffer: depth, visible face and incidence per pixel.
 
-    Pixel ``(u, v)`` samples the ray through its centre. Depth is the exact intersection of
-    that ray with the visible triangle's plane (a rendered plane back-projects onto the plane
-    to ~1e-8 m, the float32 rounding). Pixel centres on an edge shared by two triangles
-    belong to exactly one of them (top-left rule), so closed meshes show no holes. Triangles
-    crossing the near plane are clipped; surfaces beyond ``far`` are not drawn. Both sides
-    of every face are drawn unless ``cull_backfaces``.
+    Pixel ``(u, v)`` samples the ray through its centre. Depth is the exact intersection of that ray with the visible
+    triangle's plane (a rendered plane back-projects onto the plane to ~1e-8 m, the float32 rounding). Pixel centres on
+    an edge shared by two triangles belong to exactly one of them (top-left rule), so closed meshes show no holes.
+    Triangles crossing the near plane are clipped; surfaces beyond ``far`` are not drawn. Both sides of every face are
+    drawn unless ``cull_backfaces``.
 
     Args:
         vertices: (V, 3) float32/float64 vertex positions in the world frame, metres. Faces

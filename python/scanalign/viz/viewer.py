@@ -11,11 +11,10 @@ and of the outcome of a pick, in a viewer, a ``.rrd`` recording or both::
 ``scanalign reconstruct|pick --view`` and ``--view-save FILE.rrd`` do the same from the
 command line; :func:`scanalign.pipelines.pick.pick` takes ``viewer=``.
 
-Entities (world = the model / robot base frame, metres): ``world/model`` (points), ``world/camera`` (pose and
-pinhole), ``world/camera_path`` and ``world/reference_path`` (the estimated and the robot's camera centres),
-``world/arm`` (the arm's joint origins, a line strip), ``world/scene``, ``world/parts/<k>_<name>`` (pick: the part's
-mesh at its pose) and ``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (index) and
-``time`` (timestamp, s).
+Entities (world = the model / robot base frame, metres): ``world/model`` (points), ``world/camera`` (pose and pinhole),
+``world/camera_path`` and ``world/reference_path`` (the estimated and the robot's camera centres), ``world/arm`` (the
+arm's joint origins, a line strip), ``world/scene``, ``world/parts/<k>_<name>`` (pick: the part's mesh at its pose) and
+``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (index) and ``time`` (timestamp, s).
 """
 
 from __future__ import annotations
