@@ -15,18 +15,8 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from scanalign.datasets.tum import (
-    ImageFileSequence,
-    PathLike,
-    camera_argument,
-    check_number,
-    check_selection,
-    depth_units,
-    interpolate,
-    pair_frames,
-    resolve_camera,
-    write_tum_sequence,
-)
+from scanalign.datasets.tum import (ImageFileSequence, PathLike, camera_argument, check_number, check_selection,
+                                    depth_units, interpolate, pair_frames, resolve_camera, write_tum_sequence)
 from scanalign.evaluation.trajectory import Trajectory, pose_from_tum
 from scanalign.reconstruction.camera import Frame, camera_from_dict, sequence_index
 

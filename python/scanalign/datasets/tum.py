@@ -28,23 +28,10 @@ import numpy as np
 from PIL import Image
 
 from scanalign import _core
-from scanalign.evaluation.trajectory import (
-    PathLike,
-    Trajectory,
-    TumFormatError,
-    associate_timestamps,
-    read_tum_rows,
-    time_order,
-    write_tum_trajectory,
-)
-from scanalign.reconstruction.camera import (
-    INTRINSICS_PRESETS,
-    Frame,
-    Intrinsics,
-    camera_from_dict,
-    read_camera_file,
-    sequence_index,
-)
+from scanalign.evaluation.trajectory import (PathLike, Trajectory, TumFormatError, associate_timestamps, read_tum_rows,
+                                             time_order, write_tum_trajectory)
+from scanalign.reconstruction.camera import (INTRINSICS_PRESETS, Frame, Intrinsics, camera_from_dict, read_camera_file,
+                                             sequence_index)
 
 __all__ = ["TumSequence", "TumFormatError", "write_tum_sequence", "is_tum_folder", "read_timestamp_list",
            "TUM_DEPTH_SCALE", "CAMERA_FILE_NAMES"]
@@ -53,8 +40,7 @@ __all__ = ["TumSequence", "TumFormatError", "write_tum_sequence", "is_tum_folder
 TUM_DEPTH_SCALE = 1.0 / 5000.0
 
 #: Camera files looked for in a sequence folder, in this order.  At most one may exist.
-CAMERA_FILE_NAMES = ("camera.json", "camera.yaml", "camera.yml", "intrinsics.json", "intrinsics.yaml",
-                     "intrinsics.yml")
+CAMERA_FILE_NAMES = ("camera.json", "camera.yaml", "camera.yml", "intrinsics.json", "intrinsics.yaml", "intrinsics.yml")
 
 
 def check_number(name: str, value: Any, what: str, low: float = 0.0, strict: bool = False,
