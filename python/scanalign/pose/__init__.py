@@ -276,25 +276,21 @@ def pose_task_settings(cls: type, settings: Any = None, **overrides: Any) -> Any
 
 def estimate_pose(model: object, scene: np.ndarray, settings: Optional[PoseSettings] = None, *,
                   views: Optional[Sequence[int]] = None, progress: bool = False, **overrides: Any) -> PoseResult:
-    """Pose of ``model`` in one object cloud: coarse alignment of every model view (or the
-    model cloud) to the object, ICP refinement (point-to-plane, scanalign's engine), and the
-    candidate with the best score ``2 fitness coverage / (fitness + coverage)``.
+    """Pose of ``model`` in one object cloud: coarse alignment of every model view (or the model cloud) to the object,
+    ICP refinement (point-to-plane, scanalign's engine), and the candidate with the best score
+    ``2 fitness coverage / (fitness + coverage)``.
 
-    Args:
-        model: a mesh (:class:`scanalign.io.Mesh`, ``(vertices, faces)`` or a mesh file path; metres) rendered from the
-            42 vertices of a tessellated sphere with ``settings.views``, the list of
-            :class:`scanalign.pose.model_views.ModelView` that :func:`scanalign.pose.model_views.render_views` returned
-            (rendered once, reused across objects), or an (N, 3) cloud.
-        scene: (M, 3) the object's points in the scene (camera) frame, metres.
-        settings: :class:`PoseSettings` (default its C++ defaults: CBD, 5 mm inlier threshold, 10 mm ICP distance,
-            150-pixel views); keyword ``overrides`` as :func:`pose_task_settings` takes them (``method="fpfh"``,
-            ``icp_distance=0.02``, ``resolution=100``, ``radius=0.012`` for the CBD neighbourhood, ...).
-        views: subset of view indices to try (default all 42).
-        progress: print a progress bar over the views on stderr.
+    ``model``: a mesh (:class:`scanalign.io.Mesh`, ``(vertices, faces)`` or a mesh file path; metres) rendered from the
+    42 vertices of a tessellated sphere with ``settings.views``, the list of
+    :class:`scanalign.pose.model_views.ModelView` that :func:`scanalign.pose.model_views.render_views` returned
+    (rendered once, reused across objects), or an (N, 3) cloud. ``scene``: (M, 3) the object's points in the scene
+    (camera) frame, metres. ``settings``: :class:`PoseSettings` (default its C++ defaults); keyword ``overrides`` as
+    :func:`pose_task_settings` takes them (``method="fpfh"``, ``icp_distance=0.02``, ``resolution=100``,
+    ``radius=0.012`` for the CBD neighbourhood, ...). ``views``: the view indices to try (default all 42); ``progress``:
+    a progress bar over the views on stderr.
 
-    Returns:
-        :class:`PoseResult`: ``found`` False with a message when no view aligned or the best
-        one's fitness or coverage is below ``min_fitness`` / ``min_coverage``.
+    Returns a :class:`PoseResult`: ``found`` False with a message when no view aligned or the best one's fitness or
+    coverage is below ``min_fitness`` / ``min_coverage``.
     """
     s = pose_task_settings(PoseSettings, settings, **overrides)
     model_views, is_cloud = _model_views(model, s.views)
@@ -307,19 +303,15 @@ def estimate_pose(model: object, scene: np.ndarray, settings: Optional[PoseSetti
 
 def find_objects(model: object, scene: np.ndarray, settings: Optional[Any] = None, *,
                  views: Optional[Sequence[int]] = None, progress: bool = False, **overrides: Any) -> FindObjectsResult:
-    """Poses of a part in a table scene (paper 3 / paper 5 pipeline): RANSAC table plane in
-    CGA, remove it and everything below it, Euclidean clusters, then the pose per cluster as
-    :func:`estimate_pose` (at most ``max_objects``, largest first).
+    """Poses of a part in a table scene (paper 3 / paper 5 pipeline): RANSAC table plane in CGA, remove it and
+    everything below it, Euclidean clusters, then the pose per cluster as :func:`estimate_pose` (at most
+    ``max_objects``, largest first), of ``model`` as :func:`estimate_pose` takes it (a mesh is rendered once for all
+    objects) in ``scene``, an (N, 3) scan in the camera frame, metres.
 
-    Args:
-        model: as :func:`estimate_pose` (a mesh is rendered once for all objects).
-        scene: (N, 3) scan in the camera frame, metres.
-        settings: ``FindObjectsSettings`` (``table``, ``max_objects``, ``pose``); keyword ``overrides`` as
-            :func:`pose_task_settings` takes them (``table_threshold``, ``cluster_tolerance`` m, ``min_cluster_size``,
-            ``viewpoint`` / ``up`` to orient the table normal, and every keyword of :func:`estimate_pose`).
-
-    Returns:
-        :class:`FindObjectsResult` (``poses``, ``objects`` as index arrays, the table ``plane``).
+    ``settings``: ``FindObjectsSettings`` (``table``, ``max_objects``, ``pose``); keyword ``overrides`` as
+    :func:`pose_task_settings` takes them (``table_threshold``, ``cluster_tolerance`` m, ``min_cluster_size``,
+    ``viewpoint`` / ``up`` to orient the table normal, and every keyword of :func:`estimate_pose`). Returns a
+    :class:`FindObjectsResult` (``poses``, ``objects`` as index arrays, the table ``plane``).
     """
     s = pose_task_settings(_P.FindObjectsSettings, settings, **overrides)
     pts = as_points(scene, "scene", np.dtype(np.float64))
@@ -343,21 +335,17 @@ def find_parts(models: Sequence[object], scene: np.ndarray, settings: Optional[F
     part that its symmetry does not make equivalent -- scores nearly as well; see
     ``FindPartsSettings.ambiguity_margin``).
 
-    Args:
-        models: one model per part, each as :func:`estimate_pose` takes it (a mesh, its rendered views, or a cloud);
-            render meshes once with :func:`scanalign.pose.model_views.render_views` when calling repeatedly.
-        scene: (N, 3) scan, metres (camera or base frame; ``T_scene_model`` is in that frame).
-        settings: :class:`FindPartsSettings` (default its C++ defaults; every field with its
-            unit and meaning: ``help(FindPartsSettings)``, ``scanalign dump-config pose``);
-            keyword ``overrides`` as :func:`pose_task_settings` takes them (``max_objects=3``,
-            ``up=(0, 0, 1)``, ``cbd_radius_fraction=0.15``, ``method="fpfh"``, ...).
-        symmetries: one ``PartSymmetry`` (``axis``, ``point`` m, ``order``; e.g. from
-            :data:`scanalign.data.parts.BUILTIN_PARTS`) or None per part; default none symmetric.
-        views: view indices tried for every part (default all 42).
+    ``models``: one model per part, each as :func:`estimate_pose` takes it (a mesh, its rendered views, or a cloud;
+    render meshes once with :func:`scanalign.pose.model_views.render_views` when calling repeatedly). ``scene``: (N, 3)
+    scan, metres (camera or base frame; ``T_scene_model`` is in that frame). ``settings``: :class:`FindPartsSettings`
+    (default its C++ defaults; every field with its unit and meaning: ``help(FindPartsSettings)``,
+    ``scanalign dump-config pose``); keyword ``overrides`` as :func:`pose_task_settings` takes them (``max_objects=3``,
+    ``up=(0, 0, 1)``, ``cbd_radius_fraction=0.15``, ``method="fpfh"``, ...). ``symmetries``: one ``PartSymmetry``
+    (``axis``, ``point`` m, ``order``; e.g. from :data:`scanalign.data.parts.BUILTIN_PARTS`) or None per part (default:
+    none symmetric). ``views``: view indices tried for every part (default all 42).
 
-    Returns:
-        :class:`FindPartsResult`: per cluster a :class:`PartDetection` (``status``, ``part``,
-        ``pose``, runner-up, ``indices``, ``parts``: the :class:`PoseResult` of every part).
+    Returns a :class:`FindPartsResult`: per cluster a :class:`PartDetection` (``status``, ``part``, ``pose``, runner-up,
+    ``indices``, ``parts``: the :class:`PoseResult` of every part).
     """
     if isinstance(models, (str, bytes)) or not isinstance(models, Sequence) or len(models) == 0:
         raise ValueError("models: expected a non-empty list with one model per part")
