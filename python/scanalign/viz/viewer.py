@@ -106,9 +106,8 @@ class Viewer:
         # A viewer without a window dies at once while the run goes on, streaming into nothing.
         fix = ("set DISPLAY (e.g. ssh -X), or record to a file instead, save='scan.rrd' (on the command line "
                "--view-save scan.rrd), and open it with 'rerun scan.rrd' where there is a display")
-        if (sys.platform.startswith("linux") and not any(map(os.environ.get, ("DISPLAY", "WAYLAND_DISPLAY",
-                                                                              "WAYLAND_SOCKET")))
-                and not _listening(port)):
+        displays = ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")
+        if sys.platform.startswith("linux") and not any(map(os.environ.get, displays)) and not _listening(port):
             raise RuntimeError(f"cannot show a rerun viewer (spawn=True / --view): no display (DISPLAY and "
                                f"WAYLAND_DISPLAY are unset) and no viewer listening on port {port}; {fix}")
         self.rec.spawn(port=port, connect=False)
