@@ -1,10 +1,9 @@
 """Rigid registration: the fast ICP engine and stock PCL baselines.
 
-The engine follows the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929)
-(Algorithm 1, §3.1-3.4): a k-d tree over the target, nearest neighbours, box and
-distance rejection, and Low's point-to-plane linear least squares (or closed-form
-point-to-point), iterated until PCL's convergence criteria hold. :class:`IcpSettings`,
-:class:`IcpResult` and :class:`Box` are the C++ structs; their fields carry their docs.
+The engine follows the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929) (Algorithm 1, §3.1-3.4): a k-d
+tree over the target, nearest neighbours, box and distance rejection, and Low's point-to-plane linear least squares (or
+closed-form point-to-point), iterated until PCL's convergence criteria hold. :class:`IcpSettings`, :class:`IcpResult`
+and :class:`Box` are the C++ structs; their fields carry their docs.
 
 Frames and units: points in metres; ``source`` is in the source frame (e.g. the camera of
 a new frame), ``target`` in the target frame (e.g. the model). Every transform returned
@@ -43,13 +42,9 @@ _F32 = np.dtype(np.float32)
 
 
 def make_settings(settings: Optional[IcpSettings] = None, **overrides: object) -> IcpSettings:
-    """A copy of ``settings`` (or the defaults) with :class:`IcpSettings` fields overridden by
-    keyword (``box`` also takes 6 numbers, metres).
-
-    Raises:
-        TypeError: an unknown field or a value of the wrong type.
-        ValueError: an invalid value (the message names the field).
-    """
+    """A copy of ``settings`` (or the defaults) with :class:`IcpSettings` fields overridden by keyword (``box`` also
+    takes 6 numbers, metres). TypeError: an unknown field or a value of the wrong type; ValueError: an invalid value
+    (the message names the field)."""
     s = set_fields(IcpSettings() if settings is None else IcpSettings(settings), overrides, "ICP")
     s.validate()
     return s
@@ -60,19 +55,15 @@ class Icp(_core.registration.Icp):
 
     For frame-to-model registration, where many frames are aligned to the same model::
 
-        engine = Icp(model_points, model_normals, max_correspondence_distance=0.01)
-        result = engine.align(frame_points, init=T_model_camera_previous)
+    engine = Icp(model_points, model_normals, max_correspondence_distance=0.01) result = engine.align(frame_points,
+    init=T_model_camera_previous)
 
-    Args:
-        target: (N, 3) float32/float64 target points, metres, target frame.
-        target_normals: (N, 3) unit normals of the target (required for point-to-plane);
-            points whose normal is non-finite or zero are left out. Default: the normals of
-            an Open3D ``target`` cloud that has them.
-        settings: an :class:`IcpSettings`; keyword overrides are applied on top.
-
-    The tree keeps the target's dtype (float32 if both arrays are: half the memory,
-    faster); sources are cast to it. ``settings`` (a copy; assign a new one to change
-    them), ``target_size`` and ``tree_build_seconds`` are properties. Raises as :func:`icp`.
+    ``target``: (N, 3) float32/float64 target points, metres, target frame; ``target_normals``: their (N, 3) unit
+    normals (required for point-to-plane; points whose normal is non-finite or zero are left out; default: the normals
+    of an Open3D ``target`` cloud that has them); ``settings``: an :class:`IcpSettings`, keyword overrides applied on
+    top. The tree keeps the target's dtype (float32 if both arrays are: half the memory, faster); sources are cast to
+    it. ``settings`` (a copy; assign a new one to change them), ``target_size`` and ``tree_build_seconds`` are
+    properties. Raises as :func:`icp`.
     """
 
     def __init__(self, target: np.ndarray, target_normals: Optional[np.ndarray] = None,
@@ -94,32 +85,20 @@ def icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndar
         box: BoxLike = None, estimator: Optional[Estimator] = None, max_iterations: Optional[int] = None,
         transformation_epsilon: Optional[float] = None, fitness_epsilon: Optional[float] = None,
         settings: Optional[IcpSettings] = None, **overrides: object) -> IcpResult:
-    """Registers ``source`` to ``target`` with scanalign's ICP engine.
+    """Registers ``source`` ((N, 3) float32/float64 points in the source frame, metres) to ``target`` ((M, 3), the
+    target frame, metres) with scanalign's ICP engine; returns an :class:`IcpResult` with ``T_target_source`` (check
+    ``converged``/``status``: e.g. "degenerate").
 
-    Keyword arguments left as None take their value from ``settings`` (or the
-    :class:`IcpSettings` defaults, in brackets).
+    ``target_normals``: (M, 3) unit target normals, required for point-to-plane (default: those of an Open3D ``target``
+    cloud that has them). ``init``: initial ``T_target_source`` (4x4 rigid), identity by default. The keywords are
+    :class:`IcpSettings` fields, None taking the value of ``settings`` (or the C++ defaults):
+    ``max_correspondence_distance`` (m; farther pairs are rejected), ``box`` (in the source camera frame: :class:`Box`
+    or 6 numbers, m), ``estimator`` (``"point_to_plane"``, eye-in-hand paper §3.2, or ``"point_to_point"``), the
+    PCL-style convergence criteria ``max_iterations``, ``transformation_epsilon``, ``fitness_epsilon`` (eye-in-hand
+    paper §3.3), and in ``overrides`` any other field, e.g. ``num_threads=1``.
 
-    Args:
-        source: (N, 3) float32/float64 points in the source frame, metres.
-        target: (M, 3) points in the target frame, metres.
-        target_normals: (M, 3) unit target normals; required for point-to-plane (default: those
-            of an Open3D ``target`` cloud that has them).
-        init: initial ``T_target_source`` (4x4 rigid), identity by default.
-        max_correspondence_distance: metres; farther pairs are rejected [0.05].
-        box: optional box in the source camera frame (:class:`Box` or 6 numbers, metres).
-        estimator: ``"point_to_plane"`` (eye-in-hand paper §3.2) or ``"point_to_point"``.
-        max_iterations, transformation_epsilon, fitness_epsilon: PCL-style convergence
-            criteria [50, 1e-8, 1e-8: eye-in-hand paper §3.3].
-        settings: base :class:`IcpSettings`.
-        **overrides: any other :class:`IcpSettings` field, e.g. ``num_threads=1``.
-
-    Returns:
-        :class:`IcpResult` with ``T_target_source`` (check ``converged``/``status``: e.g. "degenerate").
-
-    Raises:
-        TypeError: non-float arrays, unknown settings.
-        ValueError: wrong shapes, empty clouds, mismatched or missing normals, bad
-            settings or a non-rigid ``init``. KeyboardInterrupt: Ctrl-C, between iterations.
+    TypeError: non-float arrays, unknown settings. ValueError: wrong shapes, empty clouds, mismatched or missing
+    normals, bad settings or a non-rigid ``init``. KeyboardInterrupt: Ctrl-C, between iterations.
     """
     s = _settings(settings, overrides, max_correspondence_distance=max_correspondence_distance, box=box,
                   estimator=estimator, max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
@@ -140,13 +119,12 @@ def pcl_icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.
             **overrides: object) -> IcpResult:
     """Stock PCL 1.13 ICP on the same inputs and criteria, for evaluation (eye-in-hand paper §4).
 
-    Variants: ``"svd"`` (``IterativeClosestPoint`` + SVD), ``"dual_quaternion"``,
-    ``"point_to_plane_lls"`` (``IterativeClosestPointWithNormals``, PCL's own LLS; needs
-    ``target_normals``), and ``"scanalign_point_to_plane_lls"`` (the same with scanalign's
-    ``PointToPlaneLLS`` plugged in). Clouds are converted to float32 PCL clouds. The
-    result's fitness / RMSE are measured like the engine's; ``seconds`` times PCL's tree
-    build and ``align``. Other arguments and errors as :func:`icp` (the estimator is the
-    variant's; ``search_stack_depth`` and ``warm_start`` do not apply).
+    Variants: ``"svd"`` (``IterativeClosestPoint`` + SVD), ``"dual_quaternion"``, ``"point_to_plane_lls"``
+    (``IterativeClosestPointWithNormals``, PCL's own LLS; needs ``target_normals``), and
+    ``"scanalign_point_to_plane_lls"`` (the same with scanalign's ``PointToPlaneLLS`` plugged in). Clouds are converted
+    to float32 PCL clouds. The result's fitness / RMSE are measured like the engine's; ``seconds`` times PCL's tree
+    build and ``align``. Other arguments and errors as :func:`icp` (the estimator is the variant's;
+    ``search_stack_depth`` and ``warm_start`` do not apply).
     """
     s = _settings(settings, overrides, max_correspondence_distance=max_correspondence_distance, box=box,
                   max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
@@ -159,19 +137,13 @@ def pcl_icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.
 
 def point_to_plane_lls(source: np.ndarray, target: np.ndarray, target_normals: np.ndarray,
                        degeneracy_threshold: float = 1e-10) -> tuple:
-    """One point-to-plane LLS step (Low 2004, eye-in-hand paper §3.2) on given correspondences.
-
-    Row i of ``source`` is paired with row i of ``target`` / ``target_normals`` (metres,
-    unit normals; ValueError unless all have the same number of rows). Runs
-    ``scanalign::PointToPlaneLLS`` (the PCL plug-in, double precision). Needs at least 6
-    well-spread pairs to constrain all motions.
-
-    Returns:
-        ``(T_target_source, rank, conditioning, degenerate)``: the 4x4 transform; the
-        number of constrained motion directions (6 when well posed); lambda_min/lambda_max
-        of the balanced normal matrix; whether directions were left unconstrained (they
-        are then kept at zero motion rather than solved from round-off).
-    """
+    """One point-to-plane LLS step (Low 2004, eye-in-hand paper §3.2) on given correspondences: row i of ``source`` is
+    paired with row i of ``target`` / ``target_normals`` (metres, unit normals; ValueError unless all have the same
+    number of rows). Runs ``scanalign::PointToPlaneLLS`` (the PCL plug-in, double precision). Needs at least 6
+    well-spread pairs to constrain all motions. Returns ``(T_target_source, rank, conditioning, degenerate)``: the 4x4
+    transform; the number of constrained motion directions (6 when well posed); lambda_min/lambda_max of the balanced
+    normal matrix; whether directions were left unconstrained (they are then kept at zero motion rather than solved from
+    round-off)."""
     T, rank, cond, degenerate, _ = _core.registration.point_to_plane_lls(
         *_paired(source, target, target_normals), degeneracy_threshold)
     return np.asarray(T), int(rank), float(cond), bool(degenerate)

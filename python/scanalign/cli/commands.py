@@ -182,16 +182,12 @@ RECONSTRUCT = Command(ReconstructionSettings, (
 ))
 
 
-def _pose_method(name: str) -> dict:
-    """--method: the coarse method as fields of the pose settings (a PCL baseline: method pcl
-    and the thesis's preset of that baseline)."""
-    return to_dict(_pose.pose_task_settings(_pose.PoseSettings, method=name))
-
-
 _P = "pose."
 #: The pose command's settings: FindObjectsSettings (table, clusters, the pose per cluster).
 POSE = Command(_core.pose.FindObjectsSettings, (
-    Alias("--method", "pose", choices=list(_pose.METHODS), value=_pose_method,
+    # --method sets the pose settings' method (a PCL baseline: method pcl and the thesis's preset of that baseline)
+    Alias("--method", "pose", choices=list(_pose.METHODS),
+          value=lambda name: to_dict(_pose.pose_task_settings(_pose.PoseSettings, method=name)),
           help="coarse alignment: cbd (the thesis's curvature-based descriptor), flags, or a stock PCL baseline "
                "(fpfh, fpfh_sac_ia, shot, 3dsc, ppf: method pcl with the thesis's preset); default cbd"),
     Alias("--cbd-radius", _P + "cbd.cbd.radius", help="CBD neighbourhood radius (about 0.015 for scans with ~1-2 mm "

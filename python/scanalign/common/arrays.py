@@ -38,9 +38,8 @@ def _origin(obj: object) -> str:
 
 
 def foreign_points(obj: object, name: str = "points") -> np.ndarray:
-    """The points of an Open3D / trimesh cloud or the vertices of a mesh, as a NumPy array
-    (float64 for legacy Open3D and trimesh, the tensor's dtype for ``open3d.t``).
-    TypeError for another Open3D / trimesh type."""
+    """The points of an Open3D / trimesh cloud or the vertices of a mesh, as a NumPy array (float64 for legacy Open3D
+    and trimesh, the tensor's dtype for ``open3d.t``). TypeError for another Open3D / trimesh type."""
     kind, origin = foreign_kind(obj), _origin(obj)
     if kind == "array":
         return _tensor(obj)
@@ -82,11 +81,10 @@ def native(obj: object) -> object:
 
 
 def as_points(array: object, name: str, dtype: Optional[np.dtype] = None) -> np.ndarray:
-    """``array`` as an (N, 3) float32/float64 array the C++ core can view, without a copy when
-    its layout allows (e.g. ``a[:, :3]`` of an (N, 8) PCL-layout array). An Open3D point cloud
-    (legacy or ``open3d.t``) or triangle mesh, or a trimesh ``PointCloud`` / ``Trimesh``, gives
-    its points (vertices). TypeError for a non-float array (integer, bool, object, complex),
-    ValueError for another shape."""
+    """``array`` as an (N, 3) float32/float64 array the C++ core can view, without a copy when its layout allows (e.g.
+    ``a[:, :3]`` of an (N, 8) PCL-layout array). An Open3D point cloud (legacy or ``open3d.t``) or triangle mesh, or a
+    trimesh ``PointCloud`` / ``Trimesh``, gives its points (vertices). TypeError for a non-float array (integer, bool,
+    object, complex), ValueError for another shape."""
     if not isinstance(array, np.ndarray) and is_foreign(array):
         array = foreign_points(array, name)
     try:

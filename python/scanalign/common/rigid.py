@@ -1,10 +1,9 @@
 """Rigid transforms (SE(3)) in one place for the Python layer.
 
-Building rotations and 4x4 transforms, inverting them, their rotation angles and pose
-errors, and the rigidity check that every function taking a transform applies. The check
-is the C++ core's (``scanalign/common/rigid.hpp``, ``rigidProblem``), called directly, so
-a transform accepted here is accepted there. Transforms are 4x4 float64
-arrays ``T_to_from`` mapping ``from``-frame coordinates (metres) into the ``to`` frame.
+Building rotations and 4x4 transforms, inverting them, their rotation angles and pose errors, and the rigidity check
+that every function taking a transform applies. The check is the C++ core's (``scanalign/common/rigid.hpp``,
+``rigidProblem``), called directly, so a transform accepted here is accepted there. Transforms are 4x4 float64 arrays
+``T_to_from`` mapping ``from``-frame coordinates (metres) into the ``to`` frame.
 """
 
 from __future__ import annotations
@@ -49,8 +48,7 @@ def rotation_about(axis: Sequence[float], angle: float) -> np.ndarray:
 
 
 def rigid(axis: Sequence[float], angle: float, t: Sequence[float]) -> np.ndarray:
-    """4x4 rigid transform: rotation of ``angle`` radians about ``axis``, then translation
-    ``t`` (metres)."""
+    """4x4 rigid transform: rotation of ``angle`` radians about ``axis``, then translation ``t`` (metres)."""
     T = np.eye(4)
     T[:3, :3] = rotation_about(axis, angle)
     T[:3, 3] = _real(t, "t", 3)

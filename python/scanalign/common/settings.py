@@ -1,19 +1,19 @@
 """The settings schema: the bound C++ settings structs as dicts, YAML files and dotted paths.
 
-Every bound struct lists its fields in ``__fields__`` (``(name, unit, doc, writable)``, from the
-one field table of its binding), so nothing here restates a field, a unit or a default: a new
-C++ field with its doc is a new key of every config file, ``--set`` path and ``dump-config``
-line at once. A *root* is one struct or a mapping ``{name: struct}`` (a command that uses two
-structs side by side). :func:`to_dict` / :func:`update` convert to and from nested dicts (each
-value checked by the C++ field's setter), :func:`with_overrides` is what the API functions do with
-``settings=`` and keywords, :func:`set_path` / :func:`parse_assignment` serve ``--set a.b=value``,
-:func:`leaves` lists every leaf field (path, unit, doc, value), and :func:`dump_yaml` /
-:func:`load_yaml` write and read the commented YAML of ``dump-config`` and config files.
+Every bound struct lists its fields in ``__fields__`` (``(name, unit, doc, writable)``, from the one field table of its
+binding), so nothing here restates a field, a unit or a default: a new C++ field with its doc is a new key of every
+config file, ``--set`` path and ``dump-config`` line at once. A *root* is one struct or a mapping ``{name: struct}`` (a
+command that uses two structs side by side). :func:`to_dict` / :func:`update` convert to and from nested dicts (each
+value checked by the C++ field's setter), :func:`with_overrides` is what the API functions do with ``settings=`` and
+keywords, :func:`set_path` / :func:`parse_assignment` serve ``--set a.b=value``, :func:`leaves` lists every leaf field
+(path, unit, doc, value), and :func:`dump_yaml` / :func:`load_yaml` write and read the commented YAML of ``dump-config``
+and config files.
 """
 
 from __future__ import annotations
 
 import difflib
+import functools
 import re
 import textwrap
 from pathlib import Path
@@ -72,11 +72,11 @@ def _plain(value: Any) -> Any:
 
 def _items(root: Root) -> Iterator[Tuple[str, Any]]:
     """(name, value) of a root's settable fields (a struct) or entries (a mapping of structs)."""
-    if isinstance(root, Mapping):
-        yield from root.items()
-    else:
-        for name in field_names(root):
-            yield name, getattr(root, name)
+    return iter((root if isinstance(root, Mapping) else fields_of(root)).items())
+
+
+def _child(node: Root, key: str) -> Any:
+    return node[key] if isinstance(node, Mapping) else getattr(node, key)
 
 
 def to_dict(root: Root) -> Dict[str, Any]:
@@ -92,17 +92,16 @@ def _unknown(key: str, known: Sequence[str], where: str, what: str = "") -> Unkn
 
 
 def update(root: Root, values: Mapping[str, Any], where: str = "", what: str = "") -> Root:
-    """Sets the fields named in ``values`` (nested mappings for nested structs) on ``root`` in
-    place and returns it. :class:`UnknownSettingError` names the path of an unknown key (``what``
-    names the settings in its message); a value of the wrong type or range raises the C++
-    setter's TypeError / ValueError, prefixed by its path."""
+    """Sets the fields named in ``values`` (nested mappings for nested structs) on ``root`` in place and returns it.
+    :class:`UnknownSettingError` names the path of an unknown key (``what`` names the settings in its message); a value
+    of the wrong type or range raises the C++ setter's TypeError / ValueError, prefixed by its path."""
     if not isinstance(values, Mapping):
         raise ValueError(f"{where or 'settings'}: expected a mapping of settings, got {type(values).__name__}")
     known = list(root) if isinstance(root, Mapping) else list(field_names(root))
     for key, value in values.items():
         if key not in known:
             raise _unknown(str(key), known, where, what)
-        current = root[key] if isinstance(root, Mapping) else getattr(root, key)
+        current = _child(root, key)
         if is_struct(current) and field_names(current) and not hasattr(current, "as_tuple"):
             if isinstance(value, Mapping):
                 update(current, value, f"{where}{key}.", what)
@@ -139,22 +138,17 @@ def with_overrides(cls: type, settings: Any = None, overrides: Mapping[str, Any]
 
 def get_path(root: Root, path: str) -> Any:
     """The value at a dotted path (``"frame_to_model.icp.max_iterations"``)."""
-    value = root
-    for key in path.split("."):
-        value = value[key] if isinstance(value, Mapping) else getattr(value, key)
-    return value
+    return functools.reduce(_child, path.split("."), root)
 
 
 def set_path(root: Root, path: str, value: Any) -> None:
     """Sets the field at a dotted path, checked as :func:`update` checks it."""
     head, _, last = path.rpartition(".")
-    parts = head.split(".") if head else []
     node, where = root, ""
-    for key in parts:
-        known = list(node) if isinstance(node, Mapping) else list(field_names(node))
-        if key not in known:
+    for key in head.split(".") if head else []:
+        if key not in (known := list(node) if isinstance(node, Mapping) else list(field_names(node))):
             raise _unknown(key, known, where)
-        node, where = (node[key] if isinstance(node, Mapping) else getattr(node, key)), f"{where}{key}."
+        node, where = _child(node, key), f"{where}{key}."
     update(node, {last: value}, where)
 
 
@@ -206,9 +200,8 @@ def _dump(root: Root, indent: int, comments: bool) -> list:
 
 
 def dump_yaml(root: Root, header: Sequence[str] = (), comments: bool = True) -> str:
-    """YAML of every settable field of ``root`` with its value, each preceded (``comments``) by
-    ``# [unit] doc``; nested structs as nested blocks. :func:`load_yaml` + :func:`update`
-    read it back to the same values."""
+    """YAML of every settable field of ``root`` with its value, each preceded (``comments``) by ``# [unit] doc``; nested
+    structs as nested blocks. :func:`load_yaml` + :func:`update` read it back to the same values."""
     return "\n".join([*header, *_dump(root, 0, comments)]) + "\n"
 
 

@@ -1,10 +1,9 @@
-"""Recordings other than TUM folders as sequences of :class:`~scanalign.reconstruction.camera.Frame`
-(``len``, indexing, iteration; images decoded when a frame is requested), opened by
-:func:`scanalign.datasets.open_source`: ROS 1 and ROS 2 bags (RealSense recordings included) as
-:class:`BagSequence`, read with the pure-Python ``rosbags`` package (``pip install
-'scanalign[ros]'``, no ROS install), and folders of PNG images with a camera file as
-:class:`ImageFolderSequence`; :func:`write_bag` and :func:`write_image_folder` write both (samples from the
-synthetic scanner: ``scanalign synth builtin OUT --format bag|png``)."""
+"""Recordings other than TUM folders as sequences of :class:`~scanalign.reconstruction.camera.Frame` (``len``, indexing,
+iteration; images decoded when a frame is requested), opened by :func:`scanalign.datasets.open_source`: ROS 1 and ROS 2
+bags (RealSense recordings included) as :class:`BagSequence`, read with the pure-Python ``rosbags`` package
+(``pip install 'scanalign[ros]'``, no ROS install), and folders of PNG images with a camera file as
+:class:`ImageFolderSequence`; :func:`write_bag` and :func:`write_image_folder` write both (samples from the synthetic
+scanner: ``scanalign synth builtin OUT --format bag|png``)."""
 
 from __future__ import annotations
 
@@ -16,18 +15,8 @@ from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from scanalign.datasets.tum import (
-    ImageFileSequence,
-    PathLike,
-    camera_argument,
-    check_number,
-    check_selection,
-    depth_units,
-    interpolate,
-    pair_frames,
-    resolve_camera,
-    write_tum_sequence,
-)
+from scanalign.datasets.tum import (ImageFileSequence, PathLike, camera_argument, check_number, check_selection,
+                                    depth_units, interpolate, pair_frames, resolve_camera, write_tum_sequence)
 from scanalign.evaluation.trajectory import Trajectory, pose_from_tum
 from scanalign.reconstruction.camera import Frame, camera_from_dict, sequence_index
 
@@ -120,10 +109,9 @@ class BagSequence:
         depth_topic: the depth ``sensor_msgs/Image`` topic; default: the only one with a depth
             encoding (:data:`DEPTH_ENCODINGS`), preferring names with ``aligned_depth_to_color``
             when colour is present, then names with ``depth``.
-        color_topic: the colour topic, or False for none; default: the colour-encoded
-            (:data:`COLOR_ENCODINGS`) topic registered to the depth images (their size and
-            ``header.frame_id``) sharing the longest name prefix with the depth topic (none: no
-            colour, said in :attr:`notes`). A named one must have the depth size.
+        color_topic: the colour topic, or False for none; default: the colour-encoded (:data:`COLOR_ENCODINGS`) topic
+            registered to the depth images (their size and ``header.frame_id``) sharing the longest name prefix with the
+            depth topic (none: no colour, said in :attr:`notes`). A named one must have the depth size.
         camera_info_topic: the depth images' ``sensor_msgs/CameraInfo`` (its K and "plumb_bob"
             distortion); default: the one of their size sharing the longest name prefix.
         intrinsics: an :class:`Intrinsics`, a preset name or a camera file overriding
@@ -148,10 +136,9 @@ class BagSequence:
         float64 depth header times, s), dropped_depth_frames, notes (what was chosen or ignored,
         and why).
 
-    Frames: ``depth`` (H, W) uint16 (units of :attr:`depth_scale`) or float32 metres, ``rgb``
-    (H, W, 3) uint8 or None, ``timestamp`` the depth header time (s), ``T_base_camera`` from
-    tf or None; ``meta``: ``joints`` ((n,) rad, when known), ``joint_names``,
-    ``depth_topic``, ``rgb_timestamp``, ``bag``.
+    Frames: ``depth`` (H, W) uint16 (units of :attr:`depth_scale`) or float32 metres, ``rgb`` (H, W, 3) uint8 or None,
+    ``timestamp`` the depth header time (s), ``T_base_camera`` from tf or None; ``meta``: ``joints`` ((n,) rad, when
+    known), ``joint_names``, ``depth_topic``, ``rgb_timestamp``, ``bag``.
 
     Raises:
         ImportError: ``rosbags`` is not installed.
@@ -595,13 +582,12 @@ def write_image_folder(folder: PathLike, frames: Sequence[Frame], depth_scale: O
 
 
 def write_bag(path: PathLike, frames: Sequence[Frame]) -> str:
-    """Writes frames as a ROS bag that :class:`BagSequence` reads back (needs ``rosbags``): a ROS 1
-    file when ``path`` ends in ``.bag``, else a ROS 2 bag folder. Topics: ``/camera/depth/image_raw``
-    (16UC1 in units of frame 0's ``depth_scale``, stated as RealSense's ``Depth Units`` option),
-    ``/camera/color/image_raw`` (rgb8, when the frames have colour), ``/camera/depth/camera_info``,
-    ``/tf`` (``base_link`` -> ``camera``: ``T_base_camera``, when known) and
-    ``/joint_states`` (``meta["joints"]``, when known), all stamped with the frames' timestamps (s).
-    FileExistsError when ``path`` exists; ValueError for no frames or a depth beyond 16 bits."""
+    """Writes frames as a ROS bag that :class:`BagSequence` reads back (needs ``rosbags``): a ROS 1 file when ``path``
+    ends in ``.bag``, else a ROS 2 bag folder. Topics: ``/camera/depth/image_raw`` (16UC1 in units of frame 0's
+    ``depth_scale``, stated as RealSense's ``Depth Units`` option), ``/camera/color/image_raw`` (rgb8, when the frames
+    have colour), ``/camera/depth/camera_info``, ``/tf`` (``base_link`` -> ``camera``: ``T_base_camera``, when known)
+    and ``/joint_states`` (``meta["joints"]``, when known), all stamped with the frames' timestamps (s). FileExistsError
+    when ``path`` exists; ValueError for no frames or a depth beyond 16 bits."""
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import Writer as Writer2
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore

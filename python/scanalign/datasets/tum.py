@@ -28,23 +28,10 @@ import numpy as np
 from PIL import Image
 
 from scanalign import _core
-from scanalign.evaluation.trajectory import (
-    PathLike,
-    Trajectory,
-    TumFormatError,
-    associate_timestamps,
-    read_tum_rows,
-    time_order,
-    write_tum_trajectory,
-)
-from scanalign.reconstruction.camera import (
-    INTRINSICS_PRESETS,
-    Frame,
-    Intrinsics,
-    camera_from_dict,
-    read_camera_file,
-    sequence_index,
-)
+from scanalign.evaluation.trajectory import (PathLike, Trajectory, TumFormatError, associate_timestamps, read_tum_rows,
+                                             time_order, write_tum_trajectory)
+from scanalign.reconstruction.camera import (INTRINSICS_PRESETS, Frame, Intrinsics, camera_from_dict, read_camera_file,
+                                             sequence_index)
 
 __all__ = ["TumSequence", "TumFormatError", "write_tum_sequence", "is_tum_folder", "read_timestamp_list",
            "TUM_DEPTH_SCALE", "CAMERA_FILE_NAMES"]
@@ -53,8 +40,7 @@ __all__ = ["TumSequence", "TumFormatError", "write_tum_sequence", "is_tum_folder
 TUM_DEPTH_SCALE = 1.0 / 5000.0
 
 #: Camera files looked for in a sequence folder, in this order.  At most one may exist.
-CAMERA_FILE_NAMES = ("camera.json", "camera.yaml", "camera.yml", "intrinsics.json", "intrinsics.yaml",
-                     "intrinsics.yml")
+CAMERA_FILE_NAMES = ("camera.json", "camera.yaml", "camera.yml", "intrinsics.json", "intrinsics.yaml", "intrinsics.yml")
 
 
 def check_number(name: str, value: Any, what: str, low: float = 0.0, strict: bool = False,
@@ -91,9 +77,8 @@ def _read_camera(path: PathLike) -> Tuple[Intrinsics, Optional[float]]:
 def camera_argument(intrinsics: Any) -> Tuple[Optional[Intrinsics], Optional[float], Optional[Path]]:
     """An ``intrinsics=`` argument (an :class:`Intrinsics`, a preset name of
     :data:`~scanalign.reconstruction.camera.INTRINSICS_PRESETS`, a camera file path or None) as
-    ``(intrinsics, depth_scale, file)``, the last two from a camera file only. ValueError for a
-    string that is neither a preset nor a file (TumFormatError: a malformed camera file),
-    TypeError for another type."""
+    ``(intrinsics, depth_scale, file)``, the last two from a camera file only. ValueError for a string that is neither a
+    preset nor a file (TumFormatError: a malformed camera file), TypeError for another type."""
     if intrinsics is None or isinstance(intrinsics, Intrinsics):
         return intrinsics, None, None
     if isinstance(intrinsics, str) and intrinsics in INTRINSICS_PRESETS:
@@ -110,11 +95,10 @@ def camera_argument(intrinsics: Any) -> Tuple[Optional[Intrinsics], Optional[flo
 
 def resolve_camera(folder: Path, intrinsics: Any, depth_scale: Any, default_scale: float,
                    max_scale: float = math.inf) -> Tuple[Intrinsics, float, Optional[Path]]:
-    """A recording folder's ``(intrinsics, depth_scale, camera file)``. ``intrinsics``: as
-    :func:`camera_argument`; None: the folder's camera file (one of :data:`CAMERA_FILE_NAMES`;
-    more than one is an error). ``depth_scale`` (m per unit, in ``(0, max_scale]``): this
-    argument, else the camera file given as ``intrinsics``, else the folder's camera file (read
-    only when it matters, so a stray file does not block explicit settings), else ``default_scale``."""
+    """A recording folder's ``(intrinsics, depth_scale, camera file)``. ``intrinsics``: as :func:`camera_argument`;
+    None: the folder's camera file (one of :data:`CAMERA_FILE_NAMES`; more than one is an error). ``depth_scale`` (m per
+    unit, in ``(0, max_scale]``): this argument, else the camera file given as ``intrinsics``, else the folder's camera
+    file (read only when it matters, so a stray file does not block explicit settings), else ``default_scale``."""
     rule = "a positive number of metres per unit" if max_scale == math.inf else f"in (0, {max_scale:g}] metres per unit"
     if depth_scale is not None:
         check_number("depth_scale", depth_scale, rule, strict=True, high=max_scale)
@@ -204,10 +188,9 @@ def pair_frames(depth_t: np.ndarray, color_t: np.ndarray, max_dt: float, where: 
 
 
 def interpolate(ts: np.ndarray, values: np.ndarray, t: np.ndarray, max_gap: float) -> List[Optional[np.ndarray]]:
-    """Per query time ``t``, the ``values`` sampled at sorted times ``ts`` (same unit)
-    interpolated, or None where the samples do not cover it (covered: an exact hit within
-    1e-9, or inside their span between two samples at most ``max_gap`` apart). Poses
-    (N, 4, 4) are linear in position and spherical-linear in rotation, rows (N, n) linear."""
+    """Per query time ``t``, the ``values`` sampled at sorted times ``ts`` (same unit) interpolated, or None where the
+    samples do not cover it (covered: an exact hit within 1e-9, or inside their span between two samples at most
+    ``max_gap`` apart). Poses (N, 4, 4) are linear in position and spherical-linear in rotation, rows (N, n) linear."""
     t, out = np.asarray(t), [None] * len(t)
     if len(ts) == 0:
         return out
@@ -270,16 +253,14 @@ def read_timestamp_list(path: PathLike) -> Tuple[np.ndarray, List[str], List[int
 
 
 class TumSequence(ImageFileSequence):
-    """An RGB-D sequence in the TUM RGB-D benchmark layout; PNGs are decoded when a frame is
-    requested.
+    """An RGB-D sequence in the TUM RGB-D benchmark layout; PNGs are decoded when a frame is requested.
 
-    Frames are the depth images of ``depth.txt`` in increasing time. When ``rgb.txt`` lists
-    images, each is paired with a colour image within ``max_time_difference`` by
-    :func:`~scanalign.evaluation.trajectory.associate_timestamps` (depth images without a
-    partner are dropped, counted in :attr:`dropped_depth_frames`); then ``start``, ``stride``,
-    ``limit`` select ``paired[start::stride][:limit]``. Ground truth (``groundtruth.txt``) is
-    interpolated to each depth timestamp (linear in position, spherical-linear in rotation); a
-    frame outside it, or in a gap wider than ``max_groundtruth_gap`` s, gets ``T_base_camera=None``.
+    Frames are the depth images of ``depth.txt`` in increasing time. When ``rgb.txt`` lists images, each is paired with
+    a colour image within ``max_time_difference`` by :func:`~scanalign.evaluation.trajectory.associate_timestamps`
+    (depth images without a partner are dropped, counted in :attr:`dropped_depth_frames`); then ``start``, ``stride``,
+    ``limit`` select ``paired[start::stride][:limit]``. Ground truth (``groundtruth.txt``) is interpolated to each depth
+    timestamp (linear in position, spherical-linear in rotation); a frame outside it, or in a gap wider than
+    ``max_groundtruth_gap`` s, gets ``T_base_camera=None``.
 
     Args:
         folder: the sequence folder.
@@ -299,10 +280,9 @@ class TumSequence(ImageFileSequence):
         whole time-sorted ground-truth :class:`Trajectory`, or None); per selected frame:
         timestamps ((N,) float64 s), depth_files, rgb_timestamps and rgb_files (None: depth only).
 
-    Frames: ``depth`` (H, W) uint16 in units of :attr:`depth_scale` m (0 = no measurement),
-    ``rgb`` (H, W, 3) uint8 or None, ``timestamp`` the depth timestamp, ``T_base_camera`` the
-    interpolated ground truth or None; ``meta``: ``depth_file``, ``rgb_file``,
-    ``rgb_timestamp``, ``source_index`` (position among all paired frames), ``sequence``.
+    Frames: ``depth`` (H, W) uint16 in units of :attr:`depth_scale` m (0 = no measurement), ``rgb`` (H, W, 3) uint8 or
+    None, ``timestamp`` the depth timestamp, ``T_base_camera`` the interpolated ground truth or None; ``meta``:
+    ``depth_file``, ``rgb_file``, ``rgb_timestamp``, ``source_index`` (position among all paired frames), ``sequence``.
 
     Raises (the lists, every selected image's existence and the first frame's image headers
     are checked on construction, every frame's images when loaded):
@@ -310,9 +290,8 @@ class TumSequence(ImageFileSequence):
         NotADirectoryError: ``folder`` is a file. TypeError: a non-integer ``stride``, ``start``
             or ``limit``, an ``intrinsics`` of another type.
         ValueError: a bad ``stride``, ``start``, ``limit``, ``depth_scale``, time bound;
-            TumFormatError (a ValueError, naming the file and line): a malformed list or camera
-            file, no intrinsics, an unreadable, non-16-bit (depth) or wrongly sized image, no
-            depth image with a colour partner.
+            TumFormatError (a ValueError, naming the file and line): a malformed list or camera file, no intrinsics, an
+            unreadable, non-16-bit (depth) or wrongly sized image, no depth image with a colour partner.
     """
 
     def __init__(self, folder: PathLike, intrinsics: Union[Intrinsics, str, "os.PathLike[str]", None] = None,
@@ -423,19 +402,17 @@ def depth_units(frame: Frame, depth_scale: float, where: str) -> np.ndarray:
 
 def write_tum_sequence(folder: PathLike, frames: Iterable[Frame], intrinsics: Optional[Intrinsics] = None,
                        depth_scale: float = TUM_DEPTH_SCALE, write_groundtruth: bool = True, lists: bool = True) -> str:
-    """Writes RGB-D frames into the TUM RGB-D layout, readable by :class:`TumSequence`:
-    ``depth/<timestamp>.png`` (16-bit, units of ``depth_scale`` m; integer images converted
-    from ``Frame.depth_scale``, float images in metres; rounded, with 0/negative/NaN/Inf
-    written as 0) and ``depth.txt``; with colour, ``rgb/<timestamp>.png`` and ``rgb.txt``;
-    ``camera.json`` (``intrinsics``, default the frames' own, which must then agree, and
-    ``depth_scale``); and, unless ``write_groundtruth`` is False, ``groundtruth.txt`` with
-    each frame's ``T_base_camera`` (as ``T_world_camera``, metres) when it has one; ``lists=False``:
-    no ``depth.txt`` / ``rgb.txt`` (the image folder of :class:`~scanalign.datasets.ImageFolderSequence`).
-    Timestamps get 6 decimals; frames are written in time order; PNGs use zlib level 1.
-    Returns the folder path. Raises TypeError (not a :class:`Frame`, bad ``intrinsics``),
-    ValueError (no frames, mixed intrinsics or colour, size mismatch, malformed colour or
-    pose, timestamps equal at 6 decimals or non-finite, depth beyond ``65535 * depth_scale``),
-    FileExistsError (``folder`` already holds a sequence) or NotADirectoryError.
+    """Writes RGB-D frames into the TUM RGB-D layout, readable by :class:`TumSequence`: ``depth/<timestamp>.png``
+    (16-bit, units of ``depth_scale`` m; integer images converted from ``Frame.depth_scale``, float images in metres;
+    rounded, with 0/negative/NaN/Inf written as 0) and ``depth.txt``; with colour, ``rgb/<timestamp>.png`` and
+    ``rgb.txt``; ``camera.json`` (``intrinsics``, default the frames' own, which must then agree, and ``depth_scale``);
+    and, unless ``write_groundtruth`` is False, ``groundtruth.txt`` with each frame's ``T_base_camera`` (as
+    ``T_world_camera``, metres) when it has one; ``lists=False``: no ``depth.txt`` / ``rgb.txt`` (the image folder of
+    :class:`~scanalign.datasets.ImageFolderSequence`). Timestamps get 6 decimals; frames are written in time order; PNGs
+    use zlib level 1. Returns the folder path. Raises TypeError (not a :class:`Frame`, bad ``intrinsics``), ValueError
+    (no frames, mixed intrinsics or colour, size mismatch, malformed colour or pose, timestamps equal at 6 decimals or
+    non-finite, depth beyond ``65535 * depth_scale``), FileExistsError (``folder`` already holds a sequence) or
+    NotADirectoryError.
     """
     depth_scale = check_number("depth_scale", depth_scale, "a positive number of metres per unit", strict=True)
     frames = list(frames)

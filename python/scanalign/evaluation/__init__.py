@@ -56,10 +56,9 @@ def umeyama_alignment(source: np.ndarray, target: np.ndarray,
                       with_scale: bool = False) -> Tuple[np.ndarray, np.ndarray, float]:
     """``(R (3, 3), t (3,), s)``, the least-squares similarity (or rigid) transform taking ``source`` onto ``target``
     ((N, 3) corresponding points in one unit; Umeyama 1991, the C++ core's one implementation): it minimises
-    ``sum_i || target_i - (s R source_i + t) ||^2`` over rotations R (det +1), translations t and, with
-    ``with_scale``, a scale s > 0 (else s = 1).  The 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``.  ValueError:
-    shape mismatch, N < 3, non-finite values, or all points coincident or collinear in source or target (the rotation
-    is not determined)."""
+    ``sum_i || target_i - (s R source_i + t) ||^2`` over rotations R (det +1), translations t and, with ``with_scale``,
+    a scale s > 0 (else s = 1). The 4x4 ``[[s R, t], [0, 1]]`` is ``T_target_source``. ValueError: shape mismatch, N <
+    3, non-finite values, or all points coincident or collinear in source or target (the rotation is not determined)."""
     R, t, s = _core.registration.fit_similarity(np.ascontiguousarray(source, dtype=np.float64),
                                                 np.ascontiguousarray(target, dtype=np.float64), bool(with_scale))
     return np.asarray(R), np.asarray(t), float(s)

@@ -2,9 +2,8 @@
 
 Formats:
 
-- **PCD** (PCL Point Cloud Data, v0.5-v0.7): :func:`read_pcd`, :func:`read_pcd_points`,
-  with ``DATA ascii``, ``binary`` and ``binary_compressed`` (LZF) payloads, parsed by the
-  C++ core (``scanalign/io/pcd.hpp``).
+- **PCD** (PCL Point Cloud Data, v0.5-v0.7): :func:`read_pcd`, :func:`read_pcd_points`, with ``DATA ascii``, ``binary``
+  and ``binary_compressed`` (LZF) payloads, parsed by the C++ core (``scanalign/io/pcd.hpp``).
 - **Meshes**: :func:`read_mesh` for ``.off``, ``.ply``, ``.stl`` and ``.obj``; polygons
   are fan-triangulated into a :class:`Mesh`.  PLY goes through the ``plyfile`` library,
   the others through the C++ core (``scanalign/io/mesh_text.hpp``).
@@ -48,23 +47,15 @@ lzf_decompress = _io.lzf_decompress
 
 
 def read_pcd(path: PathLike) -> dict[str, np.ndarray]:
-    """Read a PCL ``.pcd`` file into a dict of per-point field arrays.
+    """Read a PCL ``.pcd`` file (``DATA ascii``, ``binary`` or ``binary_compressed``) into a dict of per-point field
+    arrays: field name -> array, in header order, with the dtype given by the header (``TYPE``/``SIZE``).
 
-    Args:
-        path: the ``.pcd`` file (``DATA ascii``, ``binary`` or ``binary_compressed``).
-
-    Returns:
-        Field name -> array, in header order, with the dtype given by the header
-        (``TYPE``/``SIZE``).  A field with ``COUNT 1`` has shape ``(N,)``, otherwise ``(N, COUNT)``.
-        Organised clouds (``HEIGHT > 1``) are flattened row by row to ``N = WIDTH * HEIGHT``;
-        invalid points stay in place as NaN.  Coordinates (``x``, ``y``, ``z``) are in the file's
-        unit (metres for PCL's own data). Normals come back as their own fields (``normal_x``,
-        ``normal_y``, ``normal_z``). Packed colours (``rgb``/``rgba``) are returned raw; see
-        :func:`unpack_rgb`. PCL's padding fields named ``_`` are dropped.
-
-    Raises:
-        ValueError: malformed header, unknown DATA type, truncated or corrupt payload,
-            or a header claiming more data than the file holds.
+    A field with ``COUNT 1`` has shape ``(N,)``, otherwise ``(N, COUNT)``. Organised clouds (``HEIGHT > 1``) are
+    flattened row by row to ``N = WIDTH * HEIGHT``; invalid points stay in place as NaN.  Coordinates (``x``, ``y``,
+    ``z``) are in the file's unit (metres for PCL's own data). Normals come back as their own fields (``normal_x``,
+    ``normal_y``, ``normal_z``). Packed colours (``rgb``/``rgba``) are returned raw; see :func:`unpack_rgb`. PCL's
+    padding fields named ``_`` are dropped. ValueError: malformed header, unknown DATA type, truncated or corrupt
+    payload, or a header claiming more data than the file holds.
     """
     try:
         return _io.parse_pcd(Path(path).read_bytes())[1]
@@ -73,21 +64,10 @@ def read_pcd(path: PathLike) -> dict[str, np.ndarray]:
 
 
 def read_pcd_points(path: PathLike, dtype: npt.DTypeLike = np.float64, remove_nan: bool = True) -> np.ndarray:
-    """Read the ``x y z`` coordinates of a ``.pcd`` file.
-
-    Args:
-        path: the ``.pcd`` file.
-        dtype: floating dtype of the result.
-        remove_nan: drop rows with any non-finite coordinate (invalid points of
-            organised clouds are stored as NaN).
-
-    Returns:
-        ``(N, 3)`` array of points in the file's unit (metres for PCL's own data).
-
-    Raises:
-        ValueError: the file is not a valid PCD file, has no ``x``, ``y``, ``z`` fields, or
-            one of them has ``COUNT`` above 1.
-    """
+    """The ``x y z`` coordinates of a ``.pcd`` file: an ``(N, 3)`` array of floating ``dtype`` in the file's unit
+    (metres for PCL's own data); ``remove_nan`` drops rows with any non-finite coordinate (invalid points of organised
+    clouds are stored as NaN). ValueError: the file is not a valid PCD file, has no ``x``, ``y``, ``z`` fields, or one
+    of them has ``COUNT`` above 1."""
     points = _pcd_xyz(path, read_pcd(path)).astype(dtype)
     return points[np.isfinite(points).all(axis=1)] if remove_nan else points
 
@@ -103,18 +83,10 @@ def _pcd_xyz(path: PathLike, fields: dict[str, np.ndarray]) -> np.ndarray:
 
 
 def unpack_rgb(field: npt.ArrayLike) -> np.ndarray:
-    """Unpack PCL's packed ``rgb``/``rgba`` field into 8-bit colours.
-
-    PCL stores a colour as the 32-bit pattern ``0xAARRGGBB``, typed either as a float
-    (``rgb``, TYPE F) or as an unsigned integer (``rgba``, TYPE U).  Float input is
-    reinterpreted bit for bit (float64 input is first narrowed to float32).
-
-    Args:
-        field: ``(N,)`` packed values as returned by :func:`read_pcd`.
-
-    Returns:
-        ``(N, 3)`` uint8 array of ``red, green, blue``.
-    """
+    """Unpack PCL's packed ``rgb``/``rgba`` field (``(N,)`` values as :func:`read_pcd` returns them) into an ``(N, 3)``
+    uint8 array of ``red, green, blue``. PCL stores a colour as the 32-bit pattern ``0xAARRGGBB``, typed either as a
+    float (``rgb``, TYPE F) or as an unsigned integer (``rgba``, TYPE U).  Float input is reinterpreted bit for bit
+    (float64 input is first narrowed to float32)."""
     values = np.asarray(field)
     bits = values.astype(np.float32).view(np.uint32) if values.dtype.kind == "f" else values.astype(np.uint32)
     return ((bits[..., None] >> np.array([16, 8, 0], dtype=np.uint32)) & 0xFF).astype(np.uint8)
@@ -122,13 +94,9 @@ def unpack_rgb(field: npt.ArrayLike) -> np.ndarray:
 
 @dataclasses.dataclass(frozen=True, eq=False)
 class Mesh:
-    """A triangle mesh.
-
-    Attributes:
-        vertices: ``(V, 3)`` float64 vertex positions, in the unit the source file used.
-        faces: ``(F, 3)`` int64 vertex indices, each in ``[0, V)``.  Winding order is
-            kept from the file (counter-clockwise seen from outside, by convention).
-    """
+    """A triangle mesh: ``vertices`` ``(V, 3)`` float64 positions, in the unit the source file used; ``faces``
+    ``(F, 3)`` int64 vertex indices, each in ``[0, V)``, in the file's winding order (counter-clockwise seen from
+    outside, by convention)."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -215,19 +183,11 @@ def read_mesh(path: PathLike) -> Mesh:
     - OBJ: ``v`` and ``f`` records (``f 1 2 3``, ``f 1/1/1 ...``, ``f 1//1 ...``,
       negative relative indices); everything else is ignored.
 
-    Polygons with more than three corners are fan-triangulated.
-
-    Args:
-        path: the mesh file.
-
-    Returns:
-        A :class:`Mesh` with ``(V, 3)`` float64 vertices in the file's unit (CAD files
-        are frequently in millimetres; scale to metres yourself) and ``(F, 3)`` int64 faces.
-
-    Raises:
-        ValueError: unknown extension, malformed or truncated file, a header claiming more
-            vertices or faces than the file holds (refused before allocating), a non-finite
-            vertex, a face index out of range, or a face with fewer than 3 corners.
+    Polygons with more than three corners are fan-triangulated. Returns a :class:`Mesh` with ``(V, 3)`` float64
+    vertices in the file's unit (CAD files are frequently in millimetres; scale to metres yourself) and ``(F, 3)`` int64
+    faces. ValueError: unknown extension, malformed or truncated file, a header claiming more vertices or faces than
+    the file holds (refused before allocating), a non-finite vertex, a face index out of range, or a face with fewer
+    than 3 corners.
     """
     suffix = Path(path).suffix.lower()
     if suffix == ".ply":
@@ -259,21 +219,12 @@ def write_ply(path: PathLike, points: npt.ArrayLike, normals: npt.ArrayLike | No
               colors: npt.ArrayLike | None = None, binary: bool = True) -> None:
     """Write a point cloud as PLY (readable by MeshLab, CloudCompare, Open3D).
 
-    The vertex element has ``float x y z``, then optionally ``float nx ny nz``, then
-    optionally ``uchar red green blue``.  Binary output uses ``binary_little_endian 1.0``;
-    ASCII output prints floats with 9 significant digits, so float32 values survive.
-    (A short numpy writer: plyfile's ASCII writer is ten times slower.)
-
-    Args:
-        path: output file.
-        points: ``(N, 3)`` coordinates, in metres by library convention (stored as float32).
-        normals: optional ``(N, 3)`` normals (stored as float32).
-        colors: optional ``(N, 3)`` colours, either uint8 / integers in ``[0, 255]`` or
-            floats in ``[0, 1]`` (scaled by 255 and rounded).
-        binary: binary little endian (default) or ASCII.
-
-    Raises:
-        ValueError: wrong shapes or colour values out of range.
+    The vertex element has ``float x y z``, then optionally ``float nx ny nz``, then optionally
+    ``uchar red green blue``. Binary output uses ``binary_little_endian 1.0``; ASCII output prints floats with 9
+    significant digits, so float32 values survive. (A short numpy writer: plyfile's ASCII writer is ten times slower.)
+    ``points``: ``(N, 3)`` coordinates, in metres by library convention (stored as float32); ``normals``: optional
+    ``(N, 3)`` (stored as float32); ``colors``: optional ``(N, 3)``, either uint8 / integers in ``[0, 255]`` or floats
+    in ``[0, 1]`` (scaled by 255 and rounded). ValueError: wrong shapes or colour values out of range.
     """
     xyz = np.asarray(points, dtype=np.float32)
     if xyz.ndim != 2 or xyz.shape[1] != 3:
@@ -315,19 +266,10 @@ def write_ply(path: PathLike, points: npt.ArrayLike, normals: npt.ArrayLike | No
 
 
 def read_ply_points(path: PathLike) -> dict[str, np.ndarray]:
-    """Read the vertices of a PLY file as a point cloud (faces, if any, are ignored).
-
-    Args:
-        path: a PLY file (ascii or binary).
-
-    Returns:
-        ``{"points": (N, 3) float64}`` in the file's unit, plus ``"normals"``
-        ``(N, 3)`` float64 if ``nx ny nz`` are present and ``"colors"`` ``(N, 3)`` uint8
-        if ``red green blue`` are present (float colours in ``[0, 1]`` are scaled by 255).
-
-    Raises:
-        ValueError: malformed file or no ``x y z`` vertex properties.
-    """
+    """Read the vertices of a PLY file (ascii or binary) as a point cloud (faces, if any, are ignored):
+    ``{"points": (N, 3) float64}`` in the file's unit, plus ``"normals"`` ``(N, 3)`` float64 if ``nx ny nz`` are present
+    and ``"colors"`` ``(N, 3)`` uint8 if ``red green blue`` are present (float colours in ``[0, 1]`` are scaled by
+    255). ValueError: malformed file or no ``x y z`` vertex properties."""
     ply = _read_ply(path)
     result = {"points": _ply_vertex_columns(path, ply).astype(np.float64)}
     if (normals := _ply_vertex_columns(path, ply, ("nx", "ny", "nz"))) is not None:

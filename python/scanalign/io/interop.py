@@ -63,10 +63,9 @@ def _unit_colors(colors: Optional[np.ndarray], n: int) -> Optional[np.ndarray]:
 
 def to_open3d(points_or_mesh: Union[np.ndarray, io.Mesh, tuple, Any], normals: Optional[np.ndarray] = None,
               colors: Optional[np.ndarray] = None) -> Any:
-    """An ``open3d.geometry.PointCloud`` of (N, 3) points (any :func:`~scanalign.common.arrays.as_points`
-    input), or an ``open3d.geometry.TriangleMesh`` of a :class:`scanalign.io.Mesh`, a
-    ``(vertices, faces)`` pair or a trimesh mesh. ``normals`` (N, 3) and ``colors`` (N, 3;
-    uint8 or float in [0, 1]) per point (per vertex for a mesh) are optional.
+    """An ``open3d.geometry.PointCloud`` of (N, 3) points (any :func:`~scanalign.common.arrays.as_points` input), or an
+    ``open3d.geometry.TriangleMesh`` of a :class:`scanalign.io.Mesh`, a ``(vertices, faces)`` pair or a trimesh mesh.
+    ``normals`` (N, 3) and ``colors`` (N, 3; uint8 or float in [0, 1]) per point (per vertex for a mesh) are optional.
 
     Raises:
         ImportError: Open3D is not installed (``pip install open3d``).

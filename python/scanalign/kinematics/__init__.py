@@ -8,39 +8,33 @@ fixed transforms. Frames and units (metres and radians everywhere):
 - DH frame i is attached to link i; frame 0 is the DH base frame, frame 6 the flange.
   ``T_{i-1,i} = Rot_z(theta_i) Trans_z(d_i) Trans_x(a_i) Rot_x(alpha_i)`` (Paper 1 eq. (1)) with
   ``theta_i = q_i + theta_offset_i``, where ``q`` are the joint values the controller shows.
-- ``T_base_dh0`` places DH frame 0 in the user's robot base frame and ``T_flange_tool``
-  places the tool centre point in the flange frame, so
-  ``T_base_tool(q) = T_base_dh0 @ T_01 @ ... @ T_56 @ T_flange_tool`` (Paper 1 eq. (3)).
+- ``T_base_dh0`` places DH frame 0 in the user's robot base frame and ``T_flange_tool`` places the tool centre point in
+  the flange frame, so ``T_base_tool(q) = T_base_dh0 @ T_01 @ ... @ T_56 @ T_flange_tool`` (Paper 1 eq. (3)).
   ``T_base_tool`` maps tool coordinates into the robot base frame.
 
-Inverse kinematics is solved in closed form for two arm layouts (``Robot.geometry``):
-``"spherical_wrist"`` (KUKA KR6 R900 sixx "Agilus" and arms of the same layout: shoulder
-offset a1, elbow offset a3, spherical wrist) and ``"universal_robots"`` (three parallel
-axes and an offset wrist). The joint points of the arm are intersections of CGA spheres and
-planes (point pairs); an imaginary point pair (Q^2 < 0) reports the configuration as
-``"unreachable"`` (``q`` NaN) instead of returning wrong angles.
+Inverse kinematics is solved in closed form for two arm layouts (``Robot.geometry``): ``"spherical_wrist"`` (KUKA KR6
+R900 sixx "Agilus" and arms of the same layout: shoulder offset a1, elbow offset a3, spherical wrist) and
+``"universal_robots"`` (three parallel axes and an offset wrist). The joint points of the arm are intersections of CGA
+spheres and planes (point pairs); an imaginary point pair (Q^2 < 0) reports the configuration as ``"unreachable"``
+(``q`` NaN) instead of returning wrong angles.
 
-Every pose has up to 8 solutions, stored at a fixed index
-``4*(shoulder<0) + 2*(elbow<0) + (wrist<0)`` (:meth:`IKResult.index`). The labels are
-geometric:
+Every pose has up to 8 solutions, stored at a fixed index ``4*(shoulder<0) + 2*(elbow<0) + (wrist<0)``
+(:meth:`IKResult.index`). The labels are geometric:
 
-- ``shoulder`` +1 ("front"): the wrist centre (KUKA ``P_w``; UR ``P_c``, the projection of
-  ``P5`` onto the arm plane) lies on the side of the first joint axis that the upper arm
-  points to at theta2 = 0, ``f = sign(a2) x1`` (x1: DH x axis of link 1; the +x1 side for the
-  KUKA, the -x1 side for UR arms, whose a2 < 0); -1 ("back").
+- ``shoulder`` +1 ("front"): the wrist centre (KUKA ``P_w``; UR ``P_c``, the projection of ``P5`` onto the arm plane)
+  lies on the side of the first joint axis that the upper arm points to at theta2 = 0, ``f = sign(a2) x1`` (x1: DH x
+  axis of link 1; the +x1 side for the KUKA, the -x1 side for UR arms, whose a2 < 0); -1 ("back").
 - ``elbow`` +1 ("up"): the elbow point ``P2`` lies above the line from the shoulder point
   ``P1`` to the wrist point (KUKA ``P_w``, UR ``P3``), seen in the arm plane with the arm
   reaching forward (towards the wrist centre); -1 ("down").
 - ``wrist`` +1 ("no flip"): ``sin(theta5) > 0`` (DH angle); -1 ("flip").
 
-Singular poses are solved with a free angle (``q_free``): KUKA shoulder (wrist centre on the
-first axis) ``q1 = q_free[0]``, KUKA wrist ``q4 = q_free[3]``, UR wrist ``q6 = q_free[5]`` (or
-the nearest q6 for which the elbow still reaches), ``+ pi`` for "back" / "flip";
-:attr:`IKResult.singular` names which applied, per solution.
+Singular poses are solved with a free angle (``q_free``): KUKA shoulder (wrist centre on the first axis)
+``q1 = q_free[0]``, KUKA wrist ``q4 = q_free[3]``, UR wrist ``q6 = q_free[5]`` (or the nearest q6 for which the elbow
+still reaches), ``+ pi`` for "back" / "flip"; :attr:`IKResult.singular` names which applied, per solution.
 
-The classes are the C++ structs, bound directly (``scanalign._core.kinematics``): every
-argument is checked once, at the C++ boundary, and a bad one raises TypeError / ValueError
-naming it. Results are values with read-only arrays.
+The classes are the C++ structs, bound directly (``scanalign._core.kinematics``): every argument is checked once, at the
+C++ boundary, and a bad one raises TypeError / ValueError naming it. Results are values with read-only arrays.
 """
 
 from __future__ import annotations

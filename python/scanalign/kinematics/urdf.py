@@ -1,17 +1,15 @@
 """Robots from URDF files: ``Robot.from_urdf(path, base_link, tip_link)``.
 
-A URDF describes an arm as a tree of links joined by joints, each joint placed by an arbitrary
-``<origin>`` and turning about an arbitrary ``<axis>``. This module reads the file (with the
-``yourdfpy`` parser), walks the chain ``base_link -> tip_link`` and folds the fixed joints into
-their neighbours; :meth:`Robot.from_joint_chain` (C++, ``scanalign/kinematics/joint_chain.hpp``)
-then derives the standard DH table the analytic inverse kinematics needs, ``T_base_dh0`` and
-``T_flange_tool`` from the joint axes, so that ``robot.fk(q)`` is the pose of ``tip_link`` in
+A URDF describes an arm as a tree of links joined by joints, each joint placed by an arbitrary ``<origin>`` and turning
+about an arbitrary ``<axis>``. This module reads the file (with the ``yourdfpy`` parser), walks the chain
+``base_link -> tip_link`` and folds the fixed joints into their neighbours; :meth:`Robot.from_joint_chain` (C++,
+``scanalign/kinematics/joint_chain.hpp``) then derives the standard DH table the analytic inverse kinematics needs,
+``T_base_dh0`` and ``T_flange_tool`` from the joint axes, so that ``robot.fk(q)`` is the pose of ``tip_link`` in
 ``base_link`` for the URDF's joint values q, limits included.
 
-The DH z axes follow the URDF joint axes, so q maps 1:1 onto the URDF joints unless
-``joint_signs`` reverses some. Each DH x axis has a free sign (it flips alpha_i and a_i and
-moves theta offsets by pi); of the 32 choices the one that makes the table one of the
-analytic layouts is taken, with the smallest theta offsets.
+The DH z axes follow the URDF joint axes, so q maps 1:1 onto the URDF joints unless ``joint_signs`` reverses some. Each
+DH x axis has a free sign (it flips alpha_i and a_i and moves theta offsets by pi); of the 32 choices the one that makes
+the table one of the analytic layouts is taken, with the smallest theta offsets.
 
 Needs the ``yourdfpy`` parser (``pip install 'scanalign[urdf]'``), imported on first use.
 """
@@ -116,20 +114,18 @@ def robot_from_urdf(path, base_link: str, tip_link: str, *, name: Optional[str] 
                     tolerance: float = 1e-9):
     """A :class:`~scanalign.kinematics.Robot` from the chain ``base_link -> tip_link`` of a URDF.
 
-    ``robot.fk(q)`` is ``T_base_tip``, the pose of ``tip_link`` in ``base_link`` (metres), for
-    the URDF joint values q (rad, the 6 revolute / continuous joints of the chain in order;
-    fixed joints are folded in). The DH table, ``T_base_dh0`` and ``T_flange_tool`` are derived
-    from the joint axes (:meth:`Robot.from_joint_chain`); limits are the URDF's ``<limit>``
-    (continuous joints: +-inf).
+    ``robot.fk(q)`` is ``T_base_tip``, the pose of ``tip_link`` in ``base_link`` (metres), for the URDF joint values q
+    (rad, the 6 revolute / continuous joints of the chain in order; fixed joints are folded in). The DH table,
+    ``T_base_dh0`` and ``T_flange_tool`` are derived from the joint axes (:meth:`Robot.from_joint_chain`); limits are
+    the URDF's ``<limit>`` (continuous joints: +-inf).
 
     Args:
         path: the ``.urdf`` file (meshes are not loaded and need not exist).
         base_link, tip_link: link names; tip_link must lie below base_link.
         name: the Robot's label (default: the URDF's robot name).
-        joint_signs: (6,) of +1 / -1 (default all +1): the Robot's joint i turns
-            ``q_i = joint_signs[i] * q_urdf_i``. For URDFs whose axes point against the
-            analytic layouts (e.g. a KUKA description with A1, A4, A6 about -z / -x); the
-            error for such a chain names the signs that make it analytic.
+        joint_signs: (6,) of +1 / -1 (default all +1): the Robot's joint i turns ``q_i = joint_signs[i] * q_urdf_i``.
+            For URDFs whose axes point against the analytic layouts (e.g. a KUKA description with A1, A4, A6 about -z /
+            -x); the error for such a chain names the signs that make it analytic.
         fk_only: return the Robot even when the chain is none of the analytic layouts
             (``robot.geometry == 'unsupported'``; fk works, ik raises ValueError).
         tolerance: axes within this angle (rad) count as parallel, and DH values within it of

@@ -1,20 +1,17 @@
 """Pose of a known part from its CAD model (Kleppe, PhD thesis, NTNU 2018, ch. 6-7; papers 4-5).
 
-Everything runs in C++ (``cpp/include/scanalign/pose``); this module converts arrays and
-keyword arguments. Building blocks: Valkenburg-Dorst motors from point pairs
-(:func:`estimate_motor`), RANSAC over putative pairs (:func:`ransac_rigid_motion`) and the coarse
-alignments :func:`align_cbd` (curvature-based descriptors, paper 5), :func:`align_flags`
-(paper 4's normal-line flags) and :func:`pcl_feature_alignment` (the thesis's PCL baselines).
+Everything runs in C++ (``cpp/include/scanalign/pose``); this module converts arrays and keyword arguments. Building
+blocks: Valkenburg-Dorst motors from point pairs (:func:`estimate_motor`), RANSAC over putative pairs
+(:func:`ransac_rigid_motion`) and the coarse alignments :func:`align_cbd` (curvature-based descriptors, paper 5),
+:func:`align_flags` (paper 4's normal-line flags) and :func:`pcl_feature_alignment` (the thesis's PCL baselines).
 
-Pipeline: :func:`estimate_pose` matches a model (a mesh rendered from the 42 vertices of a
-tessellated sphere, see :mod:`scanalign.pose.model_views`, or a cloud) against one object cloud, refines
-with scanalign's ICP and keeps the best view; :func:`find_objects` first segments the table
-and clusters the objects (paper 3); :func:`find_parts` does that for several known parts and
-names the part in each cluster (``found`` / ``not_found`` / ``ambiguous``).
+Pipeline: :func:`estimate_pose` matches a model (a mesh rendered from the 42 vertices of a tessellated sphere, see
+:mod:`scanalign.pose.model_views`, or a cloud) against one object cloud, refines with scanalign's ICP and keeps the best
+view; :func:`find_objects` first segments the table and clusters the objects (paper 3); :func:`find_parts` does that for
+several known parts and names the part in each cluster (``found`` / ``not_found`` / ``ambiguous``).
 
-Frames and units: metres and radians. Every transform is ``T_target_source``
-(``p_target = T @ p_source``); for the pipeline that is ``T_scene_model``: it maps model
-(CAD) coordinates into the scene (camera) frame.
+Frames and units: metres and radians. Every transform is ``T_target_source`` (``p_target = T @ p_source``); for the
+pipeline that is ``T_scene_model``: it maps model (CAD) coordinates into the scene (camera) frame.
 """
 
 from __future__ import annotations
@@ -69,11 +66,10 @@ def _pairs(source: object, target: object) -> Tuple[np.ndarray, np.ndarray]:
 
 def estimate_motor(source: np.ndarray, target: np.ndarray, weights: Optional[np.ndarray] = None, *,
                    normalize: bool = True) -> MotorEstimationResult:
-    """Valkenburg-Dorst motor from pairs ``source[i] <-> target[i]`` ((N, 3) each, metres;
-    paper 5, (36)-(44)): the unit motor maximising ``Σ w_k ⟨M̃ Y_k M X_k⟩``, optionally
-    weighted; ``normalize`` centres and scales first (only rounding changes). ``valid`` is
-    False (identity) for fewer than 3 pairs or collinear data; ValueError for unpaired or
-    non-finite pairs and bad weights."""
+    """Valkenburg-Dorst motor from pairs ``source[i] <-> target[i]`` ((N, 3) each, metres; paper 5, (36)-(44)): the unit
+    motor maximising ``Σ w_k ⟨M̃ Y_k M X_k⟩``, optionally weighted; ``normalize`` centres and scales first (only
+    rounding changes). ``valid`` is False (identity) for fewer than 3 pairs or collinear data; ValueError for unpaired
+    or non-finite pairs and bad weights."""
     s, t = _pairs(source, target)
     return _P.estimate_motor(s, t, weights, bool(normalize))
 
@@ -99,12 +95,11 @@ def _ransac_settings(base: Any = None, overrides: Optional[Dict[str, Any]] = Non
 
 def ransac_rigid_motion(source: np.ndarray, target: np.ndarray, pairs: np.ndarray,
                         settings: Optional[Any] = None, **overrides: Any) -> CorrespondenceRansacResult:
-    """Rigid motion from putative pairs ``(K, 2)`` (indices into source and target, metres)
-    with outliers: RANSAC over 3-pair samples prerejected unless their edge lengths agree
-    within ``edge_similarity``, Kabsch hypotheses ranked by MSAC cost, adaptive stop at
-    ``confidence``, a motor refit on the inliers (``inlier_threshold`` m). ``settings``: a
-    ``CorrespondenceRansacSettings`` (default its C++ defaults) with keyword ``overrides``.
-    Deterministic for a ``seed`` whatever the thread count."""
+    """Rigid motion from putative pairs ``(K, 2)`` (indices into source and target, metres) with outliers: RANSAC over
+    3-pair samples prerejected unless their edge lengths agree within ``edge_similarity``, Kabsch hypotheses ranked by
+    MSAC cost, adaptive stop at ``confidence``, a motor refit on the inliers (``inlier_threshold`` m). ``settings``: a
+    ``CorrespondenceRansacSettings`` (default its C++ defaults) with keyword ``overrides``. Deterministic for a ``seed``
+    whatever the thread count."""
     s, t = _pairs(source, target)
     p = np.asarray(pairs)
     if p.size and not np.issubdtype(p.dtype, np.integer):
@@ -139,14 +134,13 @@ def _cbd_alignment_settings(settings: Any, overrides: Dict[str, object], ransac:
 
 def align_cbd(source: np.ndarray, target: np.ndarray, settings: Optional[Any] = None, *,
               ransac: Optional[Dict[str, Any]] = None, **overrides: object) -> CbdAlignmentResult:
-    """Coarse alignment of ``source`` (e.g. a model view) onto ``target`` (e.g. a scene object),
-    (N, 3) metres, with the curvature-based descriptor (paper 5): CBD on both clouds,
-    nearest-descriptor matches (``matches_per_keypoint``), RANSAC (``ransac``: a dict of
-    :func:`ransac_rigid_motion` keywords) and a motor refit, repeated on the pairs left for up
-    to ``hypotheses`` poses, the best fit of the whole source cloud winning (1: classic RANSAC).
-    ``settings``: a ``CbdAlignmentSettings`` or a :class:`scanalign.pose.cbd.CbdSettings` (default:
-    the C++ defaults, the thesis's); keyword ``overrides`` name fields of either.
-    ``found`` is False with a message when there are too few keypoints or no consensus."""
+    """Coarse alignment of ``source`` (e.g. a model view) onto ``target`` (e.g. a scene object), (N, 3) metres, with the
+    curvature-based descriptor (paper 5): CBD on both clouds, nearest-descriptor matches (``matches_per_keypoint``),
+    RANSAC (``ransac``: a dict of :func:`ransac_rigid_motion` keywords) and a motor refit, repeated on the pairs left
+    for up to ``hypotheses`` poses, the best fit of the whole source cloud winning (1: classic RANSAC). ``settings``: a
+    ``CbdAlignmentSettings`` or a :class:`scanalign.pose.cbd.CbdSettings` (default: the C++ defaults, the thesis's);
+    keyword ``overrides`` name fields of either. ``found`` is False with a message when there are too few keypoints or
+    no consensus."""
     s = as_points(source, "source")
     t = as_points(target, "target", s.dtype)
     if len(s) == 0 or len(t) == 0:
@@ -163,10 +157,9 @@ def normal_line_flag(points: np.ndarray, normals: np.ndarray) -> NormalLineFlag:
 
 def align_flags(source: np.ndarray, source_normals: np.ndarray, target: np.ndarray, target_normals: np.ndarray,
                 settings: Optional[Any] = None, **overrides: Any) -> FlagAlignmentResult:
-    """Paper 4 initial alignment: the motor mapping the source flag (centroid + average normal
-    line) onto the target's, by Levenberg-Marquardt on the motor manifold. ``settings``: a
-    ``FlagAlignmentSettings`` (default its C++ defaults) with keyword ``overrides``. Partial
-    views only: refused (``valid`` False) when a mean unit normal is shorter than
+    """Paper 4 initial alignment: the motor mapping the source flag (centroid + average normal line) onto the target's,
+    by Levenberg-Marquardt on the motor manifold. ``settings``: a ``FlagAlignmentSettings`` (default its C++ defaults)
+    with keyword ``overrides``. Partial views only: refused (``valid`` False) when a mean unit normal is shorter than
     ``min_mean_normal_length`` (a closed surface's normals average to zero)."""
     clouds = [as_points(a, name, np.dtype(np.float64)) for a, name in
               ((source, "source"), (source_normals, "source_normals"), (target, "target"),
@@ -176,10 +169,9 @@ def align_flags(source: np.ndarray, source_normals: np.ndarray, target: np.ndarr
 
 def pcl_feature_alignment(source: np.ndarray, target: np.ndarray, method: str = "fpfh",
                           **settings: object) -> PclFeatureAlignmentResult:
-    """A stock PCL 1.13 coarse registration of ``source`` onto ``target`` ((N, 3) metres, run in
-    float32), the thesis's baselines (§7.6): ``"fpfh"`` (FPFHEstimationOMP +
-    SampleConsensusPrerejective), ``"fpfh_sac_ia"`` (SAC-IA), ``"shot"``, ``"3dsc"`` or ``"ppf"``
-    (PPFRegistration). ``**settings`` override fields of the method's
+    """A stock PCL 1.13 coarse registration of ``source`` onto ``target`` ((N, 3) metres, run in float32), the thesis's
+    baselines (§7.6): ``"fpfh"`` (FPFHEstimationOMP + SampleConsensusPrerejective), ``"fpfh_sac_ia"`` (SAC-IA),
+    ``"shot"``, ``"3dsc"`` or ``"ppf"`` (PPFRegistration). ``**settings`` override fields of the method's
     :data:`THESIS_PCL_PRESET` (``PclFeatureAlignmentSettings``, each field with its unit)."""
     if method not in _PCL_METHODS:
         raise ValueError(f"method: expected one of {sorted(_PCL_METHODS)}, got {method!r}")
@@ -259,11 +251,10 @@ def _path(s: Any, key: str, pose: str) -> str:
 
 
 def pose_task_settings(cls: type, settings: Any = None, **overrides: Any) -> Any:
-    """A copy of ``settings`` (a ``cls``: :class:`PoseSettings`, ``FindObjectsSettings`` or
-    ``FindPartsSettings``; default its C++ defaults) with ``overrides`` applied: field names
-    (nested as dicts), the short keywords of :data:`POSE_KEYWORDS` and :data:`TABLE_KEYWORDS`,
-    ``method`` (``"cbd"``, ``"flags"``, ``"pcl"`` or a PCL baseline of :data:`METHODS`, which
-    sets ``method="pcl"`` and ``pcl`` to its :data:`THESIS_PCL_PRESET`) and ``num_threads``
+    """A copy of ``settings`` (a ``cls``: :class:`PoseSettings`, ``FindObjectsSettings`` or ``FindPartsSettings``;
+    default its C++ defaults) with ``overrides`` applied: field names (nested as dicts), the short keywords of
+    :data:`POSE_KEYWORDS` and :data:`TABLE_KEYWORDS`, ``method`` (``"cbd"``, ``"flags"``, ``"pcl"`` or a PCL baseline of
+    :data:`METHODS`, which sets ``method="pcl"`` and ``pcl`` to its :data:`THESIS_PCL_PRESET`) and ``num_threads``
     (every step's). Raises UnknownSettingError / TypeError / ValueError naming the field."""
     s = with_overrides(cls, settings, (), "pose")
     pose = "" if cls is PoseSettings else "pose."
@@ -285,27 +276,21 @@ def pose_task_settings(cls: type, settings: Any = None, **overrides: Any) -> Any
 
 def estimate_pose(model: object, scene: np.ndarray, settings: Optional[PoseSettings] = None, *,
                   views: Optional[Sequence[int]] = None, progress: bool = False, **overrides: Any) -> PoseResult:
-    """Pose of ``model`` in one object cloud: coarse alignment of every model view (or the
-    model cloud) to the object, ICP refinement (point-to-plane, scanalign's engine), and the
-    candidate with the best score ``2 fitness coverage / (fitness + coverage)``.
+    """Pose of ``model`` in one object cloud: coarse alignment of every model view (or the model cloud) to the object,
+    ICP refinement (point-to-plane, scanalign's engine), and the candidate with the best score
+    ``2 fitness coverage / (fitness + coverage)``.
 
-    Args:
-        model: a mesh (:class:`scanalign.io.Mesh`, ``(vertices, faces)`` or a mesh file path;
-            metres) rendered from the 42 vertices of a tessellated sphere with
-            ``settings.views``, the list of :class:`scanalign.pose.model_views.ModelView` that
-            :func:`scanalign.pose.model_views.render_views` returned (rendered once, reused
-            across objects), or an (N, 3) cloud.
-        scene: (M, 3) the object's points in the scene (camera) frame, metres.
-        settings: :class:`PoseSettings` (default its C++ defaults: CBD, 5 mm inlier
-            threshold, 10 mm ICP distance, 150-pixel views); keyword ``overrides`` as
-            :func:`pose_task_settings` takes them (``method="fpfh"``, ``icp_distance=0.02``,
-            ``resolution=100``, ``radius=0.012`` for the CBD neighbourhood, ...).
-        views: subset of view indices to try (default all 42).
-        progress: print a progress bar over the views on stderr.
+    ``model``: a mesh (:class:`scanalign.io.Mesh`, ``(vertices, faces)`` or a mesh file path; metres) rendered from the
+    42 vertices of a tessellated sphere with ``settings.views``, the list of
+    :class:`scanalign.pose.model_views.ModelView` that :func:`scanalign.pose.model_views.render_views` returned
+    (rendered once, reused across objects), or an (N, 3) cloud. ``scene``: (M, 3) the object's points in the scene
+    (camera) frame, metres. ``settings``: :class:`PoseSettings` (default its C++ defaults); keyword ``overrides`` as
+    :func:`pose_task_settings` takes them (``method="fpfh"``, ``icp_distance=0.02``, ``resolution=100``,
+    ``radius=0.012`` for the CBD neighbourhood, ...). ``views``: the view indices to try (default all 42); ``progress``:
+    a progress bar over the views on stderr.
 
-    Returns:
-        :class:`PoseResult`: ``found`` False with a message when no view aligned or the best
-        one's fitness or coverage is below ``min_fitness`` / ``min_coverage``.
+    Returns a :class:`PoseResult`: ``found`` False with a message when no view aligned or the best one's fitness or
+    coverage is below ``min_fitness`` / ``min_coverage``.
     """
     s = pose_task_settings(PoseSettings, settings, **overrides)
     model_views, is_cloud = _model_views(model, s.views)
@@ -318,20 +303,15 @@ def estimate_pose(model: object, scene: np.ndarray, settings: Optional[PoseSetti
 
 def find_objects(model: object, scene: np.ndarray, settings: Optional[Any] = None, *,
                  views: Optional[Sequence[int]] = None, progress: bool = False, **overrides: Any) -> FindObjectsResult:
-    """Poses of a part in a table scene (paper 3 / paper 5 pipeline): RANSAC table plane in
-    CGA, remove it and everything below it, Euclidean clusters, then the pose per cluster as
-    :func:`estimate_pose` (at most ``max_objects``, largest first).
+    """Poses of a part in a table scene (paper 3 / paper 5 pipeline): RANSAC table plane in CGA, remove it and
+    everything below it, Euclidean clusters, then the pose per cluster as :func:`estimate_pose` (at most
+    ``max_objects``, largest first), of ``model`` as :func:`estimate_pose` takes it (a mesh is rendered once for all
+    objects) in ``scene``, an (N, 3) scan in the camera frame, metres.
 
-    Args:
-        model: as :func:`estimate_pose` (a mesh is rendered once for all objects).
-        scene: (N, 3) scan in the camera frame, metres.
-        settings: ``FindObjectsSettings`` (``table``, ``max_objects``, ``pose``); keyword
-            ``overrides`` as :func:`pose_task_settings` takes them (``table_threshold``,
-            ``cluster_tolerance`` m, ``min_cluster_size``, ``viewpoint`` / ``up`` to orient the
-            table normal, and every keyword of :func:`estimate_pose`).
-
-    Returns:
-        :class:`FindObjectsResult` (``poses``, ``objects`` as index arrays, the table ``plane``).
+    ``settings``: ``FindObjectsSettings`` (``table``, ``max_objects``, ``pose``); keyword ``overrides`` as
+    :func:`pose_task_settings` takes them (``table_threshold``, ``cluster_tolerance`` m, ``min_cluster_size``,
+    ``viewpoint`` / ``up`` to orient the table normal, and every keyword of :func:`estimate_pose`). Returns a
+    :class:`FindObjectsResult` (``poses``, ``objects`` as index arrays, the table ``plane``).
     """
     s = pose_task_settings(_P.FindObjectsSettings, settings, **overrides)
     pts = as_points(scene, "scene", np.dtype(np.float64))
@@ -348,30 +328,24 @@ def find_objects(model: object, scene: np.ndarray, settings: Optional[Any] = Non
 def find_parts(models: Sequence[object], scene: np.ndarray, settings: Optional[FindPartsSettings] = None, *,
                symmetries: Optional[Sequence[Any]] = None, views: Optional[Sequence[int]] = None,
                progress: bool = False, **overrides: Any) -> FindPartsResult:
-    """Which of several known parts lies in each object cluster of a table scene, and its
-    pose: the table and clusters as :func:`find_objects` (segmented once), then every part's
-    views aligned to each cluster (its normals and descriptors computed once), the best part
-    by score, and a :class:`DetectionStatus`: ``found``, ``not_found`` (no part passes
-    ``min_fitness`` / ``min_coverage``) or ``ambiguous`` (a runner-up -- another part, or a
-    pose of the same part that its symmetry does not make equivalent -- scores nearly as well;
-    see ``FindPartsSettings.ambiguity_margin``).
+    """Which of several known parts lies in each object cluster of a table scene, and its pose: the table and clusters
+    as :func:`find_objects` (segmented once), then every part's views aligned to each cluster (its normals and
+    descriptors computed once), the best part by score, and a :class:`DetectionStatus`: ``found``, ``not_found`` (no
+    part passes ``min_fitness`` / ``min_coverage``) or ``ambiguous`` (a runner-up -- another part, or a pose of the same
+    part that its symmetry does not make equivalent -- scores nearly as well; see
+    ``FindPartsSettings.ambiguity_margin``).
 
-    Args:
-        models: one model per part, each as :func:`estimate_pose` takes it (a mesh, its
-            rendered views, or a cloud); render meshes once with
-            :func:`scanalign.pose.model_views.render_views` when calling repeatedly.
-        scene: (N, 3) scan, metres (camera or base frame; ``T_scene_model`` is in that frame).
-        settings: :class:`FindPartsSettings` (default its C++ defaults; every field with its
-            unit and meaning: ``help(FindPartsSettings)``, ``scanalign dump-config pose``);
-            keyword ``overrides`` as :func:`pose_task_settings` takes them (``max_objects=3``,
-            ``up=(0, 0, 1)``, ``cbd_radius_fraction=0.15``, ``method="fpfh"``, ...).
-        symmetries: one ``PartSymmetry`` (``axis``, ``point`` m, ``order``; e.g. from
-            :data:`scanalign.data.parts.BUILTIN_PARTS`) or None per part; default none symmetric.
-        views: view indices tried for every part (default all 42).
+    ``models``: one model per part, each as :func:`estimate_pose` takes it (a mesh, its rendered views, or a cloud;
+    render meshes once with :func:`scanalign.pose.model_views.render_views` when calling repeatedly). ``scene``: (N, 3)
+    scan, metres (camera or base frame; ``T_scene_model`` is in that frame). ``settings``: :class:`FindPartsSettings`
+    (default its C++ defaults; every field with its unit and meaning: ``help(FindPartsSettings)``,
+    ``scanalign dump-config pose``); keyword ``overrides`` as :func:`pose_task_settings` takes them (``max_objects=3``,
+    ``up=(0, 0, 1)``, ``cbd_radius_fraction=0.15``, ``method="fpfh"``, ...). ``symmetries``: one ``PartSymmetry``
+    (``axis``, ``point`` m, ``order``; e.g. from :data:`scanalign.data.parts.BUILTIN_PARTS`) or None per part (default:
+    none symmetric). ``views``: view indices tried for every part (default all 42).
 
-    Returns:
-        :class:`FindPartsResult`: per cluster a :class:`PartDetection` (``status``, ``part``,
-        ``pose``, runner-up, ``indices``, ``parts``: the :class:`PoseResult` of every part).
+    Returns a :class:`FindPartsResult`: per cluster a :class:`PartDetection` (``status``, ``part``, ``pose``, runner-up,
+    ``indices``, ``parts``: the :class:`PoseResult` of every part).
     """
     if isinstance(models, (str, bytes)) or not isinstance(models, Sequence) or len(models) == 0:
         raise ValueError("models: expected a non-empty list with one model per part")

@@ -1,12 +1,11 @@
 """Curvature-based descriptor (CBD) of Kleppe, PhD thesis, NTNU 2018, ch. 6 / paper 5.
 
-For every point, the PCA of its radius neighbourhood gives shape factors C_l, C_p, C_s
-(6.1)-(6.3); keypoints pass (6.4) (or the automatic variant of paper 5, §III-B4); at each
-keypoint two CGA spheres are fitted to the neighbourhood, weighted by
-``exp(-gamma * |distance to a plane through the keypoint|)`` (6.8)-(6.11), one for the
-plane normal to v2 and one for the plane normal to v1. The descriptors are
-``(r1, d1, r2, d2)`` (sphere radius, distance from the sphere centre to the keypoint; paper 5
-(29)-(32)) and the scalar ``F = (S1 + S2)·P = ½(r1² − d1²) + ½(r2² − d2²)`` (6.14)-(6.16).
+For every point, the PCA of its radius neighbourhood gives shape factors C_l, C_p, C_s (6.1)-(6.3); keypoints pass (6.4)
+(or the automatic variant of paper 5, §III-B4); at each keypoint two CGA spheres are fitted to the neighbourhood,
+weighted by ``exp(-gamma * |distance to a plane through the keypoint|)`` (6.8)-(6.11), one for the plane normal to v2
+and one for the plane normal to v1. The descriptors are ``(r1, d1, r2, d2)`` (sphere radius, distance from the sphere
+centre to the keypoint; paper 5 (29)-(32)) and the scalar ``F = (S1 + S2)·P = ½(r1² − d1²) + ½(r2² − d2²)``
+(6.14)-(6.16).
 
 Units: metres (points, radius, r, d), 1/m (gamma: the thesis's 0.2 per mm is 200), m² (F).
 Descriptors are invariant to rigid motions of the cloud and to the signs of the PCA eigenvectors.
@@ -48,11 +47,10 @@ def make_settings(settings: Optional[CbdSettings] = None, **overrides: object) -
 
 def compute(points: np.ndarray, settings: Optional[CbdSettings] = None, *,
             thresholds: Optional[ShapeThresholds] = None, **overrides: object) -> CbdFeatures:
-    """CBD keypoints and descriptors of an (N, 3) float cloud (metres; NaN rows skipped) with
-    :class:`CbdSettings` (thesis defaults) and keyword overrides; ``thresholds`` forces (6.4)
-    with these deltas (inclusive), e.g. the model's derived ones applied to the scene.
-    Returns :class:`CbdFeatures`, possibly with 0 keypoints (too sparse, or no edge or
-    corner-like point)."""
+    """CBD keypoints and descriptors of an (N, 3) float cloud (metres; NaN rows skipped) with :class:`CbdSettings`
+    (thesis defaults) and keyword overrides; ``thresholds`` forces (6.4) with these deltas (inclusive), e.g. the model's
+    derived ones applied to the scene. Returns :class:`CbdFeatures`, possibly with 0 keypoints (too sparse, or no edge
+    or corner-like point)."""
     return _core.pose.compute_cbd(as_points(points, "points"), make_settings(settings, **overrides), thresholds)
 
 
@@ -63,9 +61,8 @@ def _default(name: str, value: Any) -> Any:
 
 def neighbourhood_pca(points: np.ndarray, radius: Optional[float] = None, *,
                       num_threads: int = 0) -> Tuple[np.ndarray, np.ndarray]:
-    """Neighbour counts (N,) and covariance eigenvalues (N, 3), descending, m², of every
-    point's ball of ``radius`` metres (default ``CbdSettings.radius``; k-d tree search). NaN
-    points get count 0."""
+    """Neighbour counts (N,) and covariance eigenvalues (N, 3), descending, m², of every point's ball of ``radius``
+    metres (default ``CbdSettings.radius``; k-d tree search). NaN points get count 0."""
     return _core.pose.neighbourhood_pca(as_points(points, "points"), float(_default("radius", radius)),
                                         int(num_threads))
 

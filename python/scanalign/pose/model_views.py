@@ -1,17 +1,14 @@
 """CAD model to point clouds: viewpoint sampling (Kleppe, PhD thesis, NTNU 2018, §7.3).
 
-A part's CAD mesh becomes the partial clouds a depth camera would see of it. Virtual
-cameras sit on the vertices of a tessellated sphere around the model and look at its
-centre; the thesis uses the icosahedron subdivided once, whose 42 vertices give 42 views
-(PCL's ``renderViewTesselatedSphere``). Each view is rendered with the exact z-buffer of
-the C++ depth renderer; its points are back-projected into the model frame and carry the
-normal of the triangle they lie on, oriented towards that view's camera. Area-weighted
-sampling of the whole surface also samples surfaces a camera never sees (concave
-interiors, faces hidden by others), which is why the thesis prefers views.
+A part's CAD mesh becomes the partial clouds a depth camera would see of it. Virtual cameras sit on the vertices of a
+tessellated sphere around the model and look at its centre; the thesis uses the icosahedron subdivided once, whose 42
+vertices give 42 views (PCL's ``renderViewTesselatedSphere``). Each view is rendered with the exact z-buffer of the C++
+depth renderer; its points are back-projected into the model frame and carry the normal of the triangle they lie on,
+oriented towards that view's camera. Area-weighted sampling of the whole surface also samples surfaces a camera never
+sees (concave interiors, faces hidden by others), which is why the thesis prefers views.
 
-Units are metres and radians. ``T_model_camera`` maps camera coordinates (OpenCV: x right,
-y down, z along the optical axis) into the model frame. The rendering runs in C++
-(``scanalign/pose/model_views.hpp``).
+Units are metres and radians. ``T_model_camera`` maps camera coordinates (OpenCV: x right, y down, z along the optical
+axis) into the model frame. The rendering runs in C++ (``scanalign/pose/model_views.hpp``).
 """
 
 from __future__ import annotations
@@ -69,10 +66,9 @@ def render_views(mesh: object, settings: Optional[ModelViewSettings] = None, **o
     Args:
         mesh: a :class:`scanalign.io.Mesh`, ``(vertices (V, 3), faces (F, 3))`` or an Open3D /
             trimesh triangle mesh, metres, in the model frame.
-        settings: ``ModelViewSettings`` (default its C++ defaults: 150-pixel images, PCL's
-            57-degree field of view, the thesis's 42 views, automatic distance and centre);
-            keyword ``overrides`` name its fields (``resolution``, ``view_angle`` rad,
-            ``level``, ``distance`` m, ``center`` m, ``num_threads``).
+        settings: ``ModelViewSettings`` (default its C++ defaults: 150-pixel images, PCL's 57-degree field of view, the
+            thesis's 42 views, automatic distance and centre); keyword ``overrides`` name its fields (``resolution``,
+            ``view_angle`` rad, ``level``, ``distance`` m, ``center`` m, ``num_threads``).
 
     Returns:
         One :class:`ModelView` per sphere vertex, in the order of :func:`tessellated_sphere`
@@ -80,8 +76,7 @@ def render_views(mesh: object, settings: Optional[ModelViewSettings] = None, **o
         ``T_model_camera``, ``intrinsics``, ``viewpoint``, ``points_in_camera()``).
 
     Raises:
-        ValueError / TypeError: a malformed or non-finite mesh, bad resolution, view angle,
-            level or distance.
+        ValueError / TypeError: a malformed or non-finite mesh, bad resolution, view angle, level or distance.
     """
     V, F = _mesh_arrays(mesh)
     return _P.render_model_views(V, F, with_overrides(ModelViewSettings, settings, overrides, "view"))

@@ -1,11 +1,9 @@
-"""Eye-in-hand reconstruction: depth images to clouds, frame-to-model registration, and
-the voxel grid that keeps the model bounded (the eye-in-hand paper
-(Comput. Electron. Agric. 180 (2021) 105929), §3, Algorithm 1).
+"""Eye-in-hand reconstruction: depth images to clouds, frame-to-model registration, and the voxel grid that keeps the
+model bounded (the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929), §3, Algorithm 1).
 
-Frames: a frame's points are in its camera frame (x right, y down, z forward, metres).
-The model lives in the *model frame*: the first camera's frame by default, or any frame
-given as ``T_model_camera0`` (e.g. the robot base frame via the first frame's
-``T_base_camera``). Every estimated pose is ``T_model_camera`` (camera -> model).
+Frames: a frame's points are in its camera frame (x right, y down, z forward, metres). The model lives in the *model
+frame*: the first camera's frame by default, or any frame given as ``T_model_camera0`` (e.g. the robot base frame via
+the first frame's ``T_base_camera``). Every estimated pose is ``T_model_camera`` (camera -> model).
 :class:`FrameToModelSettings` is the C++ struct; its fields carry their docs.
 
 Example::
@@ -41,14 +39,9 @@ __all__ = ["VoxelGridResult", "voxel_grid", "depth_to_cloud", "undistorted_rays"
 
 @dataclass(frozen=True)
 class VoxelGridResult:
-    """One point per occupied voxel.
-
-    Attributes:
-        points: (M, 3) voxel centroids, metres, in the input dtype.
-        normals: (M, 3) mean unit normals (re-normalised), or None.
-        colors: (M, 3) mean colours in the input colour dtype, or None.
-        counts: (M,) input points per voxel.
-    """
+    """One point per occupied voxel: ``points`` (M, 3) voxel centroids, metres, in the input dtype; ``normals`` (M, 3)
+    mean unit normals (re-normalised) or None; ``colors`` (M, 3) mean colours in the input colour dtype or None;
+    ``counts`` (M,) input points per voxel."""
 
     points: np.ndarray
     normals: Optional[np.ndarray]
@@ -60,21 +53,15 @@ def voxel_grid(points: np.ndarray, leaf_size: float = 0.001, *, normals: Optiona
                colors: Optional[np.ndarray] = None, min_points_per_voxel: int = 1) -> VoxelGridResult:
     """Downsamples a cloud to one centroid per cubic voxel, like ``pcl::VoxelGrid``.
 
-    Voxels are aligned to the cloud's minimum corner exactly as PCL does, and output in
-    PCL's order, so results match PCL's voxel for voxel. Eye-in-hand paper §3.6 uses a 1 mm grid on
-    the accumulated model after every merge so its size stays bounded.
+    Voxels are aligned to the cloud's minimum corner exactly as PCL does, and output in PCL's order, so results match
+    PCL's voxel for voxel. Eye-in-hand paper §3.6 uses a 1 mm grid on the accumulated model after every merge so its
+    size stays bounded.
 
-    Args:
-        points: (N, 3) float32/float64, metres; non-finite rows are dropped.
-        leaf_size: voxel edge, metres (default 1 mm).
-        normals: optional (N, 3) normals averaged per voxel and re-normalised.
-        colors: optional (N, 3) colours (uint8 or float) averaged per voxel.
-        min_points_per_voxel: voxels with fewer points are dropped.
-
-    Raises:
-        ValueError: bad leaf (not positive, or over 2**21 voxels along an axis of the cloud),
-        min_points_per_voxel < 1, attributes with the wrong number of rows. NotRealError (a
-        TypeError and a ValueError): normals or colours that are not real (strings, complex).
+    ``points``: (N, 3) float32/float64, metres; non-finite rows are dropped. ``leaf_size``: voxel edge, metres. Optional
+    (N, 3) ``normals`` are averaged per voxel and re-normalised, optional (N, 3) ``colors`` (uint8 or float) averaged
+    per voxel; voxels with fewer than ``min_points_per_voxel`` points are dropped. ValueError: bad leaf (not positive,
+    or over 2**21 voxels along an axis of the cloud), min_points_per_voxel < 1, attributes with the wrong number of
+    rows. NotRealError (a TypeError and a ValueError): normals or colours that are not real (strings, complex).
     """
     p = as_points(points, "points")
     attributes = []
@@ -100,11 +87,10 @@ def undistorted_rays(intrinsics: Intrinsics) -> np.ndarray:
     every pixel centre ``(u, v)`` (``[v, u]``), as :func:`depth_to_cloud` uses them.
 
     Pinhole (zero distortion): ``((u - cx) / fx, (v - cy) / fy)``. With Brown-Conrady distortion
-    ``(k1, k2, p1, p2, k3)`` each pixel is undistorted by OpenCV's ``undistortPoints`` fixed-point
-    iteration until a step changes nothing (at most 100 steps: ``cv2.undistortPointsIter``); a
-    pixel whose ray does not re-project onto it within 1e-3 pixels (diverged, or beyond the field
-    of view where the radial factor folds over) is NaN and gives no point. Computed once per
-    intrinsics (under 0.1 s for 640x480) and cached in C++ (8 cameras); a copy is returned."""
+    ``(k1, k2, p1, p2, k3)`` each pixel is undistorted by OpenCV's ``undistortPoints`` fixed-point iteration until a
+    step changes nothing (at most 100 steps: ``cv2.undistortPointsIter``); a pixel whose ray does not re-project onto it
+    within 1e-3 pixels (diverged, or beyond the field of view where the radial factor folds over) is NaN and gives no
+    point. Computed once per intrinsics (under 0.1 s for 640x480) and cached in C++ (8 cameras); a copy is returned."""
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.reconstruction.camera.Intrinsics")
     if intrinsics.has_distortion:
@@ -121,28 +107,21 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, settings: Optional
                    rgb: Optional[np.ndarray] = None, return_pixels: bool = False, **overrides: Any):
     """Back-projects a depth image into a cloud in the camera frame.
 
-    ``p = (z (u - cx) / fx, z (v - cy) / fy, z)`` for every valid pixel ``(u, v)`` (column, row);
-    invalid pixels (0, NaN, outside ``[min_depth, max_depth]``) are dropped. With lens distortion
-    ``p = (z x, z y, z)``, ``(x, y)`` the pixel's undistorted ray (:func:`undistorted_rays`, cached
-    in C++: a frame costs what a pinhole frame costs); a pixel without a valid ray is dropped.
+    ``p = (z (u - cx) / fx, z (v - cy) / fy, z)`` for every valid pixel ``(u, v)`` (column, row); invalid pixels (0,
+    NaN, outside ``[min_depth, max_depth]``) are dropped. With lens distortion ``p = (z x, z y, z)``, ``(x, y)`` the
+    pixel's undistorted ray (:func:`undistorted_rays`, cached in C++: a frame costs what a pinhole frame costs); a pixel
+    without a valid ray is dropped.
 
-    Args:
-        depth: (H, W) uint16 in units of ``depth_scale`` metres, or float32/float64 in
-            metres. (H, W) must equal ``intrinsics.shape``.
-        intrinsics: intrinsics of the depth image (with its lens distortion, if any).
-        settings: ``DepthToCloudSettings`` (default its C++ defaults); keyword ``overrides``
-            name its fields: ``depth_scale`` (metres per unit of an integer image; TUM:
-            1/5000), ``min_depth`` / ``max_depth`` (valid range along z, m), ``stride``.
-        rgb: optional (H, W, 3) uint8 colour image registered to the depth image.
-        return_pixels: also return the flat pixel index ``row * W + column`` of each point.
+    ``depth``: (H, W) uint16 in units of ``depth_scale`` metres, or float32/float64 in metres; (H, W) must equal
+    ``intrinsics.shape`` (the depth image's intrinsics, with its lens distortion, if any). ``settings``:
+    ``DepthToCloudSettings`` (default its C++ defaults); keyword ``overrides`` name its fields: ``depth_scale`` (metres
+    per unit of an integer image; TUM: 1/5000), ``min_depth`` / ``max_depth`` (valid range along z, m), ``stride``.
+    ``rgb``: optional (H, W, 3) uint8 colour image registered to the depth image.
 
-    Returns:
-        ``(points, colors)`` -- (N, 3) float32 metres and (N, 3) uint8 or None -- plus
-        ``pixels`` (N,) int32 when ``return_pixels``.
-
-    Raises:
-        TypeError: unsupported depth dtype. ValueError: image size not matching the intrinsics,
-        bad range, stride or ``depth_scale`` (outside (0, 1] m per unit).
+    Returns ``(points, colors)`` -- (N, 3) float32 metres and (N, 3) uint8 or None -- plus ``pixels`` (N,) int32, the
+    flat pixel index ``row * W + column`` of each point, when ``return_pixels``. TypeError: unsupported depth dtype.
+    ValueError: image size not matching the intrinsics, bad range, stride or ``depth_scale`` (outside (0, 1] m per
+    unit).
     """
     if not isinstance(intrinsics, Intrinsics):
         raise TypeError("intrinsics must be a scanalign.reconstruction.camera.Intrinsics")
@@ -151,29 +130,23 @@ def depth_to_cloud(depth: np.ndarray, intrinsics: Intrinsics, settings: Optional
     return (points, colors, pixels) if return_pixels else (points, colors)
 
 
-#: Bilateral smoothing of depth images before back-projection (KinectFusion-style): ``radius``
-#: (pixels), ``sigma_space`` (pixels), ``sigma_depth`` (m). When to use it: axial sensor noise
-#: (about 1 mm at 0.4 m for an SR300) tilts 5 mm PCA normals by several degrees, and since each
-#: normal's error is correlated with the noise of the points it was fitted to, point-to-plane
-#: ICP drifts; the filter removes most of that noise while keeping depth edges, but rounds small
-#: curved features slightly (it smooths along each camera's rays). Measured on the synthetic
-#: scans (36-frame loops): SR300 noise, 10 mm normals: ATE 12.6 mm without, 4.1 mm with; 0.3 mm
-#: noise at 320x240 on small spheres: worst pose error 0.23 mm without, 2.0 mm with. On by
-#: default (``ReconstructionSettings.filter_depth``; the eye-in-hand paper's pipeline had none).
+#: Bilateral smoothing of depth images before back-projection (KinectFusion-style): ``radius`` (pixels), ``sigma_space``
+#: (pixels), ``sigma_depth`` (m). When to use it: axial sensor noise (about 1 mm at 0.4 m for an SR300) tilts 5 mm PCA
+#: normals by several degrees, and since each normal's error is correlated with the noise of the points it was fitted
+#: to, point-to-plane ICP drifts; the filter removes most of that noise while keeping depth edges, but rounds small
+#: curved features slightly (it smooths along each camera's rays). Measured on the synthetic scans (36-frame loops):
+#: SR300 noise, 10 mm normals: ATE 12.6 mm without, 4.1 mm with; 0.3 mm noise at 320x240 on small spheres: worst pose
+#: error 0.23 mm without, 2.0 mm with. On by default (``ReconstructionSettings.filter_depth``; the eye-in-hand paper's
+#: pipeline had none).
 BilateralFilterSettings = _core.reconstruction.BilateralFilterSettings
 
 
 def bilateral_filter_depth(depth: np.ndarray, settings: Optional[BilateralFilterSettings] = None, *,
                            depth_scale: float = 0.001, num_threads: int = 0) -> np.ndarray:
-    """Bilateral-filters a depth image (see :data:`BilateralFilterSettings`; default its defaults).
-
-    Args:
-        depth: (H, W) uint16 in units of ``depth_scale`` metres (0 = invalid) or float
-            metres (0 / NaN = invalid).
-    Returns:
-        (H, W) float32 metres, NaN where the input was invalid (empty for an empty image).
-        ValueError beyond 2**27 pixels (checked before allocating) or for bad settings (named).
-    """
+    """Bilateral-filters a depth image (see :data:`BilateralFilterSettings`; default its defaults): ``depth`` (H, W)
+    uint16 in units of ``depth_scale`` metres (0 = invalid) or float metres (0 / NaN = invalid) becomes (H, W) float32
+    metres, NaN where the input was invalid (empty for an empty image). ValueError beyond 2**27 pixels (checked before
+    allocating) or for bad settings (named)."""
     f = BilateralFilterSettings() if settings is None else settings
     return _core.reconstruction.bilateral_filter_depth(np.asarray(depth), settings=f, depth_scale=depth_scale,
                                                        num_threads=num_threads)
@@ -198,17 +171,12 @@ _ENGINE_FIELDS = frozenset(field_names(FrameToModelSettings))
 def make_reconstruction_settings(settings: Union[ReconstructionSettings, FrameToModelSettings, None] = None,
                                  **overrides: Any) -> ReconstructionSettings:
     """A copy of ``settings`` with fields overridden by keyword, validated. ``settings``: a
-    :class:`ReconstructionSettings` (default: its C++ defaults) or a
-    :class:`FrameToModelSettings` (the engine's, with the other fields at their defaults).
-    ``overrides`` name fields of :class:`ReconstructionSettings` or, for short, of its
-    ``frame_to_model`` (``crop_box=(6 numbers)``, ``icp=dict(max_iterations=30)``);
-    ``depth_filter`` also takes ``"default"`` (filter on, default filter) or None (off), and
-    ``initial_guess`` names ``frame_to_model.motion_model``.
-
-    Raises:
-        TypeError: an unknown field or a value of the wrong type.
-        ValueError: an invalid value (the message names the field).
-    """
+    :class:`ReconstructionSettings` (default: its C++ defaults) or a :class:`FrameToModelSettings` (the engine's, with
+    the other fields at their defaults). ``overrides`` name fields of :class:`ReconstructionSettings` or, for short, of
+    its ``frame_to_model`` (``crop_box=(6 numbers)``, ``icp=dict(max_iterations=30)``); ``depth_filter`` also takes
+    ``"default"`` (filter on, default filter) or None (off), and ``initial_guess`` names
+    ``frame_to_model.motion_model``. TypeError: an unknown field or a value of the wrong type; ValueError: an invalid
+    value (the message names the field)."""
     s = (ReconstructionSettings(frame_to_model=settings) if isinstance(settings, FrameToModelSettings)
          else with_overrides(ReconstructionSettings, settings, (), "reconstruction"))
     job, engine = {}, {}
@@ -261,20 +229,15 @@ class Model:
 class Reconstructor:
     """Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper), one frame at a time.
 
-    Each :meth:`integrate` call back-projects the frame, crops and downsamples it,
-    estimates normals, registers it to the model starting from the motion model's guess,
-    checks the result, merges it and voxel-grids the model (1 mm). A frame
-    that fails is recorded with a ``skipped_*`` status and leaves the model untouched.
+    Each :meth:`integrate` call back-projects the frame, crops and downsamples it, estimates normals, registers it to
+    the model starting from the motion model's guess, checks the result, merges it and voxel-grids the model (1 mm). A
+    frame that fails is recorded with a ``skipped_*`` status and leaves the model untouched.
 
-    Args:
-        settings: :class:`ReconstructionSettings` (default: its defaults, as :func:`reconstruct`'s), or a
-            :class:`FrameToModelSettings` (the eye-in-hand paper's engine, with the job's other fields at their
-            defaults); keyword ``overrides`` as :func:`make_reconstruction_settings` takes them.
-        T_model_camera0: pose of the first frame's camera in the model frame (4x4,
-            camera -> model). Identity (default): the model frame is the first camera's.
-
-    Attributes:
-        job: the :class:`ReconstructionSettings` in use; ``settings`` its ``frame_to_model``.
+    ``settings``: :class:`ReconstructionSettings` (default: its defaults, as ``reconstruct``'s), or a
+    :class:`FrameToModelSettings` (the eye-in-hand paper's engine, the job's other fields at their defaults); keyword
+    ``overrides`` as :func:`make_reconstruction_settings` takes them; :attr:`job` is the :class:`ReconstructionSettings`
+    in use, :attr:`settings` its ``frame_to_model``. ``T_model_camera0``: pose of the first frame's camera in the model
+    frame (4x4, camera -> model); identity (default): the model frame is the first camera's.
     """
 
     def __init__(self, settings: Union[ReconstructionSettings, FrameToModelSettings, None] = None, *,
@@ -294,18 +257,11 @@ class Reconstructor:
         self.records = []
 
     def integrate(self, frame: Frame, guess: Optional[np.ndarray] = None) -> FrameResult:
-        """Back-projects and integrates one RGB-D frame.
-
-        Args:
-            frame: the capture; its depth image must match its intrinsics.
-            guess: optional initial pose ``T_model_camera`` (e.g. from the robot's
-                kinematics); default ``settings.motion_model`` (the last accepted pose).
-
-        Raises:
-            ValueError / TypeError: a malformed frame (wrong image size for the
-            intrinsics, bad dtype). Frames that are merely unusable (empty, all-invalid
-            depth, unregistrable) are returned as skipped records instead.
-        """
+        """Back-projects and integrates one RGB-D frame (its depth image must match its intrinsics), starting from
+        ``guess``, an initial ``T_model_camera`` (e.g. from the robot's kinematics; default ``settings.motion_model``,
+        the last accepted pose). ValueError / TypeError: a malformed frame (wrong image size for the intrinsics, bad
+        dtype). Frames that are merely unusable (empty, all-invalid depth, unregistrable) are returned as skipped
+        records instead."""
         if not isinstance(frame, Frame):
             raise TypeError("integrate() takes a scanalign.reconstruction.camera.Frame; use integrate_points() for clouds")
         depth, job = frame.depth, self.job

@@ -1,10 +1,9 @@
 """Pinhole cameras and RGB-D frames: what a depth sensor hands to the reconstruction.
 
-Conventions (OpenCV / TUM): the camera frame has x to the right, y down and z along the
-optical axis towards the scene; pixel ``(u, v)`` is column ``u``, row ``v``, and the
-centre of pixel ``(0, 0)`` is at image coordinates ``(0, 0)``.  A point ``(x, y, z)``
-in the camera frame projects to ``u = fx * x / z + cx``, ``v = fy * y / z + cy``.
-Depth is the z coordinate (not the ray length), in metres.
+Conventions (OpenCV / TUM): the camera frame has x to the right, y down and z along the optical axis towards the scene;
+pixel ``(u, v)`` is column ``u``, row ``v``, and the centre of pixel ``(0, 0)`` is at image coordinates ``(0, 0)``. A
+point ``(x, y, z)`` in the camera frame projects to ``u = fx * x / z + cx``, ``v = fy * y / z + cy``. Depth is the z
+coordinate (not the ray length), in metres.
 """
 
 from __future__ import annotations
@@ -38,9 +37,8 @@ Intrinsics = _core.reconstruction.PinholeIntrinsics
 
 
 def intrinsics_from_dict(d: Mapping[str, Any]) -> Intrinsics:
-    """Intrinsics from a mapping with keys width, height, fx, fy, cx, cy and optional
-    distortion (k1, k2, p1, p2, k3); other keys are ignored. :func:`camera_from_dict` also
-    reads ROS ``camera_info`` and OpenCV calibration layouts."""
+    """Intrinsics from a mapping with keys width, height, fx, fy, cx, cy and optional distortion (k1, k2, p1, p2, k3);
+    other keys are ignored. :func:`camera_from_dict` also reads ROS ``camera_info`` and OpenCV calibration layouts."""
     if missing := [k for k in ("width", "height", "fx", "fy", "cx", "cy") if k not in d]:
         raise ValueError(f"intrinsics: missing keys {missing}")
     dist = d.get("distortion")
@@ -59,9 +57,8 @@ def intrinsics_preset(name: str) -> Intrinsics:
 
 
 class _CameraYamlLoader(yaml.SafeLoader):
-    """PyYAML's safe loader plus what camera files need (:func:`read_camera_file`): OpenCV's
-    ``!!opencv-matrix`` and exponent notation without a dot or sign (``1e-3``: a float in YAML 1.2
-    and JSON, text in YAML 1.1)."""
+    """PyYAML's safe loader plus what camera files need (:func:`read_camera_file`): OpenCV's ``!!opencv-matrix`` and
+    exponent notation without a dot or sign (``1e-3``: a float in YAML 1.2 and JSON, text in YAML 1.1)."""
 
 
 _CameraYamlLoader.add_implicit_resolver(
@@ -84,16 +81,11 @@ _CameraYamlLoader.add_constructor("tag:yaml.org,2002:opencv-matrix", _opencv_mat
 
 
 def read_camera_file(path: Union[str, os.PathLike]) -> Dict[str, Any]:
-    """Reads a small camera description, JSON or YAML, as a mapping, with PyYAML: a leading
-    OpenCV ``%YAML:1.0`` line (a directive YAML parsers reject) is skipped, OpenCV's
-    ``!!opencv-matrix`` entries become float64 arrays of their shape, and numbers in
-    exponent notation (``1e-3``, which YAML 1.1 reads as text) are floats. The keys are as
-    written; :func:`read_camera` / :func:`camera_from_dict` interpret them.
-
-    Raises:
-        OSError: the file cannot be read.
-        ValueError: not valid JSON/YAML, or not a mapping (naming the file).
-    """
+    """Reads a small camera description, JSON or YAML, as a mapping, with PyYAML: a leading OpenCV ``%YAML:1.0`` line (a
+    directive YAML parsers reject) is skipped, OpenCV's ``!!opencv-matrix`` entries become float64 arrays of their
+    shape, and numbers in exponent notation (``1e-3``, which YAML 1.1 reads as text) are floats. The keys are as
+    written; :func:`read_camera` / :func:`camera_from_dict` interpret them. OSError: the file cannot be read;
+    ValueError: not valid JSON/YAML, or not a mapping (naming the file)."""
     text = Path(path).read_text(encoding="utf-8")
     as_json = str(path).lower().endswith(".json") or text.lstrip().startswith("{")
     try:  # JSON is nearly YAML, but not quite (tabs, escapes): a JSON file is read as JSON
@@ -136,8 +128,7 @@ def _first(d: Mapping[str, Any], *keys: str) -> Any:
 
 
 def _numbers(value: Any, n: Optional[int], what: str) -> np.ndarray:
-    """A matrix entry as a flat float64 array: a list, an array (OpenCV), or a ROS
-    ``{rows, cols, data}`` mapping."""
+    """A matrix entry as a flat float64 array: a list, an array (OpenCV), or a ROS ``{rows, cols, data}`` mapping."""
     if isinstance(value, Mapping):
         value = value.get("data")
     try:
@@ -150,25 +141,19 @@ def _numbers(value: Any, n: Optional[int], what: str) -> np.ndarray:
 
 
 def camera_from_dict(d: Mapping[str, Any]) -> Tuple[Intrinsics, Optional[float]]:
-    """Intrinsics (with distortion) and the optional ``depth_scale`` (m per unit) from a
-    camera description in any of the layouts :func:`read_camera` reads:
+    """Intrinsics (with distortion) and the optional ``depth_scale`` (m per unit) from a camera description in any of
+    the layouts :func:`read_camera` reads:
 
-    - scanalign's flat keys: ``width height fx fy cx cy`` (+ optional ``distortion``:
-      k1 k2 p1 p2 k3, ``depth_scale``);
-    - a ROS ``camera_info`` YAML (``camera_calibration_parsers``): ``image_width``,
-      ``image_height``, ``camera_matrix: {rows, cols, data}``, ``distortion_model``,
-      ``distortion_coefficients: {rows, cols, data}``; or a CameraInfo message as YAML
-      (``width``, ``height``, ``K``/``k`` 9 numbers, ``D``/``d``, ``distortion_model``);
-    - an OpenCV calibration file (``%YAML:1.0``; ``camera_matrix`` / ``cameraMatrix`` /
-      ``K`` and ``distortion_coefficients`` / ``distCoeffs`` / ``D`` as ``!!opencv-matrix``,
-      ``image_width`` / ``image_height``).
+    - scanalign's flat keys: ``width height fx fy cx cy`` (+ optional ``distortion``: k1 k2 p1 p2 k3, ``depth_scale``);
+    - a ROS ``camera_info`` YAML (``camera_calibration_parsers``): ``image_width``, ``image_height``,
+      ``camera_matrix: {rows, cols, data}``, ``distortion_model``, ``distortion_coefficients: {rows, cols, data}``; or a
+      CameraInfo message as YAML (``width``, ``height``, ``K``/``k`` 9 numbers, ``D``/``d``, ``distortion_model``);
+    - an OpenCV calibration file (``%YAML:1.0``; ``camera_matrix`` / ``cameraMatrix`` / ``K`` and
+      ``distortion_coefficients`` / ``distCoeffs`` / ``D`` as ``!!opencv-matrix``, ``image_width`` / ``image_height``).
 
-    Distortion: Brown-Conrady coefficients in OpenCV's order (4, 5, 8, 12 or 14 numbers,
-    those after k3 zero); another non-zero model is a ValueError.
-
-    Raises:
-        ValueError: missing keys, malformed numbers, unsupported distortion, invalid
-        intrinsics (the message says which).
+    Distortion: Brown-Conrady coefficients in OpenCV's order (4, 5, 8, 12 or 14 numbers, those after k3 zero); another
+    non-zero model is a ValueError, as are missing keys, malformed numbers and invalid intrinsics (the message says
+    which).
     """
     if not isinstance(d, Mapping):
         raise ValueError(f"camera: expected a mapping, got {type(d).__name__}")
@@ -194,13 +179,10 @@ def camera_from_dict(d: Mapping[str, Any]) -> Tuple[Intrinsics, Optional[float]]
 
 
 def read_camera(path: Union[str, os.PathLike]) -> Tuple[Intrinsics, Optional[float]]:
-    """Intrinsics (with distortion) and the optional ``depth_scale`` (m per unit) of a camera
-    file: JSON or YAML in any layout of :func:`camera_from_dict` (scanalign's flat keys, ROS
-    ``camera_info`` YAML, OpenCV calibration YAML), read by :func:`read_camera_file`.
-
-    Raises:
-        OSError: the file cannot be read. ValueError: malformed file or camera, naming the file.
-    """
+    """Intrinsics (with distortion) and the optional ``depth_scale`` (m per unit) of a camera file: JSON or YAML in any
+    layout of :func:`camera_from_dict` (scanalign's flat keys, ROS ``camera_info`` YAML, OpenCV calibration YAML), read
+    by :func:`read_camera_file`. OSError: the file cannot be read. ValueError: malformed file or camera, naming the
+    file."""
     d = read_camera_file(path)
     try:
         return camera_from_dict(d)
@@ -208,9 +190,8 @@ def read_camera(path: Union[str, os.PathLike]) -> Tuple[Intrinsics, Optional[flo
         raise ValueError(f"{path}: {e}") from None
 
 
-#: Named intrinsics. TUM values are from the TUM RGB-D benchmark's published calibration
-#: (depth images are registered to the colour camera); the sensor presets are typical
-#: factory values of the depth stream at 640x480.
+#: Named intrinsics. TUM values are from the TUM RGB-D benchmark's published calibration (depth images are registered to
+#: the colour camera); the sensor presets are typical factory values of the depth stream at 640x480.
 INTRINSICS_PRESETS: Dict[str, Intrinsics] = {
     "tum_default": Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5),
     "tum_fr1": Intrinsics(640, 480, 517.3, 516.5, 318.6, 255.3),
@@ -223,21 +204,13 @@ INTRINSICS_PRESETS: Dict[str, Intrinsics] = {
 
 @dataclass
 class Frame:
-    """One RGB-D capture.
-
-    Attributes:
-        depth: (H, W) depth image: uint16 in units of ``depth_scale`` metres (0 = no
-            measurement), or float32/float64 in metres (0 or NaN = no measurement).
-        intrinsics: the pinhole intrinsics of ``depth`` (its shape must be (H, W)).
-        rgb: optional (H, W, 3) uint8 colour image registered to the depth image.
-        depth_scale: metres per unit of an integer depth image (1e-3 for millimetres,
-            1/5000 for the TUM RGB-D benchmark). Ignored for float depth.
-        timestamp: capture time, seconds.
-        T_base_camera: optional 4x4 reference pose of the camera in the robot's base frame
-            (maps camera coordinates into base coordinates), e.g. from forward kinematics
-            and the hand-eye calibration, or a motion-capture ground truth.
-        index: position of the frame in its sequence.
-    """
+    """One RGB-D capture: ``depth``, an (H, W) image, uint16 in units of ``depth_scale`` metres (0 = no measurement) or
+    float32/float64 in metres (0 or NaN = no measurement), and its pinhole ``intrinsics`` (their shape must be (H, W));
+    an optional (H, W, 3) uint8 ``rgb`` image registered to the depth image; ``depth_scale``, metres per unit of an
+    integer depth image (1e-3 for millimetres, 1/5000 for the TUM RGB-D benchmark; ignored for float depth);
+    ``timestamp``, the capture time in seconds; ``T_base_camera``, an optional 4x4 reference pose of the camera in the
+    robot's base frame (maps camera coordinates into base coordinates), e.g. from forward kinematics and the hand-eye
+    calibration, or a motion-capture ground truth; ``index``, the frame's position in its sequence."""
 
     depth: np.ndarray
     intrinsics: Intrinsics

@@ -28,10 +28,6 @@ __all__ = ["SyntheticConfig", "builtin_scan"]
 PathLike = Union[str, "os.PathLike[str]"]
 
 
-def _is_number(v: object) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
 # The numeric fields: (names, what they must be, the test for a finite number).
 _CHECKS = [(("n_frames", "rings"), "an integer in [1, 100000]", lambda v: 1 <= int(v) == v <= 100000),
            (("seed",), "an integer >= 0", lambda v: int(v) == v >= 0),
@@ -107,7 +103,8 @@ class SyntheticConfig:
         for names, what, ok in _CHECKS:
             for name in names:
                 v = getattr(self, name)
-                if not (ok(v) if _is_number(v) else v is None and "null" in what or v == "auto" in what):
+                number = isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+                if not (ok(v) if number else v is None and "null" in what or v == "auto" in what):
                     raise ValueError(f"{name} must be {what}, got {v!r}")
         self.n_frames, self.rings, self.seed = int(self.n_frames), int(self.rings), int(self.seed)
         if not 0 < self.min_elevation <= self.max_elevation <= math.pi / 2:
@@ -157,8 +154,7 @@ class SyntheticConfig:
 
     def intrinsics_object(self) -> Intrinsics:
         """The camera intrinsics after ``resolution_scale``."""
-        K = intrinsics_preset(self.intrinsics) if isinstance(self.intrinsics, str) else intrinsics_from_dict(
-            self.intrinsics)
+        K = (intrinsics_preset if isinstance(self.intrinsics, str) else intrinsics_from_dict)(self.intrinsics)
         return K if self.resolution_scale == 1.0 else K.scaled(self.resolution_scale)
 
     def build_scene(self) -> Scene:

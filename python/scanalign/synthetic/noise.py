@@ -14,10 +14,9 @@ __all__ = ["SensorNoise", "NOISE_PRESETS"]
 SensorNoise = _core.synthetic.SensorNoise
 
 
-#: Sensor presets. The axial noise follows the triangulation law sigma = z^2 e / (f b)
-#: (disparity error e in pixels, focal length f in pixels, baseline b), hence
-#: sigma(z) = sigma_ref (z / z_ref)^2. The two RealSense cameras are those of the eye-in-hand
-#: paper (Comput. Electron. Agric. 180 (2021) 105929, §4): an SR300 on the robot, a D435 free-hand.
+#: Sensor presets. The axial noise follows the triangulation law sigma = z^2 e / (f b) (disparity error e in pixels,
+#: focal length f in pixels, baseline b), hence sigma(z) = sigma_ref (z / z_ref)^2. The two RealSense cameras are those
+#: of the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929, §4): an SR300 on the robot, a D435 free-hand.
 #:
 #: - ``"sr300"``: Intel RealSense SR300 (coded light): about 1 mm at 0.4 m; depth unit 1/8 mm
 #:   (its default depth scale); range 0.2-1.5 m (datasheet); it loses pixels beyond ~78 deg

@@ -11,11 +11,10 @@ and of the outcome of a pick, in a viewer, a ``.rrd`` recording or both::
 ``scanalign reconstruct|pick --view`` and ``--view-save FILE.rrd`` do the same from the
 command line; :func:`scanalign.pipelines.pick.pick` takes ``viewer=``.
 
-Entities (world = the model / robot base frame, metres): ``world/model`` (points), ``world/camera`` (pose and
-pinhole), ``world/camera_path`` and ``world/reference_path`` (the estimated and the robot's camera centres),
-``world/arm`` (the arm's joint origins, a line strip), ``world/scene``, ``world/parts/<k>_<name>`` (pick: the part's
-mesh at its pose) and ``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (index) and
-``time`` (timestamp, s).
+Entities (world = the model / robot base frame, metres): ``world/model`` (points), ``world/camera`` (pose and pinhole),
+``world/camera_path`` and ``world/reference_path`` (the estimated and the robot's camera centres), ``world/arm`` (the
+arm's joint origins, a line strip), ``world/scene``, ``world/parts/<k>_<name>`` (pick: the part's mesh at its pose) and
+``world/grasps/<k>_<name>/arm`` (the arm at the chosen grasp). Timelines: ``frame`` (index) and ``time`` (timestamp, s).
 """
 
 from __future__ import annotations
@@ -107,9 +106,8 @@ class Viewer:
         # A viewer without a window dies at once while the run goes on, streaming into nothing.
         fix = ("set DISPLAY (e.g. ssh -X), or record to a file instead, save='scan.rrd' (on the command line "
                "--view-save scan.rrd), and open it with 'rerun scan.rrd' where there is a display")
-        if (sys.platform.startswith("linux") and not any(map(os.environ.get, ("DISPLAY", "WAYLAND_DISPLAY",
-                                                                              "WAYLAND_SOCKET")))
-                and not _listening(port)):
+        displays = ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET")
+        if sys.platform.startswith("linux") and not any(map(os.environ.get, displays)) and not _listening(port):
             raise RuntimeError(f"cannot show a rerun viewer (spawn=True / --view): no display (DISPLAY and "
                                f"WAYLAND_DISPLAY are unset) and no viewer listening on port {port}; {fix}")
         self.rec.spawn(port=port, connect=False)

@@ -155,8 +155,7 @@ def run_job(job: Job, library: Any = None) -> Dict[str, Any]:
 def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
     scan = (SyntheticConfig(n_frames=job.n_frames, noise=job.noise, seed=job.seed, robot=job.robot).build()
             if job.synthetic else None)
-    # a TUM folder, a ROS bag or a folder of PNGs + camera file
-    frames: Any = scan.frames if scan is not None else open_source(job.source)
+    frames: Any = scan.frames if scan is not None else open_source(job.source)  # a TUM folder, a bag or PNG folder
     # the demo's settings, with motion model 'previous' (the eye-in-hand paper's, as batch jobs always ran)
     base = make_reconstruction_settings(None, initial_guess="previous", **DEMO_SETTINGS) if job.synthetic else None
     with warnings.catch_warnings():
@@ -177,8 +176,12 @@ def _reconstruct(job: Job, library: Any) -> Dict[str, Any]:
     return out
 
 
-def _cell(job: Job) -> Any:
-    return pick_cell(job.robot, noise=job.noise, seed=job.seed, n_frames=job.n_frames)
+def _cell(job: Job) -> Tuple[Any, Dict[str, np.ndarray]]:
+    """The built-in pick cell of a synthetic job and its true part poses; (None, {}) for a recording."""
+    if not job.synthetic:
+        return None, {}
+    cell = pick_cell(job.robot, noise=job.noise, seed=job.seed, n_frames=job.n_frames)
+    return cell, cell.truth
 
 
 def _scores(detail: Dict[str, Dict[str, Any]], **fields: Any) -> Dict[str, Any]:
@@ -195,10 +198,8 @@ def _scores(detail: Dict[str, Dict[str, Any]], **fields: Any) -> Dict[str, Any]:
 def _pose(job: Job, library: Any) -> Dict[str, Any]:
     names = job.part_names
     parts = [load_part(n) for n in names]
-    truth: Dict[str, np.ndarray] = {}
-    if job.synthetic:
-        cell = _cell(job)
-        truth = cell.truth
+    cell, truth = _cell(job)
+    if cell is not None:
         points = np.concatenate([cell.scan.points(i, in_base=True) for i in range(len(cell.scan))])
         points = reconstruction.voxel_grid(points, 0.001).points  # one point per mm voxel, as a merged scan
     else:
@@ -226,16 +227,14 @@ def _pick(job: Job, library: Any) -> Dict[str, Any]:
     settings = dict(job.settings)
     files = {k: settings.pop(k, None) for k in ("joints", "hand_eye", "robot_base")}
     s = with_overrides(PickSettings, PICK_SETTINGS, settings, "pick job")
-    truth: Dict[str, np.ndarray] = {}
-    if job.synthetic:
-        cell = _cell(job)
-        truth = cell.truth
+    cell, truth = _cell(job)
+    if cell is not None:
         result = pick(cell.scan, [p.name for p in cell.parts], cell.robot, settings=s, progress=False, library=library)
     else:
         result = pick(job.source, list(job.part_names), job.robot, joints=files["joints"],
-                           T_flange_camera=read_transform(files["hand_eye"], "hand_eye"),
-                           T_base_robot=read_transform(files["robot_base"], "robot_base"),
-                           settings=s, progress=False, library=library)
+                      T_flange_camera=read_transform(files["hand_eye"], "hand_eye"),
+                      T_base_robot=read_transform(files["robot_base"], "robot_base"), settings=s, progress=False,
+                      library=library)
     errors = score_picks(result, truth) if truth else {}
     found = [p for p in result.picks if p.status in ("picked", "no_grasp")]
     detail = {p.part: {"status": p.status, **errors.get(p.part, {})} for p in result.picks}

@@ -126,22 +126,13 @@ def _journal(out: Path) -> Dict[str, Dict[str, Any]]:
     """Last record per job id from records.jsonl (a torn last line is ignored)."""
     last: Dict[str, Dict[str, Any]] = {}
     path = out / "records.jsonl"
-    if path.exists():
-        for line in path.read_text(encoding="utf-8").splitlines():
-            try:
-                r = json.loads(line)
-                last[r["id"]] = r
-            except (ValueError, KeyError, TypeError):
-                continue
+    for line in path.read_text(encoding="utf-8").splitlines() if path.exists() else ():
+        try:
+            r = json.loads(line)
+            last[r["id"]] = r
+        except (ValueError, KeyError, TypeError):
+            continue
     return last
-
-
-def _end_torn_line(journal: Any) -> None:
-    """Ends the half-written record an interrupted run left, so that _journal skips it."""
-    if journal.tell() > 0:
-        journal.seek(journal.tell() - 1)
-        if journal.read(1) != "\n":
-            journal.write("\n")
 
 
 def _library(jobs: Sequence[Job], out: Path, progress: bool) -> Any:
@@ -160,16 +151,6 @@ def _library(jobs: Sequence[Job], out: Path, progress: bool) -> Any:
             pass  # an older format or a corrupt file: rebuilt below
     lib = build_part_library(names, progress=progress, **LIBRARY_SETTINGS)
     return lib, lib.save(path)
-
-
-def _executor(name: str, workers: Optional[int], address: Optional[str], threads: int) -> Any:
-    if name not in EXECUTORS:
-        raise ValueError(f"executor must be one of {EXECUTORS}, got {name!r}")
-    if name == "local":
-        if address is not None:
-            raise ValueError("--address applies to the ray executor only")
-        return LocalExecutor(workers, threads)
-    return RayExecutor(address, workers, threads)
 
 
 def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "local", workers: Optional[int] = None,
@@ -207,19 +188,27 @@ def run_batch(jobs: Sequence[Job], out: Union[str, Path], *, executor: str = "lo
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     if len({j.id for j in jobs}) != len(jobs):
         raise ValueError("job ids must be unique (they are the resume key)")
+    if executor not in EXECUTORS:
+        raise ValueError(f"executor must be one of {EXECUTORS}, got {executor!r}")
+    if executor == "local" and address is not None:
+        raise ValueError("--address applies to the ray executor only")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     last = _journal(out)
     todo = [j for j in jobs if last.get(j.id, {}).get("status") != "ok"]
     library, library_path = _library(todo, out, progress)
-    engine = _executor(executor, workers, address, threads_per_job)
+    engine = (LocalExecutor(workers, threads_per_job) if executor == "local"
+              else RayExecutor(address, workers, threads_per_job))
     attempts = {j.id: int(last.get(j.id, {}).get("attempts", 0)) for j in todo}
     first = dict(attempts)
     try:
         with open(out / "records.jsonl", "a+", encoding="utf-8") as journal, \
                 tqdm(total=len(todo), desc="batch", unit="job", file=sys.stderr, disable=not progress) as bar:
-            _end_torn_line(journal)
+            if journal.tell() > 0:  # end the half-written record an interrupted run left, so that _journal skips it
+                journal.seek(journal.tell() - 1)
+                if journal.read(1) != "\n":
+                    journal.write("\n")
             queue = list(todo)
             while queue:
                 retry = []
@@ -294,8 +283,7 @@ def summarize(result: BatchResult) -> Dict[str, Any]:
     verdict = (f"all {n} jobs ok" if not bad else f"{bad} of {n} jobs failed or crashed" if bad < n
                else f"every job failed or crashed ({n} of {n})")
     return {"jobs": n, "verdict": verdict, "status": dict(Counter(r["status"] for r in result.records)),
-            "skipped_as_done": result.skipped,
-            "wall_seconds": result.seconds, "executor": result.executor,
+            "skipped_as_done": result.skipped, "wall_seconds": result.seconds, "executor": result.executor,
             "jobs_per_minute": 60 * (len(result.records) - result.skipped) / result.seconds if result.seconds else None,
             "job_seconds_total": sum(r["seconds"] for r in ran), "kinds": kinds,
             "failures": {r["id"]: r["error"] for r in result.records if r["status"] != "ok"}}
