@@ -352,7 +352,7 @@ def plot_pick(result: Any, path: PathLike, *, dpi: int = 110) -> Path:
         if p.status != "picked":
             continue
         c, colour = p.chosen, f"C{k % 10}"
-        chain = np.asarray(robot.joint_positions(c.q_grasp, tcp=True))
+        chain = np.asarray(result.tcp_robot(p).joint_positions(c.q_grasp, tcp=True))  # ends at the TCP
         chains.append(chain)
         approach = np.array([np.asarray(c.T_base_tcp_pregrasp)[:3, 3], np.asarray(c.T_base_tcp_grasp)[:3, 3]])
         for ax, dims in ((ax3, 3), (ax2, 2)):

@@ -188,7 +188,7 @@ class Viewer:
             self.rec.log(f"world/parts/{key}", rr.Mesh3D(vertex_positions=m.vertices, triangle_indices=m.faces,
                                                          albedo_factor=[70, 130, 230, 255]))
             if p.status == "picked":
-                self.log_arm(f"world/grasps/{key}/arm", result.robot, p.chosen.q_grasp)
+                self.log_arm(f"world/grasps/{key}/arm", result.tcp_robot(p), p.chosen.q_grasp)  # to the TCP
                 self.log_pose(f"world/grasps/{key}/tcp", np.asarray(p.chosen.T_base_tcp_grasp), axis_length=0.03)
 
     def close(self, timeout: float = 60.0) -> None:
