@@ -58,7 +58,8 @@ def test_reconstruction_recording(small_scan, tmp_path):
 
     path = tmp_path / "scan.rrd"
     with Viewer(save=path, model_every=2) as view:
-        result = reconstruct(small_scan.frames, on_frame=view.on_frame, progress=False)
+        result = reconstruct(small_scan.frames, on_frame=view.on_frame, progress=False, filter_depth=False,
+                             normal_radius=0.005, icp=dict(box=None))  # the paper's values register this 6-frame loop
         view.log_reconstruction(result)
     assert len(result.estimate) >= 4
     got = _contents(path)
@@ -78,7 +79,8 @@ def test_pick_recording(tmp_path):
     T = np.eye(4)
     T[:3, 3] = [0.4, 0.1, 0.02]
     plan = SimpleNamespace(candidates=[SimpleNamespace(q_grasp=q, T_base_tcp_grasp=robot.fk(q))], chosen=0)
-    picks = [PartPick("block", "picked", T_base_model=T, plan=plan, grasp_names=["top"]),
+    picks = [PartPick("block", "picked", T_base_model=T, plan=plan, grasp_names=["top"],
+                      gripper=SimpleNamespace(T_flange_tcp=np.eye(4))),
              PartPick("standoff", "not_found")]
     mesh = parts.builtin_mesh(segments=24)
     result = PickResult(picks, np.random.default_rng(0).random((500, 3)), None, robot, np.zeros(6),
@@ -101,7 +103,7 @@ def test_command_line_view_save(tmp_path):
 
     path = tmp_path / "cli.rrd"
     assert main(["reconstruct", "builtin", "--frames", "4", "--pixel-stride", "4", "--out", str(tmp_path / "out"),
-                 "--quiet", "--no-plots", "--view-save", str(path)]) == 0
+                 "--quiet", "--no-plots", "--view-save", str(path), "--set", "min_merged_fraction=0"]) == 0
     got = _contents(path)
     assert {"/world/model", "/world/camera", "/world/camera_path", "/world/arm"} <= set(got)
 
