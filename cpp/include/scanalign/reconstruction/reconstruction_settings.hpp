@@ -46,14 +46,14 @@ struct ReconstructionSettings {
   /// filter takes the ATE from 12 mm to 4 mm and costs little on low-noise sensors.
   bool filter_depth = true;
   BilateralFilterSettings depth_filter;
-  /// The frame-to-model pipeline: normals, grids, ICP, checks, motion model. Three fields
+  /// The frame-to-model pipeline: normals, grids, ICP, checks, motion model. Four fields
   /// differ from FrameToModelSettings' (the eye-in-hand paper's, kept there for its
   /// experiments), so that the defaults track a hand-held or robot scan of a tabletop part
   /// with a consumer sensor (built-in SR300-like scan: ATE 159 mm with the paper's values,
-  /// 21 of 36 frames not converged; about 3 mm with these):
+  /// 25 of 36 frames not converged; about 3 mm with these):
   /// - motion_model ConstantVelocity, not Previous: fewer iterations on a smooth scan path;
   /// - normal_radius 10 mm, not 5 mm: a 5 mm PCA neighbourhood holds too few points above
-  ///   consumer-sensor noise (ATE 15 mm against 4 mm with the filter on);
+  ///   consumer-sensor noise (ATE 12 mm against 3-4 mm, both with the filter);
   /// - icp.box (-0.1, 0.1, -0.1, 0.1, 0.0001, 10) m, the paper's box rejector (§3.4) sized to a
   ///   part's workspace (between its banana and free-hand boxes): correspondences on the
   ///   table around the part constrain nothing in the table's plane, and their noise drags a
