@@ -1428,3 +1428,88 @@ def joint_chain_robot(case):
     r = call(robot.joint_positions, q, tcp=case["tcp"], num_threads=case["threads"])
     if r is not None and case["q"] in ("f2", "str"):
         raise ContractError(f"joint_positions accepted a {case['q']} q")
+
+
+# -- own parts and sample recordings (issue 27) -------------------------------------------------
+
+
+@target("own_parts", T=st.sampled_from(_MATS), scale=numbers([1.0, 0.001]), order=choice([6, 1, 2, 4, 5, 0, -1, 2.5]),
+        axis=st.sampled_from([(0.0, 0.0, 1.0)] * 3 + _VEC3), point=st.sampled_from([(0.0, 0.0, 0.0)] * 3 + _VEC3))
+def load_part_file(case):
+    """A part file with any T_model_mesh, scale and symmetry: a part, or a ValueError / TypeError;
+    a loaded part's mesh is the built-in standoff scaled then moved by T_model_mesh (1e-9), and its
+    symmetry maps that mesh onto itself (the standoff is a hexagonal prism about its z axis)."""
+    import json
+    import tempfile
+
+    from scanalign.common.rigid import transform_points
+    from scanalign.data.parts import builtin_mesh
+    from scanalign.grasp.parts import load_part
+    T = _mat(case["T"])
+    T_json = T.tolist() if isinstance(T, np.ndarray) and T.dtype.kind in "fiu" else T
+    data = {"name": "p", "mesh": "builtin:standoff", "scale": case["scale"],
+            "symmetry": {"order": case["order"], **{k: list(v) if isinstance(v, tuple) else v
+                                                     for k, v in (("axis", case["axis"]), ("point", case["point"]))}},
+            "grasps": [{"name": "top", "T_model_grasp": np.eye(4).tolist()}]}
+    if T_json is not None:
+        data["T_model_mesh"] = T_json
+    with tempfile.TemporaryDirectory() as tmp:
+        path = f"{tmp}/p.json"
+        try:
+            with open(path, "w") as f:
+                json.dump(data, f)
+        except (TypeError, ValueError):
+            return  # not JSON (a complex matrix): nothing to read
+        part = call(load_part, path)
+    if part is None:
+        return
+    expected = np.asarray(builtin_mesh(name="standoff").vertices) * float(case["scale"])
+    if isinstance(T, np.ndarray) and T.shape == (4, 4):
+        expected = transform_points(np.asarray(T, dtype=np.float64), expected)
+    STATS["truth_checks"] += 1
+    if not np.allclose(part.mesh.vertices, expected, rtol=0, atol=1e-9 * max(1.0, float(np.abs(expected).max()))):
+        raise ContractError("load_part: the mesh is not the built-in standoff scaled and moved by T_model_mesh")
+
+
+@target("own_parts", weight=0.3, n=st.sampled_from([3, 3, 0, 1]), fmt=st.sampled_from(["ros1", "ros2", "png", "png"]),
+        depth_scale=numbers([None, 0.001, 0.000125]), exists=st.booleans())
+def write_recording(case):
+    """write_bag / write_image_folder: a recording that open_source reads back with the same
+    frames, poses (1e-6 m) and depth (half a depth unit), or a ValueError / OSError / TypeError."""
+    import os
+    import tempfile
+
+    from scanalign.datasets import open_source, sources
+    frames = _recording_frames()[:case["n"]]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = f"{tmp}/rec.bag" if case["fmt"] == "ros1" else f"{tmp}/rec"
+        if case["exists"]:
+            os.makedirs(path) if case["fmt"] != "ros1" else open(path, "w").close()
+        if case["fmt"] == "png":
+            out = call(sources.write_image_folder, path, frames, depth_scale=case["depth_scale"])
+        else:
+            out = call(sources.write_bag, path, frames) if case["depth_scale"] is None else None
+        if out is None:
+            return
+        back = call(open_source, path)
+        if back is None:
+            return
+        STATS["truth_checks"] += 1
+        if len(back) != len(frames):
+            raise ContractError(f"{case['fmt']}: {len(frames)} frames written, {len(back)} read back")
+        for a, b in zip(frames, back):
+            unit = float(b.depth_scale)
+            if a.T_base_camera is not None and b.T_base_camera is not None and \
+                    np.abs(np.asarray(a.T_base_camera) - np.asarray(b.T_base_camera)).max() > 1e-6:
+                raise ContractError(f"{case['fmt']}: a pose changed on the way through the file")
+            ok = np.isfinite(a.depth) & (a.depth > 0)
+            got = np.asarray(b.depth, dtype=np.float64) * unit
+            want = np.asarray(a.depth, dtype=np.float64) * float(a.depth_scale)
+            if np.abs(got[ok] - want[ok]).max() > 0.5 * unit + 1e-12:
+                raise ContractError(f"{case['fmt']}: depth differs by more than half a unit")
+
+
+@functools.lru_cache(maxsize=1)
+def _recording_frames():
+    from scanalign import synthetic
+    return synthetic.SyntheticConfig(n_frames=3, resolution_scale=0.25, noise="none").build().frames
