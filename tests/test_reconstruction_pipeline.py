@@ -244,6 +244,21 @@ def test_wrong_frames_raise_clear_errors():
     assert rec.records == [] and rec.model_size == 0
 
 
+def test_dual_quaternion_estimator_registers_frames_as_point_to_point():
+    # The reconstructor's engine with Walker et al. (1991)'s dual-quaternion estimator: each iteration the SVD's
+    # least-squares answer, so the same poses (the known-pose check: test_registration.py, on the bunny).
+    views = [Frame(ray_cast(loop_pose(i, 72))[0], K, T_base_camera=loop_pose(i, 72)) for i in range(3)]
+    poses = {}
+    for est in ("dual_quaternion", "point_to_point"):
+        rec = Reconstructor(registration="scanalign", icp=dict(estimator=est), T_model_camera0=views[0].T_base_camera)
+        assert rec.settings.icp.estimator == est
+        results = [rec.integrate(f) for f in views]
+        assert all(r.merged and r.converged for r in results), [r.status for r in results]
+        poses[est] = np.array([r.T_model_camera for r in results])
+    assert sum(r.iterations for r in results) > 2
+    np.testing.assert_allclose(poses["dual_quaternion"], poses["point_to_point"], rtol=0, atol=1e-9)
+
+
 def test_settings_overrides_and_crop_box():
     s = make_reconstruction_settings(icp=dict(max_iterations=7), min_fitness=0.5, crop_box=(-0.1, 0.1, -0.1, 0.1, 0, 1))
     e = s.frame_to_model  # the engine's fields, given for short

@@ -39,6 +39,18 @@ def test_point_to_point_estimator_recovers_motion(bunny):
     assert rot < 1e-4 and trans < 1e-4, (rot, trans, r)
 
 
+def test_dual_quaternion_estimator_recovers_motion_as_the_svd_does(bunny):
+    # Walker, Shao & Volz (1991)'s dual quaternions solve each iteration's point-to-point least squares in closed
+    # form, as the SVD does: the same steps, the same pose (the eye-in-hand paper's variant (b)).
+    pts, _ = bunny
+    src = make_source(pts, T_TRUE)
+    r = reg.icp(src, pts, estimator="dual_quaternion", max_iterations=500)
+    svd = reg.icp(src, pts, estimator="point_to_point", max_iterations=500)
+    assert r.converged and max(pose_error(r.T_target_source, T_TRUE)) < 1e-4, (pose_error(r.T_target_source, T_TRUE), r)
+    assert np.abs(r.T_target_source - svd.T_target_source).max() < 1e-9
+    assert reg.make_settings(estimator="dual_quaternion").estimator == "dual_quaternion"
+
+
 @pytest.mark.parametrize("noise", [0.0005, 0.001])
 def test_noise_gives_error_at_noise_level(bunny, noise):
     pts, _ = bunny

@@ -22,12 +22,6 @@ namespace scanalign::python {
 
 namespace {
 
-IcpEstimator estimatorFromString(const std::string& s) {
-  if (s == "point_to_plane") return IcpEstimator::PointToPlane;
-  if (s == "point_to_point") return IcpEstimator::PointToPoint;
-  throw py::value_error("estimator must be 'point_to_plane' or 'point_to_point', got '" + s + "'");
-}
-
 IcpSearch searchFromString(const std::string& s) {
   if (s == toString(IcpSearch::BucketKdTree)) return IcpSearch::BucketKdTree;
   if (s == toString(IcpSearch::LeftBalancedKdTree)) return IcpSearch::LeftBalancedKdTree;
@@ -413,9 +407,10 @@ void defineRegistration(py::module_& m) {
   fieldsOf(py::class_<IcpSettings>(m, "IcpSettings",
                                    "ICP settings, PCL semantics; defaults are the eye-in-hand paper's (§3.3) where it "
                                    "gives one. validate() raises ValueError naming a bad field."))
-      .name("estimator", &IS::estimator, 2, "",
-            "'point_to_plane' (Low 2004 LLS, eye-in-hand paper §3.2; needs target normals) or 'point_to_point' "
-            "(closed form, Horn / Umeyama)")
+      .name("estimator", &IS::estimator, 3, "",
+            "'point_to_plane' (Low 2004 LLS, eye-in-hand paper §3.2; needs target normals), 'point_to_point' "
+            "(closed form by SVD, Horn / Umeyama) or 'dual_quaternion' (the same least squares by Walker, Shao & "
+            "Volz 1991's dual quaternions: the eye-in-hand paper's variant (b))")
       .field("max_correspondence_distance", &IS::max_correspondence_distance, "m", "pairs farther apart are rejected")
       .field("max_iterations", &IS::max_iterations, "",
              "iteration cap; reaching it gives status 'max_iterations', converged False. Ctrl-C stops a long run "

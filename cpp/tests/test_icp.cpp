@@ -243,22 +243,24 @@ TEST(IcpEngine, InterruptHookStopsAlignBetweenIterationsAndLeavesTheEngineUsable
 
 TEST(IcpEngine, PointToPointOnCoincidentOrCollinearSourceIsDegenerateNotConverged) {
   const Surface s = wavySurfaceWithSphere(40);
-  IcpSettings settings;
-  settings.estimator = scanalign::IcpEstimator::PointToPoint;
-  Icp<float> icp(settings);
-  icp.setTarget(view(s.points));
   std::vector<float> same, line;
   for (int i = 0; i < 100; ++i) {
     same.insert(same.end(), s.points.begin(), s.points.begin() + 3);
     line.insert(line.end(), {-0.05f + 0.001f * i, 0.0f, s.points[2]});
   }
-  for (const auto* cloud : {&same, &line}) {
-    const auto r = icp.align(view(*cloud));
-    EXPECT_EQ(r.status, IcpStatus::Degenerate);
-    EXPECT_STREQ(scanalign::toString(r.status), "degenerate");
-    EXPECT_FALSE(r.converged);
-    EXPECT_TRUE(r.degenerate);
-    EXPECT_LE(r.min_rank, 2);
-    EXPECT_TRUE(r.T_target_source.isIdentity());  // the undetermined step is not applied
+  for (auto est : {scanalign::IcpEstimator::PointToPoint, scanalign::IcpEstimator::DualQuaternion}) {
+    for (const auto* cloud : {&same, &line}) {
+      IcpSettings settings;
+      settings.estimator = est;
+      Icp<float> icp(settings);
+      icp.setTarget(view(s.points));
+      const auto r = icp.align(view(*cloud));
+      EXPECT_EQ(r.status, IcpStatus::Degenerate) << scanalign::toString(est);
+      EXPECT_STREQ(scanalign::toString(r.status), "degenerate");
+      EXPECT_FALSE(r.converged);
+      EXPECT_TRUE(r.degenerate);
+      EXPECT_LE(r.min_rank, 2);
+      EXPECT_TRUE(r.T_target_source.isIdentity());  // the undetermined step is not applied
+    }
   }
 }

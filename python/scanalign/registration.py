@@ -2,8 +2,8 @@
 
 The engine follows the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929) (Algorithm 1, §3.1-3.4): a k-d
 tree over the target, nearest neighbours, box and distance rejection, and Low's point-to-plane linear least squares (or
-closed-form point-to-point), iterated until PCL's convergence criteria hold. :class:`IcpSettings`, :class:`IcpResult`
-and :class:`Box` are the C++ structs; their fields carry their docs.
+closed-form point-to-point: SVD or dual quaternion), iterated until PCL's convergence criteria hold.
+:class:`IcpSettings`, :class:`IcpResult` and :class:`Box` are the C++ structs; their fields carry their docs.
 
 Frames and units: points in metres; ``source`` is in the source frame (e.g. the camera of
 a new frame), ``target`` in the target frame (e.g. the model). Every transform returned
@@ -31,7 +31,7 @@ Box = _core.registration.Box
 IcpSettings = _core.registration.IcpSettings
 IcpResult = _core.registration.IcpResult
 
-Estimator = Literal["point_to_plane", "point_to_point"]
+Estimator = Literal["point_to_plane", "point_to_point", "dual_quaternion"]
 PclVariant = Literal["svd", "dual_quaternion", "point_to_plane_lls", "scanalign_point_to_plane_lls"]
 BoxLike = Union[Box, Sequence[float], None]
 
@@ -93,7 +93,8 @@ def icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndar
     cloud that has them). ``init``: initial ``T_target_source`` (4x4 rigid), identity by default. The keywords are
     :class:`IcpSettings` fields, None taking the value of ``settings`` (or the C++ defaults):
     ``max_correspondence_distance`` (m; farther pairs are rejected), ``box`` (in the source camera frame: :class:`Box`
-    or 6 numbers, m), ``estimator`` (``"point_to_plane"``, eye-in-hand paper §3.2, or ``"point_to_point"``), the
+    or 6 numbers, m), ``estimator`` (``"point_to_plane"``, eye-in-hand paper §3.2; ``"point_to_point"``, SVD; or
+    ``"dual_quaternion"``, the same least squares by Walker et al. 1991, the paper's variant (b)), the
     PCL-style convergence criteria ``max_iterations``, ``transformation_epsilon``, ``fitness_epsilon`` (eye-in-hand
     paper §3.3), and in ``overrides`` any other field, e.g. ``num_threads=1``.
 

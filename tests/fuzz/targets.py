@@ -77,7 +77,7 @@ def _make_pair(pair):
 
 # -- registration ------------------------------------------------------------------------
 @target("registration", pair=_pair(1500), normals=choice(["unit", "zero", "nan", "short", "estimated"]),
-        init=transforms(), distance=numbers([0.05, 0.2]), estimator=choice(["point_to_plane", "point_to_point", "nope"]),
+        init=transforms(), distance=numbers([0.05, 0.2]), estimator=choice(["point_to_plane", "point_to_point", "dual_quaternion", "nope"]),
         iters=iterations(30), eps=numbers(1e-6), box=choice([None, None, (-1, 1, -1, 1, 0, 9), (1, -1, 0, 0, 0, 0), (NAN,) * 6, (0,) * 5]))
 def icp(case):
     from scanalign import features, registration
@@ -93,7 +93,7 @@ def icp(case):
     src_r = case["pair"][0]
     if T is not None and clean(src_r, UNDETERMINED, 3) and case["box"] is None and not r.degenerate:
         raise ContractError(f"icp converged, not degenerate, on a {src_r[1]} source (a rigid motion is not determined)")
-    point_to_point = case["estimator"] == "point_to_point"
+    point_to_point = case["estimator"] in ("point_to_point", "dual_quaternion")
     if T is not None and clean(src_r, ("corner", "box") if point_to_point else ("corner",), 300) and case["init"][1] == "identity" \
             and case["box"] is None and case["distance"] in (0.05, 0.2) and (point_to_point or case["normals"] == "estimated"):
         angle, shift = rotation_error(r.T_target_source, T)

@@ -18,6 +18,7 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "scanalign/registration/dual_quaternion.hpp"
 #include "scanalign/registration/point_to_plane_lls.hpp"
 #include "scanalign/registration/point_to_point.hpp"
 
@@ -49,7 +50,12 @@ const char* toString(RobustKernel kernel) {
 }
 
 const char* toString(IcpEstimator estimator) {
-  return estimator == IcpEstimator::PointToPlane ? "point_to_plane" : "point_to_point";
+  switch (estimator) {
+    case IcpEstimator::PointToPlane: return "point_to_plane";
+    case IcpEstimator::PointToPoint: return "point_to_point";
+    case IcpEstimator::DualQuaternion: return "dual_quaternion";
+  }
+  return "unknown";
 }
 
 void validate(const IcpSettings& s) {
@@ -307,7 +313,9 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
         result.degenerate = result.degenerate || sol.degenerate;
         delta = transformFromParameters(sol.x);
       } else {
-        const PointToPointSolve sol = solvePointToPoint(total.system, settings_.degeneracy_threshold);
+        const PointToPointSolve sol = settings_.estimator == IcpEstimator::DualQuaternion
+                                          ? solveDualQuaternion(total.system, settings_.degeneracy_threshold)
+                                          : solvePointToPoint(total.system, settings_.degeneracy_threshold);
         result.min_rank = std::min(result.min_rank, sol.rank == 3 ? 6 : sol.rank * 2);
         result.degenerate = result.degenerate || sol.degenerate;
         if (sol.degenerate) {  // the rotation is not determined: no answer to converge to

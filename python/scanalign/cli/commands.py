@@ -171,7 +171,8 @@ RECONSTRUCT = Command(ReconstructionSettings, (
           choices=["previous", "constant_velocity", "reference"]),
     Alias("--registration", "registration", "registration",
           choices=["scanalign", "pcl_svd", "pcl_dual_quaternion", "pcl_point_to_plane_lls"]),
-    Alias("--estimator", _F + "icp.estimator", "registration", choices=["point_to_plane", "point_to_point"]),
+    Alias("--estimator", _F + "icp.estimator", "registration",
+          choices=["point_to_plane", "point_to_point", "dual_quaternion"]),
     Alias("--max-distance", _F + "icp.max_correspondence_distance", "registration"),
     Alias("--max-iterations", _F + "icp.max_iterations", "registration"),
     Alias("--box", _F + "icp.box", "registration", nargs=6, metavar=_BOX,
@@ -216,7 +217,7 @@ def _register_root() -> dict:
 REGISTER = Command(_register_root, (
     Alias("--max-distance", "icp.max_correspondence_distance"),
     Alias("--max-iterations", "icp.max_iterations"),
-    Alias("--estimator", "icp.estimator", choices=["point_to_plane", "point_to_point"]),
+    Alias("--estimator", "icp.estimator", choices=["point_to_plane", "point_to_point", "dual_quaternion"]),
     Alias("--normal-radius", "normals.radius"),
     Alias("--box", "icp.box", nargs=6, metavar=_BOX, value=_box, help="box rejector in the source camera frame"),
 ))

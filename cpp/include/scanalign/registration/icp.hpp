@@ -25,7 +25,11 @@ namespace scanalign {
 
 enum class IcpEstimator {
   PointToPlane,  ///< Low (2004) linear least squares, eye-in-hand paper §3.2 (needs target normals)
-  PointToPoint,  ///< closed form (Horn / Umeyama), for comparison
+  PointToPoint,  ///< closed form (Horn / Umeyama): the SVD of the cross-covariance, for comparison
+  /// Point-to-point by dual number quaternions (Walker, Shao & Volz 1991): the eye-in-hand
+  /// paper's variant (b) and PCL's TransformationEstimationDualQuaternion. The same
+  /// least-squares answer as PointToPoint from the same sums (registration/dual_quaternion.hpp).
+  DualQuaternion,
 };
 
 /// The nearest-neighbour structure over the target.
@@ -56,8 +60,9 @@ enum class IcpStatus {
   ConvergedRelativeMse,      ///< |MSE change| / MSE below the fitness epsilon
   MaxIterations,             ///< max_iterations reached first: not converged
   NotEnoughCorrespondences,  ///< fewer than min_correspondences survived rejection
-  /// Point-to-point only: the correspondences do not determine the rotation (the source
-  /// points, or the target points they matched, coincide or lie on one line; rank < 2).
+  /// Point-to-point (either closed form) only: the correspondences do not determine the
+  /// rotation (the source points, or the target points they matched, coincide or lie on one
+  /// line; rank < 2).
   /// Not converged; the transform is the estimate before that iteration. (Point-to-plane
   /// solves rank-deficient systems in their constrained directions and reports it through
   /// IcpResult::degenerate / min_rank: a plane constrains 3 of the 6 motions.)
@@ -106,16 +111,16 @@ struct IcpSettings {
   /// a hint only tightens the search bound, so results equal a cold search up to ties).
   bool warm_start = true;
   /// Fewer correspondences than this stop ICP (status NotEnoughCorrespondences).
-  /// 6 unknowns for point-to-plane; at least 3 is enforced for point-to-point.
+  /// 6 unknowns for point-to-plane; at least 3 is enforced for the point-to-point estimators.
   int min_correspondences = 6;
   /// lambda_min / lambda_max of the balanced normal matrix below which a direction
   /// counts as unconstrained (see solvePointToPlane); such directions are not updated.
   /// Kept low on purpose: a small object on a large table legitimately gives ratios near
   /// 1e-7 (the table's points dominate lambda_max), and freezing those motions would be
   /// a silent wrong answer; only (numerically) exact rank loss is treated as degenerate.
-  /// Point-to-point: the same bound on the cross-covariance's singular values relative to
-  /// the spreads of the matched points (solvePointToPoint); rank < 2 ends the run with
-  /// status Degenerate.
+  /// Point-to-point and dual quaternion: the same bound on the cross-covariance's singular
+  /// values relative to the spreads of the matched points (solvePointToPoint); rank < 2 ends
+  /// the run with status Degenerate.
   double degeneracy_threshold = 1e-10;
   /// Coarse-to-fine: when > 1, ICP first iterates on every coarse_stride-th source point
   /// (in the Z-order the engine visits points in, so an even spatial subset) until that

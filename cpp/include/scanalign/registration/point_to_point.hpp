@@ -46,6 +46,21 @@ struct PointToPointSolve {
   bool degenerate = true;   ///< collinear or coincident points: rotation not determined
 };
 
+/// The rank of the centred cross-covariance of `sys` from its singular values, by the rule
+/// solvePointToPoint states (shared with solveDualQuaternion, dual_quaternion.hpp).
+inline int pointToPointRank(const PointToPointSystem& sys, const Eigen::Vector3d& singular_values,
+                            double degeneracy_threshold) {
+  const Eigen::Vector3d ms = Eigen::Map<const Eigen::Vector3d>(sys.sum_s.data()) / sys.count;
+  const Eigen::Vector3d md = Eigen::Map<const Eigen::Vector3d>(sys.sum_d.data()) / sys.count;
+  const double spread_s = sys.sum_ss - sys.count * ms.squaredNorm();  // tr C_s
+  const double spread_d = sys.sum_dd - sys.count * md.squaredNorm();  // tr C_d
+  int rank = 0;
+  if (spread_s > 1e-12 * sys.sum_ss && spread_d > 1e-12 * sys.sum_dd)
+    for (int k = 0; k < 3; ++k)
+      if (singular_values(k) > degeneracy_threshold * std::sqrt(spread_s * spread_d)) ++rank;
+  return rank;
+}
+
 /// Least-squares rigid transform T minimising sum |T s_i - d_i|^2 (Kabsch/Umeyama):
 /// the rotation of the cross-covariance (common/rigid.hpp), t = d_mean - R s_mean.
 ///
@@ -66,12 +81,7 @@ inline PointToPointSolve solvePointToPoint(const PointToPointSystem& sys, double
   // sum (s - s_mean)(d - d_mean)^T, transposed: the target-by-source cross-covariance.
   const Eigen::Matrix3d H = sum_sd - sys.count * ms * md.transpose();
   const CrossCovarianceRotation rot = rotationFromCrossCovariance(H.transpose());
-  const double spread_s = sys.sum_ss - sys.count * ms.squaredNorm();  // tr C_s
-  const double spread_d = sys.sum_dd - sys.count * md.squaredNorm();  // tr C_d
-  out.rank = 0;
-  if (spread_s > 1e-12 * sys.sum_ss && spread_d > 1e-12 * sys.sum_dd)
-    for (int k = 0; k < 3; ++k)
-      if (rot.singular_values(k) > degeneracy_threshold * std::sqrt(spread_s * spread_d)) ++out.rank;
+  out.rank = pointToPointRank(sys, rot.singular_values, degeneracy_threshold);
   out.degenerate = out.rank < 2;
   const Eigen::Matrix3d R = out.degenerate ? Eigen::Matrix3d::Identity() : rot.R;
   out.T.topLeftCorner<3, 3>() = R;

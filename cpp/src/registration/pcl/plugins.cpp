@@ -1,5 +1,7 @@
-// Compiled PCL plug-ins: BoxRejector and the common PointToPlaneLLS instantiations.
+// Compiled PCL plug-ins: BoxRejector and the common PointToPlaneLLS and
+// PointToPointDualQuaternion instantiations.
 #include "scanalign/registration/pcl/box_rejector.hpp"
+#include "scanalign/registration/pcl/dual_quaternion.hpp"
 #include "scanalign/registration/pcl/point_to_plane_lls.hpp"
 
 #include <stdexcept>
@@ -10,6 +12,10 @@ template class scanalign::PointToPlaneLLS<pcl::PointNormal, pcl::PointNormal, do
 template class scanalign::PointToPlaneLLS<pcl::PointXYZ, pcl::PointNormal, float>;
 template class scanalign::PointToPlaneLLS<pcl::PointXYZ, pcl::PointNormal, double>;
 template class scanalign::PointToPlaneLLS<pcl::PointXYZRGBNormal, pcl::PointXYZRGBNormal, float>;
+template class scanalign::PointToPointDualQuaternion<pcl::PointXYZ, pcl::PointXYZ, float>;
+template class scanalign::PointToPointDualQuaternion<pcl::PointXYZ, pcl::PointXYZ, double>;
+template class scanalign::PointToPointDualQuaternion<pcl::PointNormal, pcl::PointNormal, float>;
+template class scanalign::PointToPointDualQuaternion<pcl::PointNormal, pcl::PointNormal, double>;
 
 namespace scanalign {
 
