@@ -102,7 +102,7 @@ void bindResults(py::module_& m) {
       .field("inlier_rmse", &R::inlier_rmse, "m", "over the fitness inliers")
       .field("method", &R::method, "",
              "coarse method used: 'cbd', 'flags', 'external', or a PCL baseline's name ('fpfh', 'fpfh_sac_ia', "
-             "'shot', '3dsc', 'ppf')")
+             "'shot', '3dsc', 'ppf', 'pfh', 'rsd', 'gasd', 'vfh')")
       .field("view", optionalIndexGetter(&R::view), optionalIndexSetter(&R::view), "",
              "index of the best model view (None when nothing was found or the model was a cloud)")
       .field("seconds", &R::seconds, "s", "wall time, all views")

@@ -220,6 +220,31 @@ TEST(PoseEstimation, PclMethodWithTheFpfhPresetRecoversAKnownPoseOrIsNotBuilt) {
   EXPECT_GT(r.coverage, 0.95);
 }
 
+TEST(PoseEstimation, PclMethodWithPfhRsdGasdVfhRecoversAKnownPose) {
+  // The four baselines added beside FPFH (thesis ch. 3, Paper 5 Table I, Paper 3), each chosen by
+  // the settings alone, then scanalign's ICP; the truth is the pose the scene was made with.
+  if (!scanalign::builtWithPcl()) GTEST_SKIP() << "built without PCL (the FPFH test checks NotBuiltError)";
+  const BumpyCapScene l;
+  using scanalign::PclDescriptor;
+  for (const PclDescriptor d : {PclDescriptor::PFH, PclDescriptor::RSD, PclDescriptor::GASD, PclDescriptor::VFH}) {
+    SCOPED_TRACE(scanalign::toString(d));
+    scanalign::PoseSettings s;
+    s.method = scanalign::CoarseMethod::Pcl;
+    s.pcl = scanalign::thesisPclPreset(d);
+    s.pcl.voxel_size = 0.003;  // as the FPFH test
+    s.pcl.num_threads = 2;
+    if (d == PclDescriptor::PFH) s.pcl.feature_radius = 0.015;   // k^2 pairs per point (tests/test_pose.py)
+    if (d == PclDescriptor::RSD) s.pcl.max_iterations = 20000;   // two numbers per point: ambiguous matches
+    const scanalign::PoseResult r = scanalign::estimatePose(l.views, l.cloud(), s);
+    ASSERT_TRUE(r.found) << r.message;
+    EXPECT_EQ(r.method, scanalign::toString(d));
+    const Eigen::Matrix3d dR = r.T_scene_model.topLeftCorner<3, 3>().transpose() * l.T_true.linear();
+    EXPECT_LT(Eigen::AngleAxisd(dR).angle(), 0.5 * M_PI / 180);
+    EXPECT_LT((r.T_scene_model.topRightCorner<3, 1>() - l.T_true.translation()).norm(), 0.001);
+    EXPECT_GT(r.fitness, 0.95);
+  }
+}
+
 TEST(PoseEstimation, SettingsHoldTheViewsAndNameThePclBaseline) {
   const scanalign::PoseSettings s;
   EXPECT_EQ(s.views.resolution, 150);  // as Python's estimate_pose renders a mesh
@@ -233,6 +258,11 @@ TEST(PoseEstimation, SettingsHoldTheViewsAndNameThePclBaseline) {
   EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::SHOT)), "shot");
   EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::ShapeContext3D)), "3dsc");
   EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::PPF, PclMatcher::SacIA)), "ppf");
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::PFH)), "pfh");
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::RSD)), "rsd");
+  // GASD and VFH (OUR-CVFH) take the pose from reference frames: no matcher, so no suffix.
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::GASD, PclMatcher::SacIA)), "gasd");
+  EXPECT_EQ(scanalign::pclBaselineName(thesisPclPreset(PclDescriptor::VFH, PclMatcher::SacIA)), "vfh");
 }
 
 }  // namespace

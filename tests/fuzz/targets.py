@@ -531,10 +531,15 @@ def estimate_pose(case):
             raise ContractError(f"estimate_pose found a pose that puts the scene {gap * 1e3:.1f} mm off the part")
 
 
-@target("pose", src=clouds(1500), tgt=clouds(1500), method=choice(["fpfh", "shot", "nope"]))
+@target("pose", src=clouds(1500), tgt=clouds(1500),
+        method=choice(["fpfh", "shot", "pfh", "rsd", "gasd", "vfh", "nope"]),
+        settings=choice([{}, {"rsd_plane_radius": 0.0}, {"rsd_plane_radius": INF}, {"vfh_min_points": 2},
+                         {"vfh_min_points": 10 ** 9}, {"vfh_eps_angle": NAN}, {"vfh_cluster_tolerance": -1.0},
+                         {"vfh_curvature_threshold": 0.0}, {"gasd_half_turns": False}, {"gasd_half_turns": "yes"},
+                         {"feature_radius": 1e3}]))
 def pcl_feature_alignment(case):
     from scanalign import pose
-    call(pose.pcl_feature_alignment, build(case["src"]), build(case["tgt"]), method=case["method"])
+    call(pose.pcl_feature_alignment, build(case["src"]), build(case["tgt"]), method=case["method"], **case["settings"])
 
 
 @target("cbd", points=clouds(1500), radius=numbers([0.05, 0.3]), kp=counts([50, 200]), min_nb=counts(0))

@@ -190,7 +190,7 @@ POSE = Command(_core.pose.FindObjectsSettings, (
     Alias("--method", "pose", choices=list(_pose.METHODS),
           value=lambda name: to_dict(_pose.pose_task_settings(_pose.PoseSettings, method=name)),
           help="coarse alignment: cbd (the thesis's curvature-based descriptor), flags, or a stock PCL baseline "
-               "(fpfh, fpfh_sac_ia, shot, 3dsc, ppf: method pcl with the thesis's preset); default cbd"),
+               "(fpfh, fpfh_sac_ia, shot, 3dsc, ppf, pfh, rsd, gasd, vfh: method pcl with the thesis's preset); default cbd"),
     Alias("--cbd-radius", _P + "cbd.cbd.radius", help="CBD neighbourhood radius (about 0.015 for scans with ~1-2 mm "
                                                       "noise)"),
     Alias("--resolution", _P + "views.resolution"),

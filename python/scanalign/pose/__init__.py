@@ -42,11 +42,12 @@ __all__ = [*_BOUND, "find_parts", "pose_task_settings", "POSE_KEYWORDS", "TABLE_
 _P = _core.pose
 globals().update({name: getattr(_P, name) for name in _BOUND})
 
-Method = Literal["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags"]
-METHODS: Tuple[str, ...] = ("cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "flags")
+Method = Literal["cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "pfh", "rsd", "gasd", "vfh", "flags"]
+METHODS: Tuple[str, ...] = ("cbd", "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "pfh", "rsd", "gasd", "vfh", "flags")
 # PCL baseline name -> (descriptor, matcher)
 _PCL_METHODS = {"fpfh": ("fpfh", "prerejective"), "fpfh_sac_ia": ("fpfh", "sac_ia"), "shot": ("shot", "prerejective"),
-                "3dsc": ("shape_context_3d", "prerejective"), "ppf": ("ppf", "prerejective")}
+                "3dsc": ("shape_context_3d", "prerejective"), "ppf": ("ppf", "prerejective"),
+                **{m: (m, "prerejective") for m in ("pfh", "rsd", "gasd", "vfh")}}
 
 
 def _pcl_preset(method: str) -> Any:
@@ -171,8 +172,10 @@ def pcl_feature_alignment(source: np.ndarray, target: np.ndarray, method: str = 
                           **settings: object) -> PclFeatureAlignmentResult:
     """A stock PCL 1.13 coarse registration of ``source`` onto ``target`` ((N, 3) metres, run in float32), the thesis's
     baselines (§7.6): ``"fpfh"`` (FPFHEstimationOMP + SampleConsensusPrerejective), ``"fpfh_sac_ia"`` (SAC-IA),
-    ``"shot"``, ``"3dsc"`` or ``"ppf"`` (PPFRegistration). ``**settings`` override fields of the method's
-    :data:`THESIS_PCL_PRESET` (``PclFeatureAlignmentSettings``, each field with its unit)."""
+    ``"shot"``, ``"3dsc"``, ``"ppf"`` (PPFRegistration), ``"pfh"`` and ``"rsd"`` (as FPFH), ``"gasd"`` (the two
+    clouds' GASD canonical frames) or ``"vfh"`` (OUR-CVFH: the paired clusters' SGURFs; plain VFH gives no pose).
+    ``**settings`` override fields of the method's :data:`THESIS_PCL_PRESET` (``PclFeatureAlignmentSettings``, each
+    field with its unit)."""
     if method not in _PCL_METHODS:
         raise ValueError(f"method: expected one of {sorted(_PCL_METHODS)}, got {method!r}")
     st = set_fields(_pcl_preset(method), settings, "PCL")

@@ -114,7 +114,7 @@ struct PoseResult {
   double coverage = 0;         ///< fraction of the object's points within inlier_threshold of the placed view
   double inlier_rmse = 0;      ///< m, over the fitness inliers
   /// Coarse method used: "cbd", "flags", "external", or for CoarseMethod::Pcl the baseline's
-  /// name (pclBaselineName: "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf").
+  /// name (pclBaselineName: "fpfh", "fpfh_sac_ia", "shot", "3dsc", "ppf", "pfh", "rsd", "gasd", "vfh").
   std::string method;
   int view = -1;               ///< index of the best view (-1 when nothing was found)
   double seconds = 0;          ///< wall time, all views

@@ -33,7 +33,9 @@ CoarseAligner pclCoarseAligner(const PclFeatureAlignmentSettings& settings) {
 }
 
 std::string pclBaselineName(const PclFeatureAlignmentSettings& settings) {
-  const bool sac_ia = settings.matcher == PclMatcher::SacIA && settings.descriptor != PclDescriptor::PPF;
+  const PclDescriptor d = settings.descriptor;  // PPF, GASD and VFH have no matcher
+  const bool sac_ia = settings.matcher == PclMatcher::SacIA && d != PclDescriptor::PPF && d != PclDescriptor::GASD &&
+                      d != PclDescriptor::VFH;
   return std::string(toString(settings.descriptor)) + (sac_ia ? "_sac_ia" : "");
 }
 

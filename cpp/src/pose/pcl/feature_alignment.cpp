@@ -1,7 +1,8 @@
-// Stock PCL 1.13 global registration baselines (Kleppe, PhD thesis, NTNU 2018, Paper 5 §IV-A): FPFH,
-// SHOT and 3D shape context matched by SampleConsensusPrerejective or SAC-IA, and Drost's
-// point-pair features with PCL's hash-map voting. The only translation unit that pays for
-// PCL's feature and sample-consensus templates; the header stays PCL-free.
+// Stock PCL 1.13 global registration baselines (Kleppe, PhD thesis, NTNU 2018, Paper 5 §IV-A and
+// ch. 3; Paper 3): FPFH, SHOT, 3D shape context, PFH and RSD matched by
+// SampleConsensusPrerejective or SAC-IA, Drost's point-pair features with PCL's hash-map voting,
+// and the global GASD and OUR-CVFH, whose reference frames give the pose. The only translation
+// unit that pays for PCL's feature and sample-consensus templates; the header stays PCL-free.
 //
 // The pipeline is deliberately the stock one (voxel grid, NormalEstimationOMP, descriptor,
 // matcher) so the baselines are what a PCL user gets. Where stock PCL would crash or
@@ -14,12 +15,14 @@
 #include "scanalign/common/threads.hpp"
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
 #include <cstdlib>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -28,10 +31,15 @@
 
 #include <Eigen/Eigenvalues>
 #include <pcl/common/common.h>
+#include <pcl/common/io.h>
 #include <pcl/features/3dsc.h>
 #include <pcl/features/fpfh_omp.h>
+#include <pcl/features/gasd.h>
 #include <pcl/features/normal_3d_omp.h>
+#include <pcl/features/our_cvfh.h>
+#include <pcl/features/pfh.h>
 #include <pcl/features/ppf.h>
+#include <pcl/features/rsd.h>
 #include <pcl/features/shot_omp.h>
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/kdtree/kdtree_flann.h>
@@ -64,10 +72,23 @@ constexpr double kPi = 3.14159265358979323846;  // M_PI where PCL's own expressi
 /// (0.05 x diameter, a few hundred points), which is the regime this baseline is for.
 constexpr std::size_t kPpfMaxModelPoints = 4096;
 
+/// PFH describes a point by all pairs of its k neighbours, k (k - 1) / 2 pair features, single-
+/// threaded in PCL: at the thesis preset (1 mm voxels, 30 mm support, k ~ 2800 on a surface)
+/// that is ~4e6 pairs per point, hours for a scan. PCL computed ~3e6 pairs per second on one
+/// core here (a 120 mm view at 3 mm voxels and 30 mm support: 1.2e8 pairs, 40 s), so clouds
+/// whose neighbourhoods hold more pairs than this together (~30 s) are refused with a message
+/// instead of appearing to hang.
+constexpr double kPfhMaxPairs = 1e8;
+
 double secondsSince(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 bool finitePositive(double v) { return std::isfinite(v) && v > 0.0; }
 bool finiteNonNegative(double v) { return std::isfinite(v) && v >= 0.0; }
+
+/// Local descriptors, matched point to point by a RANSAC matcher (the others give a pose themselves).
+bool usesMatcher(PclDescriptor d) {
+  return d != PclDescriptor::PPF && d != PclDescriptor::GASD && d != PclDescriptor::VFH;
+}
 
 void validate(const PclFeatureAlignmentSettings& s) {
   const auto fail = [](const std::string& what) {
@@ -77,7 +98,11 @@ void validate(const PclFeatureAlignmentSettings& s) {
     case PclDescriptor::FPFH:
     case PclDescriptor::SHOT:
     case PclDescriptor::ShapeContext3D:
-    case PclDescriptor::PPF: break;
+    case PclDescriptor::PPF:
+    case PclDescriptor::PFH:
+    case PclDescriptor::RSD:
+    case PclDescriptor::GASD:
+    case PclDescriptor::VFH: break;
     default: fail("unknown descriptor");
   }
   switch (s.matcher) {
@@ -85,9 +110,9 @@ void validate(const PclFeatureAlignmentSettings& s) {
     case PclMatcher::SacIA: break;
     default: fail("unknown matcher");
   }
-  // The header documents the matcher as ignored for PPF, so only the local descriptors are
-  // checked: PCL's SAC-IA is only instantiated (and only meaningful) for FPFH here.
-  if (s.matcher == PclMatcher::SacIA && s.descriptor != PclDescriptor::FPFH && s.descriptor != PclDescriptor::PPF)
+  // The header documents the matcher as ignored for PPF, GASD and VFH, so only the local
+  // descriptors are checked: PCL's SAC-IA is only instantiated (and only meaningful) for FPFH here.
+  if (s.matcher == PclMatcher::SacIA && usesMatcher(s.descriptor) && s.descriptor != PclDescriptor::FPFH)
     fail(std::string("SAC-IA supports only the FPFH descriptor, got '") + toString(s.descriptor) + "'");
   if (!finiteNonNegative(s.voxel_size)) fail("voxel_size must be finite and >= 0");
   if (!finitePositive(s.normal_radius)) fail("normal_radius must be finite and > 0");
@@ -115,6 +140,12 @@ void validate(const PclFeatureAlignmentSettings& s) {
   if (!finiteNonNegative(s.ppf_distance_step)) fail("ppf_distance_step must be finite and >= 0");
   if (!(std::isfinite(s.ppf_scene_fraction) && s.ppf_scene_fraction > 0.0 && s.ppf_scene_fraction <= 1.0))
     fail("ppf_scene_fraction must lie in (0, 1]");
+  if (!finitePositive(s.rsd_plane_radius)) fail("rsd_plane_radius must be finite and > 0");
+  if (!(finitePositive(s.vfh_eps_angle) && s.vfh_eps_angle <= kPi)) fail("vfh_eps_angle must lie in (0, pi]");
+  if (!finitePositive(s.vfh_curvature_threshold)) fail("vfh_curvature_threshold must be finite and > 0");
+  if (!finitePositive(s.vfh_cluster_tolerance)) fail("vfh_cluster_tolerance must be finite and > 0");
+  // A SGURF is a weighted covariance of the cluster: three points at least.
+  if (s.vfh_min_points < 3) fail("vfh_min_points must be >= 3");
   if (s.num_threads < 0) fail("num_threads must be >= 0 (0 = all cores)");
 }
 
@@ -233,6 +264,33 @@ FeatureCloud<pcl::ShapeContext1980>::Ptr computeDescriptors<pcl::ShapeContext198
   return out;
 }
 
+template <>
+FeatureCloud<pcl::PFHSignature125>::Ptr computeDescriptors<pcl::PFHSignature125>(const Cloud::Ptr& cloud,
+                                                                                 const PclFeatureAlignmentSettings& s) {
+  pcl::PFHEstimation<PointT, PointT, pcl::PFHSignature125> est;  // no OpenMP variant in PCL
+  est.setInputCloud(cloud);
+  est.setInputNormals(cloud);
+  est.setSearchMethod(pcl::make_shared<Tree>());
+  est.setRadiusSearch(s.feature_radius);
+  auto out = pcl::make_shared<FeatureCloud<pcl::PFHSignature125>>();
+  est.compute(*out);
+  return out;
+}
+
+template <>
+FeatureCloud<pcl::PrincipalRadiiRSD>::Ptr computeDescriptors<pcl::PrincipalRadiiRSD>(const Cloud::Ptr& cloud,
+                                                                                     const PclFeatureAlignmentSettings& s) {
+  pcl::RSDEstimation<PointT, PointT, pcl::PrincipalRadiiRSD> est;  // single-threaded in PCL
+  est.setInputCloud(cloud);
+  est.setInputNormals(cloud);
+  est.setSearchMethod(pcl::make_shared<Tree>());
+  est.setRadiusSearch(s.feature_radius);
+  est.setPlaneRadius(s.rsd_plane_radius);
+  auto out = pcl::make_shared<FeatureCloud<pcl::PrincipalRadiiRSD>>();
+  est.compute(*out);
+  return out;
+}
+
 template <std::size_t N>
 bool allFinite(const float (&bins)[N]) {
   return std::all_of(bins, bins + N, [](float v) { return std::isfinite(v); });
@@ -244,6 +302,8 @@ bool allFinite(const float (&bins)[N]) {
 bool descriptorFinite(const pcl::FPFHSignature33& f) { return allFinite(f.histogram); }
 bool descriptorFinite(const pcl::SHOT352& f) { return allFinite(f.descriptor); }
 bool descriptorFinite(const pcl::ShapeContext1980& f) { return allFinite(f.descriptor); }
+bool descriptorFinite(const pcl::PFHSignature125& f) { return allFinite(f.histogram); }
+bool descriptorFinite(const pcl::PrincipalRadiiRSD& f) { return std::isfinite(f.r_min) && std::isfinite(f.r_max); }
 
 /// Keeps the points whose descriptor is finite, in both clouds, so the point and feature
 /// clouds stay in the one-to-one correspondence PCL's matchers require.
@@ -263,43 +323,94 @@ void removeNonFiniteDescriptors(Cloud::Ptr& points, typename FeatureCloud<Featur
   features = kept_features;
 }
 
-/// Nearest-neighbour score of T on the (downsampled) clouds, independent of which PCL
-/// matcher produced T, so every baseline is scored alike.
-void score(const Cloud& source, const Cloud& target, const Eigen::Matrix4d& T, double threshold,
-           PclFeatureAlignmentResult& result) {
-  result.fitness = 0.0;
-  result.inlier_rmse = 0.0;
-  if (source.empty() || target.empty()) return;
-  auto tgt = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
-  tgt->resize(target.size());
-  for (std::size_t i = 0; i < target.size(); ++i) {
-    (*tgt)[i].x = target[i].x;
-    (*tgt)[i].y = target[i].y;
-    (*tgt)[i].z = target[i].z;
+/// Nearest-neighbour score of a transform on the (downsampled) clouds, independent of which PCL
+/// matcher produced it, so every baseline is scored alike (and GASD's and VFH's candidate poses
+/// are ranked by it).
+class Scorer {
+ public:
+  Scorer(const Cloud& source, const Cloud& target, double threshold) : source_(source), threshold_(threshold) {
+    auto tgt = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+    pcl::copyPointCloud(target, *tgt);
+    if (!tgt->empty()) tree_.setInputCloud(tgt);
   }
-  pcl::KdTreeFLANN<pcl::PointXYZ> tree;
-  tree.setInputCloud(tgt);
-  const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
-  const Eigen::Vector3d t = T.topRightCorner<3, 1>();
-  const double threshold2 = threshold * threshold;
-  std::size_t inliers = 0;
-  double sum2 = 0.0;
-  pcl::Indices index(1);
-  std::vector<float> d2(1);
-  for (const auto& p : source) {
-    const Eigen::Vector3d q = R * Eigen::Vector3d(p.x, p.y, p.z) + t;
-    pcl::PointXYZ query(static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()));
-    if (tree.nearestKSearch(query, 1, index, d2) < 1) continue;
-    // Recompute the distance in double: FLANN's float squared distance is coarse at mm scale.
-    const auto& n = (*tgt)[static_cast<std::size_t>(index[0])];
-    const double e2 = (q - Eigen::Vector3d(n.x, n.y, n.z)).squaredNorm();
-    if (e2 < threshold2) {
-      ++inliers;
-      sum2 += e2;
+
+  /// Sets result.fitness and result.inlier_rmse for T_target_source.
+  void operator()(const Eigen::Matrix4d& T, PclFeatureAlignmentResult& result) const {
+    result.fitness = 0.0;
+    result.inlier_rmse = 0.0;
+    const auto tgt = tree_.getInputCloud();
+    if (source_.empty() || !tgt || tgt->empty()) return;
+    const Eigen::Matrix3d R = T.topLeftCorner<3, 3>();
+    const Eigen::Vector3d t = T.topRightCorner<3, 1>();
+    const double threshold2 = threshold_ * threshold_;
+    std::size_t inliers = 0;
+    double sum2 = 0.0;
+    pcl::Indices index(1);
+    std::vector<float> d2(1);
+    for (const auto& p : source_) {
+      const Eigen::Vector3d q = R * Eigen::Vector3d(p.x, p.y, p.z) + t;
+      if (!q.allFinite()) continue;
+      pcl::PointXYZ query(static_cast<float>(q.x()), static_cast<float>(q.y()), static_cast<float>(q.z()));
+      if (tree_.nearestKSearch(query, 1, index, d2) < 1) continue;
+      // Recompute the distance in double: FLANN's float squared distance is coarse at mm scale.
+      const auto& n = (*tgt)[static_cast<std::size_t>(index[0])];
+      const double e2 = (q - Eigen::Vector3d(n.x, n.y, n.z)).squaredNorm();
+      if (e2 < threshold2) {
+        ++inliers;
+        sum2 += e2;
+      }
+    }
+    result.fitness = static_cast<double>(inliers) / static_cast<double>(source_.size());
+    result.inlier_rmse = inliers > 0 ? std::sqrt(sum2 / static_cast<double>(inliers)) : 0.0;
+  }
+
+  /// The candidate with the highest fitness (then the lowest inlier RMSE) into result.T_target_source.
+  void keepBest(const std::vector<Eigen::Matrix4d>& candidates, PclFeatureAlignmentResult& result) const {
+    PclFeatureAlignmentResult best, trial;
+    bool any = false;
+    for (const auto& T : candidates) {
+      if (!T.allFinite()) continue;
+      (*this)(T, trial);
+      if (!any || trial.fitness > best.fitness || (trial.fitness == best.fitness && trial.inlier_rmse < best.inlier_rmse)) {
+        best = trial;
+        best.T_target_source = T;
+        any = true;
+      }
+    }
+    if (any) result.T_target_source = best.T_target_source;
+    result.converged = any;
+  }
+
+ private:
+  const Cloud& source_;
+  double threshold_;
+  pcl::KdTreeFLANN<pcl::PointXYZ> tree_;
+};
+
+/// Whether PFH's k (k - 1) / 2 pairs per point, over both clouds, stay under kPfhMaxPairs
+/// (message set when not).
+bool pfhAffordable(const Cloud::Ptr& source, const Cloud::Ptr& target, const PclFeatureAlignmentSettings& s,
+                   std::string& message) {
+  double pairs = 0.0;
+  pcl::Indices nn;
+  std::vector<float> d2;
+  for (const Cloud::Ptr& cloud : {source, target}) {
+    Tree tree;
+    tree.setInputCloud(cloud);
+    for (const auto& p : *cloud) {
+      const double k = tree.radiusSearch(p, s.feature_radius, nn, d2);
+      pairs += 0.5 * k * (k - 1.0);
+      if (pairs > kPfhMaxPairs) {
+        std::ostringstream os;
+        os << "pfh: the neighbourhoods (feature_radius " << s.feature_radius << " m; " << source->size() << " source, "
+           << target->size() << " target points) hold more than " << kPfhMaxPairs << " point pairs, PFH's cost (k^2 "
+           << "per point, single-threaded in PCL); raise voxel_size or lower feature_radius";
+        message = os.str();
+        return false;
+      }
     }
   }
-  result.fitness = static_cast<double>(inliers) / static_cast<double>(source.size());
-  result.inlier_rmse = inliers > 0 ? std::sqrt(sum2 / static_cast<double>(inliers)) : 0.0;
+  return true;
 }
 
 /// Local descriptors + SampleConsensusPrerejective / SAC-IA. Fills the descriptor counts,
@@ -312,6 +423,12 @@ bool alignWithDescriptors(const Cloud::Ptr& source_with_normals, const Cloud::Pt
   Cloud::Ptr source = source_with_normals;
   Cloud::Ptr target = target_with_normals;
   const auto t0 = Clock::now();
+  if constexpr (std::is_same_v<FeatureT, pcl::PFHSignature125>) {
+    if (!pfhAffordable(source, target, s, result.message)) {
+      result.feature_seconds += secondsSince(t0);
+      return false;
+    }
+  }
   auto source_features = computeDescriptors<FeatureT>(source, s);
   auto target_features = computeDescriptors<FeatureT>(target, s);
   if (source_features->size() != source->size() || target_features->size() != target->size()) {
@@ -504,6 +621,145 @@ bool alignWithPpf(const Cloud::Ptr& source, const Cloud::Ptr& target, const PclF
   return true;
 }
 
+/// GASD's canonical frame of a cloud, T_canonical_cloud (pcl::GASDEstimation::getTransform(),
+/// Lima 2016 §3.1): origin at the centroid, z the covariance eigenvector of least variance
+/// (turned against the view direction (0, 0, 1)), x that of most, y = z x x. Shape only, as the
+/// thesis (Paper 5 §IV-A); PCL's default 8^3-cell, 512-bin shape histogram is computed with it
+/// but not needed to align one pair. Empty when PCL refuses the cloud.
+std::optional<Eigen::Matrix4d> gasdFrame(const Cloud& cloud) {
+  auto xyz = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();  // PCL instantiates GASD for PointXYZ
+  pcl::copyPointCloud(cloud, *xyz);
+  pcl::GASDEstimation<pcl::PointXYZ, pcl::GASDSignature512> gasd;
+  gasd.setInputCloud(xyz);
+  pcl::PointCloud<pcl::GASDSignature512> descriptor;
+  gasd.compute(descriptor);
+  if (descriptor.size() != 1 || !gasd.getTransform().allFinite()) return std::nullopt;
+  return gasd.getTransform().cast<double>();
+}
+
+/// GASD: T_target_source = inverse(T_canonical_target) * T_canonical_source, with (when
+/// gasd_half_turns) the three half-turns of the canonical frame that the eigenvector signs
+/// leave open, the best-scoring kept.
+bool alignWithGasd(const Cloud::Ptr& source, const Cloud::Ptr& target, const PclFeatureAlignmentSettings& s,
+                   const Scorer& scorer, PclFeatureAlignmentResult& result) {
+  const auto t0 = Clock::now();
+  const auto T_cs = gasdFrame(*source);
+  const auto T_ct = gasdFrame(*target);
+  result.feature_seconds += secondsSince(t0);
+  result.source_descriptors = T_cs ? 1 : 0;
+  result.target_descriptors = T_ct ? 1 : 0;
+  if (!T_cs || !T_ct) {
+    result.message = "gasd: PCL's GASD estimation failed";
+    return false;
+  }
+  std::vector<Eigen::Matrix4d> candidates;
+  for (const Eigen::Vector3d& flip : {Eigen::Vector3d(1, 1, 1), Eigen::Vector3d(-1, -1, 1), Eigen::Vector3d(-1, 1, -1),
+                                      Eigen::Vector3d(1, -1, -1)}) {
+    Eigen::Matrix4d F = Eigen::Matrix4d::Identity();
+    F.topLeftCorner<3, 3>() = flip.asDiagonal();
+    candidates.push_back(T_ct->inverse() * F * *T_cs);
+    if (!s.gasd_half_turns) break;
+  }
+  scorer.keepBest(candidates, result);
+  if (!result.converged) result.message = "gasd: the canonical frames gave no finite pose";
+  return true;
+}
+
+/// One cloud's OUR-CVFH (Aldoma et al., "OUR-CVFH - Oriented, Unique and Repeatable Clustered
+/// Viewpoint Feature Histogram for Object Recognition and 6DOF Pose Estimation", DAGM-OAGM 2012):
+/// per smooth cluster a SGURF, T_sgurf_cloud (getTransforms(); several when an axis sign is
+/// ambiguous), and its 308-bin descriptor. Only the valid SGURFs: PCL falls back to plain VFH
+/// with an identity, invalid transform when no cluster has vfh_min_points.
+struct Sgurfs {
+  std::vector<Eigen::Matrix4d> T_sgurf_cloud;
+  std::vector<std::array<float, 308>> descriptors;
+};
+
+Sgurfs ourCvfh(const Cloud& cloud, const PclFeatureAlignmentSettings& s) {
+  // PCL instantiates OUR-CVFH for PointXYZ + Normal; the copy keeps the curvature it filters on.
+  auto xyz = pcl::make_shared<pcl::PointCloud<pcl::PointXYZ>>();
+  auto normals = pcl::make_shared<pcl::PointCloud<pcl::Normal>>();
+  pcl::copyPointCloud(cloud, *xyz);
+  pcl::copyPointCloud(cloud, *normals);
+  pcl::OURCVFHEstimation<pcl::PointXYZ, pcl::Normal, pcl::VFHSignature308> est;
+  est.setInputCloud(xyz);
+  est.setInputNormals(normals);
+  est.setSearchMethod(pcl::make_shared<pcl::search::KdTree<pcl::PointXYZ>>());
+  est.setEPSAngleThreshold(static_cast<float>(s.vfh_eps_angle));
+  est.setCurvatureThreshold(static_cast<float>(s.vfh_curvature_threshold));
+  est.setClusterTolerance(static_cast<float>(s.vfh_cluster_tolerance));
+  est.setMinPoints(static_cast<std::size_t>(s.vfh_min_points));
+  est.setRadiusNormals(static_cast<float>(s.normal_radius));  // PCL re-estimates the clusters' normals
+  // Histograms as fractions of the cloud (PCL's default counts points): source and target are
+  // different views with different point counts.
+  est.setNormalizeBins(true);
+  pcl::PointCloud<pcl::VFHSignature308> descriptors;
+  est.compute(descriptors);
+  std::vector<Eigen::Matrix4f, Eigen::aligned_allocator<Eigen::Matrix4f>> transforms;
+  std::vector<bool> valid;
+  est.getTransforms(transforms);
+  est.getValidTransformsVec(valid);
+  Sgurfs out;
+  if (descriptors.size() != transforms.size() || valid.size() != transforms.size()) return out;
+  for (std::size_t i = 0; i < transforms.size(); ++i) {
+    if (!valid[i] || !transforms[i].allFinite() || !allFinite(descriptors[i].histogram)) continue;
+    out.T_sgurf_cloud.push_back(transforms[i].cast<double>());
+    std::array<float, 308> d;
+    std::copy(std::begin(descriptors[i].histogram), std::end(descriptors[i].histogram), d.begin());
+    out.descriptors.push_back(d);
+  }
+  return out;
+}
+
+/// OUR-CVFH: each source SGURF is paired with the target SGURF of the nearest descriptor
+/// (squared L2) and each target SGURF with the nearest source one; every pair gives
+/// T_target_source = inverse(T_sgurf_target) * T_sgurf_source (and, with vfh_normal_flip, the
+/// same with the source SGURF's normal reversed), and the best-scoring is kept.
+bool alignWithOurCvfh(const Cloud::Ptr& source, const Cloud::Ptr& target, const PclFeatureAlignmentSettings& s,
+                      const Scorer& scorer, PclFeatureAlignmentResult& result) {
+  const auto t0 = Clock::now();
+  const Sgurfs src = ourCvfh(*source, s);
+  const Sgurfs tgt = ourCvfh(*target, s);
+  result.feature_seconds += secondsSince(t0);
+  result.source_descriptors = src.descriptors.size();
+  result.target_descriptors = tgt.descriptors.size();
+  if (src.descriptors.empty() || tgt.descriptors.empty()) {
+    std::ostringstream os;
+    os << "vfh: no smooth cluster of at least vfh_min_points (" << s.vfh_min_points << ") points, so no SGURF "
+       << "(source " << src.descriptors.size() << ", target " << tgt.descriptors.size() << " SGURFs)";
+    result.message = os.str();
+    return false;
+  }
+  const auto distance = [](const std::array<float, 308>& a, const std::array<float, 308>& b) {
+    double d = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i) d += (static_cast<double>(a[i]) - b[i]) * (static_cast<double>(a[i]) - b[i]);
+    return d;
+  };
+  const auto nearest = [&](const std::array<float, 308>& query, const Sgurfs& in) {
+    std::size_t best = 0;
+    for (std::size_t j = 1; j < in.descriptors.size(); ++j)
+      if (distance(query, in.descriptors[j]) < distance(query, in.descriptors[best])) best = j;
+    return best;
+  };
+  std::vector<std::pair<std::size_t, std::size_t>> pairs;
+  for (std::size_t i = 0; i < src.descriptors.size(); ++i) pairs.emplace_back(i, nearest(src.descriptors[i], tgt));
+  for (std::size_t j = 0; j < tgt.descriptors.size(); ++j) pairs.emplace_back(nearest(tgt.descriptors[j], src), j);
+  std::sort(pairs.begin(), pairs.end());
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  // A SGURF's z follows its cluster's mean normal, whose sign is the normal estimation's
+  // viewpoint convention: reversing it turns the frame half a turn about its x axis.
+  Eigen::Matrix4d flip = Eigen::Matrix4d::Identity();
+  flip(1, 1) = flip(2, 2) = -1.0;
+  std::vector<Eigen::Matrix4d> candidates;
+  for (const auto& [i, j] : pairs) {
+    candidates.push_back(tgt.T_sgurf_cloud[j].inverse() * src.T_sgurf_cloud[i]);
+    if (s.vfh_normal_flip) candidates.push_back(tgt.T_sgurf_cloud[j].inverse() * flip * src.T_sgurf_cloud[i]);
+  }
+  scorer.keepBest(candidates, result);
+  if (!result.converged) result.message = "vfh: the paired SGURFs gave no finite pose";
+  return true;
+}
+
 /// Whether the cloud's points span a plane: collinear or coincident points (the second
 /// eigenvalue of their scatter ~ 0) leave the rotation about their line undetermined, and
 /// PCL's matchers would still "converge" on them.
@@ -543,13 +799,17 @@ PclFeatureAlignmentResult pclFeatureAlignment(const CloudView<float>& source, co
     result.feature_seconds = secondsSince(t_features);
     return finish();
   }
-  src = estimateNormals(src, settings);
-  tgt = estimateNormals(tgt, settings);
+  if (settings.descriptor != PclDescriptor::GASD) {  // GASD reads points only
+    src = estimateNormals(src, settings);
+    tgt = estimateNormals(tgt, settings);
+  }
   result.source_points = src->size();
   result.target_points = tgt->size();
   result.feature_seconds = secondsSince(t_features);
 
-  const std::size_t min_points = settings.descriptor == PclDescriptor::PPF ? 2 : static_cast<std::size_t>(settings.num_samples);
+  const std::size_t min_points = settings.descriptor == PclDescriptor::PPF ? 2
+                                 : usesMatcher(settings.descriptor) ? static_cast<std::size_t>(settings.num_samples)
+                                                                    : 3;  // GASD, VFH: a covariance
   if (src->size() < min_points || tgt->size() < min_points) {
     std::ostringstream os;
     os << "too few finite points with normals after the voxel grid (source " << src->size() << ", target " << tgt->size()
@@ -565,6 +825,7 @@ PclFeatureAlignmentResult pclFeatureAlignment(const CloudView<float>& source, co
     }
 
   // Stage 2: descriptors (added to feature_seconds) and matching.
+  const Scorer scorer(*src, *tgt, settings.inlier_threshold);
   bool ran = false;
   switch (settings.descriptor) {
     case PclDescriptor::FPFH: ran = alignWithDescriptors<pcl::FPFHSignature33>(src, tgt, settings, result); break;
@@ -573,12 +834,16 @@ PclFeatureAlignmentResult pclFeatureAlignment(const CloudView<float>& source, co
       ran = alignWithDescriptors<pcl::ShapeContext1980>(src, tgt, settings, result);
       break;
     case PclDescriptor::PPF: ran = alignWithPpf(src, tgt, settings, result); break;
+    case PclDescriptor::PFH: ran = alignWithDescriptors<pcl::PFHSignature125>(src, tgt, settings, result); break;
+    case PclDescriptor::RSD: ran = alignWithDescriptors<pcl::PrincipalRadiiRSD>(src, tgt, settings, result); break;
+    case PclDescriptor::GASD: ran = alignWithGasd(src, tgt, settings, scorer, result); break;
+    case PclDescriptor::VFH: ran = alignWithOurCvfh(src, tgt, settings, scorer, result); break;
   }
   if (!ran) return finish();
 
-  // Stage 3: score on the downsampled clouds with points that have normals (the ones
-  // counted in source_points / target_points), independent of the matcher's own error.
-  score(*src, *tgt, result.T_target_source, settings.inlier_threshold, result);
+  // Stage 3: score on the downsampled clouds with points that have normals (GASD: all points;
+  // the ones counted in source_points / target_points), independent of the matcher's own error.
+  scorer(result.T_target_source, result);
   if (result.converged && !result.T_target_source.allFinite()) {
     result.converged = false;
     result.message = "the matcher returned a non-finite transform";

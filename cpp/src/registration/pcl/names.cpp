@@ -21,6 +21,10 @@ const char* toString(PclDescriptor descriptor) {
     case PclDescriptor::SHOT: return "shot";
     case PclDescriptor::ShapeContext3D: return "3dsc";
     case PclDescriptor::PPF: return "ppf";
+    case PclDescriptor::PFH: return "pfh";
+    case PclDescriptor::RSD: return "rsd";
+    case PclDescriptor::GASD: return "gasd";
+    case PclDescriptor::VFH: return "vfh";
   }
   return "unknown";
 }

@@ -23,7 +23,8 @@ PclFeatureAlignmentSettings thesisPclPreset(PclDescriptor descriptor, PclMatcher
 CoarseAligner pclCoarseAligner(const PclFeatureAlignmentSettings& settings);
 
 /// The baseline's name as PoseResult::method reports it: the descriptor ("fpfh", "shot",
-/// "3dsc", "ppf"), with "_sac_ia" for the SAC-IA matcher (PPF has no matcher).
+/// "3dsc", "ppf", "pfh", "rsd", "gasd", "vfh"), with "_sac_ia" for the SAC-IA matcher (PPF, GASD
+/// and VFH have no matcher).
 std::string pclBaselineName(const PclFeatureAlignmentSettings& settings);
 
 /// @throws NotBuiltError when scanalign was built without PCL (before any work is done).
