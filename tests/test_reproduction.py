@@ -8,7 +8,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SECTIONS = ("Figs. 5 and 6", "Fig. 7", "Fig. 8", "Fig. 9", "Table 1 and Fig. 4",  # the eye-in-hand paper
-            "Paper 4, Table 1", "Paper 5, experiment 1", "Paper 5, experiment 2")  # the thesis
+            "Paper 4, Table 1", "Paper 5, Experiment 1", "Paper 5, Experiment 2", "breaks under noise")  # the thesis
 
 
 def test_quick_reproduction_writes_the_report_and_every_claim_holds(tmp_path):

@@ -19,7 +19,10 @@ banana box is +-5 cm around an object of about 8 cm). Why the box matters: see `
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
+import pickle
 import time
 from pathlib import Path
 from typing import Dict, List, Optional, Sequence
@@ -148,7 +151,24 @@ def _in_box(points: np.ndarray, box: Optional[tuple]) -> np.ndarray:
 
 def run_loop(scan, variant: dict, cap: int, box: Optional[tuple], setup: Setup) -> dict:
     """One loop: ATE and RPE (m) against the exact camera poses, registration time (s, tree build and ICP,
-    summed over the frames; normals and merging excluded, as the paper's), mean iterations, the model."""
+    summed over the frames; normals and merging excluded, as the paper's), mean iterations, the model.
+    With SCANALIGN_REPRO_CACHE=folder, results are kept there and reused (to redo the report's text
+    without rerunning the loops)."""
+    folder = os.environ.get("SCANALIGN_REPRO_CACHE")
+    if not folder:
+        return _run_loop(scan, variant, cap, box, setup)
+    key = repr((len(scan.frames), scan.object_mesh.vertices.shape, float(scan.object_mesh.vertices.max()),
+                sorted(variant.items()), cap, box, setup.scale, setup.crop))
+    path = Path(folder) / (hashlib.sha1(key.encode()).hexdigest() + ".pkl")
+    if path.exists():
+        return pickle.loads(path.read_bytes())
+    out = _run_loop(scan, variant, cap, box, setup)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_bytes(pickle.dumps(out))
+    return out
+
+
+def _run_loop(scan, variant: dict, cap: int, box: Optional[tuple], setup: Setup) -> dict:
     rec = paper_reconstructor(scan, variant, cap, box, setup)
     peer = variant.get("peer")
     register_s, iterations, poses = 0.0, [], []
