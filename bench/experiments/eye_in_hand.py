@@ -198,7 +198,10 @@ def _run_loop(scan, variant: dict, cap: int, box: Optional[tuple], setup: Setup)
         rec._core.merge(prepared, T)
         poses.append(T)
     est = np.stack(poses)
-    ate = absolute_trajectory_error(est, scan.reference.poses).translation.rmse
+    try:  # Sturm et al.'s ATE, aligned; a trajectory that never moved cannot be aligned: both start at the truth
+        ate = absolute_trajectory_error(est, scan.reference.poses).translation.rmse
+    except ValueError:
+        ate = absolute_trajectory_error(est, scan.reference.poses, align=False).translation.rmse
     rpe = relative_pose_error(est, scan.reference.poses).translation.rmse
     pts = rec._core.model_points()
     return dict(ate=float(ate), rpe=float(rpe), register_s=register_s,
