@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
-from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from scanalign import features, pose, registration
@@ -275,10 +274,13 @@ def _exp1_verdict(mean, best, clouds, sweeps) -> str:
         ang = [math.degrees(m["angle"]) for m in w.values()]
         f5 = [m["f5"] for m in w.values()]
         wb = max(w, key=lambda v: w[v]["f5"])
+        opt = 0.05 <= wb <= 0.2
+        small = [w[v]["f5"] for v in w if v <= 1]
         parts.append(f"reproduced: w barely affects the pose (median angle error {min(ang):.3f}-{max(ang):.3f} "
-                     f"deg); not reproduced: a correspondence optimum at w = 0.05-0.2 — the fraction within 5 mm "
-                     f"varies only {100 * min(f5):.1f}-{100 * max(f5):.1f} % over w (highest at {wb:g}): the weight "
-                     "exp(-w |distance to the plane|) changes little within 6.3 mm for the values that matter")
+                     f"deg); {'reproduced' if opt else 'not reproduced'}: a correspondence optimum at w = 0.05-0.2 — "
+                     f"the fraction within 5 mm is {100 * min(f5):.1f}-{100 * max(f5):.1f} % over w, highest at "
+                     f"w = {wb:g}" + (f", within {100 * (max(small) - min(small)):.1f} points for every w ≤ 1 per mm "
+                                      f"and {100 * w[max(w)]['f5']:.1f} % at w = {max(w):g}" if len(small) > 1 else ""))
     if 6.3 in r:
         ok = 5.0 <= best <= 10.0
         parts.append(f"{'reproduced' if ok else 'not reproduced'}: the best r for correspondences is 5-10 mm — "
@@ -513,14 +515,15 @@ def _exp2_verdict(st, sig, methods, missing) -> str:
     text.append(f"FPFH the fastest: {'reproduced' if fastest == 'fpfh' else 'not reproduced'} (fastest here: "
                 f"{fastest}, {ms[fastest]:.0f} ms mean; FPFH {ms.get('fpfh', math.nan):.0f} ms);")
     text.append(f"FPFH the least accurate: {'reproduced' if worst == 'fpfh' else 'not reproduced'} (largest mean "
-                f"angle error here: {worst}, {ang[worst]:.3f} rad over the levels; FPFH {ang.get('fpfh', math.nan):.3f});")
+                f"angle error here: {worst}, {ang[worst]:.3f} rad over the levels; FPFH "
+                f"{ang.get('fpfh', math.nan):.3f});")
     if "shot" in ms and "cbd" in ms:
         low = [s for s in sig if s <= 0.5 and ("shot", s) in st and ("cbd", s) in st]
         better = all(st["cbd", s]["med_angle"] < st["shot", s]["med_angle"] for s in low)
         text.append(f"SHOT about as fast as CBD: SHOT takes {ms['shot'] / ms['cbd']:.1f}x CBD's time here; CBD more "
                     f"accurate than SHOT: {'reproduced' if better else 'not reproduced'} in the median coarse angle "
-                    "at σ ≤ 0.5 mm (" + ", ".join(f"{st['cbd', s]['med_angle']:.3f} vs {st['shot', s]['med_angle']:.3f}"
-                                                  f" rad" for s in low) +
+                    "at σ ≤ 0.5 mm (" +
+                    ", ".join(f"{st['cbd', s]['med_angle']:.3f} vs {st['shot', s]['med_angle']:.3f} rad" for s in low) +
                     "), while SHOT succeeds after ICP as often or more at every level;")
     text.append(f"PPF the slowest: {'reproduced' if slowest == 'ppf' else 'not reproduced'} (slowest here: "
                 f"{slowest}, {ms[slowest]:.0f} ms, at its coarser voxel grid);")
@@ -691,7 +694,7 @@ def breakdown(out: Path, quick: bool, log: Log, exp2: Optional[Dict] = None) -> 
                                  if ("cbd", 2.0) in exp2 else "") + ".")
     md = [f"Made by {_command(quick)}.", "",
           f"Success after ICP (< 2 deg, < 2 mm) of align_cbd against r, on {len(clouds)} clouds per noise level "
-          "(each a random motion and noise as in experiment 2, other seeds):", "", *t, "",
+          "(the same pairs as experiment 2's first clouds):", "", *t, "",
           f"What noise does, on {sz.cause_clouds} cloud(s) against a noisy copy without motion (point i is point i; "
           "means over the clouds): the points passing (6.4) (keypoint candidates, before the cap of 2000 lowest "
           "scores), the median spherical shape factor C_s of the points with n_min neighbours (with the value of a "
@@ -710,9 +713,11 @@ def breakdown(out: Path, quick: bool, log: Log, exp2: Optional[Dict] = None) -> 
                             f"{big:g} mm",
                             c[hi, 6.3]["cs"] > 2 * c[0.0, 6.3]["cs"] and
                             c[hi, 6.3]["candidates"] > c[0.0, 6.3]["candidates"] and
-                            c[hi, 6.3]["repeat"] < c[hi, big]["repeat"] and c[hi, 6.3]["correct"] < c[hi, big]["correct"],
+                            c[hi, 6.3]["repeat"] < c[hi, big]["repeat"] and
+                            c[hi, 6.3]["correct"] < c[hi, big]["correct"],
                             f"C_s {c[0.0, 6.3]['cs']:.2f} -> {c[hi, 6.3]['cs']:.2f}, candidates "
-                            f"{100 * c[0.0, 6.3]['candidates']:.0f} -> {100 * c[hi, 6.3]['candidates']:.0f} %, repeated "
+                            f"{100 * c[0.0, 6.3]['candidates']:.0f} -> {100 * c[hi, 6.3]['candidates']:.0f} %, "
+                            "repeated "
                             f"{100 * c[hi, 6.3]['repeat']:.0f} % vs {100 * c[hi, big]['repeat']:.0f} %, correct "
                             f"{100 * c[hi, 6.3]['correct']:.0f} % vs {100 * c[hi, big]['correct']:.0f} %"))
     return [Section("Thesis Paper 5: where CBD at the thesis radius breaks under noise, and why", "\n".join(md),
@@ -738,7 +743,8 @@ def _plot_break(succ, c, sz, path: Path) -> None:
         a.legend(fontsize=7)
     ax[0].set(xlabel="descriptor radius r (mm)", ylabel="success after ICP", ylim=(-0.05, 1.05),
               title="CBD under noise (red: thesis r)")
-    ax[1].set(xlabel="descriptor radius r (mm)", ylabel="median C_s (grey: δ_s)", title="noise makes faces 'spherical'")
+    ax[1].set(xlabel="descriptor radius r (mm)", ylabel="median C_s (grey: δ_s)",
+              title="noise makes faces 'spherical'")
     ax[2].set(xlabel="descriptor radius r (mm)", ylabel="matches within 5 mm", ylim=(-0.05, 1.05),
               title="correct matches, clean vs noisy")
     fig.tight_layout()
