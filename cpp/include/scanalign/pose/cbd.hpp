@@ -62,7 +62,7 @@ struct CbdSettings {
   int min_neighbors = 200;
   /// Thresholds by default: on CAD parts dominated by flat faces, the automatic mode's lowest
   /// scores are pure plane points whose spheres are all flat, and matching fails (measured on
-  /// the CGAL fandisk views, see bench/bench_pose.py); (6.4) with δ_p = 1 keeps edges and corners.
+  /// the CGAL fandisk views, see bench/experiments/paper5.py); (6.4) with δ_p = 1 keeps edges and corners.
   CbdKeypointMode keypoint_mode = CbdKeypointMode::Thresholds;
   int num_keypoints = 2000;    ///< k of the automatic mode (P5: 2000)
   ShapeThresholds thresholds;  ///< δ's of the Thresholds mode
