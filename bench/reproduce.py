@@ -36,7 +36,9 @@ def report(sections: "list[Section]", args: argparse.Namespace, seconds: float) 
              f"Made by `python bench/reproduce.py{' --quick' if args.quick else ''}"
              f"{' --only ' + ' '.join(args.only) if args.only != list(MODULES) else ''}` in {seconds / 60:.1f} min "
              f"on {platform.machine()} with {os.cpu_count()} cores, "
-             f"{'quick (reduced) sizes' if args.quick else 'full sizes'}.", "",
+             f"{'quick (reduced) sizes' if args.quick else 'full sizes'}"
+             + (", the eye-in-hand loops reused from an earlier run's cache (SCANALIGN_REPRO_CACHE)"
+                if os.environ.get("SCANALIGN_REPRO_CACHE") else "") + ".", "",
              f"Claims checked: {len(checks) - len(failed)} of {len(checks)} hold.", ""]
     lines += [f"- [{'x' if c.passed else ' '}] {c.claim}: {c.detail}" for c in checks]
     for s in sections:
