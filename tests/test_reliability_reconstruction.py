@@ -109,6 +109,9 @@ def test_an_interrupt_during_the_registration_leaves_the_model_bit_identical(tmp
         import numpy as np
         from scanalign import _core
         from scanalign.reconstruction import make_reconstruction_settings
+        # A runner started in the background (CI under `cmd &`) passes SIGINT on as ignored,
+        # and Python then installs no handler: put the default one back.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         rng = np.random.default_rng(0)
         u, v = rng.uniform(-0.1, 0.1, (2, 200000))
         p = np.c_[u, v, 0.4 + 0.01 * np.sin(60 * u) * np.cos(40 * v)].astype(np.float32)
