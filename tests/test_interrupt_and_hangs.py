@@ -20,8 +20,12 @@ import pytest
 from scanalign import features, fitting, registration, segmentation
 
 _PRELUDE = """
+import signal
 import sys
 import numpy as np
+# A runner started in the background (CI under `cmd &`) passes SIGINT on as ignored, and
+# Python then installs no handler: put the default one back.
+signal.signal(signal.SIGINT, signal.default_int_handler)
 from scanalign import features, registration, segmentation
 rng = np.random.default_rng(0)
 u, v = rng.uniform(-0.1, 0.1, (2, 3000))
