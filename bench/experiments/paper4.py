@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import functools
 import math
-import time
 from pathlib import Path
 from typing import Dict, List, Tuple
 
@@ -215,19 +214,3 @@ def _plot(results, path: Path) -> None:
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
-
-if __name__ == "__main__":
-    import argparse
-
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--out", default="report-paper4")
-    args = ap.parse_args()
-    t0 = time.perf_counter()
-    secs = run(Path(args.out), args.quick, lambda s: print(s, flush=True))
-    for s in secs:
-        print(f"## {s.title}\n\n{s.markdown}\n")
-        for c in s.checks:
-            print(f"- [{'x' if c.passed else ' '}] {c.claim}: {c.detail}")
-        print(f"({s.seconds:.0f} s)")
-    print(f"total {time.perf_counter() - t0:.0f} s")

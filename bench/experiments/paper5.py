@@ -761,22 +761,3 @@ def run(out: Path, quick: bool, log: Log) -> List[Section]:
     s2, stats = experiment2(out, quick, log)
     return sections + s2 + breakdown(out, quick, log, stats)
 
-
-if __name__ == "__main__":
-    import argparse
-
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--out", default="report-paper5")
-    args = ap.parse_args()
-    t0 = time.perf_counter()
-    secs = run(Path(args.out), args.quick, lambda s: print(s, flush=True))
-    text = []
-    for s in secs:
-        text += [f"## {s.title}", "", s.markdown, *[f"![{f.name}]({f.name})" for f in s.figures], "",
-                 *[f"- [{'x' if c.passed else ' '}] {c.claim}: {c.detail}" for c in s.checks], "",
-                 f"({s.seconds:.0f} s)", ""]
-    (Path(args.out) / "paper5.md").write_text("\n".join(text))
-    print("\n".join(text))
-    print(f"total {time.perf_counter() - t0:.0f} s; checks failed: "
-          f"{[c.claim for s in secs for c in s.checks if not c.passed]}")
