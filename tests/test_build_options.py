@@ -2,9 +2,10 @@
 a top-level ``--help`` naming every command, and the optional PCL part (issue 19 §1).
 
 The PCL-free build is checked on a real build of it when ``SCANALIGN_LIGHT_BUILD`` names its
-folder (``scripts/test.sh`` builds it with ``-DSCANALIGN_WITH_PCL=OFF``): its module must not
-link PCL, must run the engine, and must refuse every PCL baseline with a message naming the
-build option."""
+folder (``scripts/test.sh`` builds it with ``-DSCANALIGN_WITH_PCL=OFF -DSCANALIGN_WITH_CUDA=ON``):
+its module must not link PCL or a shared CUDA runtime, must run the engine, must refuse every PCL
+baseline with a message naming the build option, and without a GPU must refuse the CUDA backend
+naming the missing device."""
 
 from __future__ import annotations
 
@@ -88,6 +89,7 @@ def test_light_build_runs_the_engine_and_refuses_pcl_by_name(tmp_path):
     assert len(modules) == 1, f"no compiled module in {build}"
     libs = subprocess.run(["ldd", str(modules[0])], capture_output=True, text=True, check=True).stdout
     assert "libpcl" not in libs and "libvtk" not in libs and "libboost" not in libs, libs
+    assert "libcudart" not in libs and "libcuda." not in libs, libs  # the CUDA runtime is linked statically
     # The package's Python files with the light module beside them, in a fresh interpreter.
     pkg = tmp_path / "scanalign"
     pkg.mkdir()
@@ -98,6 +100,7 @@ def test_light_build_runs_the_engine_and_refuses_pcl_by_name(tmp_path):
 import numpy as np, scanalign
 from scanalign import _core, registration, pose, kinematics
 assert not _core.built_with_pcl
+assert _core.built_with_cuda  # scripts/test.sh builds it with SCANALIGN_WITH_CUDA=ON
 rng = np.random.default_rng(1)
 model = rng.uniform(-0.1, 0.1, (3000, 3)); model[:, 2] = 0.02 * np.sin(20 * model[:, 0])
 c, s = np.cos(0.03), np.sin(0.03)
@@ -117,6 +120,13 @@ for call in (lambda: registration.pcl_icp(src, model, variant="svd"),
         assert "SCANALIGN_WITH_PCL=ON" in str(e) and "libpcl-dev" in str(e), e
     else:
         raise AssertionError("a PCL baseline ran in a build without PCL")
+if not registration.cuda_devices():
+    try:
+        registration.icp(src, model, estimator="point_to_point", backend="cuda")
+    except RuntimeError as e:
+        assert "no usable CUDA device" in str(e), e
+    else:
+        raise AssertionError("the CUDA backend ran without a device")
 print("light ok", scanalign.__version__)
 """
     r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,

@@ -114,7 +114,7 @@ def _round_trip(obj):
 # a rigid transform, an optional value that is None by default).
 ROT = np.array([[0.0, -1.0, 0.0, 0.1], [1.0, 0.0, 0.0, 0.2], [0.0, 0.0, 1.0, 0.3], [0.0, 0.0, 0.0, 1.0]])
 OTHER = {
-    "estimator": "point_to_point", "robust_kernel": "huber", "search": "left_balanced_kdtree",
+    "estimator": "point_to_point", "robust_kernel": "huber", "search": "left_balanced_kdtree", "backend": "cuda",
     "shape": "capsule", "name": "changed", "method": "flags",
     "model_frame": "camera", "registration": "pcl_svd",
     "box": _core.registration.Box(-0.1, 0.1, -0.2, 0.2, 0.0, 1.0), "crop_box": _core.registration.Box(-1, 1, -1, 1, 0, 2),

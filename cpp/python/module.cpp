@@ -70,6 +70,7 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "scanalign compiled core (use the scanalign package API)";
   m.attr("__version__") = scanalign::version();  // the package's version (one source: CMakeLists.txt)
   m.attr("built_with_pcl") = scanalign::builtWithPcl();
+  m.attr("built_with_cuda") = scanalign::builtWithCuda();
   auto common = m.def_submodule("common", "rigid transforms, camera placement, mesh sampling");
   scanalign::python::defineCommon(common);
   auto registration = m.def_submodule("registration", "ICP engine, k-d tree, PCL plug-ins and baselines");

@@ -15,6 +15,7 @@
 #include "pickle.hpp"
 #include "scanalign/common/rigid.hpp"
 #include "scanalign/registration/alignment_fitness.hpp"
+#include "scanalign/registration/cuda/icp_device.hpp"
 #include "scanalign/registration/icp.hpp"
 #include "scanalign/registration/pcl/baselines.hpp"
 
@@ -455,6 +456,12 @@ void defineRegistration(py::module_& m) {
              "that converges, then on all points; the same full-resolution fixed point in fewer full iterations (1 = "
              "off, as the eye-in-hand paper; skipped below 500 subset points)")
       .field("num_threads", &IS::num_threads, "", "OpenMP threads, 0 = all cores")
+      .name("backend", &IS::backend, 2, "",
+            "'cpu' (OpenMP on the CPU cores) or 'cuda' (an NVIDIA GPU, the eye-in-hand paper's Algorithm 1: the "
+            "model's left-balanced tree stays on the device, one kernel pass per iteration, the 6x6 solve on the "
+            "CPU; always the left-balanced search, 'search' is ignored; the CPU engine's poses on the same input). "
+            "'cuda' needs a build with SCANALIGN_WITH_CUDA (RuntimeError naming it otherwise) and a device "
+            "(scanalign.registration.cuda_devices())")
       .settings()
       .def("validate", [](const IcpSettings& s) { validate(s); });
 
@@ -487,6 +494,9 @@ void defineRegistration(py::module_& m) {
       .result();
   defineIcp(m);
   defineKdTree(m);
+  m.def("cuda_devices", &cuda::deviceNames,
+        "The CUDA devices the 'cuda' backend can use, as 'index: name (compute capability, memory)'; empty without "
+        "a device or driver, or in a build without SCANALIGN_WITH_CUDA (scanalign._core.built_with_cuda)");
   m.def(
       "alignment_fitness",
       [](const py::array& s, const py::array& t, const py::object& T_in, double thr, int threads) {

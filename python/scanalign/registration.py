@@ -32,11 +32,12 @@ IcpSettings = _core.registration.IcpSettings
 IcpResult = _core.registration.IcpResult
 
 Estimator = Literal["point_to_plane", "point_to_point", "dual_quaternion"]
+Backend = Literal["cpu", "cuda"]
 PclVariant = Literal["svd", "dual_quaternion", "point_to_plane_lls", "scanalign_point_to_plane_lls"]
 BoxLike = Union[Box, Sequence[float], None]
 
 __all__ = ["Box", "IcpSettings", "IcpResult", "Icp", "icp", "pcl_icp", "KdTree", "point_to_plane_lls",
-           "pcl_point_to_plane_lls", "box_rejector_keep", "make_settings"]
+           "pcl_point_to_plane_lls", "box_rejector_keep", "make_settings", "cuda_devices"]
 
 _F32 = np.dtype(np.float32)
 
@@ -84,7 +85,7 @@ def icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndar
         init: Optional[np.ndarray] = None, *, max_correspondence_distance: Optional[float] = None,
         box: BoxLike = None, estimator: Optional[Estimator] = None, max_iterations: Optional[int] = None,
         transformation_epsilon: Optional[float] = None, fitness_epsilon: Optional[float] = None,
-        settings: Optional[IcpSettings] = None, **overrides: object) -> IcpResult:
+        backend: Optional[Backend] = None, settings: Optional[IcpSettings] = None, **overrides: object) -> IcpResult:
     """Registers ``source`` ((N, 3) float32/float64 points in the source frame, metres) to ``target`` ((M, 3), the
     target frame, metres) with scanalign's ICP engine; returns an :class:`IcpResult` with ``T_target_source`` (check
     ``converged``/``status``: e.g. "degenerate").
@@ -96,15 +97,25 @@ def icp(source: np.ndarray, target: np.ndarray, target_normals: Optional[np.ndar
     or 6 numbers, m), ``estimator`` (``"point_to_plane"``, eye-in-hand paper §3.2; ``"point_to_point"``, SVD; or
     ``"dual_quaternion"``, the same least squares by Walker et al. 1991, the paper's variant (b)), the
     PCL-style convergence criteria ``max_iterations``, ``transformation_epsilon``, ``fitness_epsilon`` (eye-in-hand
-    paper §3.3), and in ``overrides`` any other field, e.g. ``num_threads=1``.
+    paper §3.3), ``backend`` (``"cpu"``, or ``"cuda"``: the passes on an NVIDIA GPU, the paper's Algorithm 1, with the
+    CPU engine's poses; see :func:`cuda_devices`), and in ``overrides`` any other field, e.g. ``num_threads=1``.
 
     TypeError: non-float arrays, unknown settings. ValueError: wrong shapes, empty clouds, mismatched or missing
-    normals, bad settings or a non-rigid ``init``. KeyboardInterrupt: Ctrl-C, between iterations.
+    normals, bad settings or a non-rigid ``init``. RuntimeError: ``backend="cuda"`` in a build without CUDA (the
+    message names ``SCANALIGN_WITH_CUDA``) or on a machine without a CUDA device. KeyboardInterrupt: Ctrl-C, between
+    iterations.
     """
     s = _settings(settings, overrides, max_correspondence_distance=max_correspondence_distance, box=box,
                   estimator=estimator, max_iterations=max_iterations, transformation_epsilon=transformation_epsilon,
-                  fitness_epsilon=fitness_epsilon)
+                  fitness_epsilon=fitness_epsilon, backend=backend)
     return Icp(target, target_normals, s).align(source, init)
+
+
+def cuda_devices() -> list:
+    """The CUDA devices ``backend="cuda"`` can use (``"0: NVIDIA H200 (compute capability 9.0, 143166 MiB)"``); empty
+    without a device or driver, or when scanalign was built without ``SCANALIGN_WITH_CUDA``
+    (``scanalign._core.built_with_cuda`` says which)."""
+    return list(_core.registration.cuda_devices())
 
 
 def _settings(settings: Optional[IcpSettings], overrides: dict, **named: object) -> IcpSettings:

@@ -78,7 +78,8 @@ def _make_pair(pair):
 # -- registration ------------------------------------------------------------------------
 @target("registration", pair=_pair(1500), normals=choice(["unit", "zero", "nan", "short", "estimated"]),
         init=transforms(), distance=numbers([0.05, 0.2]), estimator=choice(["point_to_plane", "point_to_point", "dual_quaternion", "nope"]),
-        iters=iterations(30), eps=numbers(1e-6), box=choice([None, None, (-1, 1, -1, 1, 0, 9), (1, -1, 0, 0, 0, 0), (NAN,) * 6, (0,) * 5]))
+        iters=iterations(30), eps=numbers(1e-6), box=choice([None, None, (-1, 1, -1, 1, 0, 9), (1, -1, 0, 0, 0, 0), (NAN,) * 6, (0,) * 5]),
+        backend=choice(["cpu", "cpu", "cuda", "gpu"]))
 def icp(case):
     from scanalign import features, registration
     source, target_pts, T = _make_pair(case["pair"])
@@ -86,7 +87,7 @@ def icp(case):
     init = build(case["init"])
     r = call(registration.icp, source, target_pts, normals, init, max_correspondence_distance=case["distance"],
              box=case["box"], estimator=case["estimator"], max_iterations=case["iters"],
-             transformation_epsilon=case["eps"])
+             transformation_epsilon=case["eps"], backend=case["backend"])
     if r is None or not r.converged:
         return
     finite(r.T_target_source, "T_target_source")

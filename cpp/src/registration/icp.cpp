@@ -18,6 +18,7 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "scanalign/registration/cuda/icp_device.hpp"
 #include "scanalign/registration/dual_quaternion.hpp"
 #include "scanalign/registration/point_to_plane_lls.hpp"
 #include "scanalign/registration/point_to_point.hpp"
@@ -48,6 +49,8 @@ const char* toString(RobustKernel kernel) {
   }
   return "unknown";
 }
+
+const char* toString(IcpBackend backend) { return backend == IcpBackend::Cuda ? "cuda" : "cpu"; }
 
 const char* toString(IcpEstimator estimator) {
   switch (estimator) {
@@ -145,7 +148,78 @@ struct LeftBalancedSearch {
   }
 };
 
+/// The GPU backend as a third "structure": its passes run whole on the device.
+template <typename Scalar>
+struct DeviceSearch {
+  cuda::IcpDevice<Scalar>& device;
+};
+
+template <typename T>
+struct IsDeviceSearch : std::false_type {};
+template <typename Scalar>
+struct IsDeviceSearch<DeviceSearch<Scalar>> : std::true_type {};
+
+/// The per-pass rules at transform T (the same on both backends).
+template <typename Scalar>
+IcpPassRules<Scalar> passRules(const IcpSettings& s, const Eigen::Matrix4d& T) {
+  IcpPassRules<Scalar> r;
+  for (int row = 0; row < 3; ++row) {
+    for (int col = 0; col < 3; ++col) r.R[3 * row + col] = static_cast<Scalar>(T(row, col));
+    r.t[row] = static_cast<Scalar>(T(row, 3));
+  }
+  r.has_box = s.box.has_value();
+  if (s.box)
+    for (int k = 0; k < 3; ++k) {
+      r.box_lo[k] = s.box->min[k];
+      r.box_hi[k] = s.box->max[k];
+    }
+  r.max_squared_distance = static_cast<Scalar>(s.max_correspondence_distance * s.max_correspondence_distance);
+  r.stack_depth = s.search_stack_depth;
+  r.warm_start = s.warm_start;
+  r.kernel = s.robust_kernel;
+  r.robust_scale = s.robust_scale;
+  return r;
+}
+
+/// A device pass's sums as the CPU pass's partial.
+template <typename System>
+Partial<System> fromDevice(const cuda::PassSums& sums, bool accumulate) {
+  Partial<System> p;
+  p.used = static_cast<std::size_t>(sums.used);
+  p.inliers = static_cast<std::size_t>(sums.inliers);
+  p.sum_d2 = sums.sum_d2;
+  p.exact = sums.inexact == 0.0;
+  if (!accumulate) return p;
+  p.system.count = sums.inliers;
+  if constexpr (std::is_same_v<System, PointToPlaneSystem>) {
+    std::copy(sums.ata, sums.ata + 21, p.system.ata.begin());
+    std::copy(sums.atb, sums.atb + 6, p.system.atb.begin());
+    p.system.btb = sums.btb;
+  } else {
+    std::copy(sums.sum_s, sums.sum_s + 3, p.system.sum_s.begin());
+    std::copy(sums.sum_d, sums.sum_d + 3, p.system.sum_d.begin());
+    std::copy(sums.sum_sd, sums.sum_sd + 9, p.system.sum_sd.begin());
+    p.system.sum_ss = sums.sum_ss;
+    p.system.sum_dd = sums.sum_dd;
+  }
+  return p;
+}
+
 }  // namespace
+
+template <typename Scalar>
+cuda::IcpDevice<Scalar>& Icp<Scalar>::device() {
+  if (!device_.device) {
+    device_.device = std::make_shared<cuda::IcpDevice<Scalar>>();
+    device_.uploaded = false;
+  }
+  if (!device_.uploaded) {
+    device_.device->setTarget(lb_tree_.nodes().data(), lb_tree_.bounds().data(),
+                              static_cast<std::uint32_t>(lb_tree_.size()), normals_.empty() ? nullptr : normals_.data());
+    device_.uploaded = true;
+  }
+  return *device_.device;
+}
 
 template <typename Scalar>
 void Icp<Scalar>::setTarget(const CloudView<Scalar>& points, const CloudView<Scalar>& normals) {
@@ -161,8 +235,10 @@ void Icp<Scalar>::setTarget(const CloudView<Scalar>& points, const CloudView<Sca
     if (!(std::isfinite(n[0]) && std::isfinite(n[1]) && std::isfinite(n[2]))) return false;
     return double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2] > 1e-20;
   };
-  // Only one structure is kept: the other is released.
-  target_search_ = settings_.search;
+  // Only one structure is kept: the other is released. The GPU searches the left-balanced tree.
+  target_backend_ = settings_.backend;
+  target_search_ = target_backend_ == IcpBackend::Cuda ? IcpSearch::LeftBalancedKdTree : settings_.search;
+  device_.uploaded = false;  // the device buffers stay allocated for the next model
   lb_tree_ = LeftBalancedKdTree<Scalar>();
   bucket_tree_ = BucketKdTree<Scalar>();
   if (target_search_ == IcpSearch::BucketKdTree)
@@ -183,6 +259,7 @@ void Icp<Scalar>::setTarget(const CloudView<Scalar>& points, const CloudView<Sca
       for (int c = 0; c < 3; ++c) normals_[3 * k + c] = static_cast<Scalar>(n[c] / len);
     }
   }
+  if (target_backend_ == IcpBackend::Cuda) device();  // upload now: errors and time belong here
   tree_seconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
@@ -200,7 +277,12 @@ template <typename Scalar>
 IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matrix4d& T_init) {
   validate(settings_);
   if (targetSize() == 0) throw std::invalid_argument("ICP: no target set (call setTarget first)");
-  if (settings_.search != target_search_)
+  if (settings_.backend != target_backend_)
+    throw std::invalid_argument(std::string("ICP: settings.backend is '") + toString(settings_.backend) +
+                                "' but the target was prepared for '" + toString(target_backend_) +
+                                "'; call setTarget again");
+  const bool on_device = target_backend_ == IcpBackend::Cuda;
+  if (!on_device && settings_.search != target_search_)
     throw std::invalid_argument(std::string("ICP: settings.search is '") + toString(settings_.search) +
                                 "' but the target was built for '" + toString(target_search_) +
                                 "'; call setTarget again");
@@ -213,16 +295,20 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
   const auto t0 = std::chrono::steady_clock::now();
   const std::size_t n = source.size;
   const std::size_t nblocks = (n + kReduceBlock - 1) / kReduceBlock;
-  const Scalar max_d2 = static_cast<Scalar>(settings_.max_correspondence_distance * settings_.max_correspondence_distance);
-  const bool warm = settings_.warm_start;
-  const std::optional<Box> box = settings_.box;
-  const RobustKernel kernel = settings_.robust_kernel;
-  const double robust_k = settings_.robust_scale;
+  if (on_device && n > std::numeric_limits<std::uint32_t>::max())
+    throw std::invalid_argument("ICP source: the CUDA backend takes at most 2^32 - 1 points");
   const int threads = resolveThreads(settings_.num_threads);
   const std::size_t min_corr =
       static_cast<std::size_t>(std::max(settings_.min_correspondences, plane ? 6 : 3));
-  neighbor_.assign(n, NearestNeighbor<Scalar>::kNone);
   mortonOrder(source, order_, keyed_);
+  if (on_device) {
+    packed_.resize(3 * n);
+    for (std::size_t i = 0; i < n; ++i)
+      for (int c = 0; c < 3; ++c) packed_[3 * i + c] = source.ptr(i)[c];
+    device().setSource(packed_.data(), static_cast<std::uint32_t>(n), order_.data());
+  } else {
+    neighbor_.assign(n, NearestNeighbor<Scalar>::kNone);
+  }
 
   IcpResult result;
   Eigen::Matrix4d T = T_init;
@@ -245,51 +331,53 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
       else
         return point_parts;
     }();
-    const Eigen::Matrix<Scalar, 3, 3> R = T.topLeftCorner<3, 3>().cast<Scalar>();
-    const Eigen::Matrix<Scalar, 3, 1> t = T.topRightCorner<3, 1>().cast<Scalar>();
-    return blockReduce(count, threads, parts, [&](std::size_t k, Partial<System>& part) {
-      const std::size_t i = order_[k * stride];
-      const Scalar* s = source.ptr(i);
-      if (!(std::isfinite(s[0]) && std::isfinite(s[1]) && std::isfinite(s[2]))) return;
-      if (box && !box->contains(s)) return;
-      ++part.used;
-      const Eigen::Matrix<Scalar, 3, 1> q = R * Eigen::Map<const Eigen::Matrix<Scalar, 3, 1>>(s) + t;
-      // Hints (exact: they only tighten the initial bound): this point's neighbour in the
-      // last iteration, and the previous point's neighbour in this pass.
-      std::uint32_t hint = NearestNeighbor<Scalar>::kNone;
-      if (warm) {
-        hint = neighbor_[i];
-        const std::uint32_t other = part.last_node;
-        if (other != NearestNeighbor<Scalar>::kNone &&
-            (hint == NearestNeighbor<Scalar>::kNone ||
-             search.squaredDistance(q.data(), other) < search.squaredDistance(q.data(), hint)))
-          hint = other;
-      }
-      const auto nn = search.nearest(q.data(), max_d2, hint);
-      part.exact = part.exact && nn.exact;
-      if (!nn.found()) return;
-      neighbor_[i] = nn.node;
-      part.last_node = nn.node;
-      ++part.inliers;
-      part.sum_d2 += nn.squared_distance;
-      if (!accumulate) return;
-      const double sq[3] = {double(q[0]), double(q[1]), double(q[2])};
-      double dq[3];
-      search.point(nn.node, dq);
-      if constexpr (std::is_same_v<System, PointToPlaneSystem>) {
-        const Scalar* np = &normals_[3 * static_cast<std::size_t>(nn.node)];
-        const double nq[3] = {double(np[0]), double(np[1]), double(np[2])};
-        double w = 1.0;
-        if (kernel != RobustKernel::None) {
-          const double r = std::abs(nq[0] * (dq[0] - sq[0]) + nq[1] * (dq[1] - sq[1]) + nq[2] * (dq[2] - sq[2]));
-          w = kernel == RobustKernel::Huber ? (r <= robust_k ? 1.0 : robust_k / r)
-                                            : 1.0 / (1.0 + (r / robust_k) * (r / robust_k));
+    const IcpPassRules<Scalar> rules = passRules<Scalar>(settings_, T);
+    if constexpr (IsDeviceSearch<std::decay_t<decltype(search)>>::value) {
+      const auto mode = !accumulate ? cuda::PassMode::Evaluate
+                                    : (std::is_same_v<System, PointToPlaneSystem> ? cuda::PassMode::PointToPlane
+                                                                                  : cuda::PassMode::PointToPoint);
+      return fromDevice<System>(
+          search.device.pass(rules, mode, static_cast<std::uint32_t>(stride), static_cast<std::uint32_t>(count)),
+          accumulate);
+    } else {
+      return blockReduce(count, threads, parts, [&](std::size_t k, Partial<System>& part) {
+        const std::size_t i = order_[k * stride];
+        const Scalar* s = source.ptr(i);
+        if (!detail::sourcePointUsed(rules, s)) return;
+        ++part.used;
+        Scalar q[3];
+        detail::transformPoint(rules, s, q);
+        // Hints (exact: they only tighten the initial bound): this point's neighbour in the
+        // last iteration, and the previous point's neighbour in this pass.
+        std::uint32_t hint = NearestNeighbor<Scalar>::kNone;
+        if (rules.warm_start) {
+          hint = neighbor_[i];
+          const std::uint32_t other = part.last_node;
+          if (other != NearestNeighbor<Scalar>::kNone &&
+              (hint == NearestNeighbor<Scalar>::kNone ||
+               search.squaredDistance(q, other) < search.squaredDistance(q, hint)))
+            hint = other;
         }
-        part.system.add(sq, dq, nq, w);
-      } else {
-        part.system.add(sq, dq);
-      }
-    });
+        const auto nn = search.nearest(q, rules.max_squared_distance, hint);
+        part.exact = part.exact && nn.exact;
+        if (!nn.found()) return;
+        neighbor_[i] = nn.node;
+        part.last_node = nn.node;
+        ++part.inliers;
+        part.sum_d2 += nn.squared_distance;
+        if (!accumulate) return;
+        const double sq[3] = {double(q[0]), double(q[1]), double(q[2])};
+        double dq[3];
+        search.point(nn.node, dq);
+        if constexpr (std::is_same_v<System, PointToPlaneSystem>) {
+          const Scalar* np = &normals_[3 * static_cast<std::size_t>(nn.node)];
+          const double nq[3] = {double(np[0]), double(np[1]), double(np[2])};
+          part.system.add(sq, dq, nq, detail::robustWeight(rules.kernel, rules.robust_scale, sq, dq, nq));
+        } else {
+          part.system.add(sq, dq);
+        }
+      });
+    }
   };
 
   auto iterate = [&](const auto& search, auto system_tag, int& iterations) {
@@ -377,7 +465,8 @@ IcpResult Icp<Scalar>::align(const CloudView<Scalar>& source, const Eigen::Matri
     // Quality at the final transform (one more search, no estimation).
     return run(search, PointToPointSystem{}, false);
   };
-  const auto final_pass = target_search_ == IcpSearch::BucketKdTree
+  const auto final_pass = on_device ? solve(DeviceSearch<Scalar>{device()})
+                          : target_search_ == IcpSearch::BucketKdTree
                               ? solve(BucketSearch<Scalar>{bucket_tree_})
                               : solve(LeftBalancedSearch<Scalar>{lb_tree_, settings_.search_stack_depth});
   result.exact_search = result.exact_search && final_pass.exact;

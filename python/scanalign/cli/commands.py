@@ -180,6 +180,7 @@ RECONSTRUCT = Command(ReconstructionSettings, (
     Alias("--box-preset", _F + "icp.box", "registration", choices=["free_hand", "banana"],
           value=lambda name: getattr(Box, name + "_preset")(), help="the eye-in-hand paper's box rejector values"),
     Alias("--threads", _F + "num_threads", "registration"),
+    Alias("--backend", _F + "icp.backend", "registration", choices=["cpu", "cuda"]),
 ))
 
 
@@ -220,6 +221,7 @@ REGISTER = Command(_register_root, (
     Alias("--estimator", "icp.estimator", choices=["point_to_plane", "point_to_point", "dual_quaternion"]),
     Alias("--normal-radius", "normals.radius"),
     Alias("--box", "icp.box", nargs=6, metavar=_BOX, value=_box, help="box rejector in the source camera frame"),
+    Alias("--backend", "icp.backend", choices=["cpu", "cuda"]),
 ))
 
 #: The commands whose settings are C++ structs (``--config``, ``--set``, ``dump-config``).
@@ -559,8 +561,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser = argparse.ArgumentParser(prog="scanalign", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     pcl = "with the PCL baselines" if _core.built_with_pcl else "without PCL (SCANALIGN_WITH_PCL=OFF)"
+    pcl += ", with the CUDA backend" if _core.built_with_cuda else ", without the CUDA backend (SCANALIGN_WITH_CUDA)"
     parser.add_argument("--version", action="version", version=f"scanalign {_core.__version__} ({pcl})",
-                        help="print the version and whether the PCL baselines are built, then exit")
+                        help="print the version and whether the PCL baselines and the CUDA backend are built, then "
+                             "exit")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     p = sub.add_parser("demo", help="reconstruct a built-in synthetic eye-in-hand scan (no download needed)",
                        description="Renders a built-in synthetic scan (a camera on a UR5's hand circling a part, "

@@ -174,8 +174,9 @@ def make_reconstruction_settings(settings: Union[ReconstructionSettings, FrameTo
     :class:`ReconstructionSettings` (default: its C++ defaults) or a :class:`FrameToModelSettings` (the engine's, with
     the other fields at their defaults). ``overrides`` name fields of :class:`ReconstructionSettings` or, for short, of
     its ``frame_to_model`` (``crop_box=(6 numbers)``, ``icp=dict(max_iterations=30)``); ``depth_filter`` also takes
-    ``"default"`` (filter on, default filter) or None (off), and ``initial_guess`` names
-    ``frame_to_model.motion_model``. TypeError: an unknown field or a value of the wrong type; ValueError: an invalid
+    ``"default"`` (filter on, default filter) or None (off), ``initial_guess`` names
+    ``frame_to_model.motion_model`` and ``backend`` names ``frame_to_model.icp.backend`` (``"cpu"`` or ``"cuda"``: the
+    registration on an NVIDIA GPU, the model's tree resident there between frames). TypeError: an unknown field or a value of the wrong type; ValueError: an invalid
     value (the message names the field)."""
     s = (ReconstructionSettings(frame_to_model=settings) if isinstance(settings, FrameToModelSettings)
          else with_overrides(ReconstructionSettings, settings, (), "reconstruction"))
@@ -192,6 +193,11 @@ def make_reconstruction_settings(settings: Union[ReconstructionSettings, FrameTo
                 update(s.frame_to_model, {"motion_model": value})
             except ValueError as e:
                 raise ValueError(f"initial_guess: {e}") from None
+        elif key == "backend":
+            try:
+                update(s.frame_to_model.icp, {"backend": value})
+            except ValueError as e:
+                raise ValueError(f"backend: {e}") from None
         elif key in _ENGINE_FIELDS and key not in field_names(ReconstructionSettings):
             engine[key] = value
         else:

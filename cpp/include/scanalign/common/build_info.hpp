@@ -15,6 +15,11 @@ const char* version();
 /// SCANALIGN_WITH_PCL (AUTO: when PCL is found).
 bool builtWithPcl();
 
+/// Whether the CUDA ICP backend (IcpBackend::Cuda, registration/cuda/icp_device.hpp) was
+/// built: CMake option SCANALIGN_WITH_CUDA (AUTO: when nvcc is found). Whether a GPU is
+/// present is a separate question: cuda::deviceNames().
+bool builtWithCuda();
+
 /// Thrown by a call that needs a part this build was configured without. Its message names
 /// the call and the CMake option that builds the part.
 class NotBuiltError : public std::runtime_error {

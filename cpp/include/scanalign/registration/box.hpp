@@ -4,6 +4,8 @@
 
 #include <Eigen/Core>
 
+#include "scanalign/registration/correspondence_terms.hpp"
+
 namespace scanalign {
 
 /// Box (x_min, x_max, y_min, y_max, z_min, z_max) in metres, in the source camera frame
@@ -20,8 +22,7 @@ struct Box {
 
   template <typename Scalar>
   bool contains(const Scalar* p) const {
-    return p[0] >= min.x() && p[0] <= max.x() && p[1] >= min.y() && p[1] <= max.y() && p[2] >= min.z() &&
-           p[2] <= max.z();
+    return detail::insideBox(min.data(), max.data(), p);
   }
   bool valid() const { return (min.array() <= max.array()).all() && min.allFinite() && max.allFinite(); }
 

@@ -9,6 +9,7 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <utility>
@@ -19,6 +20,7 @@
 #include "scanalign/common/cloud_view.hpp"
 #include "scanalign/registration/box.hpp"
 #include "scanalign/registration/bucket_kdtree.hpp"
+#include "scanalign/registration/correspondence_terms.hpp"
 #include "scanalign/registration/kdtree.hpp"
 
 namespace scanalign {
@@ -42,15 +44,13 @@ enum class IcpSearch {
   LeftBalancedKdTree,
 };
 
-/// M-estimator on the point-to-plane residual, solved by iteratively reweighted least
-/// squares: each correspondence's row of Low's system is weighted by w(|r|) (Zhang 1997,
-/// "Parameter estimation techniques"). Far correspondences then pull less than in plain
-/// least squares, which matters when the correspondence distance is large (sparse scans
-/// with a large initial motion).
-enum class RobustKernel {
-  None,    ///< w = 1: Low's plain least squares (eye-in-hand paper §3.2)
-  Huber,   ///< w = 1 for |r| <= k, k / |r| beyond
-  Cauchy,  ///< w = 1 / (1 + (r / k)^2)
+/// Where the ICP passes run.
+enum class IcpBackend {
+  Cpu,   ///< the CPU cores (OpenMP), either search structure
+  /// An NVIDIA GPU (Algorithm 1 of the eye-in-hand paper): the model's left-balanced tree
+  /// (built on the CPU) stays on the device; per iteration one kernel pass and the 6x6 solve
+  /// on the CPU. Needs a build with SCANALIGN_WITH_CUDA (NotBuiltError otherwise) and a device.
+  Cuda,
 };
 
 /// Why the ICP loop stopped.
@@ -73,6 +73,7 @@ const char* toString(IcpStatus status);
 const char* toString(IcpEstimator estimator);
 const char* toString(IcpSearch search);
 const char* toString(RobustKernel kernel);
+const char* toString(IcpBackend backend);
 
 /// ICP settings. Defaults are the eye-in-hand paper's (§3.3) where it gives one. PCL semantics.
 struct IcpSettings {
@@ -132,6 +133,11 @@ struct IcpSettings {
   int coarse_stride = 1;
   /// OpenMP threads; 0 = OpenMP's default (all cores).
   int num_threads = 0;
+  /// Where the passes run. Cuda always searches the left-balanced tree (the layout the
+  /// device receives; `search` is ignored) with a stack of search_stack_depth entries, and
+  /// gives the CPU engine's poses on the same input (the same per-point arithmetic; only the
+  /// order of the final sums differs). Changing it needs a new setTarget.
+  IcpBackend backend = IcpBackend::Cpu;
 };
 
 /// ICP outcome. Quality figures are evaluated at the final transform.
@@ -153,8 +159,15 @@ struct IcpResult {
   double seconds = 0.0;     ///< wall time of align() (tree build excluded)
 };
 
+namespace cuda {
+template <typename Scalar>
+class IcpDevice;
+}
+
 /// Reusable ICP: build the target's k-d tree once (setTarget), align many sources.
 /// Not thread-safe for concurrent align() on one object (it owns scratch buffers).
+/// With IcpBackend::Cuda the tree is also uploaded to the GPU, where it stays until the next
+/// setTarget; a copy of the object uploads its own on first use.
 template <typename Scalar>
 class Icp {
  public:
@@ -180,8 +193,10 @@ class Icp {
   std::size_t targetSize() const;
   /// Levels of the target's tree below its root.
   int treeHeight() const;
-  /// The structure setTarget built (align() requires settings().search to match).
+  /// The structure setTarget built (align() requires settings().search to match on the CPU).
   IcpSearch targetSearch() const { return target_search_; }
+  /// The backend setTarget prepared (align() requires settings().backend to match).
+  IcpBackend targetBackend() const { return target_backend_; }
   const LeftBalancedKdTree<Scalar>& leftBalancedTree() const { return lb_tree_; }
   const BucketKdTree<Scalar>& bucketTree() const { return bucket_tree_; }
   bool hasNormals() const { return !normals_.empty(); }
@@ -192,6 +207,26 @@ class Icp {
   LeftBalancedKdTree<Scalar> lb_tree_;
   BucketKdTree<Scalar> bucket_tree_;
   IcpSearch target_search_ = IcpSearch::BucketKdTree;
+  IcpBackend target_backend_ = IcpBackend::Cpu;
+  /// The GPU copy of the target (backend Cuda): a cache of lb_tree_ and normals_, which a
+  /// copy of the Icp object does not share (it uploads its own when it first aligns). A new
+  /// setTarget re-uploads into the same device buffers (the frame loop's model grows slowly).
+  struct DeviceCache {
+    std::shared_ptr<cuda::IcpDevice<Scalar>> device;
+    bool uploaded = false;  ///< the device holds the current lb_tree_ and normals_
+    DeviceCache() = default;
+    DeviceCache(const DeviceCache&) {}
+    DeviceCache& operator=(const DeviceCache&) {
+      device.reset();
+      uploaded = false;
+      return *this;
+    }
+    DeviceCache(DeviceCache&&) = default;
+    DeviceCache& operator=(DeviceCache&&) = default;
+  };
+  DeviceCache device_;
+  cuda::IcpDevice<Scalar>& device();  ///< creates the device object and uploads the target when needed
+  std::vector<Scalar> packed_;  ///< the source packed as x, y, z for the upload (backend Cuda)
   std::vector<Scalar> normals_;           ///< 3 per target point, in the built tree's order
   std::vector<std::uint32_t> neighbor_;   ///< last neighbour (node) per source point
   std::vector<std::uint32_t> order_;      ///< processing order of the source (Morton)

@@ -23,18 +23,9 @@
 #include <vector>
 
 #include "scanalign/common/cloud_view.hpp"
+#include "scanalign/registration/left_balanced_search.hpp"
 
 namespace scanalign {
-
-/// Result of one nearest-neighbour query.
-template <typename Scalar>
-struct NearestNeighbor {
-  static constexpr std::uint32_t kNone = std::numeric_limits<std::uint32_t>::max();
-  std::uint32_t node = kNone;  ///< position in the tree's node array (kNone: nothing within range)
-  Scalar squared_distance = std::numeric_limits<Scalar>::infinity();  ///< m^2
-  bool exact = true;  ///< false when a branch dropped for lack of stack could hold a closer point
-  bool found() const { return node != kNone; }
-};
 
 template <typename Scalar>
 class LeftBalancedKdTree {
@@ -44,14 +35,9 @@ class LeftBalancedKdTree {
   static constexpr int kMaxStack = 64;
   static constexpr int kDefaultStack = 20;  ///< eye-in-hand paper §3.1
 
-  /// One node: the point's coordinates and, packed into one word, the index of the point
-  /// in the input cloud (high 30 bits) and the split axis (low 2 bits). 16 bytes for float.
-  struct Node {
-    Scalar p[3];
-    std::uint32_t tag;
-    std::uint32_t index() const { return tag >> 2; }
-    int axis() const { return static_cast<int>(tag & 3u); }
-  };
+  /// One node: the point's coordinates and its input index and split axis packed into one
+  /// word (left_balanced_search.hpp, the layout a GPU receives as is).
+  using Node = LeftBalancedNode<Scalar>;
 
   LeftBalancedKdTree() = default;
   explicit LeftBalancedKdTree(const CloudView<Scalar>& cloud) { build(cloud); }
@@ -71,10 +57,8 @@ class LeftBalancedKdTree {
   int height() const { return height_; }
   const Node& node(std::size_t i) const { return nodes_[i]; }
   const std::vector<Node>& nodes() const { return nodes_; }
-  /// Tight bounding box of node i's subtree: {min x, min y, min z, max x, max y, max z}.
-  struct Bounds {
-    Scalar lo[3], hi[3];
-  };
+  /// Tight bounding box of node i's subtree.
+  using Bounds = SubtreeBounds<Scalar>;
   const std::vector<Bounds>& bounds() const { return bounds_; }
 
   /// Nearest neighbour of `q` strictly closer than sqrt(max_squared_distance).
@@ -94,16 +78,7 @@ class LeftBalancedKdTree {
   void buildRange(const CloudView<Scalar>& cloud, std::uint32_t* first, std::size_t n, std::size_t node, int depth);
 
   /// Squared distance from q to node i's subtree box (0 inside).
-  Scalar boxDistance(const Scalar* q, std::size_t i) const {
-    const Bounds& b = bounds_[i];
-    Scalar d2 = 0;
-    for (int k = 0; k < 3; ++k) {
-      const Scalar below = b.lo[k] - q[k], above = q[k] - b.hi[k];
-      const Scalar e = below > 0 ? below : (above > 0 ? above : Scalar(0));
-      d2 += e * e;
-    }
-    return d2;
-  }
+  Scalar boxDistance(const Scalar* q, std::size_t i) const { return detail::boxDistance(q, bounds_[i]); }
 
   std::vector<Node> nodes_;
   std::vector<Bounds> bounds_;
@@ -121,12 +96,6 @@ inline std::size_t leftSubtreeSize(std::size_t n) {
   const std::size_t last = n - full_above;                    // nodes on level h
   const std::size_t half = std::size_t{1} << (h - 1);         // level-h capacity of the left subtree
   return (half - 1) + std::min(last, half);
-}
-
-template <typename Scalar>
-inline Scalar squaredDistance(const Scalar* a, const Scalar* b) {
-  const Scalar dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
-  return dx * dx + dy * dy + dz * dz;
 }
 
 }  // namespace detail
@@ -213,64 +182,8 @@ void LeftBalancedKdTree<Scalar>::buildRange(const CloudView<Scalar>& cloud, std:
 template <typename Scalar>
 NearestNeighbor<Scalar> LeftBalancedKdTree<Scalar>::nearest(const Scalar* q, Scalar max_squared_distance,
                                                             int stack_depth, std::uint32_t hint) const {
-  NearestNeighbor<Scalar> best;
-  const std::size_t n = nodes_.size();
-  if (n == 0) return best;
-  best.squared_distance = max_squared_distance;
-  if (hint < n) {
-    const Scalar d2 = detail::squaredDistance(q, nodes_[hint].p);
-    if (d2 < best.squared_distance) {
-      best.squared_distance = d2;
-      best.node = hint;
-    }
-  }
-  stack_depth = std::max(1, std::min(stack_depth, kMaxStack));
-  struct Pending {
-    std::uint32_t node;
-    Scalar box_d2;  ///< squared distance from q to the branch's subtree box
-  };
-  std::array<Pending, kMaxStack> stack;
-  int sp = 0;
-  Scalar min_dropped = std::numeric_limits<Scalar>::infinity();
-  std::size_t cur = boxDistance(q, 0) < best.squared_distance ? 0 : n;
-  for (;;) {
-    while (cur < n) {
-      const Node& nd = nodes_[cur];
-      const Scalar d2 = detail::squaredDistance(q, nd.p);
-      if (d2 < best.squared_distance) {
-        best.squared_distance = d2;
-        best.node = static_cast<std::uint32_t>(cur);
-      }
-      // Near side of the split first. The far child is kept only if both the split plane
-      // and its subtree box can still hold a closer point: the plane test is cheap and
-      // rejects most, the box test catches the cells that are long and empty.
-      const int axis = nd.axis();
-      const Scalar diff = q[axis] - nd.p[axis];
-      const std::size_t near = diff < 0 ? 2 * cur + 1 : 2 * cur + 2;
-      const std::size_t far = diff < 0 ? 2 * cur + 2 : 2 * cur + 1;
-      if (far < n && diff * diff < best.squared_distance) {
-        const Scalar d_far = boxDistance(q, far);
-        if (d_far < best.squared_distance) {
-          if (sp < stack_depth)
-            stack[sp++] = {static_cast<std::uint32_t>(far), d_far};
-          else
-            min_dropped = std::min(min_dropped, d_far);
-        }
-      }
-      cur = near;
-    }
-    // Pop the next branch whose box can still hold a closer point.
-    for (;;) {
-      if (sp == 0) {
-        best.exact = !(min_dropped < best.squared_distance);
-        if (!best.found()) best.squared_distance = std::numeric_limits<Scalar>::infinity();
-        return best;
-      }
-      --sp;
-      if (stack[sp].box_d2 < best.squared_distance) break;
-    }
-    cur = stack[sp].node;
-  }
+  return leftBalancedNearest<Scalar, kMaxStack>(nodes_.data(), bounds_.data(), static_cast<std::uint32_t>(nodes_.size()),
+                                                q, max_squared_distance, stack_depth, hint);
 }
 
 template <typename Scalar>

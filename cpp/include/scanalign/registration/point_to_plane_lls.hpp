@@ -18,6 +18,8 @@
 #include <Eigen/Core>
 #include <Eigen/Eigenvalues>
 
+#include "scanalign/registration/correspondence_terms.hpp"
+
 namespace scanalign {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
@@ -31,21 +33,9 @@ struct PointToPlaneSystem {
   double count = 0.0;            ///< correspondences added
 
   /// Adds one correspondence: s source point (already transformed), d target point,
-  /// n target unit normal. Row of A and b as in Low (2004), eq. (8)-(10). A weight w
-  /// (robust kernels) scales the row's terms: the weighted normal equations.
+  /// n target unit normal, w its weight (detail::addPointToPlaneTerms, Low 2004 eqs. (8)-(10)).
   void add(const double s[3], const double d[3], const double n[3], double w = 1.0) {
-    const double a0 = n[2] * s[1] - n[1] * s[2];
-    const double a1 = n[0] * s[2] - n[2] * s[0];
-    const double a2 = n[1] * s[0] - n[0] * s[1];
-    const double row[6] = {a0, a1, a2, n[0], n[1], n[2]};
-    const double b = n[0] * (d[0] - s[0]) + n[1] * (d[1] - s[1]) + n[2] * (d[2] - s[2]);
-    int k = 0;
-    for (int r = 0; r < 6; ++r) {
-      const double wr = w * row[r];
-      for (int c = r; c < 6; ++c) ata[k++] += wr * row[c];
-      atb[r] += wr * b;
-    }
-    btb += w * b * b;
+    detail::addPointToPlaneTerms(ata.data(), atb.data(), btb, s, d, n, w);
     count += 1.0;
   }
 

@@ -9,6 +9,7 @@
 #include <Eigen/SVD>
 
 #include "scanalign/common/rigid.hpp"
+#include "scanalign/registration/correspondence_terms.hpp"
 
 namespace scanalign {
 
@@ -20,13 +21,7 @@ struct PointToPointSystem {
 
   void add(const double s[3], const double d[3]) {
     count += 1.0;
-    for (int r = 0; r < 3; ++r) {
-      sum_s[r] += s[r];
-      sum_d[r] += d[r];
-      sum_ss += s[r] * s[r];
-      sum_dd += d[r] * d[r];
-      for (int c = 0; c < 3; ++c) sum_sd[3 * r + c] += s[r] * d[c];
-    }
+    detail::addPointPairTerms(sum_s.data(), sum_d.data(), sum_sd.data(), sum_ss, sum_dd, s, d);
   }
   void merge(const PointToPointSystem& o) {
     count += o.count;
