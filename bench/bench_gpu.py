@@ -11,9 +11,11 @@ measures scanalign's CUDA backend against its own CPU engine on all cores of the
 * **frame loop**: the built-in demo scan at 640x480 (SR300 intrinsics), whole ``reconstruct`` loop per backend:
   frames per second, median registration and total time per frame, ATE.
 
-PCL is not on the GPU machine (its headers need Boost's): its time is estimated as scanalign's single-thread CPU time
-on that machine times the PCL/scanalign single-thread ratio measured on the development machine
-(``docs/benchmarks.md``: 3.90 at 40k source / 120k model points), and the table says so.
+small_gicp (PLANE_ICP on all cores, its own defaults and normals) runs beside them when it is importable
+(``scripts/gpu_check.sh`` installs its wheel from ``.gpu-deps/``). PCL is not on the GPU machine (its headers need
+Boost's): its time is estimated as scanalign's single-thread CPU time on that machine times the PCL/scanalign
+single-thread ratio measured on the development machine (``docs/benchmarks.md``: 3.90 at 40k source / 120k model
+points), and the table says so. Open3D's CUDA build is several hundred MB: it cannot be taken along.
 
     python bench/bench_gpu.py [--out DIR] [--sizes 10000 100000 1000000] [--repeats 5] [--frames 36] [--quick]
 
@@ -74,6 +76,23 @@ def pose_error(T: np.ndarray, truth: np.ndarray) -> tuple:
     return float(np.linalg.norm(D[:3, 3]) * 1000), float(angle)
 
 
+def _small_gicp(tgt: np.ndarray, src: np.ndarray, threads: int):
+    """small_gicp PLANE_ICP on all cores (its defaults, its own normals k=10, tree prebuilt as ours), or None."""
+    try:
+        import small_gicp as sg
+    except ImportError:
+        return None
+    target = sg.PointCloud(tgt.astype(np.float64))
+    sg.estimate_normals(target, sg.KdTree(target, threads), num_neighbors=10, num_threads=threads)
+    tree, source = sg.KdTree(target, threads), sg.PointCloud(src.astype(np.float64))
+
+    def run():
+        r = sg.align(target, source, tree, registration_type="PLANE_ICP", max_correspondence_distance=0.02,
+                     num_threads=threads)
+        return np.asarray(r.T_target_source), int(r.iterations), "converged" if r.converged else "not converged"
+    return run
+
+
 def registration_rows(sizes, repeats: int, threads: int, cuda: bool) -> list:
     rows = []
     truth = motion()
@@ -82,31 +101,38 @@ def registration_rows(sizes, repeats: int, threads: int, cuda: bool) -> list:
         src_base, _ = surface(n, 2)  # another sample of the same surface: no point pairs exactly
         rng = np.random.default_rng(3)
         src = ((src_base - truth[:3, 3]) @ truth[:3, :3] + rng.normal(0, 5e-4, src_base.shape)).astype(np.float32)
-        engines = {"cpu, 1 thread": dict(backend="cpu", num_threads=1),
+        configs = {"cpu, 1 thread": dict(backend="cpu", num_threads=1),
                    f"cpu, {threads} threads": dict(backend="cpu", num_threads=threads)}
         if cuda:
-            engines["cuda"] = dict(backend="cuda")
-        built, times, results = {}, {k: [] for k in engines}, {}
-        for name, kw in engines.items():
+            configs["cuda"] = dict(backend="cuda")
+        runs, setup = {}, {}
+        for name, kw in configs.items():
             t0 = time.perf_counter()
-            built[name] = Icp(tgt, nrm, **CRITERIA, **kw)
-            built[name] = (built[name], time.perf_counter() - t0)
+            engine = Icp(tgt, nrm, **CRITERIA, **kw)
+            setup[name] = time.perf_counter() - t0
+
+            def run(engine=engine):
+                r = engine.align(src)
+                return r.T_target_source, r.iterations, r.status
+            runs[name] = run
+        sg_run = _small_gicp(tgt, src, threads)
+        if sg_run is not None:
+            runs[f"small_gicp, {threads} threads"], setup[f"small_gicp, {threads} threads"] = sg_run, None
         reps = repeats if n < 500_000 else max(2, repeats // 2)
-        for _ in range(reps):  # interleaved: each repeat runs every backend once
-            for name in engines:
-                engine = built[name][0]
+        times, results = {k: [] for k in runs}, {}
+        for _ in range(reps):  # interleaved: each repeat runs every method once
+            for name, run in runs.items():
                 t0 = time.perf_counter()
-                results[name] = engine.align(src)
+                results[name] = run()
                 times[name].append(time.perf_counter() - t0)
-        ref = results[f"cpu, {threads} threads"]
-        for name in engines:
-            r = results[name]
-            err = pose_error(r.T_target_source, truth)
+        ref = results[f"cpu, {threads} threads"][0]
+        for name in runs:
+            T, iterations, status = results[name]
+            err = pose_error(T, truth)
             rows.append(dict(points=n, backend=name, median_s=statistics.median(times[name]), repeats=reps,
-                             tree_and_upload_s=built[name][1], iterations=r.iterations, status=r.status,
-                             error_mm=err[0], error_deg=err[1],
-                             max_pose_diff_to_cpu=float(np.abs(r.T_target_source - ref.T_target_source).max())))
-            print(f"  {n:>8} {name:<16} {rows[-1]['median_s'] * 1e3:9.2f} ms  {r.iterations:3d} it  "
+                             tree_and_upload_s=setup[name], iterations=iterations, status=status,
+                             error_mm=err[0], error_deg=err[1], max_pose_diff_to_cpu=float(np.abs(T - ref).max())))
+            print(f"  {n:>8} {name:<22} {rows[-1]['median_s'] * 1e3:9.2f} ms  {iterations:3d} it  "
                   f"{err[0]:.3f} mm {err[1]:.4f} deg  |dT| {rows[-1]['max_pose_diff_to_cpu']:.1e}", flush=True)
     return rows
 
@@ -147,14 +173,14 @@ def markdown(report: dict) -> str:
              "error | pose diff to CPU | tree + upload |", "| ---: | --- | ---: | ---: | ---: | ---: | --- | ---: | ---: |"]
     for n in sorted({r["points"] for r in report["registration"]}):
         rows = [r for r in report["registration"] if r["points"] == n]
-        allc = next(r for r in rows if r["backend"].endswith("threads"))
+        allc = next(r for r in rows if r["backend"].startswith("cpu, ") and r["backend"] != "cpu, 1 thread")
         one = next(r for r in rows if r["backend"] == "cpu, 1 thread")
         pcl = one["median_s"] * PCL_RATIO_1_THREAD
         for r in rows:
             lines.append(f"| {n:,} | {r['backend']} | {r['median_s'] * 1e3:.2f} ms | "
                          f"{allc['median_s'] / r['median_s']:.2f}x | {pcl / r['median_s']:.1f}x | {r['iterations']} | "
                          f"{r['error_mm']:.3f} mm, {r['error_deg']:.4f}° | {r['max_pose_diff_to_cpu']:.1e} | "
-                         f"{r['tree_and_upload_s'] * 1e3:.1f} ms |")
+                         + ("- |" if r["tree_and_upload_s"] is None else f"{r['tree_and_upload_s'] * 1e3:.1f} ms |"))
     lines += ["", "Ratios above 1: faster than the reference. PCL's time is estimated (not on this machine): "
               f"scanalign's 1-thread time here x {PCL_RATIO_1_THREAD} (PCL/scanalign, 1 thread, development machine).",
               "", "| frame loop | size | frames per second | registration per frame (median) | whole frame (median) | "

@@ -4,7 +4,8 @@
 # numpy, pybind11 and pytest; no network, no PCL, no Eigen or GoogleTest package: those
 # headers (and GoogleTest's static libraries) come along in .gpu-deps/, which
 #     bash scripts/gpu_check.sh --prepare
-# fills on the development machine (git ignores it; about 11 MB).
+# fills on the development machine (git ignores it; about 12 MB, with small_gicp's wheel for the
+# benchmark's CPU peer).
 #
 #     bash scripts/gpu_check.sh OUTDIR      # about 5 minutes on 16 cores
 #
@@ -21,6 +22,10 @@ if [[ "${1:-}" == "--prepare" ]]; then
   cp -r /usr/share/eigen3/cmake "$DEPS/eigen/share/eigen3/"
   cp -r /usr/include/gtest "$DEPS/gtest/include/"
   cp /usr/lib/x86_64-linux-gnu/libgtest.a /usr/lib/x86_64-linux-gnu/libgtest_main.a "$DEPS/gtest/lib/"
+  # small_gicp, the CPU peer of bench/bench_gpu.py, as a wheel for the GPU machine's Python 3.12.
+  python3 -m pip download -q --no-deps --only-binary=:all: --python-version 3.12 --implementation cp \
+    --platform manylinux_2_28_x86_64 --platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64 \
+    -d "$DEPS/wheels" small-gicp || echo "small_gicp wheel not downloaded: bench_gpu.py will skip its rows"
   du -sh "$DEPS"
   exit 0
 fi
@@ -53,6 +58,10 @@ mkdir "$PKG/scanalign"
 for f in python/scanalign/*; do ln -s "$PWD/$f" "$PKG/scanalign/"; done
 ln -s "$PWD"/build/gpu/_core*.so "$PKG/scanalign/"
 export PYTHONPATH="$PKG"
+if compgen -G "$DEPS/wheels/*.whl" > /dev/null; then
+  "$PY" -m pip install -q --no-index --no-deps --no-compile --target "$PKG/site" "$DEPS"/wheels/*.whl \
+    && export PYTHONPATH="$PKG:$PKG/site"
+fi
 "$PY" -c "from scanalign import registration; print('devices:', registration.cuda_devices())"
 
 echo "[gpu] Python: both backends"

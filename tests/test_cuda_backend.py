@@ -181,7 +181,8 @@ def test_the_gpu_benchmark_runs_in_its_quick_mode(tmp_path):
 
     report = json.loads((tmp_path / "bench_gpu.json").read_text())
     rows = report["registration"]
-    assert {r["backend"] for r in rows} >= {"cpu, 1 thread"} and all(r["error_mm"] < 0.5 for r in rows), rows
+    ours = [r for r in rows if not r["backend"].startswith("small_gicp")]
+    assert {r["backend"] for r in ours} >= {"cpu, 1 thread"} and all(r["error_mm"] < 0.5 for r in ours), rows
     assert report["frame_loop"][0]["merged"] == 3 and report["frame_loop"][0]["ate_mm"] < 5.0
     assert ("cuda" in {r["backend"] for r in rows}) == bool(DEVICES)
     assert (tmp_path / "bench_gpu.md").read_text().startswith("# CUDA backend benchmark")
