@@ -114,7 +114,7 @@ def _round_trip(obj):
 # a rigid transform, an optional value that is None by default).
 ROT = np.array([[0.0, -1.0, 0.0, 0.1], [1.0, 0.0, 0.0, 0.2], [0.0, 0.0, 1.0, 0.3], [0.0, 0.0, 0.0, 1.0]])
 OTHER = {
-    "estimator": "point_to_point", "robust_kernel": "huber", "search": "left_balanced_kdtree", "backend": "cuda",
+    "estimator": "point_to_point", "robust_kernel": "huber", "search": "left_balanced_kdtree", "backend": "cuda", "detector": "orb",
     "shape": "capsule", "name": "changed", "method": "flags",
     "model_frame": "camera", "registration": "pcl_svd",
     "box": _core.registration.Box(-0.1, 0.1, -0.2, 0.2, 0.0, 1.0), "crop_box": _core.registration.Box(-1, 1, -1, 1, 0, 2),
@@ -292,6 +292,18 @@ def _results():
     assert plan.candidates
     out["grasp.GraspPlanResult"] = plan
     out["grasp.GraspCandidate"] = list(plan.candidates[:3])
+    view = G.plan_camera_view(cell_robot, T_base_model, 0.025, camera_mount=G.hand_camera_mount(np.eye(4)),
+                              q_current=[0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0])
+    assert view.found
+    out["grasp.ViewPlan"] = view
+    label_geometry = _core.pose.ReferenceImageGeometry(width=300, height=200, origin_pixel=(149.5, 99.5),
+                                                       top_height=0.025)
+    camera = np.asarray(view.T_base_camera)
+    H = _core.pose.homography_of_part(label_geometry, _core.reconstruction.PinholeIntrinsics(
+        1280, 720, 900.0, 900.0, 639.5, 359.5), camera, T_base_model)
+    out["pose.HomographyPose"] = _core.pose.planar_pose_from_homography(
+        H, label_geometry, _core.reconstruction.PinholeIntrinsics(1280, 720, 900.0, 900.0, 639.5, 359.5), camera,
+        T_base_model)
 
     f2m_settings = _core.reconstruction.FrameToModelSettings()
     f2m_settings.num_threads = THREADS

@@ -242,6 +242,7 @@ void bindResults(py::module_& m) {
 }  // namespace
 
 void bindPickSettings(py::module_& m);  // grasp_pick_settings.cpp
+void bindViewPlanner(py::module_& m);   // grasp_view_planner.cpp
 
 void defineGrasp(py::module_& m) {
   bindGrasp(m);
@@ -249,6 +250,7 @@ void defineGrasp(py::module_& m) {
   bindSettings(m);
   bindResults(m);
   bindPickSettings(m);
+  bindViewPlanner(m);
   m.def(
       "plan_grasp",
       [](const Robot& robot, const py::object& T_base_model, const std::vector<Grasp>& grasps,

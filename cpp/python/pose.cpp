@@ -14,6 +14,7 @@ void definePose(py::module_& m) {
   bindPoseEstimation(m);
   bindPoseSymmetry(m);
   bindPoseParts(m);
+  bindPoseHomography(m);
 }
 
 }  // namespace scanalign::python

@@ -30,6 +30,7 @@ void bindPosePcl(py::module_& m);        // pose_pcl.cpp: the stock PCL baseline
 void bindPoseEstimation(py::module_& m); // pose_estimation.cpp: estimate_pose, find_objects, describe_model_views
 void bindPoseSymmetry(py::module_& m);   // pose_symmetry.cpp: PartSymmetry, symmetric_pose_error
 void bindPoseParts(py::module_& m);      // pose_parts.cpp: find_parts
+void bindPoseHomography(py::module_& m); // pose_homography.cpp: the 2D step of the two-step pose
 
 /// (n,) copy of a vector, as dtype Out.
 template <typename Out, typename In>

@@ -1519,3 +1519,99 @@ def write_recording(case):
 def _recording_frames():
     from scanalign import synthetic
     return synthetic.SyntheticConfig(n_frames=3, resolution_scale=0.25, noise="none").build().frames
+
+
+# -- the two-step pose's 2D step (Kleppe et al. 2017, Paper 3) ----------------------------------------------------
+_HOMOGRAPHIES = ["exact", "exact", "scaled", "random", "zero", "nan", "inf", "huge", "3x4", "strings", "none"]
+
+
+def _homography(kind, seed, geometry, camera, part):
+    from scanalign.pose.image_matching import homography_of_part
+    from scanalign.synthetic.hand_camera import WEBCAM
+    rng = np.random.default_rng(seed)
+    H = homography_of_part(geometry, WEBCAM, camera, part)
+    with np.errstate(invalid="ignore", over="ignore"):
+        return {"exact": H, "scaled": -3.0 * H, "random": rng.normal(size=(3, 3)), "zero": np.zeros((3, 3)),
+                "nan": np.where(rng.random((3, 3)) < 0.2, NAN, H), "inf": H * INF, "huge": H * 1e300,
+                "3x4": H[:, :2], "strings": H.astype("U5"), "none": None}[kind]
+
+
+@target("two_step", H=choice(_HOMOGRAPHIES), seed=st.integers(0, 2**16), rough=transforms(),
+        scale=numbers(5000.0), top=numbers(0.025), width=counts(300), max_scale=numbers(0.15))
+def planar_pose_from_homography(case):
+    from scanalign.grasp import camera_above
+    from scanalign.pose.image_matching import HomographyPoseSettings, ReferenceImageGeometry
+    from scanalign.pose.image_matching import planar_pose_from_homography as pose_of
+    from scanalign.synthetic.hand_camera import WEBCAM
+    part = np.eye(4)
+    part[:3, 3] = (0.45, 0.1, 0.0)
+    camera = camera_above(part, 0.025, 0.18, 0.3)
+    good = ReferenceImageGeometry(width=300, height=200, pixels_per_metre=5000.0, origin_pixel=(149.5, 99.5),
+                                  top_height=0.025)
+    H = _homography(case["H"], case["seed"], good, camera, part)
+    g = call(ReferenceImageGeometry, width=case["width"], height=200, pixels_per_metre=case["scale"],
+             origin_pixel=(149.5, 99.5), top_height=case["top"])
+    s = call(HomographyPoseSettings, max_scale_error=case["max_scale"])
+    if g is None or s is None:
+        return
+    rough = build(case["rough"])
+    if isinstance(rough, np.ndarray) and rough.shape == (4, 4):
+        rough = rough.copy()
+        rough[:3, 3] += part[:3, 3]
+    r = call(pose_of, H, g, WEBCAM, camera, rough, s)
+    if r is None or r.status != "ok":
+        return
+    finite(r.T_base_part, "T_base_part")
+    if not (0 <= r.p0[0] < WEBCAM.width and 0 <= r.p0[1] < WEBCAM.height):
+        raise ContractError(f"status ok with the part origin at pixel {r.p0}, outside the image")
+    if case["H"] in ("exact", "scaled") and g.pixels_per_metre == 5000.0 and g.width == 300 and g.top_height == 0.025 \
+            and np.allclose(rough[2, 3], 0.0):
+        if np.abs(r.T_base_part[:2, 3] - part[:2, 3]).max() > 1e-9:
+            raise ContractError(f"the exact homography gave {r.T_base_part[:2, 3]}, not {part[:2, 3]}")
+
+
+_IMAGES = ["label", "label", "noise", "flat", "tiny", "empty", "nan", "rgb", "rgba", "int16", "strings", "3d", "none"]
+
+
+def _image(kind, seed):
+    from scanalign.synthetic.hand_camera import top_label
+    rng = np.random.default_rng(seed)
+    img = top_label(seed=seed % 7).image
+    return {"label": img, "noise": rng.integers(0, 255, (120, 160)).astype(np.uint8), "flat": np.full((64, 64), 128),
+            "tiny": img[:5, :5], "empty": img[:0], "nan": np.where(rng.random(img.shape) < 0.01, NAN, img * 1.0),
+            "rgb": np.repeat(img[..., None], 3, axis=2), "rgba": np.repeat(img[..., None], 4, axis=2),
+            "int16": img.astype(np.int16) - 300, "strings": img.astype("U3"), "3d": img[None], "none": None}[kind]
+
+
+@target("two_step", weight=0.5, ref=choice(_IMAGES), img=choice(_IMAGES), seed=st.integers(0, 2**16),
+        detector=choice(["sift", "orb", "akaze", "surf", ""]), ratio=numbers(0.75, 1.5),
+        threshold=numbers(2.0), inliers=counts(10, 3, 4))
+def match_reference(case):
+    from scanalign.pose.image_matching import match_reference as match
+    r = call(match, _image(case["ref"], case["seed"]), _image(case["img"], case["seed"] + 1),
+             detector=case["detector"], ratio=case["ratio"], ransac_threshold=case["threshold"],
+             min_inliers=case["inliers"])
+    if r is None or r.status != "ok":
+        return
+    finite(r.H_image_reference, "H_image_reference")
+    if r.inliers < case["inliers"]:
+        raise ContractError(f"status ok with {r.inliers} inliers, below min_inliers {case['inliers']}")
+
+
+@target("two_step", weight=0.5, part=transforms(), top=numbers(0.025), height=numbers(0.18),
+        steps=counts(4, 361), q=choice(["home", "home", "nan", "short", "huge"]))
+def plan_camera_view(case):
+    from scanalign.grasp import hand_camera_mount, plan_camera_view as plan
+    part = build(case["part"])
+    if isinstance(part, np.ndarray) and part.shape == (4, 4):
+        part = part.copy()
+        part[:3, 3] += (0.45, 0.1, 0.0)
+    q = {"home": [0.0, -1.57, 1.57, -1.57, -1.57, 0.0], "nan": [NAN] * 6, "short": [0.0] * 5,
+         "huge": [1e300] * 6}[case["q"]]
+    r = call(plan, "ur5", part, case["top"], camera_mount=hand_camera_mount(np.eye(4)), q_current=q,
+             height=case["height"], yaw_steps=case["steps"])
+    if r is None or not r.found:
+        return
+    finite(r.q, "q")
+    if abs(r.T_base_camera[2, 2] + 1.0) > 1e-9:
+        raise ContractError("a planned view does not look straight down")

@@ -26,11 +26,15 @@ from scanalign.common.rigid import require_rigid
 from scanalign.common.settings import with_overrides
 
 __all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCandidate", "GraspPlanResult",
-           "PartGrasps", "plan_grasp", "read_part_grasps", "write_part_grasps", "symmetric_pose_error"]
+           "PartGrasps", "plan_grasp", "read_part_grasps", "write_part_grasps", "symmetric_pose_error",
+           "ViewPlannerSettings", "ViewPlan", "plan_camera_view", "camera_above", "hand_camera_mount"]
 
 _G = _core.grasp
 Grasp, Gripper, GraspPlannerSettings = _G.Grasp, _G.Gripper, _G.GraspPlannerSettings
 GraspCandidate, GraspPlanResult, PartSymmetry = _G.GraspCandidate, _G.GraspPlanResult, _core.pose.PartSymmetry
+ViewPlannerSettings, ViewPlan = _G.ViewPlannerSettings, _G.ViewPlan
+#: ``camera_above(T_base_part, top_height, height, yaw=0.0)`` -> (4, 4) T_base_camera looking straight down (m, rad).
+camera_above = _G.camera_above
 #: ``symmetric_pose_error(T_a, T_b, symmetry)`` -> (rad, m): the pose error of a part up to its
 #: symmetry, translation measured at the symmetry point.
 symmetric_pose_error = _core.pose.symmetric_pose_error
@@ -61,6 +65,37 @@ def plan_grasp(robot: Any, T_base_model: Any, grasps: Sequence[Grasp], *, symmet
     return _G.plan_grasp(robot, T_base_model, list(grasps), PartSymmetry() if symmetry is None else symmetry,
                          Gripper.parallel_jaw() if gripper is None else gripper, table_plane,
                          np.zeros(6) if q_current is None else q_current, s)
+
+
+def hand_camera_mount(T_flange_camera: Any, half_extents: Sequence[float] = (0.04, 0.04, 0.03)) -> Gripper:
+    """A hand camera as the planner's tool: ``T_flange_tcp`` the hand-eye ``T_flange_camera`` (4x4, m), its body a
+    box of ``half_extents`` (m, flange axes) from the flange face to the camera, kept above the table."""
+    T = np.asarray(T_flange_camera, dtype=np.float64)
+    z = max(float(T[2, 3]), 0.01) if T.shape == (4, 4) else 0.01
+    return Gripper(T_flange_tcp=T, shape="box", box_centre=(0.0, 0.0, z / 2),
+                   box_half_extents=(half_extents[0], half_extents[1], max(half_extents[2], z / 2)))
+
+
+def plan_camera_view(robot: Any, T_base_part: Any, top_height: float, *, camera_mount: Gripper,
+                     table_plane: Sequence[float] = (0.0, 0.0, 1.0, 0.0), q_current: Optional[Sequence[float]] = None,
+                     settings: Optional[ViewPlannerSettings] = None, **overrides: Any) -> ViewPlan:
+    """Where the hand camera looks at a part from (the view step of Kleppe et al. 2017's two-step pose): camera poses
+    looking straight down from ``settings.height`` (m) above the part's top face (``top_height`` m above the origin of
+    ``T_base_part``, 4x4, m), every analytic IK configuration judged as :func:`plan_grasp` judges a grasp.
+
+    ``robot``: the arm carrying the camera (a :class:`scanalign.kinematics.Robot` or a name); ``camera_mount``: its
+    body and ``T_flange_tcp`` = ``T_flange_camera`` (:func:`hand_camera_mount`); ``table_plane``, ``q_current``: as
+    :func:`plan_grasp`; ``settings``: a :class:`ViewPlannerSettings`, ``overrides`` its fields. Returns a
+    :class:`ViewPlan` (``found``, ``T_base_camera``, ``q``, ``message``)."""
+    if isinstance(robot, str):
+        robot = kinematics.Robot.by_name(robot)
+    if not isinstance(robot, kinematics.Robot):
+        raise TypeError(f"robot: expected Robot, got {type(robot).__name__}")
+    if not isinstance(camera_mount, Gripper):
+        raise TypeError(f"camera_mount: expected Gripper, got {type(camera_mount).__name__}")
+    s = with_overrides(ViewPlannerSettings, settings, overrides, "plan_camera_view")
+    return _G.plan_camera_view(robot, T_base_part, float(top_height), camera_mount, table_plane,
+                               np.zeros(6) if q_current is None else q_current, s)
 
 
 @dataclass
