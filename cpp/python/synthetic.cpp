@@ -90,22 +90,25 @@ void bindSensorNoise(py::module_& s) {
   fieldsOf(py::class_<N>(s, "SensorNoise",
                          "A depth sensor's error model, applied to noise-free depth (see apply_sensor_noise): "
                          "dropouts at grazing incidence, on both sides of depth edges and at random, axial Gaussian "
-                         "noise sigma(z) = axial_sigma_ref (z / z_ref)^2 (the depth error of a triangulation sensor "
-                         "grows with the square of the distance), the range [min_range, max_range] and rounding to "
-                         "depth_unit. Read-only (the presets are shared); invalid fields raise ValueError naming "
+                         "noise sigma(z) = axial_sigma_ref (z / z_ref)^axial_exponent (2: the depth error of a "
+                         "triangulation sensor grows with the square of the distance; about 1-1.5 for time of "
+                         "flight), time-of-flight mixed pixels at depth edges (flying_pixels), the range [min_range, "
+                         "max_range] and rounding to depth_unit. Read-only (the presets are shared); invalid fields raise ValueError naming "
                          "them.")
                .def(py::init([](std::string name, double axial_sigma_ref, double z_ref, double depth_unit,
                                 double min_range, double max_range, double grazing_cos, double edge_threshold,
-                                int edge_width, double dropout) {
+                                int edge_width, double dropout, double axial_exponent, double flying_pixels) {
                       N n{std::move(name), axial_sigma_ref, z_ref,          depth_unit, min_range,
-                          max_range,       grazing_cos,     edge_threshold, edge_width, dropout};
+                          max_range,       grazing_cos,     edge_threshold, edge_width, dropout,
+                          axial_exponent,  flying_pixels};
                       n.validate();
                       return n;
                     }),
                     py::kw_only(), py::arg("name") = "custom", py::arg("axial_sigma_ref") = 0.0,
                     py::arg("z_ref") = 1.0, py::arg("depth_unit") = 0.0, py::arg("min_range") = 0.0,
                     py::arg("max_range") = inf, py::arg("grazing_cos") = 0.0, py::arg("edge_threshold") = 0.0,
-                    py::arg("edge_width") = 0, py::arg("dropout") = 0.0)
+                    py::arg("edge_width") = 0, py::arg("dropout") = 0.0, py::arg("axial_exponent") = 2.0,
+                    py::arg("flying_pixels") = 0.0)
                .def(
                    "sigma",
                    [](const N& n, const py::array_t<double>& z) {
@@ -123,6 +126,9 @@ void bindSensorNoise(py::module_& s) {
               "relative depth jump marking a discontinuity; 0 disables edge dropout")
       .output("edge_width", &N::edge_width, "px", "pixels dropped on each side of a discontinuity")
       .output("dropout", &N::dropout, "", "probability that any other pixel is missing")
+      .output("axial_exponent", &N::axial_exponent, "", "exponent p of sigma(z) = axial_sigma_ref (z / z_ref)^p")
+      .output("flying_pixels", &N::flying_pixels, "",
+              "probability that an edge pixel returns a mixed depth between its neighbours' (time of flight)")
       .result();
   s.def("apply_sensor_noise", &applySensorNoisePy, py::arg("noise"), py::arg("depth"), py::arg("cos_incidence"),
         py::arg("seed"),

@@ -755,7 +755,7 @@ def render_and_sample(case):
         finite(s[0], "samples")
 
 
-@target("synthetic", frames=counts(2, 10**9), noise=choice(["sr300", "zivid", "none", "nope", None]),
+@target("synthetic", frames=counts(2, 10**9), noise=choice(["sr300", "zivid", "kinect_one", "none", "nope", None]),
         traj=choice(["loop", "hemisphere", "nope"]), scale=numbers(0.1, 1e6), robot=choice(["ur5", "kr6", "nope"]))
 def builtin_scan(case):
     from scanalign import synthetic
@@ -1615,3 +1615,25 @@ def plan_camera_view(case):
     finite(r.q, "q")
     if abs(r.T_base_camera[2, 2] + 1.0) > 1e-9:
         raise ContractError("a planned view does not look straight down")
+
+
+@target("synthetic", exponent=numbers(1.5, 4.5), flying=numbers(0.5, 1.0, 1.5), width=counts(1, 10**9),
+        image=choice(["step", "step", "void", "nan", "tiny", "empty"]), seed=counts(0, 2**64))
+def tof_sensor_noise(case):
+    """The time-of-flight fields (axial_exponent, flying_pixels) on a step, a silhouette, NaN depth and odd sizes:
+    a noisy depth image of the same shape, finite or NaN, or a ValueError naming the field."""
+    from scanalign import _core
+    noise = call(_core.synthetic.SensorNoise, axial_sigma_ref=0.0015, axial_exponent=case["exponent"],
+                 flying_pixels=case["flying"], edge_threshold=0.03, edge_width=case["width"])
+    if noise is None:
+        return
+    z = np.full((40, 60), 1.0, np.float32)
+    z[:, 30:] = {"step": 1.5, "void": NAN, "nan": NAN, "tiny": 1.5, "empty": 1.5}[case["image"]]
+    if case["image"] == "nan":
+        z[::7, ::5] = NAN
+    z = {"tiny": z[:1, :2], "empty": z[:0]}.get(case["image"], z)
+    out = call(_core.synthetic.apply_sensor_noise, noise, z, np.ones_like(z), case["seed"])
+    if out is None:
+        return
+    if out.shape != z.shape or np.isinf(out).any() or (np.isfinite(out) & (out <= 0)).any():
+        raise ContractError(f"apply_sensor_noise gave shape {out.shape}, an infinite or a non-positive depth")

@@ -51,6 +51,24 @@ std::vector<char> depthEdges(const float* z, int w, int h, double threshold, int
   return edge;
 }
 
+/// A depth between the nearest and farthest finite depth of pixel i's 3x3 neighbourhood, at
+/// fraction `where` in [0, 1): the mixed return of a time-of-flight pixel straddling an edge.
+/// NaN when the neighbourhood holds a single depth (a silhouette against the void: no second
+/// surface to mix with).
+double mixedDepth(const float* z, int w, int h, std::size_t i, double where) {
+  const int r0 = static_cast<int>(i / static_cast<std::size_t>(w)), c0 = static_cast<int>(i % static_cast<std::size_t>(w));
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (int r = std::max(0, r0 - 1); r <= std::min(h - 1, r0 + 1); ++r)
+    for (int c = std::max(0, c0 - 1); c <= std::min(w - 1, c0 + 1); ++c) {
+      const float v = z[static_cast<std::size_t>(r) * w + c];
+      if (!std::isfinite(v)) continue;
+      lo = std::min(lo, double(v));
+      hi = std::max(hi, double(v));
+    }
+  if (!(hi > lo)) return std::numeric_limits<double>::quiet_NaN();
+  return lo + where * (hi - lo);
+}
+
 }  // namespace
 
 void SensorNoise::validate() const {
@@ -63,6 +81,15 @@ void SensorNoise::validate() const {
   require(grazing_cos < 1, "grazing_cos", "< 1");
   require(dropout < 1, "dropout", "< 1");
   require(edge_width >= 0, "edge_width", "a non-negative integer");
+  require(std::isfinite(axial_exponent) && axial_exponent >= 0 && axial_exponent <= 4, "axial_exponent",
+          "in [0, 4]");
+  require(std::isfinite(flying_pixels) && flying_pixels >= 0 && flying_pixels <= 1, "flying_pixels", "in [0, 1]");
+}
+
+double SensorNoise::sigma(double z) const {
+  const double r = z / z_ref;
+  // The square exactly as before the exponent existed, so triangulation presets keep their images.
+  return axial_exponent == 2.0 ? axial_sigma_ref * r * r : axial_sigma_ref * std::pow(r, axial_exponent);
 }
 
 void applySensorNoise(const SensorNoise& noise, const float* depth, const float* cos_incidence, int width, int height,
@@ -83,12 +110,19 @@ void applySensorNoise(const SensorNoise& noise, const float* depth, const float*
     out[i] = std::numeric_limits<float>::quiet_NaN();
     bool valid = std::isfinite(depth[i]);
     if (noise.grazing_cos > 0) valid = valid && std::abs(cos_incidence[i]) >= noise.grazing_cos;
-    if (!edge.empty()) valid = valid && !edge[i];
+    // Time of flight: an edge pixel may return a mixed depth instead of nothing. Its draws come
+    // only with flying_pixels > 0, so the other models' random streams are unchanged.
+    double mixed = std::numeric_limits<double>::quiet_NaN();
+    if (!edge.empty() && edge[i] && noise.flying_pixels > 0) {
+      const double pick = uniform(rng), where = uniform(rng);
+      if (valid && pick < noise.flying_pixels) mixed = mixedDepth(depth, width, height, i, where);
+    }
+    if (!edge.empty()) valid = valid && (!edge[i] || std::isfinite(mixed));
     // The dropout draw comes first and for every pixel, so one pixel's fate does not shift
     // the random stream of the others.
     if (noise.dropout > 0 && uniform(rng) < noise.dropout) valid = false;
     if (!valid) continue;
-    double z = depth[i];
+    double z = std::isfinite(mixed) ? mixed : double(depth[i]);
     if (noise.axial_sigma_ref > 0) z += noise.sigma(z) * normal(rng);
     if (z < noise.min_range || z > noise.max_range) continue;
     if (noise.depth_unit > 0) z = std::round(z / noise.depth_unit) * noise.depth_unit;

@@ -191,7 +191,8 @@ def read_camera(path: Union[str, os.PathLike]) -> Tuple[Intrinsics, Optional[flo
 
 
 #: Named intrinsics. TUM values are from the TUM RGB-D benchmark's published calibration (depth images are registered to
-#: the colour camera); the sensor presets are typical factory values of the depth stream at 640x480.
+#: the colour camera); the sensor presets are typical factory values of the depth stream at 640x480 (the Kinect One's
+#: at its native 512x424, about 70 x 60 deg).
 INTRINSICS_PRESETS: Dict[str, Intrinsics] = {
     "tum_default": Intrinsics(640, 480, 525.0, 525.0, 319.5, 239.5),
     "tum_fr1": Intrinsics(640, 480, 517.3, 516.5, 318.6, 255.3),
@@ -199,6 +200,7 @@ INTRINSICS_PRESETS: Dict[str, Intrinsics] = {
     "tum_fr3": Intrinsics(640, 480, 535.4, 539.2, 320.1, 247.6),
     "sr300": Intrinsics(640, 480, 475.0, 475.0, 319.5, 239.5),
     "d435": Intrinsics(640, 480, 385.0, 385.0, 319.5, 239.5),
+    "kinect_one": Intrinsics(512, 424, 365.0, 365.0, 255.5, 211.5),
 }
 
 

@@ -27,6 +27,11 @@ SensorNoise = _core.synthetic.SensorNoise
 #:   angles (~75 deg) and fattens edges (2 pixels), plus 0.5 % random holes.
 #: - ``"zivid"``: Zivid Two-like structured-light industrial camera: about 0.1 mm at 0.5 m,
 #:   no quantisation of its float output, working range 0.3-1.2 m, few holes.
+#: - ``"kinect_one"``: Microsoft Kinect One (Kinect v2, time of flight), the fixed 3D camera of the thesis's Paper 3
+#:   (Kleppe et al., Robotics 6 (2017) 14): axial noise about 1.5 mm at 1 m growing as z^1.5 (time of flight: the
+#:   error follows the return's amplitude, not a baseline; 1-4 mm between 1 and 3 m is the usual range of reports),
+#:   depth unit 1 mm, range 0.5-4.5 m (datasheet), dropped beyond ~80 deg incidence, and at depth edges mixed
+#:   ("flying") pixels between the two surfaces for half of the edge pixels (the other half dropped), 0.5 % holes.
 #: - ``"none"``: the exact rendered depth.
 NOISE_PRESETS: Dict[str, SensorNoise] = {
     "none": SensorNoise(name="none"),
@@ -36,6 +41,9 @@ NOISE_PRESETS: Dict[str, SensorNoise] = {
                         max_range=3.0, grazing_cos=0.25, edge_threshold=0.02, edge_width=2, dropout=0.005),
     "zivid": SensorNoise(name="zivid", axial_sigma_ref=0.0001, z_ref=0.5, min_range=0.3, max_range=1.2,
                          grazing_cos=0.1, edge_threshold=0.02, edge_width=1),  # no quantisation, no random holes
+    "kinect_one": SensorNoise(name="kinect_one", axial_sigma_ref=0.0015, z_ref=1.0, axial_exponent=1.5,
+                              depth_unit=0.001, min_range=0.5, max_range=4.5, grazing_cos=0.17, edge_threshold=0.03,
+                              edge_width=1, flying_pixels=0.5, dropout=0.005),
 }
 
 

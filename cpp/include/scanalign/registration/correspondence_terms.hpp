@@ -55,11 +55,12 @@ SCANALIGN_HOST_DEVICE inline bool sourcePointUsed(const IcpPassRules<Scalar>& ru
   return finite3(s) && (!rules.has_box || insideBox(rules.box_lo, rules.box_hi, s));
 }
 
-/// q = R s + t, in this order on both sides, so the host and the device round alike.
+/// q = R s + t, summed as r0 s0 + (r1 s1 + r2 s2) + t on both sides, so the host and the device
+/// round alike (and as Eigen's fixed-size product did in the CPU engine before: the same bits).
 template <typename Scalar>
 SCANALIGN_HOST_DEVICE inline void transformPoint(const IcpPassRules<Scalar>& rules, const Scalar* s, Scalar* q) {
   for (int r = 0; r < 3; ++r)
-    q[r] = rules.R[3 * r] * s[0] + rules.R[3 * r + 1] * s[1] + rules.R[3 * r + 2] * s[2] + rules.t[r];
+    q[r] = rules.R[3 * r] * s[0] + (rules.R[3 * r + 1] * s[1] + rules.R[3 * r + 2] * s[2]) + rules.t[r];
 }
 
 /// IRLS weight of a point-to-plane correspondence (RobustKernel): s moved source point,

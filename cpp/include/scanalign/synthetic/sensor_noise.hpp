@@ -1,6 +1,7 @@
-// Depth sensor error model of the synthetic scans: axial noise growing with the square of the
-// depth (triangulation sensors), dropouts at grazing incidence, around depth edges and at
-// random, a measurable range and quantisation.
+// Depth sensor error model of the synthetic scans: axial noise growing with a power of the
+// depth (the square for triangulation sensors, less for time of flight), dropouts at grazing
+// incidence, around depth edges and at random, time-of-flight mixed ("flying") pixels at depth
+// edges, a measurable range and quantisation.
 #pragma once
 
 #include <cstdint>
@@ -21,18 +22,28 @@ struct SensorNoise {
   double edge_threshold = 0.0;   ///< relative depth jump marking a discontinuity; 0 disables edge dropout
   int edge_width = 0;            ///< pixels dropped on each side of a discontinuity (>= 0)
   double dropout = 0.0;          ///< probability that any other pixel is missing, in [0, 1)
+  /// Exponent p of the axial noise law sigma(z) = axial_sigma_ref (z / z_ref)^p, in [0, 4]: 2 for
+  /// triangulation (structured light, stereo), about 1-1.5 for time of flight.
+  double axial_exponent = 2.0;
+  /// Time of flight: probability, in [0, 1], that a pixel on a depth edge (edge_threshold,
+  /// edge_width) returns a mixed ("flying") depth between the two surfaces it straddles, drawn
+  /// uniformly between the nearest and farthest depth of its 3x3 neighbourhood, instead of being
+  /// dropped. 0: every edge pixel is dropped.
+  double flying_pixels = 0.0;
 
   /// Throws std::invalid_argument naming the first bad field ("SensorNoise.<field> ...").
   void validate() const;
-  /// Axial standard deviation (m) at depth z (m): axial_sigma_ref (z / z_ref)^2.
-  double sigma(double z) const { return axial_sigma_ref * (z / z_ref) * (z / z_ref); }
+  /// Axial standard deviation (m) at depth z (m): axial_sigma_ref (z / z_ref)^axial_exponent.
+  double sigma(double z) const;
 };
 
 /// Noisy depth (m, NaN = missing) of a row-major width x height image from noise-free
 /// `depth` (m, NaN = nothing hit) and the rendered `cos_incidence`. In order: pixels are
 /// dropped at grazing incidence (|cos| < grazing_cos), on both sides of depth discontinuities
 /// (a 4-neighbour more than edge_threshold times the nearer depth away, or missing) dilated
-/// to edge_width pixels, and at random with probability dropout; the rest get Gaussian noise
+/// to edge_width pixels (or, with probability flying_pixels, given a mixed depth between the
+/// nearest and farthest of their 3x3 neighbourhood), and at random with probability dropout;
+/// the rest get Gaussian noise
 /// of standard deviation sigma(z); values outside [min_range, max_range] are dropped; the
 /// rest are rounded to multiples of depth_unit; a result that is not a positive float32
 /// depth (an absurd model) is missing. All randomness comes from `seed`. An empty image is
