@@ -2,8 +2,8 @@
 #include "scanalign/grasp/pick_settings.hpp"
 
 #include <stdexcept>
-#include <string>
 
+#include "scanalign/common/nested_validation.hpp"
 #include "scanalign/segmentation/table_segmentation.hpp"
 
 namespace scanalign {
@@ -16,28 +16,14 @@ const char* toString(PickViews views) {
   return "?";
 }
 
-namespace {
-
-/// Runs `check`, prefixing the message of a std::invalid_argument with `path`.
-template <typename Check>
-void within(const char* path, Check check) {
-  try {
-    check();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(std::string("pick settings: ") + path + e.what());
-  }
-}
-
-}  // namespace
-
 void PickSettings::validate() const {
   // validate(ReconstructionSettings) already names itself ("reconstruction: ...").
-  within("", [this] { scanalign::validate(reconstruction); });
-  within("find_parts: table: ", [this] { scanalign::validate(find_parts.table); });
-  within("find_parts: ", [this] { scanalign::validate(find_parts); });
+  validateNested("pick settings: ", [this] { scanalign::validate(reconstruction); });
+  validateNested("pick settings: find_parts: table: ", [this] { scanalign::validate(find_parts.table); });
+  validateNested("pick settings: find_parts: ", [this] { scanalign::validate(find_parts); });
   if (views != PickViews::Upper && views != PickViews::All)
     throw std::invalid_argument("pick settings: views must be 'upper' or 'all'");
-  within("planner: ", [this] { planner.validate(); });
+  validateNested("pick settings: planner: ", [this] { planner.validate(); });
 }
 
 }  // namespace scanalign
