@@ -133,8 +133,8 @@ def _other(name, value):
         return next(m for m in type(value).__members__.values() if m != value)
     if isinstance(value, str) and name in CHOICES:
         return next(c for c in CHOICES[name] if c != value)
-    if name in OTHER:
-        return OTHER[name]
+    if name in OTHER and (isinstance(OTHER[name], type(value)) or not type(value).__module__.startswith("scanalign._core")):
+        return OTHER[name]  # a struct-valued field of the same name (AssemblySettings.view) is changed field by field
     if isinstance(value, bool):
         return not value
     if isinstance(value, int):
@@ -168,6 +168,17 @@ def _sensor_noise():
                                        max_range=3.0, grazing_cos=0.1, edge_threshold=0.05, edge_width=2, dropout=0.01)
 
 
+def _with_valid_clusters(s):
+    """``s`` (changed field by field) with max_cluster_size set back above min_cluster_size, which the generic change
+    makes invalid; validated."""
+    p = s.find_parts
+    t = p.table
+    t.max_cluster_size = 100000
+    p.table, s.find_parts = t, p
+    s.validate()
+    return s
+
+
 def _pick_settings():
     """PickSettings validates when unpickled (validate() is a member): every field changed,
     then the two combinations the generic change makes invalid set back (a robust kernel
@@ -178,12 +189,12 @@ def _pick_settings():
     icp = f.icp
     icp.robust_kernel = "none"
     f.icp, r.frame_to_model, s.reconstruction = icp, f, r
-    p = s.find_parts
-    t = p.table
-    t.max_cluster_size = 100000
-    p.table, s.find_parts = t, p
-    s.validate()
-    return s
+    return _with_valid_clusters(s)
+
+
+def _assembly_settings():
+    """AssemblySettings, as PickSettings."""
+    return _with_valid_clusters(_changed(_core.grasp.AssemblySettings()))
 
 
 # ----------------------------------------------------------------------------- real runs
@@ -408,6 +419,7 @@ def _all_instances():
         instances.setdefault(key, []).append(_changed(default))
     instances["synthetic.SensorNoise"] = [_sensor_noise()]
     instances["grasp.PickSettings"] = [_pick_settings()]
+    instances["grasp.AssemblySettings"] = [_assembly_settings()]
     instances["reconstruction.PinholeIntrinsics"] = [_core.reconstruction.PinholeIntrinsics(64, 48, 50.5, 51.5, 31.2, 23.9)]
     return instances
 

@@ -243,6 +243,7 @@ void bindResults(py::module_& m) {
 
 void bindPickSettings(py::module_& m);  // grasp_pick_settings.cpp
 void bindViewPlanner(py::module_& m);   // grasp_view_planner.cpp
+void bindAssemblySettings(py::module_& m);  // grasp_assembly_settings.cpp
 
 void defineGrasp(py::module_& m) {
   bindGrasp(m);
@@ -251,6 +252,7 @@ void defineGrasp(py::module_& m) {
   bindResults(m);
   bindPickSettings(m);
   bindViewPlanner(m);
+  bindAssemblySettings(m);
   m.def(
       "plan_grasp",
       [](const Robot& robot, const py::object& T_base_model, const std::vector<Grasp>& grasps,

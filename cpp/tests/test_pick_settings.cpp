@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "scanalign/grasp/assembly_settings.hpp"
 #include "scanalign/grasp/pick_settings.hpp"
 
 namespace {
@@ -12,7 +13,8 @@ namespace {
 using namespace scanalign;
 
 /// The message validate() throws for `s` ("" when it passes).
-std::string problem(const PickSettings& s) {
+template <typename Settings>
+std::string problem(const Settings& s) {
   try {
     s.validate();
   } catch (const std::invalid_argument& e) {
@@ -90,6 +92,38 @@ TEST(PickSettings, ValidateNamesTheBadNestedField) {
   s = PickSettings();
   s.views = static_cast<PickViews>(7);
   EXPECT_NE(problem(s).find("views"), std::string::npos);
+}
+
+// The assembly job's settings: the time-of-flight detection defaults differ from the pick job's
+// merged-scan ones where the single view needs it, and validate() names the nested field.
+TEST(AssemblySettings, DefaultsAreTheSingleViewOnesAndValidate) {
+  const AssemblySettings s;
+  const PickSettings pick;
+  EXPECT_EQ(problem(s), "");
+  EXPECT_LT(s.find_parts.table.plane.threshold, pick.find_parts.table.plane.threshold);
+  EXPECT_GT(s.find_parts.table.cluster_tolerance, pick.find_parts.table.cluster_tolerance);
+  EXPECT_LT(s.find_parts.table.min_cluster_size, pick.find_parts.table.min_cluster_size);
+  EXPECT_LT(s.view.height, ViewPlannerSettings().height);
+  EXPECT_EQ(s.views, PickViews::Upper);
+}
+
+TEST(AssemblySettings, ValidateNamesTheBadNestedField) {
+  AssemblySettings s;
+  s.refine_2d.max_steps = 0;
+  std::string m = problem(s);
+  EXPECT_NE(m.find("assembly settings: refine_2d"), std::string::npos) << m;
+  s = AssemblySettings();
+  s.view.height = -0.1;
+  m = problem(s);
+  EXPECT_NE(m.find("assembly settings: view"), std::string::npos) << m;
+  s = AssemblySettings();
+  s.find_parts.table.cluster_tolerance = 0;
+  m = problem(s);
+  EXPECT_NE(m.find("find_parts: table"), std::string::npos) << m;
+  s = AssemblySettings();
+  s.planner.approach_step = 0;
+  m = problem(s);
+  EXPECT_NE(m.find("assembly settings: planner"), std::string::npos) << m;
 }
 
 }  // namespace

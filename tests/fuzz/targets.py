@@ -1638,3 +1638,85 @@ def tof_sensor_noise(case):
         return
     if out.shape != z.shape or np.isinf(out).any() or (np.isfinite(out) & (out <= 0)).any():
         raise ContractError(f"apply_sensor_noise gave shape {out.shape}, an infinite or a non-positive depth")
+
+
+# -- the assembly (Paper 3): part-file fields, the upright pose, the pipeline on odd clouds -------------------------
+_FIELD_VALUES = [1.0, 5000, 0.02, -1, 0, NAN, INF, "x", None, [0.02, 0.02], [0.02], [[1, 2]], True, {"a": 1}, ""]
+
+
+@target("two_step", weight=0.5, image=choice(["builtin:label-3", "builtin:sparse-1", "builtin:plain", "builtin:x",
+                                             "missing.png", 7, None]),
+        ppm=choice([5000] + _FIELD_VALUES), top=choice([0.02] + _FIELD_VALUES),
+        size=choice([[0.02, 0.03]] + _FIELD_VALUES), origin=choice([None] + _FIELD_VALUES),
+        onto=choice(["bracket", "", 3, None]), T=choice(["eye", "scaled", "nan", "short", "strings"]),
+        tol=choice([0.001] + _FIELD_VALUES),
+        extra=choice([None, "colour"]))
+def part_file_fields(case):
+    """A part file with odd reference_image / assembly fields: read and loaded, or a ValueError naming the field; a
+    loaded image has the size the fields give."""
+    import json
+    import tempfile
+    from pathlib import Path
+
+    from scanalign.grasp import read_part_grasps
+    from scanalign.grasp.parts import BUILTIN_PART_FILES, load_part
+    data = json.loads(BUILTIN_PART_FILES["standoff"].read_text())
+    ref = {"image": case["image"], "pixels_per_metre": case["ppm"], "top_height": case["top"], "size": case["size"]}
+    if case["origin"] is not None:
+        ref["origin_pixel"] = case["origin"]
+    if case["extra"]:
+        ref[case["extra"]] = 1
+    T = {"eye": np.eye(4).tolist(), "scaled": (2 * np.eye(4)).tolist(), "nan": np.full((4, 4), NAN).tolist(),
+         "short": [[1, 0, 0]], "strings": "eye"}[case["T"]]
+    data["reference_image"] = ref
+    data["assembly"] = {"onto": case["onto"], "T_onto_part": T, "tolerance_translation": case["tol"]}
+    with tempfile.TemporaryDirectory() as d:
+        path = Path(d) / "p.json"
+        try:
+            path.write_text(json.dumps(data))
+        except ValueError:  # NaN is valid JSON for Python; nothing else fails here
+            return
+        part = call(read_part_grasps, path)
+        if part is None:
+            return
+        loaded = call(load_part, path)
+        if loaded is None:
+            return
+        r = loaded.reference_image
+        h, w = r.image.shape
+        if (w, h) != tuple(int(round(v * r.pixels_per_metre)) for v in r.size):
+            raise ContractError(f"a {w}x{h} px label for {r.size} m at {r.pixels_per_metre} px/m")
+
+
+@target("two_step", weight=0.5, T=transforms(), plane=choice(["up", "tilted", "wall", "nan", "short", "strings"]))
+def upright_on_table(case):
+    from scanalign.grasp.parts import load_part
+    from scanalign.pipelines.assemble import upright_on_table as upright
+    plane = {"up": [0.0, 0.0, 1.0, -0.01], "tilted": [0.05, 0.0, 0.9987492, 0.0], "wall": [1.0, 0.0, 0.0, 0.0],
+             "nan": [NAN, 0.0, 1.0, 0.0], "short": [0.0, 1.0], "strings": "up"}[case["plane"]]
+    mesh = load_part("standoff").mesh
+    U = call(upright, build(case["T"]), mesh, plane)
+    if U is None or not np.isfinite(U).all():
+        return
+    if not np.allclose(U[:3, 2], [0, 0, 1]) or abs(np.linalg.det(U[:3, :3]) - 1) > 1e-9:
+        raise ContractError(f"not upright: {U}")
+
+
+@target("two_step", weight=0.1, cloud=clouds(max_size=5000), part=choice(["standoff", "block", "nowhere", None]),
+        steps=counts(4), height=numbers(0.12))
+def assemble(case):
+    """The assembly pipeline on any cloud: a status (not_found, refine_failed, ...) or a ValueError, never a crash; a
+    plan only with both parts refined."""
+    from scanalign.pipelines.assemble import assemble as run
+    from scanalign.synthetic.assembly_cell import assembly_cell
+    cell = _ASSEMBLY_CELL.get("cell") or _ASSEMBLY_CELL.setdefault("cell", assembly_cell(seed=0))
+    r = call(run, build(case["cloud"]), case["part"], capture=cell.capture, gripper_robot=cell.gripper_robot,
+             camera_robot=cell.camera_robot, T_flange_camera=cell.T_flange_camera, intrinsics=cell.intrinsics,
+             refine_2d={"max_steps": case["steps"]}, view={"height": case["height"]})
+    if r is None:
+        return
+    if r.status == "planned" and any(p.status != "refined" for p in r.parts.values()):
+        raise ContractError(f"planned with parts {[(n, p.status) for n, p in r.parts.items()]}")
+
+
+_ASSEMBLY_CELL: dict = {}

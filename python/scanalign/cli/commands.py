@@ -19,6 +19,7 @@ import numpy as np
 from scanalign import _core, datasets, io, synthetic
 from scanalign import kinematics as kin
 from scanalign import pose as _pose
+from scanalign.cli.assemble_command import ASSEMBLE, add_assemble_parser, assemble_command
 from scanalign.cli.settings import Alias, Command, add_settings_options, dump, resolve, write_effective
 from scanalign.common import rigid as se3
 from scanalign.common.settings import to_dict
@@ -225,7 +226,7 @@ REGISTER = Command(_register_root, (
 ))
 
 #: The commands whose settings are C++ structs (``--config``, ``--set``, ``dump-config``).
-COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER, "pose": POSE, "pick": PICK}
+COMMANDS = {"reconstruct": RECONSTRUCT, "register": REGISTER, "pose": POSE, "pick": PICK, "assemble": ASSEMBLE}
 
 
 def _viewer(args: argparse.Namespace) -> Any:
@@ -554,7 +555,7 @@ def _register_demo(args: argparse.Namespace) -> int:
 #: What each command runs: ``(args) -> exit status``.
 HANDLERS = {"demo": demo_command, "pick": pick_command, "reconstruct": reconstruct_command, "synth": synth,
             "register": register, "register-demo": _register_demo, "ik": ik_command, "pose": pose_command,
-            "batch": batch_command, "dump-config": _dump_config}
+            "batch": batch_command, "dump-config": _dump_config, "assemble": assemble_command}
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -582,6 +583,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "reason or ranked by joint motion. Writes picks.json, joints.csv, scene.ply and "
                                    "pick.png. Exit status 1 when nothing can be picked.")
     _add_pick_options(p)
+    add_assemble_parser(sub)
     p = sub.add_parser("reconstruct", help="reconstruct a TUM RGB-D folder, a ROS bag, a PNG folder or a synthetic scan",
                        description="Frame-to-model reconstruction (Algorithm 1 of the eye-in-hand paper) of SOURCE: "
                                    "a TUM RGB-D folder (depth/, rgb/, depth.txt, rgb.txt, optional "

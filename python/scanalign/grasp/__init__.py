@@ -24,10 +24,13 @@ import numpy as np
 from scanalign import _core, kinematics
 from scanalign.common.rigid import require_rigid
 from scanalign.common.settings import with_overrides
+from scanalign.grasp.part_file_extras import (AssemblyTarget, ReferenceImage, dump_assembly, dump_reference_image,
+                                              parse_assembly, parse_reference_image)
 
 __all__ = ["Grasp", "Gripper", "PartSymmetry", "GraspPlannerSettings", "GraspCandidate", "GraspPlanResult",
            "PartGrasps", "plan_grasp", "read_part_grasps", "write_part_grasps", "symmetric_pose_error",
-           "ViewPlannerSettings", "ViewPlan", "plan_camera_view", "camera_above", "hand_camera_mount"]
+           "ViewPlannerSettings", "ViewPlan", "plan_camera_view", "camera_above", "hand_camera_mount",
+           "ReferenceImage", "AssemblyTarget"]
 
 _G = _core.grasp
 Grasp, Gripper, GraspPlannerSettings = _G.Grasp, _G.Gripper, _G.GraspPlannerSettings
@@ -111,6 +114,10 @@ class PartGrasps:
     #: (4, 4) rigid, mesh -> model (m, applied after ``scale``): turns and moves the mesh into the
     #: model frame, in which the grasps and symmetry are given and whose +z is up on the table
     T_model_mesh: Any = None
+    #: the top-face reference image of the two-step pose's 2D step (:class:`ReferenceImage`), or None
+    reference_image: Optional[ReferenceImage] = None
+    #: where this part goes when assembled onto another (:class:`AssemblyTarget`), or None
+    assembly: Optional[AssemblyTarget] = None
 
 
 _GRASP_KEYS = {"name", "T_model_grasp", "approach", "pre_grasp_distance"}
@@ -152,7 +159,8 @@ def read_part_grasps(path: Any) -> PartGrasps:
         raise ValueError(f"{p}: not valid {'JSON' if p.suffix.lower() == '.json' else 'YAML'}: {e}") from None
     if not isinstance(data, dict):
         raise ValueError(f"{p}: expected a mapping at the top level")
-    if unknown := set(data) - {"name", "mesh", "scale", "T_model_mesh", "symmetry", "gripper", "grasps"}:
+    if unknown := set(data) - {"name", "mesh", "scale", "T_model_mesh", "symmetry", "gripper", "grasps",
+                            "reference_image", "assembly"}:
         raise ValueError(f"{p}: unknown field(s) {sorted(unknown)}")
     grasps = data.get("grasps")
     if not isinstance(grasps, list) or not grasps:
@@ -173,7 +181,10 @@ def read_part_grasps(path: Any) -> PartGrasps:
     return PartGrasps(
         name=data.get("name", p.stem), grasps=out, mesh=data.get("mesh"), scale=float(scale), T_model_mesh=T,
         symmetry=None if sym is None else _build(f"{p}: symmetry", PartSymmetry, sym, {"axis", "point", "order"}),
-        gripper=None if gripper is None else _build(f"{p}: gripper", Gripper, gripper, _GRIPPER_KEYS))
+        gripper=None if gripper is None else _build(f"{p}: gripper", Gripper, gripper, _GRIPPER_KEYS),
+        reference_image=None if (r := data.get("reference_image")) is None else parse_reference_image(
+            f"{p}: reference_image", r),
+        assembly=None if (a := data.get("assembly")) is None else parse_assembly(f"{p}: assembly", a, p.parent))
 
 
 def _list(a: Any) -> Any:
@@ -200,6 +211,10 @@ def write_part_grasps(path: Any, part: PartGrasps) -> None:
                            for k in sorted(_GRIPPER_KEYS)}
     data["grasps"] = [{"name": g.name, "T_model_grasp": _list(g.T_model_grasp), "approach": _list(g.approach),
                        "pre_grasp_distance": float(g.pre_grasp_distance)} for g in part.grasps]
+    if part.reference_image is not None:
+        data["reference_image"] = dump_reference_image(part.reference_image)
+    if part.assembly is not None:
+        data["assembly"] = dump_assembly(part.assembly, p.parent)
     if p.suffix.lower() == ".json":
         p.write_text(json.dumps(data, indent=2) + "\n")
     elif p.suffix.lower() in (".yaml", ".yml"):

@@ -6,15 +6,16 @@ from __future__ import annotations
 
 import dataclasses
 from pathlib import Path
-from typing import Any, Dict
+from typing import Any, Dict, Optional
 
 import numpy as np
 
 from scanalign import io
 from scanalign.common.rigid import require_rigid, transform_points
+from scanalign.data.labels import builtin_label
 from scanalign.data.parts import builtin_mesh, sample_mesh
 from scanalign.evaluation import MeshDistanceIndex
-from scanalign.grasp import Gripper, PartGrasps, PartSymmetry, read_part_grasps
+from scanalign.grasp import Gripper, PartGrasps, PartSymmetry, ReferenceImage, read_part_grasps
 
 __all__ = ["BUILTIN_PART_FILES", "SYMMETRY_TOLERANCE", "check_symmetry", "load_part"]
 
@@ -55,7 +56,35 @@ def load_part(source: Any) -> Any:
     symmetry = part.symmetry or PartSymmetry()
     check_symmetry(mesh, symmetry, what or f"part {part.name!r}")
     return dataclasses.replace(part, mesh=mesh, scale=1.0, T_model_mesh=None, symmetry=symmetry,
-                               gripper=part.gripper or Gripper.parallel_jaw())
+                               gripper=part.gripper or Gripper.parallel_jaw(),
+                               reference_image=_loaded_reference(part.reference_image, where, what or part.name))
+
+
+def _read_grey(path: Path, what: str) -> np.ndarray:
+    """An image file as (H, W) uint8 grey (Pillow's ITU-R 601 luma); ValueError naming ``what`` and the file."""
+    from PIL import Image
+
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("L"))
+    except (OSError, Image.DecompressionBombError, ValueError) as e:
+        raise ValueError(f"{what}: cannot read the image {str(path)!r} ({type(e).__name__}: {e})") from None
+
+
+def _loaded_reference(r: Optional[ReferenceImage], where: Path, what: str) -> Optional[ReferenceImage]:
+    """``r`` with its image read (a file relative to ``where``, grey) or drawn (a built-in label), its geometry
+    checked."""
+    if r is None or isinstance(r.image, np.ndarray):
+        return r
+    name = str(r.image)
+    if name.startswith("builtin:"):
+        w, h = (int(round(v * r.pixels_per_metre)) for v in r.size)
+        image = builtin_label(name, w, h)
+    else:
+        image = _read_grey(where / name, f"{what}: reference_image")
+    out = dataclasses.replace(r, image=np.asarray(image))
+    out.geometry()  # ValueError naming the field: an origin or scale that cannot be
+    return out
 
 
 def check_symmetry(mesh: Any, symmetry: Any, what: str = "part") -> None:

@@ -42,7 +42,7 @@ from scanalign.kinematics import Robot
 from scanalign.pipelines import reconstruct as pipeline
 from scanalign.pose import model_views as cad
 
-__all__ = ["PickSettings", "PartPick", "PickResult", "pick", "scan_model", "plan_picks", "read_joint_log",
+__all__ = ["PickSettings", "PartPick", "PickResult", "pick", "scan_model", "plan_picks", "read_joint_log", "table_plane",
            "read_transform", "part_models", "upper_views", "placed_parts", "print_picks"]
 
 #: Settings of :func:`pick` (``scanalign dump-config pick`` lists every field): ``reconstruction``,
@@ -138,7 +138,7 @@ class PickResult:
 
     def as_dict(self) -> Dict[str, Any]:
         return {"robot": self.robot.name, "q_current": self.q_current.tolist(), "seconds": self.seconds,
-                "table_plane": [float(v) for v in _table_plane(self.detections)],
+                "table_plane": [float(v) for v in table_plane(self.detections)],
                 "picks": [p.as_dict() for p in self.picks],
                 "unmatched_clusters": [{"cluster": k, "points": len(d.indices), "size_m": d.size, "message": d.message}
                                        for k, d in enumerate(self.detections.detections) if d.status.name == "not_found"]}
@@ -254,7 +254,7 @@ def scan_model(scene: Any, robot: Any = None, *, T_flange_camera: Optional[np.nd
     return np.asarray(rec.model.points, dtype=np.float64), rec
 
 
-def _table_plane(detections: Any) -> np.ndarray:
+def table_plane(detections: Any) -> np.ndarray:
     """(n, d) of the table plane n.p + d = 0 in the base frame, n pointing up (+z)."""
     plane = detections.table.plane  # n.p = distance
     n, d = np.asarray(plane.normal, dtype=np.float64), -float(plane.distance)
@@ -271,7 +271,7 @@ def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: An
     planner = planner if planner is None or is_struct(planner) else with_overrides(
         _grasp.GraspPlannerSettings, None, planner, "planner")
     q0 = np.zeros(6) if q_current is None else np.asarray(q_current, dtype=np.float64)
-    plane = _table_plane(detections)
+    plane = table_plane(detections)
     out: List[PartPick] = []
     for k, det in enumerate(detections.detections):
         if det.status.name == "not_found":  # a cluster that is none of the parts (listed in picks.json)

@@ -15,9 +15,10 @@ import numpy as np
 from scanalign.evaluation import absolute_trajectory_error
 from scanalign.evaluation.trajectory import Trajectory
 from scanalign.pipelines.pick import placed_parts
+from scanalign.pose.image_matching import homography_of_part
 
 __all__ = ["plot_batch", "plot_trajectory_topdown", "plot_frame_stats", "plot_series", "plot_arm_configurations",
-           "plot_joint_trajectory", "pose_overlay", "plot_pick"]
+           "plot_joint_trajectory", "pose_overlay", "plot_pick", "plot_assembly_views"]
 
 PathLike = Union[str, os.PathLike]
 
@@ -393,4 +394,36 @@ def plot_batch(records: Sequence[Mapping[str, Any]], path: PathLike, *, dpi: int
         ax.set(xlabel=label, ylabel="jobs")
         ax.legend(fontsize=7)
     fig.suptitle(f"batch: {len(records)} jobs, {sum(r.get('status') != 'ok' for r in records)} failed or crashed")
+    return _save(fig, path, dpi)
+
+
+def plot_assembly_views(result: Any, images: Mapping[str, np.ndarray], references: Mapping[str, Any],
+                        intrinsics: Any, path: PathLike, *, truth: Optional[Mapping[str, np.ndarray]] = None,
+                        dpi: int = 110) -> Path:
+    """The hand camera's last image of each part (a :class:`scanalign.pipelines.assemble.AssemblyResult`'s parts;
+    ``images``: part name -> that image) with the outline of its reference image (``references``: part name ->
+    (image, :class:`ReferenceImageGeometry`)) drawn where the refined pose puts it (green; the 3D step's rough pose
+    dashed orange, the truth dotted white when given), and the matched inliers (cyan)."""
+    names = [n for n in result.parts if n in images]
+    fig = _figure((6.5 * max(1, len(names)), 4.6))
+    for k, name in enumerate(names):
+        ax, p = fig.add_subplot(1, max(1, len(names)), k + 1), result.parts[name]
+        ax.imshow(images[name], cmap="gray", vmin=0, vmax=255)
+        image, g = references[name]
+        corners = np.array([[0, 0, 1], [g.width - 1, 0, 1], [g.width - 1, g.height - 1, 1], [0, g.height - 1, 1],
+                            [0, 0, 1]], float).T
+        view = p.refine.views[-1] if p.refine is not None and p.refine.views else None
+        poses = [(p.T_base_model_rough, "--", "orange", "rough (3D step)"), (p.T_base_model, "-", "lime", "refined"),
+                 (None if truth is None else truth.get(name), ":", "white", "truth")]
+        for T, style, colour, label in poses:
+            if T is None or view is None:
+                continue
+            q = homography_of_part(g, intrinsics, np.asarray(view.T_base_camera), np.asarray(T)) @ corners
+            ax.plot(q[0] / q[2], q[1] / q[2], style, color=colour, lw=1.5, label=label)
+        if view is not None and len(view.step.match.image_points):
+            ax.plot(*view.step.match.image_points.T, ".", color="cyan", ms=2, label=f"{view.step.match.inliers} inliers")
+        ax.set_title(f"{name}: {p.status}" + ("" if view is None else f", view {len(p.refine.views)}"), fontsize=9)
+        ax.legend(loc="lower right", fontsize=7)
+        ax.set_axis_off()
+    fig.suptitle(f"hand camera: {result.status} ({result.reason[:90]})", fontsize=9)
     return _save(fig, path, dpi)
