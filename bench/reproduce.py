@@ -1,15 +1,16 @@
 """Reproduces the experiments of scanalign's two source works in one report (markdown + PNG):
 
 - the eye-in-hand paper (Comput. Electron. Agric. 180 (2021) 105929): Figs. 4-9 and Table 1;
-- Kleppe's thesis (NTNU 2018): Paper 4 Table 1 (flags), Paper 5 experiment 1 (the descriptor
-  sweep, Fig. 9) and experiment 2 (Tables I and II, every baseline).
+- Kleppe's thesis (NTNU 2018): Paper 3's three experiments (the two-step pose and assembly:
+  Tables 1-6 and the ten assemblies), Paper 4 Table 1 (flags), Paper 5 experiment 1 (the
+  descriptor sweep, Fig. 9) and experiment 2 (Tables I and II, every baseline).
 
 Each figure and table stands beside the source's own numbers and says what differs. ``--quick``
 runs every experiment at a reduced size (about two minutes on two cores) and checks each
 source's qualitative claims: it exits 1 when a claim no longer holds, so the reproduction
 cannot rot (the test command runs it).
 
-    python bench/reproduce.py [--quick] [--only eye_in_hand paper4 paper5] [--out bench/results/reproduction]
+    python bench/reproduce.py [--quick] [--only eye_in_hand paper3 paper4 paper5] [--out bench/results/reproduction]
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from experiments import Section  # noqa: E402
 
-MODULES = ("eye_in_hand", "paper4", "paper5")
+MODULES = ("eye_in_hand", "paper3", "paper4", "paper5")
 
 
 def report(sections: "list[Section]", args: argparse.Namespace, seconds: float) -> str:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SECTIONS = ("Figs. 5 and 6", "Fig. 7", "Fig. 8", "Fig. 9", "Table 1 and Fig. 4",  # the eye-in-hand paper
+            "Paper 3, Experiment 1", "Paper 3, Experiment 2", "Paper 3, Experiment 3",
             "Paper 4, Table 1", "Paper 5, Experiment 1", "Paper 5, Experiment 2", "breaks under noise")  # the thesis
 
 
@@ -21,7 +22,7 @@ def test_quick_reproduction_writes_the_report_and_every_claim_holds(tmp_path):
         assert title in report, f"no section for {title}"
     assert "paper" in report.lower() and "thesis" in report.lower()  # the sources' numbers stand beside ours
     figures = [line.split("](")[1].rstrip(")") for line in report.splitlines() if line.startswith("![")]
-    assert len(figures) >= 8
+    assert len(figures) >= 11
     for f in figures:
         assert (out / f).stat().st_size > 10_000, f  # a real PNG, not an empty plot
     assert "- [ ]" not in report  # every checked claim holds
