@@ -226,6 +226,11 @@ def test_the_3d_step_alone_misses_the_tolerance_the_2d_step_meets(runs):
         misses += np.linalg.norm(rel[:3, 3] - cell.part.assembly.T_onto_part[:3, 3]) > 0.001 or \
             wrapped_deg(yaw_of(rel), 60.0) > 1.0
     assert misses >= 2
+    cell, _ = runs[0]
+    with pytest.raises(ValueError, match="no 'assembly'"):
+        plan_pick_and_place(cell.onto, np.eye(4), np.eye(4), cell.gripper_robot)
+    with pytest.raises(ValueError, match="T_base_onto"):
+        plan_pick_and_place(cell.part, np.eye(4), np.eye(3), cell.gripper_robot)
 
 
 def test_failures_are_statuses_with_reasons_never_a_pose():

@@ -277,8 +277,11 @@ def plan_pick_and_place(part: Any, T_base_part: Any, T_base_onto: Any, robot: An
     copy and IK branch of the pick judged by :func:`scanalign.grasp.plan_grasp` (``settings``: its
     ``GraspPlannerSettings``), then the chosen grasp held fixed, ``T_part_tcp``, at the target, planned from the
     grasp's joints (the IK branch nearest them)."""
-    T_part = np.asarray(T_base_part, dtype=np.float64)
-    target = np.asarray(T_base_onto, dtype=np.float64) @ np.asarray(part.assembly.T_onto_part, dtype=np.float64)
+    if getattr(part, "assembly", None) is None:
+        raise ValueError(f"part {getattr(part, 'name', part)!r}: no 'assembly' (onto, T_onto_part, tolerances); "
+                         "load its part file with scanalign.grasp.parts.load_part")
+    T_part = as_transform(T_base_part, "T_base_part")
+    target = as_transform(T_base_onto, "T_base_onto") @ np.asarray(part.assembly.T_onto_part, dtype=np.float64)
     pick = _grasp.plan_grasp(robot, T_part, part.grasps, symmetry=part.symmetry, gripper=part.gripper,
                              table_plane=table_plane, q_current=q_current, settings=settings)
     if not pick.found:
