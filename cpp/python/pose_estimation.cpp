@@ -11,6 +11,7 @@
 #include "pose.hpp"
 #include "scanalign/pose/find_objects.hpp"
 #include "scanalign/pose/pose_estimation.hpp"
+#include "warnings.hpp"
 
 namespace scanalign::python {
 
@@ -151,8 +152,13 @@ void bindFunctions(py::module_& m) {
          const std::vector<int>& ids, const py::object& progress) {
         const auto view = cloudView<double>(scene, "scene");
         const PoseProgress cb = progressOf(progress);
-        py::gil_scoped_release release;
-        return findObjects(views, view, s, ids, {}, cb);
+        FindObjectsResult result;
+        {
+          py::gil_scoped_release release;
+          result = findObjects(views, view, s, ids, {}, cb);
+        }
+        warnPython(result.table.warning);
+        return result;
       },
       py::arg("views"), py::arg("scene"), py::arg("settings"), py::arg("view_ids") = std::vector<int>{},
       py::arg("progress") = py::none(), "Poses of the model in a table scene: table plane, clusters, estimate_pose each");

@@ -11,6 +11,7 @@
 #include "arrays.hpp"
 #include "pose.hpp"
 #include "scanalign/pose/part_identification.hpp"
+#include "warnings.hpp"
 
 namespace scanalign::python {
 
@@ -135,8 +136,13 @@ void bindFunctions(py::module_& m) {
         const auto view = cloudView<double>(scene, "scene");
         const std::vector<PartSymmetry> sym = symmetriesOf(symmetries);
         const PoseProgress cb = progressOf(progress);
-        py::gil_scoped_release release;
-        return findParts(models, sym, view, s, ids, {}, cb);
+        FindPartsResult result;
+        {
+          py::gil_scoped_release release;
+          result = findParts(models, sym, view, s, ids, {}, cb);
+        }
+        warnPython(result.table.warning);
+        return result;
       },
       py::arg("models"), py::arg("scene"), py::arg("settings"), py::arg("symmetries") = py::none(),
       py::arg("view_ids") = std::vector<int>{}, py::arg("progress") = py::none(),

@@ -7,10 +7,13 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <type_traits>
 
 #include "arrays.hpp"
 #include "fields.hpp"
+#include "scanalign/segmentation/cylinder.hpp"
 #include "scanalign/segmentation/table_segmentation.hpp"
+#include "warnings.hpp"
 
 namespace scanalign::python {
 
@@ -18,6 +21,7 @@ namespace {
 
 using PlaneResult = RansacResult<PlaneModel>;
 using SphereResult = RansacResult<SphereModel>;
+using CylinderResult = RansacResult<CylinderModel>;
 
 /// ValueError unless `points` has at least `minimum` finite rows (a minimal sample).
 template <typename Scalar>
@@ -156,6 +160,50 @@ void defineSegmentation(py::module_& m) {
             "hypothesis_radius", [](const R& r) { return r.hypothesis.radius; },
             [](R& r, double v) { r.hypothesis.radius = v; }, "m", "the winning minimal-sample sphere's radius", false);
   });
+  py::class_<CylinderResult> cylinder_result(m, "CylinderResult",
+                                             "A RANSAC cylinder |(p - point) x axis| = radius (metres) from two "
+                                             "oriented points (Schnabel et al. 2007), refitted by least squares");
+  cylinder_result
+      .def(
+          "surface_distance",
+          [](const CylinderResult& r, const py::array_t<double, py::array::c_style | py::array::forcecast>& p) {
+            if (p.ndim() != 2 || p.shape(1) != 3) throw py::value_error("points: expected shape (N, 3), metres");
+            py::array_t<double> out(p.shape(0));
+            auto in = p.unchecked<2>();
+            for (py::ssize_t i = 0; i < p.shape(0); ++i)
+              out.mutable_data()[i] = r.model.surfaceDistance(Eigen::Vector3d(in(i, 0), in(i, 1), in(i, 2)));
+            return out;
+          },
+          py::arg("points"), "| |(p - point) x axis| - radius | of points (N, 3), m")
+      .def("__repr__", [](const CylinderResult& r) {
+        const auto& c = r.model;
+        return "CylinderResult(status=" + std::string(toString(r.status)) + ", point=(" + std::to_string(c.point.x()) +
+               ", " + std::to_string(c.point.y()) + ", " + std::to_string(c.point.z()) + "), axis=(" +
+               std::to_string(c.axis.x()) + ", " + std::to_string(c.axis.y()) + ", " + std::to_string(c.axis.z()) +
+               "), radius=" + std::to_string(c.radius) + ", inliers=" + std::to_string(r.inliers.size()) + ")";
+      });
+  bindRansacResult(cylinder_result, [](auto& t) {
+    using R = CylinderResult;
+    t.field(
+         "point", [](const R& r) { return r.model.point; }, [](R& r, const Eigen::Vector3d& v) { r.model.point = v; },
+         "m", "(3,) a point of the axis (after a refit: the foot of the inliers' centroid)", false)
+        .field(
+            "axis", [](const R& r) { return r.model.axis; }, [](R& r, const Eigen::Vector3d& v) { r.model.axis = v; },
+            "", "(3,) unit axis direction (sign arbitrary)", false)
+        .field(
+            "radius", [](const R& r) { return r.model.radius; }, [](R& r, double v) { r.model.radius = v; }, "m",
+            "radius", false)
+        .field(
+            "hypothesis_point", [](const R& r) { return r.hypothesis.point; },
+            [](R& r, const Eigen::Vector3d& v) { r.hypothesis.point = v; }, "m",
+            "(3,) the winning two-point cylinder's axis point", false)
+        .field(
+            "hypothesis_axis", [](const R& r) { return r.hypothesis.axis; },
+            [](R& r, const Eigen::Vector3d& v) { r.hypothesis.axis = v; }, "", "(3,) its axis", false)
+        .field(
+            "hypothesis_radius", [](const R& r) { return r.hypothesis.radius; },
+            [](R& r, double v) { r.hypothesis.radius = v; }, "m", "its radius", false);
+  });
   using T = TableSegmentationResult;
   fieldsOf(py::class_<T>(m, "TableSegmentationResult", "Result of segment_table (paper 3 §3.1.2-3.1.3)"))
       .name("status", &T::status, 3, "", "the table plane RANSAC's status", false)
@@ -183,6 +231,9 @@ void defineSegmentation(py::module_& m) {
       .output("cropped_points", &T::cropped_points, "",
               "finite points inside the crop box (all finite points without crop)")
       .output("above_points", &T::above_points, "", "points left above the table before clustering")
+      .output("warning", &T::warning, "",
+              "empty, or why the result is suspect (an up that puts the viewpoint below the table); also raised as "
+              "a UserWarning")
       .result();
   using RS = RansacSettings;
   fieldsOf(py::class_<RS>(m, "RansacSettings",
@@ -198,6 +249,17 @@ void defineSegmentation(py::module_& m) {
              "inlier count")
       .settings()
       .def("validate", [](const RS& s) { validate(s); }, "ValueError naming an invalid field");
+  using CS = CylinderSettings;
+  fieldsOf(py::class_<CS>(m, "CylinderSettings",
+                          "Cylinder RANSAC settings (metres, radians). validate() raises ValueError naming a bad field."))
+      .field("ransac", &CS::ransac, "", "RansacSettings (threshold: inlier distance from the surface)")
+      .field("min_radius", &CS::min_radius, "m", "smallest radius a hypothesis may have")
+      .field("max_radius", &CS::max_radius, "m", "largest radius a hypothesis may have")
+      .field("max_normal_angle", &CS::max_normal_angle, "rad",
+             "an inlier's normal lies within this angle of the direction from the axis")
+      .field("normal_radius", &CS::normal_radius, "m", "PCA normal radius when no normals are given")
+      .settings()
+      .def("validate", [](const CS& c) { validate(c); }, "ValueError naming an invalid field");
   using TS = TableSegmentationSettings;
   fieldsOf(py::class_<TS>(m, "TableSegmentationSettings",
                           "Table plane and object clusters (metres). validate() raises ValueError naming a bad field."))
@@ -205,8 +267,12 @@ void defineSegmentation(py::module_& m) {
       .field("crop_min", &TS::crop_min, "m", "(3,) lower corner of the crop box (-inf: open side)")
       .field("crop_max", &TS::crop_max, "m", "(3,) upper corner of the crop box (inf: open side)")
       .field("plane", &TS::plane, "", "RansacSettings of the table plane (threshold = Delta)")
-      .field("viewpoint", &TS::viewpoint, "m", "(3,) camera centre the table normal faces")
-      .field("up", &TS::up, "", "(3,) up direction the table normal faces (zero: use viewpoint)")
+      .field("viewpoint", &TS::viewpoint, "m",
+             "(3,) the sensor's centre in the cloud's frame, which the table normal faces unless up is given; None: "
+             "the origin (a cloud in its camera frame)")
+      .field("up", &TS::up, "",
+             "(3,) up direction the table normal faces (zero: face the viewpoint); one that puts the viewpoint below "
+             "the table gives a warning")
       .field("cluster_tolerance", &TS::cluster_tolerance, "m", "points this close are linked into one object")
       .field("min_cluster_size", &TS::min_cluster_size, "", "objects with fewer points are dropped")
       .field("max_cluster_size", &TS::max_cluster_size, "", "objects with more points are dropped")
@@ -272,6 +338,94 @@ plane, or when its sphere's radius is outside [min_radius, max_radius] (metres);
 data the result is status "degenerate". The refit (the CGA least-squares fit, (5.31)) is kept
 only when its radius is within the limits. Other arguments as ransac_plane (w^4 in the
 adaptive stop); at least 4 finite points.)");
+  const CylinderSettings dc;
+  m.def(
+      "ransac_cylinder",
+      [](const py::object& points, double threshold, const py::object& normals, double min_radius, double max_radius,
+         double max_normal_angle, double normal_radius, const py::int_& max_iterations, double confidence,
+         const py::int_& seed, bool refine, int num_threads) {
+        CylinderSettings s;
+        s.ransac = ransacSettings(threshold, max_iterations, confidence, seed, num_threads, refine);
+        s.min_radius = min_radius;
+        s.max_radius = max_radius;
+        s.max_normal_angle = max_normal_angle;
+        s.normal_radius = normal_radius;
+        validate(s);
+        return withCloud(points, "points", [&](auto view) {
+          using Scalar = std::remove_const_t<std::remove_pointer_t<decltype(view.data)>>;
+          requireFinitePoints(view, 2, "ransac_cylinder");
+          if (normals.is_none()) {
+            py::gil_scoped_release release;
+            return ransacCylinder(view, s);
+          }
+          const py::array held = asCloudArray<Scalar>(normals, "normals");  // converted to the points' precision
+          const auto nv = cloudView<Scalar>(held, "normals");
+          if (nv.size != view.size) throw py::value_error("normals: need one (3,) normal per point");
+          py::gil_scoped_release release;
+          return ransacCylinder(view, nv, s);
+        });
+      },
+      py::arg("points"), py::arg("threshold"), py::kw_only(), py::arg("normals") = py::none(),
+      py::arg("min_radius") = dc.min_radius, py::arg("max_radius") = dc.max_radius,
+      py::arg("max_normal_angle") = dc.max_normal_angle, py::arg("normal_radius") = dc.normal_radius,
+      py::arg("max_iterations") = dr.max_iterations, py::arg("confidence") = dr.confidence, py::arg("seed") = 0,
+      py::arg("refine") = dr.refine, py::arg("num_threads") = dr.num_threads,
+      R"(A cylinder by RANSAC from two oriented points (Schnabel, Wahl and Klein 2007; PCL's SACMODEL_CYLINDER).
+
+The axis of two points' normals is n1 x n2 through the closest points of their normal lines;
+a sample is degenerate when the normals are within ~1 degree of parallel, the two points'
+distances from that axis differ by more than threshold, or the radius is outside
+[min_radius, max_radius]. A point is an inlier when it lies within threshold of the surface and
+its normal within max_normal_angle of the radial direction (so a table under a mug is not). The
+winner is refitted by geometric least squares (fit_cylinder) when refine, and the inliers
+re-selected. Other arguments as ransac_plane (w^2 in the adaptive stop).
+
+Args:
+    points: (N, 3) float32/float64, metres; NaN/Inf rows ignored.
+    threshold: metres, the inlier distance from the surface.
+    normals: (N, 3) of the same dtype (any length or sign), or None: PCA normals of radius
+        normal_radius (metres). Rows with a non-finite or zero normal are ignored.
+    min_radius, max_radius: metres. max_normal_angle: radians, in (0, pi/2].
+
+Returns:
+    CylinderResult: point (on the axis), axis (unit), radius, inliers; status "degenerate"
+    when every sample was (a plane: parallel normals).
+
+Raises:
+    TypeError: non-float points. ValueError: shapes, settings (named), fewer than 2 finite points.)");
+  m.def(
+      "fit_cylinder",
+      [](const py::object& points, const Eigen::Vector3d& point, const Eigen::Vector3d& axis, double radius,
+         int max_iterations) {
+        if (!point.allFinite() || !axis.allFinite() || !(axis.norm() > 0) || !(radius > 0) || !std::isfinite(radius))
+          throw py::value_error("fit_cylinder: the start needs a finite point, a non-zero axis and a radius > 0 (m)");
+        if (max_iterations < 1) throw py::value_error("fit_cylinder: max_iterations must be at least 1");
+        return withCloud(points, "points", [&](auto view) {
+          std::vector<std::uint32_t> rows;
+          for (std::size_t i = 0; i < view.size; ++i)
+            if (view.isFinite(i)) rows.push_back(static_cast<std::uint32_t>(i));
+          CylinderResult r;
+          r.hypothesis = CylinderModel{point, axis.normalized(), radius};
+          r.model = r.hypothesis;
+          {
+            py::gil_scoped_release release;
+            r.refined = fitCylinderLeastSquares(view, rows, r.model, max_iterations);
+          }
+          r.status = rows.size() < 5 ? RansacStatus::kTooFewPoints : RansacStatus::kSuccess;
+          r.inliers = rows;
+          return r;
+        });
+      },
+      py::arg("points"), py::arg("point"), py::arg("axis"), py::arg("radius"), py::kw_only(),
+      py::arg("max_iterations") = 50,
+      R"(Least-squares cylinder: minimise sum (|(p - point) x axis| - radius)^2 (metres) by
+Levenberg-Marquardt over the axis (2 degrees of freedom), its position (2) and the radius,
+from the start (point, axis, radius). Every finite row takes part (select inliers first).
+
+Returns:
+    CylinderResult: the fit (point: the foot of the points' centroid on the axis), refined
+    False (and the start returned) when it did not lower the cost, status "too_few_points"
+    for fewer than 5 finite points; inliers are the finite rows, hypothesis_* the start.)");
   const TableSegmentationSettings dt;
   m.def(
       "segment_table_full",
@@ -284,7 +438,7 @@ adaptive stop); at least 4 finite points.)");
         s.crop = !crop_min.is_none() || !crop_max.is_none();
         if (!crop_min.is_none()) s.crop_min = vec3(crop_min, "crop_min");
         if (!crop_max.is_none()) s.crop_max = vec3(crop_max, "crop_max");
-        s.viewpoint = vec3(viewpoint, "viewpoint");
+        if (!viewpoint.is_none()) s.viewpoint = vec3(viewpoint, "viewpoint");
         if (!up.is_none()) s.up = vec3(up, "up");
         s.cluster_tolerance = cluster_tolerance;
         if (min_cluster_size < 1 || (max_cluster_size && *max_cluster_size < min_cluster_size))
@@ -292,14 +446,16 @@ adaptive stop); at least 4 finite points.)");
         s.min_cluster_size = static_cast<std::size_t>(min_cluster_size);
         if (max_cluster_size) s.max_cluster_size = static_cast<std::size_t>(*max_cluster_size);
         validate(s);
-        return withCloud(points, "points", [&](auto view) {
+        TableSegmentationResult result = withCloud(points, "points", [&](auto view) {
           requireFinitePoints(view, 3, "segment_table");
           py::gil_scoped_release release;
           return segmentTable(view, s);
         });
+        warnPython(result.warning);
+        return result;
       },
       py::arg("points"), py::kw_only(), py::arg("threshold") = dt.plane.threshold, py::arg("crop_min") = py::none(),
-      py::arg("crop_max") = py::none(), py::arg("viewpoint") = std::make_tuple(0.0, 0.0, 0.0),
+      py::arg("crop_max") = py::none(), py::arg("viewpoint") = py::none(),
       py::arg("up") = py::none(), py::arg("cluster_tolerance") = dt.cluster_tolerance,
       py::arg("min_cluster_size") = dt.min_cluster_size, py::arg("max_cluster_size") = py::none(),
       py::arg("max_iterations") = dt.plane.max_iterations, py::arg("confidence") = dt.plane.confidence,
@@ -320,9 +476,12 @@ Args:
         table are removed with it.
     crop_min, crop_max: pass-through box corners, metres (either may be None: open side;
         inf entries allowed). No crop when both are None.
-    viewpoint: camera centre, metres: the table normal is oriented towards it (unless up is
-        given). Points on the other side of the table are removed.
-    up: optional "up" direction (any length) to orient the normal instead.
+    viewpoint: the sensor's centre in the cloud's frame, metres; None: the origin, the camera
+        centre of a cloud in its camera frame. The table normal faces it (unless up is given):
+        the table is seen from above, and points on the other side are removed.
+    up: optional "up" direction (any length) to orient the normal instead, for a cloud in a
+        world frame. An up that puts the viewpoint below the table contradicts it: the result's
+        warning says so and a UserWarning is raised (omit up for a camera-frame cloud).
     cluster_tolerance: metres: points this close are in the same object.
     min_cluster_size, max_cluster_size: points per object kept (None: no upper limit).
     max_iterations, confidence, seed, num_threads: the plane RANSAC, as ransac_plane.

@@ -38,7 +38,7 @@ TEST(PickSettings, DefaultsAreThePickPipelinesAndValidate) {
   EXPECT_EQ(s.reconstruction.frame_to_model.motion_model, MotionModel::Reference);
   EXPECT_EQ(s.find_parts.table.plane.threshold, 0.004);
   EXPECT_EQ(s.find_parts.table.up, Eigen::Vector3d(0, 0, 1));
-  EXPECT_EQ(s.find_parts.table.viewpoint, Eigen::Vector3d::Zero());
+  EXPECT_FALSE(s.find_parts.table.viewpoint.has_value());
   EXPECT_EQ(s.find_parts.table.cluster_tolerance, 0.01);
   EXPECT_EQ(s.find_parts.table.min_cluster_size, 300u);
   EXPECT_EQ(s.find_parts.max_objects, 10u);

@@ -344,6 +344,42 @@ TEST(Segmentation, TableSceneObjectsSeparated) {
   EXPECT_EQ(seg.objects[0].size() + seg.objects[1].size(), 3000u);  // every object point, nothing else
 }
 
+TEST(Segmentation, AnUpThatPutsTheCameraBelowTheTableIsReported) {
+  // The camera-frame scene (camera at the origin): no up orients the table towards the
+  // camera, no warning; an up pointing away from the camera removes the objects as "below the
+  // table" and says so; a world frame's up with the camera centre given above the table is fine.
+  const Scene s = tableScene(13);
+  TableSegmentationSettings ts;
+  ts.plane.threshold = 0.005;
+  ts.cluster_tolerance = 0.01;
+  ts.min_cluster_size = 50;
+  const auto plain = segmentTable(view(s.xyz), ts);
+  ASSERT_TRUE(plain.success());
+  EXPECT_EQ(plain.warning, "");
+  EXPECT_EQ(plain.objects.size(), 2u);
+  ts.up = -s.n;
+  const auto wrong = segmentTable(view(s.xyz), ts);
+  EXPECT_NE(wrong.warning.find("below the table"), std::string::npos) << wrong.warning;
+  EXPECT_NE(wrong.warning.find("the origin"), std::string::npos) << wrong.warning;
+  EXPECT_TRUE(wrong.objects.empty());  // what the warning is about
+  ts.up = s.n;
+  EXPECT_EQ(segmentTable(view(s.xyz), ts).warning, "");
+  // A world frame: the same scene moved so that the origin is under the table, the camera
+  // centre given. Its up is not contradicted; a viewpoint under the table is.
+  std::vector<double> moved = s.xyz;
+  const V3 shift = 2.0 * s.n;
+  for (std::size_t i = 0; i < moved.size(); i += 3)
+    for (int k = 0; k < 3; ++k) moved[i + k] -= shift[k];
+  ts.viewpoint = -shift;
+  const auto world = segmentTable(view(moved), ts);
+  EXPECT_EQ(world.warning, "");
+  EXPECT_EQ(world.objects.size(), 2u);
+  ts.viewpoint = V3(-shift - 3.0 * s.n);
+  const auto under = segmentTable(view(moved), ts);
+  EXPECT_NE(under.warning.find("below the table"), std::string::npos);
+  EXPECT_EQ(under.warning.find("the origin"), std::string::npos);  // a given viewpoint is named as such
+}
+
 
 std::atomic<int> ransac_hook_calls{0};
 bool stopOnThirdCall() { return ++ransac_hook_calls >= 3; }

@@ -29,9 +29,9 @@ import numpy as np
 
 from scanalign import _core
 
-__all__ = ["PlaneResult", "SphereResult", "TableSegmentationResult", "RansacSettings", "TableSegmentationSettings",
-           "ransac_plane", "ransac_sphere", "segment_table", "segment_table_full", "plane_from_points",
-           "sphere_from_points"]
+__all__ = ["PlaneResult", "SphereResult", "CylinderResult", "TableSegmentationResult", "RansacSettings",
+           "CylinderSettings", "TableSegmentationSettings", "ransac_plane", "ransac_sphere", "ransac_cylinder",
+           "fit_cylinder", "segment_table", "segment_table_full", "plane_from_points", "sphere_from_points"]
 
 globals().update({name: getattr(_core.segmentation, name) for name in __all__ if name != "segment_table"})  # as bound
 

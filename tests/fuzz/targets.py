@@ -322,11 +322,43 @@ def ransac(case):
             raise ContractError(f"ransac_plane on an exact plane: normal {r.normal}, {len(r.inliers)}/{recipe[2]} inliers")
 
 
-@target("segmentation", points=clouds(1500), thr=numbers(0.01), tol=numbers([0.05, 0.5], 1e6), min_size=counts(10))
+@target("segmentation", points=clouds(1500), thr=numbers(0.01), tol=numbers([0.05, 0.5], 1e6), min_size=counts(10),
+        up=choice([None, (0, 0, 1), (0, 0, -1), (0, 0, 0), (NAN, 0, 0), (1, 2)]),
+        viewpoint=choice([None, (0, 0, 5), (0, 0, -5), (INF, 0, 0), "abc"]))
 def segment_table(case):
+    import warnings
+
     from scanalign import segmentation
-    call(segmentation.segment_table, build(case["points"]), threshold=case["thr"],
-         cluster_tolerance=case["tol"], min_cluster_size=case["min_size"])
+    with warnings.catch_warnings(record=True) as caught:  # an up against the viewpoint: a warning, never a crash
+        warnings.simplefilter("always")
+        r = call(segmentation.segment_table_full, build(case["points"]), threshold=case["thr"],
+                 cluster_tolerance=case["tol"], min_cluster_size=case["min_size"], up=case["up"],
+                 viewpoint=case["viewpoint"])
+    if r is not None and bool(r.warning) != any("below the table" in str(w.message) for w in caught):
+        raise ContractError(f"the result's warning {r.warning!r} and the UserWarning raised disagree")
+
+
+@target("segmentation", points=clouds(1500), thr=numbers(0.005), rmax=numbers(0.2), angle=numbers(0.35, 2.0),
+        nrad=numbers(0.05), iters=iterations(100), normals=choice(["none", "given", "short", "nan", "int"]))
+def ransac_cylinder(case):
+    from scanalign import segmentation
+    pts = build(case["points"])
+    n = len(pts) if isinstance(pts, np.ndarray) and pts.ndim == 2 else 3
+    rng = np.random.default_rng(n)
+    normals = {"none": None, "given": rng.normal(size=(n, 3)), "short": np.ones((max(n - 1, 0), 3)),
+               "nan": np.full((n, 3), NAN), "int": np.ones((n, 3), dtype=np.int64)}[case["normals"]]
+    r = call(segmentation.ransac_cylinder, pts, case["thr"], normals=normals, max_radius=case["rmax"],
+             max_normal_angle=case["angle"], normal_radius=case["nrad"], max_iterations=case["iters"])
+    if r is None or not r.success:
+        return
+    if not (np.all(np.isfinite(r.axis)) and abs(np.linalg.norm(r.axis) - 1) < 1e-9 and 0 < r.radius <= case["rmax"]):
+        raise ContractError(f"ransac_cylinder succeeded with axis {r.axis}, radius {r.radius} (max {case['rmax']})")
+    inl = np.asarray(r.inliers)
+    if len(inl) and (inl.min() < 0 or inl.max() >= n):
+        raise ContractError("ransac_cylinder: an inlier index outside the input")
+    f = call(segmentation.fit_cylinder, pts, r.point, r.axis, r.radius)
+    if f is not None and f.refined and not (np.isfinite(f.radius) and f.radius > 0):
+        raise ContractError(f"fit_cylinder refined to radius {f.radius}")
 
 
 @target("segmentation", pts=st.lists(st.sampled_from([(0, 0, 0), (1, 0, 0), (0, 1, 0), (0, 0, 1), (NAN, 0, 0), (1e300, 0, 0), (2, 0, 0), (0, 0)]), min_size=4, max_size=4))
@@ -1080,6 +1112,8 @@ def _points_entries():
         ("fit_sphere", "points", lambda p: fitting.fit_sphere(p)),
         ("ransac_plane", "points", lambda p: segmentation.ransac_plane(p, 0.01)),
         ("ransac_sphere", "points", lambda p: segmentation.ransac_sphere(p, 0.01)),
+        ("ransac_cylinder", "points", lambda p: segmentation.ransac_cylinder(p, 0.01)),
+        ("fit_cylinder", "points", lambda p: segmentation.fit_cylinder(p, (0, 0, 0), (0, 0, 1), 0.1)),
         ("cga.up", "points", lambda p: cga.up(p)),
         ("estimate_normals", "points", lambda p: features.estimate_normals(p, 0.05)),
         ("voxel_grid", "points", lambda p: reconstruction.voxel_grid(p, 0.01)),
@@ -1095,7 +1129,7 @@ def _points_entries():
 _RULE_DTYPES = ["f8", "f4", ">f8", "<f4", "f2", "g", "c16", "?", "U4", "O", "i8"]
 
 
-@target("arguments", which=st.integers(0, 11), dtype=st.sampled_from(_RULE_DTYPES))
+@target("arguments", which=st.integers(0, 13), dtype=st.sampled_from(_RULE_DTYPES))
 def dtype_rule(case):
     """float32 / float64 (either byte order) points are accepted; float16, long double,
     complex, bool, strings and objects are a TypeError naming the argument and the dtype
@@ -1114,7 +1148,7 @@ def dtype_rule(case):
 
 def _numeric_entries():
     """(label, argument name, call(value), a valid value) for scalar number arguments."""
-    from scanalign import _core, features, reconstruction, registration
+    from scanalign import _core, features, reconstruction, registration, segmentation
     from scanalign.reconstruction import camera
     from scanalign.pose import model_views as cad
     from scanalign.data import parts
@@ -1134,6 +1168,8 @@ def _numeric_entries():
         ("intrinsics_from_dict", "fx", lambda x: camera.intrinsics_from_dict({**intr, "fx": x}), 30.0),
         ("camera_from_dict", "height", lambda x: camera.camera_from_dict({**intr, "height": x}), 24),
         ("view_intrinsics", "resolution", lambda x: cad.view_intrinsics(x), 40),
+        ("ransac_cylinder", "threshold", lambda x: segmentation.ransac_cylinder(p, x), 0.01),
+        ("ransac_cylinder", "max_iterations", lambda x: segmentation.ransac_cylinder(p, 0.01, max_iterations=x), 50),
     ]
 
 
@@ -1141,7 +1177,7 @@ def _numeric_entries():
 _NONE_IS_THE_DEFAULT = {("estimate_normals", "radius")}
 
 
-@target("arguments", which=st.integers(0, 11),
+@target("arguments", which=st.integers(0, 13),
         value=st.sampled_from(["valid", "valid", "0.01", "3", "", b"1", INF, -INF, NAN, 2**70, [1.0], None]))
 def numbers_not_strings(case):
     """A number argument given a string is a TypeError naming it (never parsed, as float()

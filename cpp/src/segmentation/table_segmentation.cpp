@@ -2,18 +2,51 @@
 #include "scanalign/segmentation/table_segmentation.hpp"
 
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 #include <string>
 
 #include "scanalign/segmentation/euclidean_clusters.hpp"
 
 namespace scanalign {
+namespace {
+
+std::string formatVector(const Eigen::Vector3d& v) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.3g, %.3g, %.3g)", v.x(), v.y(), v.z());
+  return buf;
+}
+
+/// Orients the table normal towards `up`, or else towards the viewpoint (Paper 3: "orient v
+/// toward the camera"), and reports an `up` under which the viewpoint lies below the table.
+void orientTable(const TableSegmentationSettings& s, TableSegmentationResult& out) {
+  PlaneModel& pl = out.plane.model;
+  const Eigen::Vector3d viewpoint = s.viewpoint.value_or(Eigen::Vector3d::Zero());
+  const bool use_up = s.up.squaredNorm() > 0;
+  if (use_up ? pl.normal.dot(s.up) < 0 : pl.signedDistance(viewpoint) < 0) {
+    pl.normal = -pl.normal;
+    pl.distance = -pl.distance;
+    out.plane.hypothesis.normal = -out.plane.hypothesis.normal;
+    out.plane.hypothesis.distance = -out.plane.hypothesis.distance;
+  }
+  const double height = pl.signedDistance(viewpoint);
+  if (!use_up || height >= -s.plane.threshold) return;
+  char depth[32];
+  std::snprintf(depth, sizeof depth, "%.3g", -height);
+  out.warning = "table segmentation: up " + formatVector(s.up) + " puts the viewpoint " + formatVector(viewpoint) +
+                (s.viewpoint ? "" : " (the origin, a camera-frame cloud's camera centre)") + " " + depth +
+                " m below the table, which a sensor cannot see from there: the objects on the table are removed as "
+                "below it. For a cloud in its camera frame omit up (the normal then faces the camera); "
+                "in another frame pass the camera centre as viewpoint.";
+}
+
+}  // namespace
 
 void validate(const TableSegmentationSettings& s) {
   validate(s.plane);
   auto fail = [](const std::string& what) { throw std::invalid_argument("table segmentation settings: " + what); };
   if (s.crop_min.hasNaN() || s.crop_max.hasNaN()) fail("crop_min and crop_max must not be NaN");
-  if (!s.viewpoint.allFinite()) fail("viewpoint must be 3 finite coordinates");
+  if (s.viewpoint && !s.viewpoint->allFinite()) fail("viewpoint must be 3 finite coordinates");
   if (!s.up.allFinite()) fail("up must be 3 finite coordinates");
   if (!(s.cluster_tolerance > 0) || !std::isfinite(s.cluster_tolerance))
     fail("cluster_tolerance must be a finite positive distance in metres");
@@ -41,15 +74,8 @@ TableSegmentationResult segmentTable(const CloudView<Scalar>& points, const Tabl
   out.plane = ransacPlane(view, s.plane);
   out.status = out.plane.status;
   if (!out.success()) return out;
-  PlaneModel& pl = out.plane.model;
-  // Orient the normal up, or towards the viewpoint (P3: "orient v toward the camera").
-  const bool flip = s.up.squaredNorm() > 0 ? pl.normal.dot(s.up) < 0 : pl.signedDistance(s.viewpoint) < 0;
-  if (flip) {
-    pl.normal = -pl.normal;
-    pl.distance = -pl.distance;
-    out.plane.hypothesis.normal = -out.plane.hypothesis.normal;
-    out.plane.hypothesis.distance = -out.plane.hypothesis.distance;
-  }
+  orientTable(s, out);
+  const PlaneModel& pl = out.plane.model;
   // (3) remove the inliers and everything below: keep signed distance >= threshold.
   std::vector<std::uint32_t> above;
   for (std::size_t i = 0; i < kept.size(); ++i)

@@ -6,6 +6,8 @@
 #include <cstddef>
 #include <cstdint>
 #include <limits>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include <Eigen/Core>
@@ -23,10 +25,13 @@ struct TableSegmentationSettings {
   /// (2) the table plane: RANSAC settings (threshold = Delta, metres).
   RansacSettings plane;
   /// (3) orientation of the table normal: towards `up` when it is non-zero, else towards
-  /// the `viewpoint` (the camera centre; the origin for a cloud in its camera frame).
-  /// Plane inliers and every point with signed distance < threshold are removed.
-  Eigen::Vector3d viewpoint = Eigen::Vector3d::Zero();
-  Eigen::Vector3d up = Eigen::Vector3d::Zero();
+  /// the viewpoint. Plane inliers and every point with signed distance < threshold are removed.
+  /// `viewpoint`: the sensor's centre in the cloud's frame (metres); unset, the origin, which
+  /// is the camera centre of a cloud in its camera frame. A sensor sees the table from above,
+  /// so an `up` that leaves the viewpoint below the table contradicts it: the result's
+  /// `warning` says so (the objects would be removed as "below the table").
+  std::optional<Eigen::Vector3d> viewpoint;
+  Eigen::Vector3d up = Eigen::Vector3d::Zero();  ///< zero: orient towards the viewpoint
   /// (4) Euclidean clustering: points closer than cluster_tolerance (metres) are linked.
   double cluster_tolerance = 0.02;
   /// (5) clusters with fewer than min / more than max points are dropped.
@@ -58,6 +63,8 @@ struct TableSegmentationResult {
   std::vector<std::vector<std::uint32_t>> objects;
   std::size_t cropped_points = 0;  ///< finite points inside the crop box
   std::size_t above_points = 0;    ///< points left after step (3)
+  /// Empty, or why the result is suspect: an `up` that puts the viewpoint below the table.
+  std::string warning;
   bool success() const { return status == RansacStatus::kSuccess; }
 };
 
