@@ -118,7 +118,7 @@ OTHER = {
     "shape": "capsule", "name": "changed", "method": "flags",
     "model_frame": "camera", "registration": "pcl_svd",
     "box": _core.registration.Box(-0.1, 0.1, -0.2, 0.2, 0.0, 1.0), "crop_box": _core.registration.Box(-1, 1, -1, 1, 0, 2),
-    "center": np.array([0.01, 0.02, 0.03]), "T_model_grasp": ROT, "T_flange_tcp": ROT, "T_scene_model": ROT,
+    "center": np.array([0.01, 0.02, 0.03]), "viewpoint": np.array([0.0, 0.0, 0.5]), "T_model_grasp": ROT, "T_flange_tcp": ROT, "T_scene_model": ROT,
     "approach": np.array([1.0, 0.0, 0.0]), "axis": np.array([0.0, 1.0, 0.0]), "view": 3,
     "capsule_a": np.array([0.0, 0.0, 0.01]), "capsule_b": np.array([0.0, 0.0, 0.12]),
 }
@@ -283,6 +283,10 @@ def _results():
     scene = np.vstack([table, box, box + [0.15, 0.1, 0.0]])
     out["segmentation.PlaneResult"] = _core.segmentation.ransac_plane(scene, 0.002, num_threads=THREADS)
     out["segmentation.SphereResult"] = _core.segmentation.ransac_sphere(sphere, 0.001, num_threads=THREADS)
+    phi = rng.uniform(0, np.pi, 800)
+    mantle = np.c_[0.03 * np.cos(phi), 0.03 * np.sin(phi), rng.uniform(0, 0.1, 800)]
+    out["segmentation.CylinderResult"] = _core.segmentation.ransac_cylinder(
+        mantle, 0.001, normals=np.c_[np.cos(phi), np.sin(phi), np.zeros(800)], num_threads=THREADS)
     out["segmentation.TableSegmentationResult"] = _core.segmentation.segment_table_full(
         scene, threshold=0.002, up=(0, 0, 1), cluster_tolerance=0.01, min_cluster_size=50, num_threads=THREADS)
 

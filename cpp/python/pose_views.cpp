@@ -200,6 +200,15 @@ void bindPoseViews(py::module_& m) {
   m.def("view_intrinsics", &viewIntrinsics, py::arg("resolution"), py::arg("view_angle") = kDefaultViewAngle,
         "square pinhole camera with field of view view_angle (rad) across resolution pixels");
   m.attr("DEFAULT_VIEW_ANGLE") = kDefaultViewAngle;
+  using CS = CloudModelSettings;
+  fieldsOf(py::class_<CS>(m, "CloudModelSettings", "How the views of a model cloud are made (metres)"))
+      .field("normal_radius", &CS::normal_radius, "m",
+             "PCA normal radius of a model cloud given without normals (points without 3 neighbours left out)")
+      .field("splat_radius", &CS::splat_radius, "m",
+             "disc drawn per point into a view's depth buffer; 0 = 1.5 x the median nearest-neighbour distance")
+      .field("depth_tolerance", &CS::depth_tolerance, "m",
+             "a point is visible at most this far behind the depth buffer; 0 = its disc's radius (>= 0.75 pixel)")
+      .settings();
   using S = ModelViewSettings;
   fieldsOf(py::class_<S>(m, "ModelViewSettings", "How a CAD model is rendered into partial views"))
       .field("resolution", &S::resolution, "px", "image width and height (thesis: 90 to 400)")
@@ -211,6 +220,7 @@ void bindPoseViews(py::module_& m) {
       .field("num_threads", &S::num_threads, "", "rasteriser threads, 0 = all cores")
       .field("max_memory_bytes", &S::max_memory_bytes, "bytes",
              "refuse (ValueError, before rendering) when views x resolution^2 x 64 bytes exceeds this")
+      .field("cloud", &S::cloud, "", "CloudModelSettings: the views of a model given as a cloud")
       .settings();
   bindModelView(m);
   m.def(
@@ -232,6 +242,22 @@ void bindPoseViews(py::module_& m) {
       "the views of a mesh (vertices (V, 3) m, faces (F, 3)) from the vertices of the tessellated sphere, in order. "
       "ValueError for a malformed mesh, bad settings, or views whose worst-case memory (views x resolution^2 x 64 "
       "bytes) exceeds settings.max_memory_bytes, checked before anything is allocated");
+  m.def(
+      "cloud_model_views",
+      [](const py::array& points, const py::object& normals, const ModelViewSettings& s) {
+        const auto P = cloudView<double>(points, "model cloud");
+        const py::array held = normals.is_none() ? py::array() : asCloudArray<double>(normals, "model normals");
+        const CloudView<double> N = normals.is_none() ? CloudView<double>() : cloudView<double>(held, "model normals");
+        py::gil_scoped_release release;
+        return cloudModelViews(P, N, s);
+      },
+      py::arg("points"), py::arg("normals"), py::arg("settings"),
+      "the views of a model cloud (points (N, 3) float64, m; normals (N, 3) or None: PCA normals of radius "
+      "settings.cloud.normal_radius) from the same cameras as render_model_views: the points each camera sees (a "
+      "splat z-buffer), normals turned towards it. ValueError for a malformed cloud or bad settings");
+  m.def("is_cloud_model", &isCloudModel, py::arg("views"),
+        "whether the views are a model cloud's (face_id -1 throughout): find_parts's coverage gate then checks the "
+        "matching view against the cluster");
 }
 
 }  // namespace scanalign::python

@@ -499,6 +499,53 @@ def render_views(case):
         finite(v.points, "view points")
 
 
+@target("cad", points=clouds(1500), normals=choice(["none", "given", "short", "nan", "zero"]), res=counts([24, 40], 10**5),
+        level=counts(0, 9), nrad=numbers(0.02, 1e-9), splat=numbers(0.0, 1e3), tol=numbers(0.0))
+def cloud_views(case):
+    """Views of a model cloud: any cloud and settings give views of finite points facing their camera, or a
+    ValueError / TypeError naming the cause."""
+    from scanalign.io.interop import Cloud
+    from scanalign.pose import model_views as cad
+    pts = build(case["points"])
+    n = len(pts) if isinstance(pts, np.ndarray) and pts.ndim == 2 else 3
+    normals = {"none": None, "given": np.random.default_rng(n).normal(size=(n, 3)), "short": np.ones((max(n - 1, 0), 3)),
+               "nan": np.full((n, 3), NAN), "zero": np.zeros((n, 3))}[case["normals"]]
+    model = pts if normals is None else Cloud(pts, normals)
+    views = call(cad.cloud_views, model, resolution=case["res"], level=case["level"],
+                 cloud={"normal_radius": case["nrad"], "splat_radius": case["splat"], "depth_tolerance": case["tol"]})
+    for v in views or []:
+        finite(v.points, "view points")
+        eye = np.asarray(v.T_model_camera)[:3, 3]
+        if len(v.points) and np.any(np.einsum("ij,ij->i", v.normals, eye - v.points) < -1e-9):
+            raise ContractError("a cloud view's normal faces away from its camera")
+
+
+@target("cad", points=clouds(600), kind=choice(["pcd", "ply", "xyz", "empty"]))
+def read_model(case, tmp=[]):
+    """write_pcd / write_ply then read_model: the points come back (float32), or a ValueError names the file."""
+    import tempfile
+    from pathlib import Path
+
+    from scanalign import io
+    from scanalign.pose import model_views as cad
+    if not tmp:
+        tmp.append(Path(tempfile.mkdtemp(prefix="fuzz_read_model_")))
+    path = tmp[0] / f"model.{case['kind'] if case['kind'] != 'empty' else 'pcd'}"
+    pts = build(case["points"])
+    if case["kind"] == "empty":
+        path.write_bytes(b"")
+    elif case["kind"] == "xyz":
+        path.write_text("0 0 0\n")
+    elif call((io.write_pcd if case["kind"] == "pcd" else io.write_ply), path, pts) is None and not path.exists():
+        return
+    model = call(cad.read_model, path)
+    if model is not None and case["kind"] in ("pcd", "ply") and isinstance(pts, np.ndarray) and pts.ndim == 2:
+        good = np.asarray(pts, dtype=np.float32)
+        good = good[np.all(np.isfinite(good), axis=1)]
+        if len(model.points) != len(good) or not np.allclose(model.points, good, equal_nan=True):
+            raise ContractError(f"read_model gave {len(model.points)} points for {len(good)} finite ones written")
+
+
 @target("pose", src=clouds(300), tgt=clouds(300), w=choice(["none", "weights", "neg_weights", "short"]), svd=st.booleans())
 def estimate_motor(case):
     from scanalign import pose

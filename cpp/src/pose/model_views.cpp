@@ -1,7 +1,9 @@
 // Model views for CAD pose. See model_views.hpp.
 #include "scanalign/pose/model_views.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -10,7 +12,10 @@
 #include <Eigen/Geometry>
 
 #include "scanalign/common/rigid.hpp"
+#include "scanalign/common/threads.hpp"
+#include "scanalign/features/normals.hpp"
 #include "scanalign/reconstruction/depth_renderer.hpp"
+#include "scanalign/registration/kdtree.hpp"
 
 namespace scanalign {
 
@@ -120,23 +125,30 @@ ModelView backProject(const DepthImage& img, const PinholeIntrinsics& K, const E
 
 }  // namespace
 
-std::vector<ModelView> renderModelViews(const CloudView<double>& V, const std::int32_t* faces, std::size_t n_faces,
-                                        const ModelViewSettings& s) {
-  checkMesh(V, faces, n_faces);
-  const PinholeIntrinsics K = viewIntrinsics(s.resolution, s.view_angle);
-  if (s.level < 0 || s.level > 6)
-    throw std::invalid_argument("level must be in [0, 6], got " + std::to_string(s.level));
+namespace {
+
+/// Validates the settings every model's views share and refuses views that could need more
+/// than max_memory_bytes (`points_per_view`: the most points one view can hold).
+void checkViewSettings(const ModelViewSettings& s, double points_per_view) {
+  viewIntrinsics(s.resolution, s.view_angle);  // validates resolution and view_angle
+  if (s.level < 0 || s.level > 6) throw std::invalid_argument("level must be in [0, 6], got " + std::to_string(s.level));
   if (!(s.max_memory_bytes > 0)) throw std::invalid_argument("max_memory_bytes must be > 0");
-  // Refuse before allocating: every view may hold a point per pixel.
+  // Refuse before allocating: every view may hold points_per_view points.
   const double n_views = 10.0 * std::pow(4.0, s.level) + 2.0;
-  const double need = n_views * double(s.resolution) * double(s.resolution) * kModelViewBytesPerPixel;
+  const double need = n_views * points_per_view * kModelViewBytesPerPixel;
   if (need > s.max_memory_bytes)
-    throw std::invalid_argument("model views: " + std::to_string(static_cast<long long>(n_views)) + " views of " +
-                                std::to_string(s.resolution) + "^2 pixels may need " +
+    throw std::invalid_argument("model views: " + std::to_string(static_cast<long long>(n_views)) + " views of up to " +
+                                std::to_string(static_cast<long long>(points_per_view)) + " points may need " +
                                 std::to_string(static_cast<long long>(need / (1 << 20))) +
                                 " MiB, more than max_memory_bytes (" +
                                 std::to_string(static_cast<long long>(s.max_memory_bytes / (1 << 20))) +
                                 " MiB); lower resolution or level, or raise max_memory_bytes");
+}
+
+/// The cameras' common target and distance: the settings' centre (default the bounding box's)
+/// and the distance at which the bounding sphere fills 90 % of the field of view (or the
+/// settings' distance, which must clear the model).
+std::pair<Eigen::Vector3d, double> viewRig(const CloudView<double>& V, const ModelViewSettings& s, const char* what) {
   Eigen::Vector3d lo = V[0], hi = V[0];
   for (std::size_t i = 1; i < V.size; ++i) {
     lo = lo.cwiseMin(V[i]);
@@ -146,11 +158,28 @@ std::vector<ModelView> renderModelViews(const CloudView<double>& V, const std::i
   if (!c.allFinite()) throw std::invalid_argument("center: expected 3 finite coordinates (m)");
   double radius = 0;
   for (std::size_t i = 0; i < V.size; ++i) radius = std::max(radius, (V[i] - c).norm());
-  if (!(radius > 0)) throw std::invalid_argument("mesh: all vertices coincide");
+  if (!(radius > 0)) throw std::invalid_argument(std::string(what) + ": all points coincide");
   const double distance = s.distance == 0.0 ? radius / std::sin(0.5 * 0.9 * s.view_angle) : s.distance;
   if (!(std::isfinite(distance) && distance > radius))
     throw std::invalid_argument("distance must be finite and larger than the model's bounding radius " +
                                 std::to_string(radius) + " m, got " + std::to_string(s.distance));
+  return {c, distance};
+}
+
+/// The camera on the tessellated sphere's vertex d: camera -> model.
+Eigen::Matrix4d viewCamera(const Eigen::Vector3d& c, double distance, const Eigen::Vector3d& d) {
+  const Eigen::Vector3d up = std::abs(d.z()) < 0.99 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY();
+  return lookAt(c + distance * d, c, up);
+}
+
+}  // namespace
+
+std::vector<ModelView> renderModelViews(const CloudView<double>& V, const std::int32_t* faces, std::size_t n_faces,
+                                        const ModelViewSettings& s) {
+  checkMesh(V, faces, n_faces);
+  const PinholeIntrinsics K = viewIntrinsics(s.resolution, s.view_angle);
+  checkViewSettings(s, double(s.resolution) * double(s.resolution));
+  const auto [c, distance] = viewRig(V, s, "mesh");
   const std::vector<Eigen::Vector3d> normals = faceNormals(V, faces, n_faces);
   const std::vector<std::int32_t> face_list(faces, faces + 3 * n_faces);
   DepthRenderSettings rs;
@@ -158,13 +187,179 @@ std::vector<ModelView> renderModelViews(const CloudView<double>& V, const std::i
   rs.num_threads = s.num_threads;
   std::vector<ModelView> views;
   for (const Eigen::Vector3d& d : tessellatedSphere(s.level).vertices) {
-    const Eigen::Vector3d eye = c + distance * d;
-    const Eigen::Vector3d up = std::abs(d.z()) < 0.99 ? Eigen::Vector3d::UnitZ() : Eigen::Vector3d::UnitY();
-    const Eigen::Matrix4d T_model_camera = lookAt(eye, c, up);
+    const Eigen::Matrix4d T_model_camera = viewCamera(c, distance, d);
     const DepthImage img = renderDepth(V, face_list, K, rigidInverse(T_model_camera), rs);
     views.push_back(backProject(img, K, T_model_camera, normals));
   }
   return views;
+}
+
+namespace {
+
+/// The median distance from a point to its nearest other point (up to 1000 points sampled), m.
+double medianSpacing(const std::vector<Eigen::Vector3d>& P, double extent) {
+  std::vector<double> xyz;
+  xyz.reserve(3 * P.size());
+  for (const auto& p : P) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
+  const CloudView<double> cloud(xyz.data(), P.size());
+  const LeftBalancedKdTree<double> tree(cloud);
+  std::vector<double> nearest;
+  const std::size_t step = std::max<std::size_t>(1, P.size() / 1000);
+  for (std::size_t i = 0; i < P.size(); i += step) {
+    double best = std::numeric_limits<double>::infinity();
+    for (double r = 1e-3 * extent; !std::isfinite(best) && r <= 2 * extent; r *= 2)
+      tree.forEachInRadius(cloud.ptr(i), r * r, [&](std::uint32_t, double d2) {
+        if (d2 > 0) best = std::min(best, d2);
+      });
+    if (std::isfinite(best)) nearest.push_back(std::sqrt(best));
+  }
+  if (nearest.empty()) return 1e-3 * extent;
+  std::nth_element(nearest.begin(), nearest.begin() + nearest.size() / 2, nearest.end());
+  return nearest[nearest.size() / 2];
+}
+
+/// One camera's view of the cloud: splat every point into a depth buffer, keep those at most
+/// `tolerance` behind it, turn their normals towards the camera.
+ModelView splatView(const std::vector<Eigen::Vector3d>& P, const std::vector<Eigen::Vector3d>& N,
+                    const Eigen::Matrix4d& T_model_camera, const PinholeIntrinsics& K, double splat, double tolerance) {
+  ModelView v;
+  v.T_model_camera = T_model_camera;
+  v.intrinsics = K;
+  const Eigen::Matrix3d R = T_model_camera.topLeftCorner<3, 3>();
+  const Eigen::Vector3d eye = T_model_camera.topRightCorner<3, 1>();
+  const int W = K.width, H = K.height;
+  std::vector<double> depth(static_cast<std::size_t>(W) * H, std::numeric_limits<double>::infinity());
+  std::vector<Eigen::Vector3d> pc(P.size());
+  for (std::size_t i = 0; i < P.size(); ++i) {
+    pc[i] = R.transpose() * (P[i] - eye);
+    const double z = pc[i].z();
+    if (!(z > 0)) continue;
+    // A surfel: the disc lies in the point's tangent plane n . (X - p) = 0, so its depth at a
+    // pixel is where that pixel's ray meets the plane (a disc at constant depth would hide the
+    // rest of a sloped surface); at grazing angles the offset is capped at the splat radius.
+    const Eigen::Vector3d n = R.transpose() * N[i];
+    const double np = n.dot(pc[i]);
+    const double u = K.fx * pc[i].x() / z + K.cx, w = K.fy * pc[i].y() / z + K.cy;
+    // pixels: at least 0.75, so that a point covers the centre of its own pixel (0.71 away at most);
+    // at most 32 (a point next to the camera)
+    const double r = std::clamp(splat * K.fx / z, 0.75, 32.0);
+    const double reach = r * z / K.fx;  // the disc's radius in metres
+    const int c0 = std::max(0, int(std::ceil(u - r))), c1 = std::min(W - 1, int(std::floor(u + r)));
+    const int r0 = std::max(0, int(std::ceil(w - r))), r1 = std::min(H - 1, int(std::floor(w + r)));
+    for (int row = r0; row <= r1; ++row)
+      for (int col = c0; col <= c1; ++col)
+        if ((col - u) * (col - u) + (row - w) * (row - w) <= r * r) {
+          const Eigen::Vector3d ray((col - K.cx) / K.fx, (row - K.cy) / K.fy, 1.0);
+          const double nr = n.dot(ray);
+          const double zp = std::abs(nr) > 1e-9 ? np / nr : z;
+          double& d = depth[static_cast<std::size_t>(row) * W + col];
+          d = std::min(d, std::clamp(zp, z - reach, z + reach));
+        }
+  }
+  // Of the visible points in each pixel, the one that projects nearest its centre (where a mesh
+  // view's ray samples the surface): a view as dense as a mesh's at this resolution, however
+  // dense the cloud.
+  constexpr std::size_t kNone = std::numeric_limits<std::size_t>::max();
+  std::vector<std::size_t> nearest(depth.size(), kNone);
+  std::vector<double> offset(depth.size(), std::numeric_limits<double>::infinity());
+  for (std::size_t i = 0; i < P.size(); ++i) {
+    const double z = pc[i].z();
+    if (!(z > 0)) continue;
+    const double u = K.fx * pc[i].x() / z + K.cx, w = K.fy * pc[i].y() / z + K.cy;
+    const int col = int(std::lround(u)), row = int(std::lround(w));
+    if (col < 0 || col >= W || row < 0 || row >= H) continue;
+    const std::size_t pixel = static_cast<std::size_t>(row) * W + col;
+    // Hidden when behind the surface by more than the tolerance (default: the disc's radius,
+    // the depth a surface sloped at 45 degrees spans across it).
+    const double tol = tolerance > 0 ? tolerance : 2 * std::max(splat, 0.75 * z / K.fx);
+    if (z > depth[pixel] + tol) continue;
+    const double off = (u - col) * (u - col) + (w - row) * (w - row);
+    if (off < offset[pixel]) {
+      offset[pixel] = off;
+      nearest[pixel] = i;
+    }
+  }
+  for (std::size_t pixel = 0; pixel < nearest.size(); ++pixel) {
+    const std::size_t i = nearest[pixel];
+    if (i == kNone) continue;
+    const Eigen::Vector3d n = N[i].dot(eye - P[i]) < 0 ? Eigen::Vector3d(-N[i]) : N[i];
+    v.points.insert(v.points.end(), {P[i].x(), P[i].y(), P[i].z()});
+    v.normals.insert(v.normals.end(), {n.x(), n.y(), n.z()});
+    v.face_id.push_back(-1);
+    v.pixels.insert(v.pixels.end(), {static_cast<std::int32_t>(pixel % W), static_cast<std::int32_t>(pixel / W)});
+  }
+  return v;
+}
+
+/// The cloud's points and unit normals (given, or estimated; points without one dropped).
+void cloudWithNormals(const CloudView<double>& points, const CloudView<double>& normals, double normal_radius,
+                      int num_threads, std::vector<Eigen::Vector3d>& P, std::vector<Eigen::Vector3d>& N) {
+  std::vector<double> estimated;
+  CloudView<double> nv = normals;
+  if (normals.empty()) {
+    NormalEstimationSettings ns;
+    ns.radius = normal_radius;
+    ns.num_threads = num_threads;
+    estimated.resize(3 * points.size);
+    estimateNormals(points, ns, estimated.data());
+    nv = CloudView<double>(estimated.data(), points.size);
+  }
+  for (std::size_t i = 0; i < points.size; ++i) {
+    const Eigen::Vector3d n = nv[i];
+    if (!normals.empty() && !(n.allFinite() && n.norm() > 0))
+      throw std::invalid_argument("model cloud: normal " + std::to_string(i) + " is not a finite non-zero vector");
+    if (!n.allFinite()) continue;  // estimated: too few neighbours within normal_radius
+    P.push_back(points[i]);
+    N.push_back(n.normalized());
+  }
+  if (P.size() < 3)
+    throw std::invalid_argument("model cloud: fewer than 3 points have a normal (" + std::to_string(P.size()) +
+                                "); raise views.cloud.normal_radius (" + std::to_string(normal_radius) +
+                                " m) to the cloud's point spacing or more, or give normals");
+}
+
+}  // namespace
+
+std::vector<ModelView> cloudModelViews(const CloudView<double>& points, const CloudView<double>& normals,
+                                       const ModelViewSettings& s) {
+  if (points.size < 3) throw std::invalid_argument("model cloud: need at least 3 points, got " + std::to_string(points.size));
+  for (std::size_t i = 0; i < points.size; ++i)
+    if (!points.isFinite(i)) throw std::invalid_argument("model cloud: non-finite coordinates at point " + std::to_string(i));
+  if (!normals.empty() && normals.size != points.size)
+    throw std::invalid_argument("model cloud: " + std::to_string(normals.size) + " normals for " +
+                                std::to_string(points.size) + " points");
+  const CloudModelSettings& cs = s.cloud;
+  if (!(cs.normal_radius > 0) || !std::isfinite(cs.normal_radius))
+    throw std::invalid_argument("cloud.normal_radius must be a finite positive distance in metres");
+  if (!(cs.splat_radius >= 0) || !std::isfinite(cs.splat_radius))
+    throw std::invalid_argument("cloud.splat_radius must be finite and >= 0 metres (0: automatic)");
+  if (!(cs.depth_tolerance >= 0) || !std::isfinite(cs.depth_tolerance))
+    throw std::invalid_argument("cloud.depth_tolerance must be finite and >= 0 metres (0: the splat radius)");
+  const PinholeIntrinsics K = viewIntrinsics(s.resolution, s.view_angle);
+  checkViewSettings(s, std::min(double(points.size), double(s.resolution) * double(s.resolution)));
+  const auto [c, distance] = viewRig(points, s, "model cloud");
+  std::vector<Eigen::Vector3d> P, N;
+  cloudWithNormals(points, normals, cs.normal_radius, s.num_threads, P, N);
+  const double splat = cs.splat_radius > 0 ? cs.splat_radius : 1.5 * medianSpacing(P, distance);
+  const double tolerance = cs.depth_tolerance;  // 0: per point, the disc's radius
+  const std::vector<Eigen::Vector3d> dirs = tessellatedSphere(s.level).vertices;
+  std::vector<ModelView> views(dirs.size());
+  const int threads = resolveThreads(s.num_threads);
+#pragma omp parallel for schedule(dynamic, 1) num_threads(threads)
+  for (int k = 0; k < static_cast<int>(dirs.size()); ++k)
+    views[static_cast<std::size_t>(k)] = splatView(P, N, viewCamera(c, distance, dirs[static_cast<std::size_t>(k)]), K,
+                                                   splat, tolerance);
+  return views;
+}
+
+bool isCloudModel(const std::vector<ModelView>& views) {
+  bool any = false;
+  for (const ModelView& v : views)
+    for (const std::int32_t f : v.face_id) {
+      if (f >= 0) return false;
+      any = true;
+    }
+  return any;
 }
 
 }  // namespace scanalign

@@ -239,6 +239,37 @@ Eigen::Matrix4d polishOnSurface(const Eigen::Matrix4d& T_scene_model, const Part
   return moved.first <= s.same_pose_angle && moved.second <= s.same_pose_distance ? T : T_scene_model;
 }
 
+/// The surface-coverage gate (FindPartsSettings::min_surface_coverage); false, with the message
+/// set, when the detection fails it. A mesh model is the part's whole surface: every cluster
+/// point must lie on it. A model cloud may be a partial scan (isCloudModel): cluster points
+/// on the side it never saw prove nothing, so the test turns round: the points of the view
+/// that matched (what the model shows from the sensor's side) must lie on the cluster.
+bool surfaceCoverageHolds(PartDetection& d, const std::vector<ModelView>& views, const PartSurface& surface,
+                          const PreparedScene& scene, int best, const FindPartsSettings& s) {
+  const double reach = s.polish_distance;
+  const bool cloud_model = isCloudModel(views);
+  const int v = d.pose.view;
+  char m[320];
+  if (cloud_model && v >= 0 && static_cast<std::size_t>(v) < views.size() && views[static_cast<std::size_t>(v)].size() > 0) {
+    d.surface_coverage = alignmentFitness(views[static_cast<std::size_t>(v)].cloud(), scene.cloud(),
+                                          d.pose.T_scene_model, reach, s.pose.num_threads).first;
+    std::snprintf(m, sizeof m, "only %.1f %% of the points part %d's model cloud shows from the matching view (%d) lie "
+                  "within %.1f mm of the cluster at its best pose (min_surface_coverage %.1f %%): another part, a "
+                  "part of another size, or a model scanned from another side",
+                  100 * d.surface_coverage, best, v, 1e3 * reach, 100 * s.min_surface_coverage);
+  } else {
+    d.surface_coverage = alignmentFitness(scene.cloud(), surface.cloud(), rigidInverse(d.pose.T_scene_model), reach,
+                                          s.pose.num_threads).first;
+    std::snprintf(m, sizeof m, "only %.1f %% of the cluster's points lie within %.1f mm of part %d's surface at its best "
+                  "pose (min_surface_coverage %.1f %%): another part, or a part of another size",
+                  100 * d.surface_coverage, 1e3 * reach, best, 100 * s.min_surface_coverage);
+  }
+  if (d.surface_coverage >= s.min_surface_coverage) return true;
+  d.message = m;
+  d.pose.found = false;
+  return false;
+}
+
 /// Best part, its status and the runner-up: the best-scoring pose of every other part, and
 /// every candidate of the best part whose pose its symmetry does not make the same.
 void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<PartSymmetry>& sym,
@@ -320,20 +351,9 @@ void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<P
       d.runner_up_angle = err.first;
       d.runner_up_distance = err.second;
     }
-  if (s.polish_distance > 0) {
-    const double reach = s.polish_distance;
-    d.surface_coverage = alignmentFitness(scene.cloud(), surfaces[static_cast<std::size_t>(best)].cloud(),
-                                          rigidInverse(d.pose.T_scene_model), reach, s.pose.num_threads).first;
-    if (d.surface_coverage < s.min_surface_coverage) {
-      char m[240];
-      std::snprintf(m, sizeof m, "only %.1f %% of the cluster's points lie within %.1f mm of part %d's surface at its best "
-                    "pose (min_surface_coverage %.1f %%): another part, or a part of another size",
-                    100 * d.surface_coverage, 1e3 * reach, best, 100 * s.min_surface_coverage);
-      d.message = m;
-      d.pose.found = false;
-      return;  // status stays NotFound
-    }
-  }
+  if (s.polish_distance > 0 && !surfaceCoverageHolds(d, models[static_cast<std::size_t>(best)],
+                                                      surfaces[static_cast<std::size_t>(best)], scene, best, s))
+    return;  // status stays NotFound
   d.status = DetectionStatus::Found;
   if (d.runner_up_part >= 0 && d.runner_up_score >= (1 - s.ambiguity_margin) * d.score) {
     d.status = DetectionStatus::Ambiguous;

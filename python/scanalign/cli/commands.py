@@ -26,10 +26,12 @@ from scanalign.common.settings import to_dict
 from scanalign.data import parts
 from scanalign.datasets import tum
 from scanalign.features import NormalEstimationSettings, estimate_normals
+from scanalign.io.interop import Cloud
 from scanalign.pipelines import batch
 from scanalign.pipelines import pick as _pick
 from scanalign.pipelines.reconstruct import (DEMO_SETTINGS, ReconstructionFailed, model_mesh_distance, reconstruct,
                                              write_joints_csv)
+from scanalign.pose.model_views import read_model
 from scanalign.reconstruction import ReconstructionSettings
 from scanalign.reconstruction.camera import INTRINSICS_PRESETS
 from scanalign.registration import Box, IcpSettings, icp, pcl_icp
@@ -372,16 +374,17 @@ def pose_command(args: argparse.Namespace) -> int:
     """``scanalign pose``: find a CAD part in a scan; exit status 1 when no object is found."""
     if not (np.isfinite(args.model_scale) and args.model_scale > 0):
         raise ValueError(f"--model-scale must be a finite factor > 0, got {args.model_scale}")
-    mesh = io.read_mesh(_existing(args.model, "model"))
+    model = read_model(_existing(args.model, "model"))  # a mesh, or a model cloud (PCD, face-less PLY)
     if args.model_scale != 1.0:
-        mesh = io.Mesh(np.asarray(mesh.vertices) * args.model_scale, mesh.faces)
+        model = (model._replace(points=model.points * args.model_scale) if isinstance(model, Cloud)
+                 else io.Mesh(np.asarray(model.vertices) * args.model_scale, model.faces))
     scene, _ = io.read_cloud(_existing(args.scene, "scene"))
     scene = scene[np.all(np.isfinite(scene), axis=1)]
     if args.no_segment:
-        results = [_pose.estimate_pose(mesh, scene, args.settings.pose, views=args.views, progress=not args.quiet)]
+        results = [_pose.estimate_pose(model, scene, args.settings.pose, views=args.views, progress=not args.quiet)]
         objects = [np.arange(len(scene))]
     else:
-        found = _pose.find_objects(mesh, scene, args.settings, views=args.views, progress=not args.quiet)
+        found = _pose.find_objects(model, scene, args.settings, views=args.views, progress=not args.quiet)
         results, objects = found.poses, found.objects
         if not results:
             print("scanalign pose: no object cluster above the table", file=sys.stderr)
@@ -395,7 +398,7 @@ def pose_command(args: argparse.Namespace) -> int:
         if r.found:
             print("  T_scene_model =\n" + np.array2string(np.asarray(r.T_scene_model), precision=6,
                                                            suppress_small=True, prefix="  "))
-            paths = write_pose_outputs(mesh, scene, r, out / f"object{k}", object_indices=idx)
+            paths = write_pose_outputs(model, scene, r, out / f"object{k}", object_indices=idx)
             report[-1].update({key: str(v) for key, v in paths.items()})
     (out / "poses.json").write_text(json.dumps(report, indent=2))
     print(f"wrote {out / 'poses.json'}")
@@ -632,7 +635,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                                    "stock PCL baseline), refines with ICP and reports T_scene_model (scene <- "
                                    "model), fitness, RMSE and time. Writes poses.json, the aligned model as PLY "
                                    "and a PNG overlay per object. Exit status 1 when nothing is found.")
-    p.add_argument("--model", required=True, help="CAD mesh: STL, PLY, OFF or OBJ (metres, or see --model-scale)")
+    p.add_argument("--model", required=True, help="the part: a CAD mesh (STL, PLY, OFF, OBJ) or a scanned model cloud "
+                                                  "(PCD, PLY without faces; whole or partial); metres, or see "
+                                                  "--model-scale")
     p.add_argument("--scene", required=True, help="scan: PCD or PLY, metres, camera frame")
     p.add_argument("--model-scale", type=float, default=1.0, help="multiply the model's coordinates (0.001: mm)")
     p.add_argument("--views", type=int, nargs="+", help="only these of the 42 views (default all)")

@@ -33,7 +33,7 @@ from plyfile import PlyData, PlyElementParseError, PlyHeaderParseError
 from scanalign._core import io as _io
 
 __all__ = ["Mesh", "atomic_open", "lzf_decompress", "read_cloud", "read_mesh", "read_pcd", "read_pcd_points",
-           "read_ply_points", "unpack_rgb", "write_ply"]
+           "read_ply_points", "unpack_rgb", "write_pcd", "write_ply"]
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -263,6 +263,29 @@ def write_ply(path: PathLike, points: npt.ArrayLike, normals: npt.ArrayLike | No
         else:
             fmt = " ".join("%.9g" if c.dtype.kind == "f" else "%d" for _, c in columns)
             np.savetxt(fh, np.column_stack([c.astype(np.float64) for _, c in columns]), fmt=fmt)
+
+
+def write_pcd(path: PathLike, points: npt.ArrayLike, normals: npt.ArrayLike | None = None) -> None:
+    """Write a point cloud as a PCL ``.pcd`` file (``DATA binary``, version 0.7): fields ``x y z`` and, with
+    ``normals``, ``normal_x normal_y normal_z``, all float32; an unorganised cloud (``HEIGHT 1``) with the identity
+    ``VIEWPOINT``. ``points``: ``(N, 3)``, metres by library convention; ``normals``: optional ``(N, 3)``. PCL,
+    Open3D and :func:`read_pcd` read it. ValueError: wrong shapes."""
+    xyz = np.asarray(points, dtype=np.float32)
+    if xyz.ndim != 2 or xyz.shape[1] != 3:
+        raise ValueError(f"points must have shape (N, 3), got {xyz.shape}")
+    fields, columns = ["x", "y", "z"], [xyz]
+    if normals is not None:
+        nrm = np.asarray(normals, dtype=np.float32)
+        if nrm.shape != xyz.shape:
+            raise ValueError(f"normals must have shape ({len(xyz)}, 3), got {nrm.shape}")
+        fields, columns = fields + ["normal_x", "normal_y", "normal_z"], columns + [nrm]
+    k, n = len(fields), len(xyz)
+    header = ["# .PCD v0.7 - Point Cloud Data file format (written by scanalign)", "VERSION 0.7",
+              "FIELDS " + " ".join(fields), "SIZE" + " 4" * k, "TYPE" + " F" * k, "COUNT" + " 1" * k, f"WIDTH {n}",
+              "HEIGHT 1", "VIEWPOINT 0 0 0 1 0 0 0", f"POINTS {n}", "DATA binary"]
+    with atomic_open(path, "wb") as fh:
+        fh.write(("\n".join(header) + "\n").encode("ascii"))
+        fh.write(np.hstack(columns).astype("<f4").tobytes())
 
 
 def read_ply_points(path: PathLike) -> dict[str, np.ndarray]:

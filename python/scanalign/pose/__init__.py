@@ -17,16 +17,14 @@ pipeline that is ``T_scene_model``: it maps model (CAD) coordinates into the sce
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 from typing import Any, Callable, Dict, List, Literal, Optional, Sequence, Tuple
 
 import numpy as np
 
-from scanalign import _core, io
-from scanalign.common.arrays import as_points, as_transform, foreign_kind
+from scanalign import _core
+from scanalign.common.arrays import as_points, as_transform
 from scanalign.common.settings import (UnknownSettingError, field_names, is_struct, set_fields, set_path, update,
                                       with_overrides)
-from scanalign.features import estimate_normals
 from scanalign.pose import cbd as _cbd
 from scanalign.pose import model_views as cad
 
@@ -188,20 +186,10 @@ def pcl_feature_alignment(source: np.ndarray, target: np.ndarray, method: str = 
 
 # --- pipeline -----------------------------------------------------------------------------------
 
-def _model_views(model: object, views: Any) -> Tuple[List[Any], bool]:
-    """The model as views: rendered from a mesh (or mesh file) with ``views`` (the
-    ``ModelViewSettings`` of the pose settings), given views, or one cloud."""
-    if isinstance(model, list) and model and all(isinstance(v, cad.ModelView) for v in model):
-        return model, False
-    if isinstance(model, (str, Path)):
-        model = io.read_mesh(model)
-    if isinstance(model, np.ndarray) or foreign_kind(model) == "cloud":  # or an Open3D / trimesh cloud
-        p = as_points(model, "model", np.dtype(np.float64))
-        if len(p) == 0:
-            raise ValueError("model: empty cloud")
-        n = estimate_normals(p, radius=0.005, viewpoint=p.mean(axis=0) + np.array([0, 0, 1.0]))
-        return [cad.ModelView(p, n)], True
-    return _P.render_model_views(*cad._mesh_arrays(model), views), False
+def _model_views(model: object, views: Any) -> List[Any]:
+    """The model as views (:func:`scanalign.pose.model_views.model_views`): rendered from a mesh, the visible subsets of
+    a model cloud, from a model file, or given; ``views``: the ``ModelViewSettings`` of the pose settings."""
+    return cad.model_views(model, views)
 
 
 def _progress(what: str, pose_settings: Any, enabled: bool) -> Optional[Callable[[int, int], None]]:
@@ -296,12 +284,9 @@ def estimate_pose(model: object, scene: np.ndarray, settings: Optional[PoseSetti
     coverage is below ``min_fitness`` / ``min_coverage``.
     """
     s = pose_task_settings(PoseSettings, settings, **overrides)
-    model_views, is_cloud = _model_views(model, s.views)
+    model_views = _model_views(model, s.views)
     scene = as_points(scene, "scene", np.dtype(np.float64))
-    r = _P.estimate_pose(model_views, scene, s, [int(i) for i in views or []], _progress("pose", s, progress))
-    if is_cloud:
-        r.view = None
-    return r
+    return _P.estimate_pose(model_views, scene, s, [int(i) for i in views or []], _progress("pose", s, progress))
 
 
 def find_objects(model: object, scene: np.ndarray, settings: Optional[Any] = None, *,
@@ -318,14 +303,8 @@ def find_objects(model: object, scene: np.ndarray, settings: Optional[Any] = Non
     """
     s = pose_task_settings(_P.FindObjectsSettings, settings, **overrides)
     pts = as_points(scene, "scene", np.dtype(np.float64))
-    model_views, is_cloud = _model_views(model, s.pose.views)
-    found = _P.find_objects(model_views, pts, s, [int(i) for i in views or []], _progress("pose", s.pose, progress))
-    if is_cloud:  # a model cloud has no views to name
-        poses = found.poses
-        for r in poses:
-            r.view = None
-        found.poses = poses
-    return found
+    model_views = _model_views(model, s.pose.views)
+    return _P.find_objects(model_views, pts, s, [int(i) for i in views or []], _progress("pose", s.pose, progress))
 
 
 def find_parts(models: Sequence[object], scene: np.ndarray, settings: Optional[FindPartsSettings] = None, *,
@@ -354,6 +333,6 @@ def find_parts(models: Sequence[object], scene: np.ndarray, settings: Optional[F
         raise ValueError("models: expected a non-empty list with one model per part")
     s = pose_task_settings(FindPartsSettings, settings, **overrides)
     pts = as_points(scene, "scene", np.dtype(np.float64))
-    model_views = [_model_views(m, s.pose.views)[0] for m in models]
+    model_views = [_model_views(m, s.pose.views) for m in models]
     return _P.find_parts(model_views, pts, s, None if symmetries is None else list(symmetries),
                          [int(i) for i in views or []], _progress("parts", s.pose, progress))

@@ -7,26 +7,35 @@ depth renderer; its points are back-projected into the model frame and carry the
 oriented towards that view's camera. Area-weighted sampling of the whole surface also samples surfaces a camera never
 sees (concave interiors, faces hidden by others), which is why the thesis prefers views.
 
+A scanned part (a model *cloud*, whole or partial: a PCD, a face-less PLY, an (N, 3) array, an Open3D or trimesh
+cloud) has no faces to rasterise. Its views are the points each of the same cameras sees: every point is drawn as a
+disc (a splat) into the view's depth buffer, and the points at most ``depth_tolerance`` behind it make the view
+(``ModelViewSettings.cloud``: ``normal_radius``, ``splat_radius``, ``depth_tolerance``, metres). Normals, given or
+estimated, are turned towards each camera as the mesh views' are.
+
 Units are metres and radians. ``T_model_camera`` maps camera coordinates (OpenCV: x right, y down, z along the optical
 axis) into the model frame. The rendering runs in C++ (``scanalign/pose/model_views.hpp``).
 """
 
 from __future__ import annotations
 
-from typing import Any, List, Optional, Tuple
+from pathlib import Path
+from typing import Any, List, Optional, Tuple, Union
 
 import numpy as np
 
-from scanalign import _core
-from scanalign.common.arrays import mesh_arrays
+from scanalign import _core, io
+from scanalign.common.arrays import as_points, foreign_attribute, foreign_kind, mesh_arrays
 from scanalign.common.settings import with_overrides
+from scanalign.io.interop import Cloud
 
-__all__ = ["tessellated_sphere", "ModelView", "ModelViewSettings", "render_views", "view_intrinsics",
-           "DEFAULT_VIEW_ANGLE"]
+__all__ = ["tessellated_sphere", "ModelView", "ModelViewSettings", "CloudModelSettings", "render_views",
+           "cloud_views", "model_views", "read_model", "is_cloud_model", "view_intrinsics", "DEFAULT_VIEW_ANGLE"]
 
 _P = _core.pose
 ModelView = _P.ModelView
 ModelViewSettings = _P.ModelViewSettings
+CloudModelSettings = _P.CloudModelSettings
 #: PCL's default field of view for ``renderViewTesselatedSphere``, radians (57 degrees).
 DEFAULT_VIEW_ANGLE: float = float(_P.DEFAULT_VIEW_ANGLE)
 
@@ -80,3 +89,82 @@ def render_views(mesh: object, settings: Optional[ModelViewSettings] = None, **o
     """
     V, F = _mesh_arrays(mesh)
     return _P.render_model_views(V, F, with_overrides(ModelViewSettings, settings, overrides, "view"))
+
+
+def read_model(path: Union[str, Path]) -> Union[io.Mesh, Cloud]:
+    """A part's model file: a triangle mesh (``.off``, ``.stl``, ``.obj``, a ``.ply`` with faces; :func:`scanalign.io.
+    read_mesh`) or a model cloud (``.pcd``, a ``.ply`` without faces; :func:`scanalign.io.read_cloud`, normals kept
+    when the file has them, non-finite points dropped) as an :class:`scanalign.io.interop.Cloud`. Units are the file's
+    (metres expected). ValueError naming the file for another extension or a malformed file."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".ply":
+        mesh = io.read_mesh(path)
+        if len(mesh.faces):
+            return mesh
+    if suffix in (".pcd", ".ply"):
+        points, normals = io.read_cloud(path)
+        keep = np.all(np.isfinite(points), axis=1)
+        return Cloud(points[keep], None if normals is None else np.asarray(normals, dtype=np.float64)[keep])
+    if suffix not in (".off", ".stl", ".obj"):
+        raise ValueError(f"{path}: unsupported model extension {suffix!r} (a mesh: .off, .ply, .stl, .obj; a cloud: "
+                         ".pcd, .ply without faces)")
+    return io.read_mesh(path)
+
+
+def _cloud_arrays(cloud: object) -> Tuple[np.ndarray, Optional[np.ndarray]]:
+    """(points float64, normals float64 or None) of a model cloud: a :class:`Cloud`, an (N, 3) array, or an Open3D /
+    trimesh point cloud (with its normals when it has them)."""
+    if isinstance(cloud, Cloud):
+        points, normals = cloud.points, cloud.normals
+    elif foreign_kind(cloud) == "cloud":
+        points, normals = cloud, foreign_attribute(cloud, "normals")
+    else:
+        points, normals = cloud, None
+    p = as_points(points, "model cloud", np.dtype(np.float64))
+    n = None if normals is None or len(normals) == 0 else as_points(normals, "model normals", np.dtype(np.float64))
+    return p, n
+
+
+def cloud_views(model: object, settings: Optional[ModelViewSettings] = None, **overrides: Any) -> List[ModelView]:
+    """The views of a model cloud (a scanned part, whole or partial) from the cameras :func:`render_views` uses.
+
+    Args:
+        model: the model cloud: an (N, 3) array, a :class:`scanalign.io.interop.Cloud` (``points`` and optional ``normals``), or an
+            Open3D / trimesh point cloud; metres, model frame. Normals are unoriented lines (each view turns them towards
+            its camera); without normals, PCA normals of radius ``settings.cloud.normal_radius`` (m) are estimated
+            and points without 3 neighbours within it left out.
+        settings: ``ModelViewSettings`` (the cameras as for meshes, and ``cloud``: ``CloudModelSettings``); keyword
+            ``overrides`` name its fields (``resolution``, ``cloud={"splat_radius": 0.002}``, ...).
+
+    Returns:
+        One :class:`ModelView` per sphere vertex: the points that camera sees (each point's disc drawn into the depth
+        buffer hides what lies behind it), ``face_id`` -1, ``pixels`` the points' image positions. A view may be empty
+        (a partial scan seen from a side it has no points on).
+
+    Raises:
+        ValueError / TypeError: fewer than 3 points, a non-finite point or normal, normals of another count, no point
+        with a normal, or bad settings.
+    """
+    points, normals = _cloud_arrays(model)
+    return _P.cloud_model_views(points, normals, with_overrides(ModelViewSettings, settings, overrides, "view"))
+
+
+def is_cloud_model(views: List[ModelView]) -> bool:
+    """Whether ``views`` are a model cloud's (:func:`cloud_views`): ``find_parts`` then checks the matching view's
+    points against the cluster, since a scanned model may show only part of the part."""
+    return bool(_P.is_cloud_model(list(views)))
+
+
+def model_views(model: object, settings: Optional[ModelViewSettings] = None) -> List[ModelView]:
+    """A part model as views: its given views (a list of :class:`ModelView`), the views of a mesh
+    (:func:`render_views`: a :class:`scanalign.io.Mesh`, ``(vertices, faces)``, an Open3D / trimesh mesh), of a model
+    cloud (:func:`cloud_views`: an (N, 3) array, a :class:`scanalign.io.interop.Cloud`, an Open3D / trimesh cloud),
+    or of a model file (:func:`read_model`: a mesh or a cloud by its extension and contents)."""
+    if isinstance(model, list) and model and all(isinstance(v, ModelView) for v in model):
+        return model
+    if isinstance(model, (str, Path)):
+        model = read_model(model)
+    if isinstance(model, (Cloud, np.ndarray)) or foreign_kind(model) == "cloud":
+        return cloud_views(model, settings)
+    return render_views(model, settings)

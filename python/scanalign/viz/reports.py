@@ -12,10 +12,12 @@ from scanalign import io
 from scanalign.common.arrays import as_points, foreign_kind
 from scanalign.common.rigid import transform_points
 from scanalign.data.parts import sample_mesh
+from scanalign.io.interop import Cloud
 from scanalign.kinematics import Robot
 from scanalign.pipelines.batch import BatchResult
 from scanalign.pipelines.pick import PickResult
 from scanalign.pipelines.reconstruct import ReconstructionResult
+from scanalign.pose.model_views import read_model
 from scanalign.viz import plots
 
 
@@ -64,7 +66,7 @@ def reconstruction_figures(result: ReconstructionResult, out: Path) -> Dict[str,
 
 def write_pose_outputs(model: object, scene: np.ndarray, result: Any, prefix: Union[str, Path], *,
                        object_indices: Optional[np.ndarray] = None, samples: int = 20000) -> Dict[str, Path]:
-    """Writes ``<prefix>_model.ply`` (the ``model`` -- a mesh, sampled, or an (N, 3) cloud -- placed in the scene
+    """Writes ``<prefix>_model.ply`` (the ``model`` -- a mesh, sampled, a model cloud, or a model file -- placed in the scene
     frame by ``result.T_scene_model``), ``<prefix>_scene.ply`` (the (M, 3) ``scene``, its ``object_indices`` (default
     all) orange, the rest grey, the model blue) and ``<prefix>_overlay.png`` (three projections); metres. Returns the
     paths written."""
@@ -72,7 +74,9 @@ def write_pose_outputs(model: object, scene: np.ndarray, result: Any, prefix: Un
     prefix.parent.mkdir(parents=True, exist_ok=True)
     scene = as_points(scene, "scene", np.dtype(np.float64))
     if isinstance(model, (str, Path)):
-        model = io.read_mesh(model)
+        model = read_model(model)
+    if isinstance(model, Cloud):
+        model = model.points
     cloud = isinstance(model, np.ndarray) or foreign_kind(model) == "cloud"
     mp = as_points(model, "model", np.dtype(np.float64)) if cloud else sample_mesh(model, samples, seed=0)[0]
     placed = transform_points(np.asarray(result.T_scene_model, dtype=np.float64), mp)

@@ -41,6 +41,25 @@ constexpr double kDefaultViewAngle = 57.0 * 3.14159265358979323846 / 180.0;
 PinholeIntrinsics viewIntrinsics(int resolution, double view_angle = kDefaultViewAngle);
 
 
+/// How the views of a model *cloud* (a scanned part, cloudModelViews) are made. A cloud has no
+/// faces to rasterise: each point is drawn as a disc (a splat) into the view's depth buffer, and
+/// the points at most depth_tolerance behind it are the view (the hidden points are those
+/// behind another splat).
+struct CloudModelSettings {
+  /// m: radius of the PCA normals (features/normals.hpp) of a cloud given without normals; the
+  /// eye-in-hand paper's 5 mm. Points with fewer than 3 neighbours within it are left out.
+  double normal_radius = 0.005;
+  /// m: radius of each point's disc in the depth buffer (at least 0.75 pixel); 0 = 1.5 x the
+  /// median distance from a point to its nearest neighbour (the gaps between samples close, the
+  /// surface hides what is behind it).
+  double splat_radius = 0.0;
+  /// m: a point is visible when it lies at most this far behind the depth buffer's surface at
+  /// its pixel; 0 = the point's disc radius (at least 0.75 pixel at its depth, so that every
+  /// point covers its own pixel's centre). The discs lie in the points' tangent planes
+  /// (surfels), so a sloped surface does not hide itself.
+  double depth_tolerance = 0.0;
+};
+
 struct ModelViewSettings {
   int resolution = 150;                  ///< image width and height, pixels (the thesis uses 90 to 400)
   double view_angle = kDefaultViewAngle; ///< field of view, rad
@@ -56,6 +75,7 @@ struct ModelViewSettings {
   /// The default, 4 GiB, admits the thesis's 42 views up to 1200 pixels, 642 views (level 3) at
   /// 300 pixels; level 6 (40962 views) at 150 pixels would need 66 GB.
   double max_memory_bytes = 4.0 * (1ull << 30);
+  CloudModelSettings cloud;  ///< for a model given as a cloud (cloudModelViews); meshes ignore it
 };
 
 /// Upper bound of the memory one rendered pixel costs in a ModelView: a point and a normal
@@ -89,5 +109,24 @@ struct ModelView {
 ///         whose worst-case memory exceeds settings.max_memory_bytes (checked before allocating).
 std::vector<ModelView> renderModelViews(const CloudView<double>& vertices, const std::int32_t* faces,
                                         std::size_t n_faces, const ModelViewSettings& settings = {});
+
+/// The views of a model cloud (points in the model frame, m; e.g. a scanned part, whole or
+/// partial) from the same cameras as renderModelViews: the points each camera sees (a splat
+/// z-buffer, CloudModelSettings), the nearest one per pixel (a view as dense as a mesh's at
+/// the same resolution), with their normals turned towards that camera (given normals
+/// are taken as unoriented lines; `normals` empty: PCA normals of radius cloud.normal_radius).
+/// Pixels are the points' image positions, face_id -1 (no mesh). A view may be empty (a
+/// partial scan seen from where it has no points).
+/// @throws std::invalid_argument for fewer than 3 points, a non-finite point or normal, a
+///         normal count other than the points', no point with a normal, bad settings, or
+///         views whose worst-case memory (views x points x kModelViewBytesPerPixel) exceeds
+///         settings.max_memory_bytes.
+std::vector<ModelView> cloudModelViews(const CloudView<double>& points, const CloudView<double>& normals,
+                                       const ModelViewSettings& settings = {});
+
+/// Whether `views` are those of a model cloud (every point's face_id is -1: cloudModelViews, or
+/// ModelView(points, normals)): its surface may be partial, which findParts's coverage gate
+/// takes into account.
+bool isCloudModel(const std::vector<ModelView>& views);
 
 }  // namespace scanalign
