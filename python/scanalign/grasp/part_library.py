@@ -8,8 +8,8 @@ view once (C++ ``describeModelViews``, cached in ``ModelView.cbd``); ``find_part
 (:attr:`PartLibrary.pose_settings`), else they recompute and the result is unchanged.
 
 The file is a NumPy ``.npz`` read with ``allow_pickle=False`` (no code runs on load): a
-``format`` entry (:data:`FORMAT_VERSION`), the settings as JSON, and per part its mesh,
-symmetry and views, each view as the flat state dict its C++ class pickles to
+``format`` entry (:data:`FORMAT_VERSION`), the settings as JSON, and per part its model (a
+mesh's vertices and faces, or a scanned model cloud's points and normals), symmetry and views, each view as the flat state dict its C++ class pickles to
 (``ModelView.__getstate__``). A file of another format version is refused with a
 ValueError saying so; rebuild it with :func:`build_part_library`.
 """
@@ -30,6 +30,7 @@ from scanalign import __version__, io, pose
 from scanalign._core import pose as _P
 from scanalign.grasp import PartSymmetry
 from scanalign.grasp.parts import load_part
+from scanalign.io.interop import Cloud
 from scanalign.pose import model_views as cad
 
 __all__ = ["FORMAT_VERSION", "LibraryPart", "PartLibrary", "build_part_library", "load_part_library"]
@@ -86,8 +87,8 @@ class PartLibrary:
         for i, part in enumerate(self.parts.values()):
             p = f"part{i}/"
             s = part.symmetry
-            arrays.update({p + "vertices": np.asarray(part.mesh.vertices), p + "faces": np.asarray(part.mesh.faces),
-                           p + "symmetry": np.r_[s.axis, s.point, s.order].astype(np.float64),
+            arrays.update(_model_arrays(p, part.mesh))
+            arrays.update({p + "symmetry": np.r_[s.axis, s.point, s.order].astype(np.float64),
                            p + "views": np.array(len(part.views))})
             arrays.update({f"{p}view{k}/{key}": np.asarray(value) for k, view in enumerate(part.views)
                            for key, value in view.__getstate__().items()})
@@ -95,6 +96,16 @@ class PartLibrary:
         with io.atomic_open(path, "wb") as f:
             np.savez(f, **arrays)
         return path
+
+
+def _model_arrays(prefix: str, model: Any) -> Dict[str, np.ndarray]:
+    """A part's model as library arrays: a mesh's vertices and faces, or a model cloud's points (and normals)."""
+    if isinstance(model, Cloud):
+        out = {prefix + "points": np.asarray(model.points, dtype=np.float64)}
+        if model.normals is not None:
+            out[prefix + "normals"] = np.asarray(model.normals, dtype=np.float64)
+        return out
+    return {prefix + "vertices": np.asarray(model.vertices), prefix + "faces": np.asarray(model.faces)}
 
 
 def build_part_library(parts: Sequence[Any], *, resolution: Optional[int] = None, progress: bool = False,
@@ -120,7 +131,9 @@ def build_part_library(parts: Sequence[Any], *, resolution: Optional[int] = None
     out: Dict[str, LibraryPart] = {}
     for source in tqdm(list(parts), desc="part library", unit="part", disable=not progress):
         part = load_part(source)
-        views = cad.render_views(part.mesh, resolution=resolution)
+        view_settings = settings.pose.views  # the cameras (and a model cloud's settings) find_parts will use
+        view_settings.resolution = int(resolution)
+        views = cad.model_views(part.mesh, view_settings)  # a mesh rendered, or a scanned cloud's visible subsets
         described = _P.describe_model_views(views, _P.part_pose_settings(views, settings))
         out[part.name] = LibraryPart(part.name, part.mesh, part.symmetry, described)
     return PartLibrary(out, int(resolution), dict(pose_settings))
@@ -159,8 +172,9 @@ def load_part_library(path: PathLike) -> PartLibrary:
             p = f"part{i}/"
             views = [_view(data, f"{p}view{k}/") for k in range(int(data[p + "views"]))]
             s = data[p + "symmetry"]
-            parts[name] = LibraryPart(name, io.Mesh(data[p + "vertices"], data[p + "faces"]),
-                                      PartSymmetry(axis=s[:3], point=s[3:6], order=int(s[6])), views)
+            model = (io.Mesh(data[p + "vertices"], data[p + "faces"]) if p + "faces" in data
+                     else Cloud(data[p + "points"], data.get(p + "normals")))
+            parts[name] = LibraryPart(name, model, PartSymmetry(axis=s[:3], point=s[3:6], order=int(s[6])), views)
     except (KeyError, TypeError, ValueError) as e:
         raise ValueError(f"{path}: corrupt part library ({type(e).__name__}: {e})") from None
     return PartLibrary(parts, int(meta["resolution"]), dict(meta["pose_settings"]))

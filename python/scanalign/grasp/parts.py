@@ -1,4 +1,5 @@
-"""A part ready to be found and picked: its mesh in metres, grasps, symmetry and gripper,
+"""A part ready to be found and picked: its model in metres (a CAD mesh, or a scanned model cloud), grasps, symmetry
+and gripper,
 from a part file (JSON / YAML, :func:`scanalign.grasp.read_part_grasps`), a built-in part
 name or a :class:`scanalign.grasp.PartGrasps`."""
 
@@ -16,6 +17,8 @@ from scanalign.data.labels import builtin_label
 from scanalign.data.parts import builtin_mesh, sample_mesh
 from scanalign.evaluation import MeshDistanceIndex
 from scanalign.grasp import Gripper, PartGrasps, PartSymmetry, ReferenceImage, read_part_grasps
+from scanalign.io.interop import Cloud
+from scanalign.pose.model_views import read_model, surface_points
 
 __all__ = ["BUILTIN_PART_FILES", "SYMMETRY_TOLERANCE", "check_symmetry", "load_part"]
 
@@ -47,17 +50,33 @@ def load_part(source: Any) -> Any:
     mesh = part.mesh
     if isinstance(mesh, str):
         mesh = (builtin_mesh(name=mesh[len("builtin:"):]) if mesh.startswith("builtin:")
-                else io.read_mesh(where / mesh))
-        mesh = io.Mesh(np.asarray(mesh.vertices, dtype=np.float64) * part.scale, mesh.faces)
-    if not isinstance(mesh, io.Mesh):
-        raise ValueError(f"part {part.name!r}: no mesh (give 'mesh' in the part file: a mesh file or builtin:<name>)")
+                else read_model(where / mesh))
+        mesh = _scaled(mesh, part.scale)
+    if not isinstance(mesh, (io.Mesh, Cloud)):
+        raise ValueError(f"part {part.name!r}: no model (give 'mesh' in the part file: a mesh file, a scanned model "
+                         "cloud (.pcd, .ply without faces) or builtin:<name>)")
     if part.T_model_mesh is not None:
-        mesh = io.Mesh(transform_points(require_rigid(part.T_model_mesh, "T_model_mesh"), mesh.vertices), mesh.faces)
+        mesh = _moved(mesh, require_rigid(part.T_model_mesh, "T_model_mesh"))
     symmetry = part.symmetry or PartSymmetry()
     check_symmetry(mesh, symmetry, what or f"part {part.name!r}")
     return dataclasses.replace(part, mesh=mesh, scale=1.0, T_model_mesh=None, symmetry=symmetry,
                                gripper=part.gripper or Gripper.parallel_jaw(),
                                reference_image=_loaded_reference(part.reference_image, where, what or part.name))
+
+
+def _scaled(model: Any, scale: float) -> Any:
+    """A mesh or model cloud with its coordinates times ``scale`` (normals unchanged)."""
+    if isinstance(model, Cloud):
+        return model._replace(points=np.asarray(model.points, dtype=np.float64) * scale)
+    return io.Mesh(np.asarray(model.vertices, dtype=np.float64) * scale, model.faces)
+
+
+def _moved(model: Any, T: np.ndarray) -> Any:
+    """A mesh or model cloud moved by the rigid T (a cloud's normals turned with it)."""
+    if isinstance(model, Cloud):
+        normals = None if model.normals is None else np.asarray(model.normals, dtype=np.float64) @ T[:3, :3].T
+        return model._replace(points=transform_points(T, model.points), normals=normals)
+    return io.Mesh(transform_points(T, model.vertices), model.faces)
 
 
 def _read_grey(path: Path, what: str) -> np.ndarray:
@@ -87,6 +106,25 @@ def _loaded_reference(r: Optional[ReferenceImage], where: Path, what: str) -> Op
     return out
 
 
+def _check_cloud_symmetry(cloud: Cloud, symmetry: Any, transforms: list, what: str) -> None:
+    """check_symmetry for a scanned model: 98 % of 2000 of its points, turned, must lie within the tolerance of its
+    points (a scan is noisy, and the edges of what it saw need not map onto points it has)."""
+    from scanalign.pose import alignment_fitness
+
+    points = surface_points(cloud, 2000)
+    size = float(np.ptp(points, axis=0).max())
+    target = np.asarray(cloud.points, dtype=np.float64)
+    for k, S in enumerate(transforms, start=1):
+        share = alignment_fitness(transform_points(np.asarray(S), points), target, np.eye(4), SYMMETRY_TOLERANCE * size)[0]
+        if share < 0.98:
+            axis, point = (np.round(v, 6).tolist() for v in (symmetry.axis, symmetry.point))
+            raise ValueError(
+                f"{what}: symmetry (order {symmetry.order} about axis {axis} through {point} m) does not map the model "
+                f"cloud onto itself: turned by {360 * k / (symmetry.order or len(transforms) + 1):.1f} deg, only "
+                f"{100 * share:.1f} % of its points lie within {1000 * SYMMETRY_TOLERANCE * size:.2f} mm of it (98 % "
+                "needed): check the axis, point and order (model frame, after scale and T_model_mesh)")
+
+
 def check_symmetry(mesh: Any, symmetry: Any, what: str = "part") -> None:
     """Raises ValueError naming ``what`` and ``symmetry`` unless each rotation of ``symmetry``
     (a :class:`scanalign.grasp.PartSymmetry`; order 0 checked every 5 degrees) maps the surface of
@@ -95,6 +133,9 @@ def check_symmetry(mesh: Any, symmetry: Any, what: str = "part") -> None:
     bounding-box extent) of the surface."""
     transforms = symmetry.transforms()[1:]
     if not transforms:
+        return
+    if isinstance(mesh, Cloud):
+        _check_cloud_symmetry(mesh, symmetry, transforms, what)
         return
     size = float(np.ptp(np.asarray(mesh.vertices)[np.unique(mesh.faces)], axis=0).max())
     points, index = sample_mesh(mesh, 2000, seed=0)[0], MeshDistanceIndex(mesh.vertices, mesh.faces)

@@ -36,7 +36,6 @@ from scanalign import grasp as _grasp
 from scanalign.common import rigid as se3
 from scanalign.common.arrays import as_points, foreign_kind
 from scanalign.common.settings import is_struct, with_overrides
-from scanalign.data.parts import sample_mesh
 from scanalign.grasp.parts import load_part
 from scanalign.kinematics import Robot
 from scanalign.pipelines import reconstruct as pipeline
@@ -342,7 +341,7 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     arm = _robot(robot, T_base_robot).with_tool(np.eye(4))  # the flange: the planner puts each gripper's TCP on it
     reach = float(np.sum(np.abs(arm.a)) + np.sum(np.abs(arm.d)))
     for p in part_list:
-        size = float(np.ptp(np.asarray(p.mesh.vertices), axis=0).max())
+        size = float(np.ptp(cad.surface_points(p.mesh, 5000), axis=0).max())
         if size > reach:
             raise ValueError(f"part {p.name!r} is {size:.3f} m across, larger than the {arm.name}'s workspace "
                              f"(sum of its link lengths {reach:.3f} m): check the part's scale (metres)")
@@ -373,7 +372,7 @@ def placed_parts(result: PickResult, samples: int = 5000) -> List[tuple]:
     """(pick index, (samples, 3) points of the part's surface at its found pose, base frame, m)
     for every part with a pose."""
     meshes = {p.name: p.mesh for p in result.parts}
-    return [(k, se3.transform_points(p.T_base_model, sample_mesh(meshes[p.part], samples, seed=0)[0]))
+    return [(k, se3.transform_points(p.T_base_model, cad.surface_points(meshes[p.part], samples)))
             for k, p in enumerate(result.picks) if p.T_base_model is not None]
 
 

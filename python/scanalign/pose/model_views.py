@@ -30,7 +30,8 @@ from scanalign.common.settings import with_overrides
 from scanalign.io.interop import Cloud
 
 __all__ = ["tessellated_sphere", "ModelView", "ModelViewSettings", "CloudModelSettings", "render_views",
-           "cloud_views", "model_views", "read_model", "is_cloud_model", "view_intrinsics", "DEFAULT_VIEW_ANGLE"]
+           "cloud_views", "model_views", "read_model", "is_cloud_model", "surface_points", "view_intrinsics",
+           "DEFAULT_VIEW_ANGLE"]
 
 _P = _core.pose
 ModelView = _P.ModelView
@@ -168,3 +169,17 @@ def model_views(model: object, settings: Optional[ModelViewSettings] = None) -> 
     if isinstance(model, (Cloud, np.ndarray)) or foreign_kind(model) == "cloud":
         return cloud_views(model, settings)
     return render_views(model, settings)
+
+
+def surface_points(model: object, n: int, seed: int = 0) -> np.ndarray:
+    """(n, 3) points of a model's surface, model frame, m: a mesh sampled uniformly by area
+    (:func:`scanalign.data.parts.sample_mesh`), or n of a model cloud's points drawn without replacement (all of them,
+    in order, when it has no more than n) -- for plots, sizes and checks that treat meshes and scans alike."""
+    if isinstance(model, (Cloud, np.ndarray)) or foreign_kind(model) == "cloud":
+        points = _cloud_arrays(model)[0]
+        if len(points) <= n:
+            return points
+        return points[np.sort(np.random.default_rng(seed).choice(len(points), n, replace=False))]
+    from scanalign.data.parts import sample_mesh  # a mesh: sampled in C++
+
+    return sample_mesh(model, n, seed=seed)[0]

@@ -185,8 +185,11 @@ class Viewer:
             key = f"{k}_{p.part}"
             self.log_pose(f"world/parts/{key}", p.T_base_model)
             m = meshes[p.part]
-            self.rec.log(f"world/parts/{key}", rr.Mesh3D(vertex_positions=m.vertices, triangle_indices=m.faces,
-                                                         albedo_factor=[70, 130, 230, 255]))
+            if hasattr(m, "faces"):
+                self.rec.log(f"world/parts/{key}", rr.Mesh3D(vertex_positions=m.vertices, triangle_indices=m.faces,
+                                                             albedo_factor=[70, 130, 230, 255]))
+            else:  # a scanned model cloud
+                self.rec.log(f"world/parts/{key}", rr.Points3D(m.points, colors=[70, 130, 230], radii=0.0008))
             if p.status == "picked":
                 self.log_arm(f"world/grasps/{key}/arm", result.tcp_robot(p), p.chosen.q_grasp)  # to the TCP
                 self.log_pose(f"world/grasps/{key}/tcp", np.asarray(p.chosen.T_base_tcp_grasp), axis_length=0.03)
