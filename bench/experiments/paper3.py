@@ -99,7 +99,7 @@ def _grid(quick: bool, log: Log, out: Path) -> Section:
     names = [GRID_OBJECTS["A"], GRID_OBJECTS["B"]]
     models = [load_part(n).mesh for n in names]
     positions = [(-5, 5), (-20, 20)] if quick else list(PAPER_GRID["A"])
-    runs = 1 if quick else 10
+    runs = 2 if quick else 10
     ours: Dict[str, Dict[Tuple[int, int], Dict[str, Any]]] = {}
     for label, name in GRID_OBJECTS.items():
         ours[label] = {}
