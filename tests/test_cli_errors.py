@@ -64,7 +64,7 @@ CASES = [  # argv, fragment the one-line message must contain
     (["ik", "--robot", "ur5", "--joints", *JOINTS, "--closest", "nan", *JOINTS[1:]], "q_current"),
     (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--out", "p"], "truncated.stl: neither a binary STL"),
     (["pose", "--model", "missing.stl", "--scene", "ok.pcd"], "missing.stl: no such model file"),
-    (["pose", "--model", "file.txt", "--scene", "ok.pcd"], "unsupported mesh extension"),
+    (["pose", "--model", "file.txt", "--scene", "ok.pcd"], "unsupported model extension"),
     (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--model-scale", "nan"], "--model-scale"),
     (["pose", "--model", "truncated.stl", "--scene", "ok.pcd", "--model-scale", "0"], "--model-scale"),
 ]
