@@ -531,13 +531,16 @@ def read_model(case, tmp=[]):
     if not tmp:
         tmp.append(Path(tempfile.mkdtemp(prefix="fuzz_read_model_")))
     path = tmp[0] / f"model.{case['kind'] if case['kind'] != 'empty' else 'pcd'}"
+    path.unlink(missing_ok=True)  # never a file from an earlier example
     pts = build(case["points"])
     if case["kind"] == "empty":
         path.write_bytes(b"")
     elif case["kind"] == "xyz":
         path.write_text("0 0 0\n")
-    elif call((io.write_pcd if case["kind"] == "pcd" else io.write_ply), path, pts) is None and not path.exists():
-        return
+    else:
+        call((io.write_pcd if case["kind"] == "pcd" else io.write_ply), path, pts)
+        if not path.exists():  # refused: nothing written
+            return
     model = call(cad.read_model, path)
     if model is not None and case["kind"] in ("pcd", "ply") and isinstance(pts, np.ndarray) and pts.ndim == 2:
         good = np.asarray(pts, dtype=np.float32)
