@@ -193,3 +193,25 @@ def test_a_part_file_with_a_scanned_model_is_libraried_and_found(tmp_path):
     assert len(found) == 1
     deg, mm = _error(found[0].pose.T_scene_model, T_true)
     assert deg < 1.0 and mm < 1.0, (deg, mm)
+
+
+def test_a_scanned_part_is_picked_in_the_pick_cell(tmp_path):
+    """The pick cell (UR5, SR300-like merged scan, the cell rendering the true mesh) with the bracket given only as
+    its scan: picked, the chosen grasp within 1 mm / 0.5 deg of the same grasp on the true pose. A pose slid 6 mm
+    along the plates fits the scan's one view better (score 0.980 against 0.956) but leaves 10 % of the cluster off
+    the model: ranked by both, the true pose wins."""
+    import json
+
+    from scanalign.grasp.parts import BUILTIN_PART_FILES
+    from scanalign.pipelines import pick
+    from scanalign.synthetic.cell import pick_cell, score_picks
+
+    io.write_pcd(tmp_path / "bracket_scan.pcd", _scanned_bracket())
+    data = json.loads(BUILTIN_PART_FILES["bracket"].read_text())
+    data.update(mesh="bracket_scan.pcd")
+    (tmp_path / "bracket.json").write_text(json.dumps(data))
+    cell = pick_cell("ur5", placements=[("bracket", (0.36, -0.07), 0.7)], seed=1)
+    result = pick.pick(cell.scan, [tmp_path / "bracket.json"], cell.robot, progress=False)
+    assert [(p.part, p.status) for p in result.picks] == [("bracket", "picked")], [p.message for p in result.picks]
+    errors = score_picks(result, cell.truth)["bracket"]
+    assert errors["tcp_m"] < 1e-3 and errors["tcp_deg"] < 0.5, errors
