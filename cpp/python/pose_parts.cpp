@@ -92,6 +92,12 @@ void bindSettings(py::module_& m) {
       .field("voxel_size", &S::voxel_size, "m",
              "each cluster reduced to one point (the centroid) per voxel before its pose; 0 = every point (1 to 1.5 "
              "mm for a merged multi-view scan)")
+      .field("max_instances", &S::max_instances, "",
+             "instances per object cluster (touching parts, a heap of copies); 1 = one part per cluster")
+      .field("min_instance_score", &S::min_instance_score, "",
+             "one of several instances in a cluster needs this harmonic mean of its fitness and its agreement (the "
+             "share of explained points among the points near it: explained, inside the part, or continuing its "
+             "surface past its border)")
       .settings();
 }
 
@@ -113,7 +119,9 @@ void bindResults(py::module_& m) {
               "symmetric pose difference to the best pose (over the best part's symmetry)")
       .output("runner_up_distance", &D::runner_up_distance, "m", "the same, translation")
       .field("indices", int64Getter(&D::indices), int64Setter(&D::indices), "",
-             "(N,) int64 the cluster's points, indices into the scene", false)
+             "(N,) int64 the detection's points, indices into the scene: its cluster, or the points one of "
+             "several instances in the cluster explains", false)
+      .output("cluster", &D::cluster, "", "its cluster, index into table.objects")
       .output("parts", &D::parts, "", "PoseResult per part (a skipped part says why in its message)")
       .output("size", &D::size, "m", "the cluster's largest extent along its principal axes")
       .output("message", &D::message, "", "why not found, or what made it ambiguous")
@@ -121,7 +129,8 @@ void bindResults(py::module_& m) {
       .result();
   using R = FindPartsResult;
   fieldsOf(py::class_<R>(m, "FindPartsResult", "Result of find_parts"))
-      .output("detections", &R::detections, "", "PartDetection per object cluster, largest first")
+      .output("detections", &R::detections, "",
+              "PartDetection per object cluster (largest first), or per instance in a cluster of several")
       .derived("plane", [](const R& r) { return r.table.plane; }, "", "the table plane (PlaneResult)")
       .output("table", &R::table, "", "the whole TableSegmentationResult")
       .output("seconds", &R::seconds, "s", "wall time")

@@ -614,6 +614,30 @@ def estimate_pose(case):
             raise ContractError(f"estimate_pose found a pose that puts the scene {gap * 1e3:.1f} mm off the part")
 
 
+@target("pose", weight=0.25, scene=clouds(1500), kind=choice(["two_copies", "cloud"]), inst=counts([1, 2, 10], 10**9),
+        score=numbers(0.9, 1.5))
+def find_parts_instances(case):
+    """Two copies of a rendered view side by side on a table plane, or any cloud, with any instance settings: a
+    result whose detections index the scene and explain each point at most once, or a ValueError naming the field."""
+    from scanalign import pose
+    rng = np.random.default_rng(3)
+    if case["kind"] == "two_copies":
+        view = np.asarray(_views()[7].points)
+        view = view - [*view[:, :2].mean(axis=0), view[:, 2].min() - 0.001]
+        table = np.c_[rng.uniform(-0.2, 0.2, (3000, 2)), np.zeros(3000)]
+        scene = np.vstack([table, view, view + [np.ptp(view[:, 0]) + 0.004, 0, 0]])
+    else:
+        scene = build(case["scene"])
+    r = call(pose.find_parts, [_views()], scene, views=[0, 7], max_instances=case["inst"],
+             min_instance_score=case["score"], up=(0, 0, 1), min_cluster_size=20)
+    if r is None:
+        return
+    seen = [np.asarray(d.indices) for d in r.detections if d.status != pose.DetectionStatus.not_found]
+    idx = np.concatenate(seen) if seen else np.zeros(0, dtype=np.int64)
+    if len(np.unique(idx)) != len(idx) or (len(idx) and (idx.min() < 0 or idx.max() >= len(scene))):
+        raise ContractError("find_parts' instances share points or index outside the scene")
+
+
 @target("pose", src=clouds(1500), tgt=clouds(1500),
         method=choice(["fpfh", "shot", "pfh", "rsd", "gasd", "vfh", "nope"]),
         settings=choice([{}, {"rsd_plane_radius": 0.0}, {"rsd_plane_radius": INF}, {"vfh_min_points": 2},

@@ -14,6 +14,7 @@
 #include <Eigen/Geometry>
 
 #include "scanalign/common/rigid.hpp"
+#include "scanalign/pose/detail/part_surface.hpp"
 #include "scanalign/pose/detail/pose_in_scene.hpp"
 #include "scanalign/reconstruction/voxel_grid.hpp"
 #include "scanalign/registration/alignment_fitness.hpp"
@@ -54,6 +55,9 @@ void validate(const FindPartsSettings& s) {
     throw std::invalid_argument("cbd_radius_fraction must be in [0, 1] (0: the fixed CBD radius)");
   if (!(s.min_surface_coverage >= 0 && s.min_surface_coverage <= 1))
     throw std::invalid_argument("min_surface_coverage must be in [0, 1] (0: no check)");
+  if (s.max_instances < 1) throw std::invalid_argument("max_instances must be >= 1 (1: one part per cluster)");
+  if (!(s.min_instance_score >= 0 && s.min_instance_score <= 1))
+    throw std::invalid_argument("min_instance_score must be in [0, 1]");
   if (!(s.max_table_penetration >= 0))
     throw std::invalid_argument("max_table_penetration must be a distance >= 0 in metres (infinity: no check)");
   if (!(std::isfinite(s.voxel_size) && s.voxel_size >= 0))
@@ -61,10 +65,8 @@ void validate(const FindPartsSettings& s) {
                                 std::to_string(s.voxel_size));
 }
 
-namespace {
+namespace detail {
 
-/// The largest extent of a cloud along its principal axes (m): rotation invariant and never
-/// more than the cloud's diameter, so a view of a part is never larger than the part.
 double principalExtent(const CloudView<double>& c) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   std::size_t n = 0;
@@ -89,10 +91,14 @@ double principalExtent(const CloudView<double>& c) {
   return (hi - lo).maxCoeff();
 }
 
-/// A part's sizes for the gate: all its views together, and its smallest tried view.
-struct PartSize {
-  double whole = 0, smallest_view = 0;
-};
+}  // namespace detail
+
+namespace {
+
+using detail::PartSize;
+using detail::PartSurface;
+using detail::principalExtent;
+using detail::polishOnSurface;
 
 PartSize partSize(const std::vector<ModelView>& views, const std::vector<int>& ids) {
   PartSize out;
@@ -146,13 +152,9 @@ void polish(const ModelView& view, const PreparedScene& scene, const FindPartsSe
   detail::refineCandidate(view, scene, ps, icp, init, c, c.T_scene_model);
 }
 
-/// A part's visible surface from every view, model frame: points and normals (a view's normals
-/// face its camera: outward on a closed mesh), at most about max_points (every k-th point).
-struct PartSurface {
-  std::vector<double> points, normals;
-  CloudView<double> cloud() const { return {points.data(), points.size() / 3}; }
-  CloudView<double> normalCloud() const { return {normals.data(), normals.size() / 3}; }
-};
+}  // namespace
+
+namespace detail {
 
 PartSurface partSurface(const std::vector<ModelView>& views, std::size_t max_points) {
   std::size_t total = 0;
@@ -168,6 +170,26 @@ PartSurface partSurface(const std::vector<ModelView>& views, std::size_t max_poi
       }
   return out;
 }
+
+Eigen::Matrix4d polishOnSurface(const Eigen::Matrix4d& T_scene_model, const PartSurface& surface,
+                                const CloudView<double>& scene, const FindPartsSettings& s) {
+  IcpSettings is;
+  is.max_correspondence_distance = s.polish_distance;
+  is.num_threads = s.pose.num_threads;
+  is.max_iterations = 100;
+  is.transformation_epsilon = 1e-14;
+  Icp<double> icp(is);
+  icp.setTarget(surface.cloud(), surface.normalCloud());
+  const IcpResult r = icp.align(scene, rigidInverse(T_scene_model));
+  if (!r.T_target_source.allFinite() || r.correspondence_count < 6) return T_scene_model;
+  const Eigen::Matrix4d T = rigidInverse(r.T_target_source);
+  const auto moved = symmetricPoseError(Eigen::Isometry3d(T_scene_model), Eigen::Isometry3d(T), PartSymmetry{});
+  return moved.first <= s.same_pose_angle && moved.second <= s.same_pose_distance ? T : T_scene_model;
+}
+
+}  // namespace detail
+
+namespace {
 
 /// How far the part's surface at pose T reaches below the table plane, m (<= 0: not below).
 double tablePenetration(const PartSurface& surface, const Eigen::Matrix4d& T, const PlaneModel& plane) {
@@ -218,25 +240,6 @@ void dropPosesThroughTable(PoseResult& r, const PartSurface& surface, const Plan
   std::snprintf(m, sizeof m, "%d pose(s) through the table dropped (up to %.1f mm below it)%s", dropped,
                 deepest * 1e3, r.found ? "" : "; the best other pose is below min_fitness / min_coverage");
   r.message = m;
-}
-
-/// A pose refined against the part's whole surface (FindPartsSettings::surface_polish): the
-/// cluster's points onto the merged views; kept only while it stays the same pose
-/// (same_pose_angle, same_pose_distance), so a polish that slides off is not taken.
-Eigen::Matrix4d polishOnSurface(const Eigen::Matrix4d& T_scene_model, const PartSurface& surface,
-                                const PreparedScene& scene, const FindPartsSettings& s) {
-  IcpSettings is;
-  is.max_correspondence_distance = s.polish_distance;
-  is.num_threads = s.pose.num_threads;
-  is.max_iterations = 100;
-  is.transformation_epsilon = 1e-14;
-  Icp<double> icp(is);
-  icp.setTarget(surface.cloud(), surface.normalCloud());
-  const IcpResult r = icp.align(scene.cloud(), rigidInverse(T_scene_model));
-  if (!r.T_target_source.allFinite() || r.correspondence_count < 6) return T_scene_model;
-  const Eigen::Matrix4d T = rigidInverse(r.T_target_source);
-  const auto moved = symmetricPoseError(Eigen::Isometry3d(T_scene_model), Eigen::Isometry3d(T), PartSymmetry{});
-  return moved.first <= s.same_pose_angle && moved.second <= s.same_pose_distance ? T : T_scene_model;
 }
 
 /// The share of the cluster's points within polish_distance of a part's merged surface at pose T
@@ -348,7 +351,7 @@ void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<P
     PoseCandidate c = pick ? *pick : PoseCandidate{};
     c.view = d.pose.view;
     c.found = true;
-    c.T_scene_model = polishOnSurface(d.pose.T_scene_model, surfaces[static_cast<std::size_t>(best)], scene, s);
+    c.T_scene_model = polishOnSurface(d.pose.T_scene_model, surfaces[static_cast<std::size_t>(best)], scene.cloud(), s);
     detail::scoreCandidate(models[static_cast<std::size_t>(best)][static_cast<std::size_t>(c.view)], scene, s.pose, c,
                            c.T_scene_model);
     d.pose.candidates.push_back(c);
@@ -372,7 +375,7 @@ void judge(PartDetection& d, const std::vector<bool>& tried, const std::vector<P
       // stopped short of the best pose: polished, it counts only if it stays apart.
       if (same_part && s.polish_distance > 0 && c.score >= (1 - s.ambiguity_margin) * d.score) {
         polish(models[p][static_cast<std::size_t>(c.view)], scene, s, c);
-        if (surface_polish) c.T_scene_model = polishOnSurface(c.T_scene_model, surfaces[p], scene, s);
+        if (surface_polish) c.T_scene_model = detail::polishOnSurface(c.T_scene_model, surfaces[p], scene.cloud(), s);
         err = symmetricPoseError(T_best, Eigen::Isometry3d(c.T_scene_model), S);
         if (same() || c.score <= d.runner_up_score) continue;
       }
@@ -437,56 +440,78 @@ FindPartsResult findParts(const std::vector<std::vector<ModelView>>& models, con
   for (const auto& views : models) part_settings.push_back(partPoseSettings(views, s));
   std::vector<PartSurface> coarse_surfaces, surfaces;
   for (const auto& views : models) {
-    coarse_surfaces.push_back(partSurface(views, 4000));
-    surfaces.push_back(partSurface(views, 40000));
+    coarse_surfaces.push_back(detail::partSurface(views, 4000));
+    surfaces.push_back(detail::partSurface(views, 40000));
   }
   FindPartsResult out;
   out.table = segmentTable(scene, s.table);
   if (out.table.objects.size() > s.max_objects) out.table.objects.resize(s.max_objects);
+  const detail::PartCatalogue catalogue{models, sym, ids, part_settings, sizes, coarse_surfaces, surfaces};
+  const bool table_check = out.table.success() && std::isfinite(s.max_table_penetration);
+  const PlaneModel* plane = table_check ? &out.table.plane.model : nullptr;
   std::vector<double> object;
-  for (const auto& idx : out.table.objects) {
+  for (std::size_t k = 0; k < out.table.objects.size(); ++k) {
+    const auto& idx = out.table.objects[k];
     const auto tc = std::chrono::steady_clock::now();
     PartDetection d;
+    d.cluster = static_cast<int>(k);
     d.indices = idx;
     object.clear();
     for (std::uint32_t i : idx) object.insert(object.end(), scene.ptr(i), scene.ptr(i) + 3);
     if (s.voxel_size > 0) object = voxelGrid(CloudView<double>(object.data(), idx.size()), s.voxel_size).points;
     const CloudView<double> cloud(object.data(), object.size() / 3);
-    d.size = principalExtent(cloud);
-    // Normals once per cluster; CBD features once per distinct part radius.
-    PoseSettings base = s.pose;
-    base.cbd.cbd.radius = part_settings.front().cbd.cbd.radius;
-    const PreparedScene prepared = prepareScene(cloud, base);
-    std::map<double, PreparedScene> by_radius;
-    std::vector<bool> tried(models.size());
-    for (std::size_t p = 0; p < models.size(); ++p) {
-      const auto tp = std::chrono::steady_clock::now();
-      PoseResult r;
-      r.message = sizeMismatch(d.size, sizes[p], s);
-      tried[p] = r.message.empty();
-      const PoseSettings& ps = part_settings[p];
-      if (tried[p]) {
-        const double radius = ps.cbd.cbd.radius;
-        if (radius != base.cbd.cbd.radius && ps.method == CoarseMethod::Cbd && !by_radius.count(radius)) {
-          PreparedScene other = prepared;
-          other.cbd = computeCbd(other.cloud(), cbdSettings(ps).cbd);
-          by_radius.emplace(radius, std::move(other));
-        }
-        const PreparedScene& scene_p = radius == base.cbd.cbd.radius || ps.method != CoarseMethod::Cbd
-                                           ? prepared : by_radius.at(radius);
-        r = detail::poseInPreparedScene(models[p], ids[p], scene_p, ps, aligner, progress);
-      }
-      if (tried[p] && out.table.success() && std::isfinite(s.max_table_penetration))
-        dropPosesThroughTable(r, coarse_surfaces[p], out.table.plane.model, s);
-      r.seconds = secondsSince(tp);
-      d.parts.push_back(std::move(r));
-    }
-    judge(d, tried, sym, models, surfaces, prepared, s);
+    detail::PartPoses poses = detail::poseEveryPart(catalogue, cloud, plane, s, true, aligner, progress);
+    d.size = poses.size;
+    d.parts = std::move(poses.parts);
+    judge(d, poses.tried, sym, models, surfaces, poses.prepared, s);
     d.seconds = secondsSince(tc);
-    out.detections.push_back(std::move(d));
+    std::vector<PartDetection> instances;
+    if (s.max_instances > 1) instances = detail::findInstances(catalogue, scene, idx, d, plane, s, aligner, progress);
+    if (d.status != DetectionStatus::NotFound || instances.empty()) out.detections.push_back(std::move(d));
+    for (PartDetection& e : instances) out.detections.push_back(std::move(e));
   }
   out.seconds = secondsSince(t0);
   return out;
 }
+
+namespace detail {
+
+PartPoses poseEveryPart(const PartCatalogue& parts, const CloudView<double>& cloud, const PlaneModel* plane,
+                        const FindPartsSettings& s, bool upper_size_gate, const CoarseAligner& aligner,
+                        const PoseProgress& progress) {
+  PartPoses out;
+  out.size = principalExtent(cloud);
+  // Normals once per cloud; CBD features once per distinct part radius.
+  PoseSettings base = s.pose;
+  base.cbd.cbd.radius = parts.settings.front().cbd.cbd.radius;
+  out.prepared = prepareScene(cloud, base);
+  std::map<double, PreparedScene> by_radius;
+  FindPartsSettings gate = s;
+  if (!upper_size_gate) gate.max_size_ratio = 0;
+  for (std::size_t p = 0; p < parts.models.size(); ++p) {
+    const auto tp = std::chrono::steady_clock::now();
+    PoseResult r;
+    r.message = sizeMismatch(out.size, parts.sizes[p], gate);
+    out.tried.push_back(r.message.empty());
+    const PoseSettings& ps = parts.settings[p];
+    if (out.tried.back()) {
+      const double radius = ps.cbd.cbd.radius;
+      if (radius != base.cbd.cbd.radius && ps.method == CoarseMethod::Cbd && !by_radius.count(radius)) {
+        PreparedScene other = out.prepared;
+        other.cbd = computeCbd(other.cloud(), cbdSettings(ps).cbd);
+        by_radius.emplace(radius, std::move(other));
+      }
+      const PreparedScene& scene_p = radius == base.cbd.cbd.radius || ps.method != CoarseMethod::Cbd
+                                         ? out.prepared : by_radius.at(radius);
+      r = poseInPreparedScene(parts.models[p], parts.view_ids[p], scene_p, ps, aligner, progress);
+      if (plane) dropPosesThroughTable(r, parts.coarse_surfaces[p], *plane, s);
+    }
+    r.seconds = secondsSince(tp);
+    out.parts.push_back(std::move(r));
+  }
+  return out;
+}
+
+}  // namespace detail
 
 }  // namespace scanalign

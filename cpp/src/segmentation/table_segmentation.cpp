@@ -1,6 +1,7 @@
 // The table segmentation pipeline of paper 3. See table_segmentation.hpp.
 #include "scanalign/segmentation/table_segmentation.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
@@ -17,6 +18,9 @@ std::string formatVector(const Eigen::Vector3d& v) {
   return buf;
 }
 
+/// m; how far below the table the origin must lie to contradict `up` when no viewpoint is given.
+constexpr double kImplicitViewpointMargin = 0.05;
+
 /// Orients the table normal towards `up`, or else towards the viewpoint (Paper 3: "orient v
 /// toward the camera"), and reports an `up` under which the viewpoint lies below the table.
 void orientTable(const TableSegmentationSettings& s, TableSegmentationResult& out) {
@@ -29,8 +33,12 @@ void orientTable(const TableSegmentationSettings& s, TableSegmentationResult& ou
     out.plane.hypothesis.normal = -out.plane.hypothesis.normal;
     out.plane.hypothesis.distance = -out.plane.hypothesis.distance;
   }
+  // Unset, the viewpoint is the origin only by guess: a base frame's origin often lies on the
+  // table top (a robot standing on it), noise puts it a hair below, and nothing is wrong.
+  // A camera-frame cloud's origin is a camera, tens of centimetres off the table.
+  const double margin = s.viewpoint ? s.plane.threshold : std::max(s.plane.threshold, kImplicitViewpointMargin);
   const double height = pl.signedDistance(viewpoint);
-  if (!use_up || height >= -s.plane.threshold) return;
+  if (!use_up || height >= -margin) return;
   char depth[32];
   std::snprintf(depth, sizeof depth, "%.3g", -height);
   out.warning = "table segmentation: up " + formatVector(s.up) + " puts the viewpoint " + formatVector(viewpoint) +

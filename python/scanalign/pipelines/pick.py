@@ -139,8 +139,9 @@ class PickResult:
         return {"robot": self.robot.name, "q_current": self.q_current.tolist(), "seconds": self.seconds,
                 "table_plane": [float(v) for v in table_plane(self.detections)],
                 "picks": [p.as_dict() for p in self.picks],
-                "unmatched_clusters": [{"cluster": k, "points": len(d.indices), "size_m": d.size, "message": d.message}
-                                       for k, d in enumerate(self.detections.detections) if d.status.name == "not_found"]}
+                "unmatched_clusters": [{"cluster": d.cluster, "points": len(d.indices), "size_m": d.size,
+                                        "message": d.message}
+                                       for d in self.detections.detections if d.status.name == "not_found"]}
 
     def save(self, out_dir: Union[str, Path]) -> Dict[str, Path]:
         """Writes ``picks.json`` (every part, its pose, chosen grasp, joint targets and rejected
@@ -263,30 +264,40 @@ def table_plane(detections: Any) -> np.ndarray:
 
 
 def plan_picks(detections: Any, parts: Sequence[Any], robot: Any, *, gripper: Any = None,
-               q_current: Optional[Sequence[float]] = None, planner: Any = None) -> List[PartPick]:
-    """A :class:`PartPick` per detection of :func:`scanalign.pose.find_parts` (base frame),
-    then a ``not_found`` one per part no cluster matched. ``q_current`` (rad) defaults to
+               q_current: Optional[Sequence[float]] = None, planner: Any = None,
+               points: Optional[np.ndarray] = None) -> List[PartPick]:
+    """A :class:`PartPick` per detection of :func:`scanalign.pose.find_parts` (base frame), the top-most first (the
+    highest of its points in ``points``, the scene the detections index, above the table; without ``points``, the
+    height of its pose), then a ``not_found`` one per part no cluster matched. ``q_current`` (rad) defaults to
     zeros; ``planner``: a ``GraspPlannerSettings`` or a dict of its fields."""
     planner = planner if planner is None or is_struct(planner) else with_overrides(
         _grasp.GraspPlannerSettings, None, planner, "planner")
     q0 = np.zeros(6) if q_current is None else np.asarray(q_current, dtype=np.float64)
     plane = table_plane(detections)
     out: List[PartPick] = []
-    for k, det in enumerate(detections.detections):
-        if det.status.name == "not_found":  # a cluster that is none of the parts (listed in picks.json)
-            continue
+    found = [d for d in detections.detections if d.status.name != "not_found"]  # the rest: picks.json's clusters
+    for det in sorted(found, key=lambda d: -_top_height(d, plane, points)):
         part = parts[det.part]
-        pp = PartPick(part.name, det.status.name, det.message, cluster=k, T_base_model=np.array(det.pose.T_scene_model),
-                      fitness=det.pose.fitness, coverage=det.pose.coverage, grasp_names=[g.name for g in part.grasps])
+        pp = PartPick(part.name, det.status.name, det.message, cluster=det.cluster,
+                      T_base_model=np.array(det.pose.T_scene_model), fitness=det.pose.fitness,
+                      coverage=det.pose.coverage, grasp_names=[g.name for g in part.grasps])
         if det.status.name == "found":
             pp.gripper = gripper or part.gripper
             pp.plan = _grasp.plan_grasp(robot, pp.T_base_model, part.grasps, symmetry=part.symmetry,
                                         gripper=pp.gripper, table_plane=plane, q_current=q0, settings=planner)
             pp.status, pp.message = ("picked", "") if pp.plan.found else ("no_grasp", pp.plan.message)
         out.append(pp)
-    seen = {parts[d.part].name for d in detections.detections if d.status.name != "not_found"}
+    seen = {parts[d.part].name for d in found}
     out += [PartPick(p.name, "not_found", "no object cluster matched this part") for p in parts if p.name not in seen]
     return out
+
+
+def _top_height(det: Any, plane: np.ndarray, points: Optional[np.ndarray]) -> float:
+    """How high a detection reaches above the table (m): its highest point, or its pose's origin."""
+    n, d = plane[:3], plane[3]  # n.p + d = 0, n up
+    if points is not None and len(det.indices):
+        return float((points[det.indices] @ n).max() + d)
+    return float(np.asarray(det.pose.T_scene_model)[:3, 3] @ n + d)
 
 
 def upper_views() -> List[int]:
@@ -359,7 +370,8 @@ def pick(scene: Any, parts: Sequence[Any], robot: Any = None, *, T_base_robot: O
     if q_current is None:
         q_last = getattr(scene, "joints", None)
         q_current = q_last[-1] if q_last is not None and len(q_last) else np.zeros(6)
-    picks = plan_picks(detections, part_list, arm, gripper=gripper, q_current=q_current, planner=s.planner)
+    picks = plan_picks(detections, part_list, arm, gripper=gripper, q_current=q_current, planner=s.planner,
+                       points=points)
     t3 = time.perf_counter()
     result = PickResult(picks, points, detections, arm, np.asarray(q_current, dtype=np.float64), part_list,
                         {"scan": t1 - t0, "detect": t2 - t1, "plan": t3 - t2, "total": t3 - t0}, rec)

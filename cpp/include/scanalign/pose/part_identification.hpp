@@ -120,6 +120,23 @@ struct FindPartsSettings {
   /// 0.94 at best, the block on the bracket's cluster 0.49), while fitness and coverage,
   /// measured on one view with inlier_threshold, still pass. 0 disables the check.
   double min_surface_coverage = 0.97;
+  /// Instances per object cluster: touching parts, a part leaning on another, a heap of
+  /// copies give one Euclidean cluster. When the cluster is not one part (or the part found
+  /// leaves at least table.min_cluster_size points unexplained), rounds of hypotheses (every
+  /// view of every part, without the upper size gate) run on the points no instance explains
+  /// yet; each is verified against the cluster and the best are accepted, each point explained
+  /// by at most one instance (part_instances.cpp). 1: one part per cluster.
+  std::size_t max_instances = 10;
+  /// One of several instances in a cluster needs pose.min_fitness, table.min_cluster_size
+  /// points explained, and this score: the harmonic mean of its fitness (its view's points
+  /// within pose.inlier_threshold of the cluster) and its agreement, the share of explained
+  /// points among the free points near it that bear on it: explained (within inlier_threshold
+  /// of its surface, normals within 45 degrees), inside the placed part, or continuing the
+  /// surface of an explained point past the part's border (within inlier_threshold of its
+  /// tangent plane, up to 3 inlier thresholds away, normals within 25 degrees). On heaps of
+  /// the built-in parts with Zivid-like noise the true poses of copies seen to 80 % or more
+  /// scored 0.92 to 1.00, poses 14 to 33 mm off 0.73 to 0.86.
+  double min_instance_score = 0.9;
 };
 void validate(const FindPartsSettings& settings);
 
@@ -141,7 +158,10 @@ struct PartDetection {
   /// Fraction of the cluster's points within polish_distance of the part's whole surface at
   /// the reported pose (FindPartsSettings::min_surface_coverage); 0 when nothing was found.
   double surface_coverage = 0;
-  std::vector<std::uint32_t> indices;  ///< the cluster's points (indices into the scene, before the voxel grid)
+  /// The points of this detection (indices into the scene, before the voxel grid): its whole
+  /// cluster, or, for one of several instances in a cluster, the points it explains.
+  std::vector<std::uint32_t> indices;
+  int cluster = -1;                    ///< its cluster in FindPartsResult::table.objects
   std::vector<PoseResult> parts;       ///< per part; a part skipped by the size gate says so in its message
   double size = 0;                     ///< the cluster's size (largest principal extent), m
   std::string message;                 ///< why not found, or what made it ambiguous
@@ -149,7 +169,9 @@ struct PartDetection {
 };
 
 struct FindPartsResult {
-  std::vector<PartDetection> detections;  ///< one per object cluster, largest first
+  /// Per object cluster (largest first), its part or its instances (max_instances): a cluster
+  /// with none gives one not_found detection.
+  std::vector<PartDetection> detections;
   TableSegmentationResult table;          ///< plane, clusters and counts
   double seconds = 0;                     ///< wall time
 };

@@ -28,8 +28,10 @@ struct TableSegmentationSettings {
   /// the viewpoint. Plane inliers and every point with signed distance < threshold are removed.
   /// `viewpoint`: the sensor's centre in the cloud's frame (metres); unset, the origin, which
   /// is the camera centre of a cloud in its camera frame. A sensor sees the table from above,
-  /// so an `up` that leaves the viewpoint below the table contradicts it: the result's
-  /// `warning` says so (the objects would be removed as "below the table").
+  /// so an `up` that leaves the viewpoint below the table (by more than plane.threshold; the
+  /// origin taken for an unset viewpoint, by more than 5 cm, since a base frame's origin often
+  /// lies on the table top) contradicts it: the result's `warning` says so (the objects would
+  /// be removed as "below the table").
   std::optional<Eigen::Vector3d> viewpoint;
   Eigen::Vector3d up = Eigen::Vector3d::Zero();  ///< zero: orient towards the viewpoint
   /// (4) Euclidean clustering: points closer than cluster_tolerance (metres) are linked.
