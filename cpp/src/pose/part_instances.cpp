@@ -58,6 +58,7 @@ struct Verdict {
   Eigen::Matrix4d T_scene_model = Eigen::Matrix4d::Identity();
   double fitness = 0;                  ///< the view's points within inlier_threshold of the cluster
   std::vector<std::uint32_t> claimed;  ///< free cluster points on the placed surface
+  std::vector<std::uint32_t> covered;  ///< free points within inlier_threshold of it, whatever their normal
   std::size_t intrusions = 0;          ///< free points inside the placed part
   std::size_t continuations = 0;       ///< free points continuing its surface past its border
   double agreement() const {
@@ -99,6 +100,7 @@ Verdict verify(const ModelView& view, const SurfaceIndex& index, const Eigen::Ma
     const Eigen::Vector3d s_pt(&surf.points[3 * j]), s_n(&surf.normals[3 * j]);
     const Eigen::Vector3d n_q = R.transpose() * cluster.normal(i);
     const double cos_normals = n_q.allFinite() ? std::abs(n_q.dot(s_n)) : 1.0;
+    if (nn.squared_distance <= thr * thr) v.covered.push_back(static_cast<std::uint32_t>(i));
     if (nn.squared_distance <= thr * thr && cos_normals >= kClaimCos)
       v.claimed.push_back(static_cast<std::uint32_t>(i));
     else if (nn.squared_distance > thr * thr && (q - s_pt).dot(s_n) < -thr)
@@ -165,6 +167,26 @@ std::vector<std::vector<std::uint32_t>> freePieces(const Cluster& c, const std::
                            std::numeric_limits<std::size_t>::max());
 }
 
+/// Whether a piece of free points can hold another instance: at least table.min_cluster_size
+/// of its points lie further than kContinuationReach inlier thresholds from every accepted
+/// instance. What an instance leaves beside it (noisy edges, flying pixels, a sliver of a
+/// face whose normals disagree) is no part, and a round costs as much as a whole cluster.
+bool worthARound(const Cluster& c, const std::vector<std::uint32_t>& piece, const std::vector<Verdict>& accepted,
+                 const std::vector<SurfaceIndex>& index, const FindPartsSettings& s) {
+  const double reach = kContinuationReach * s.pose.inlier_threshold;
+  std::size_t far = 0;
+  for (std::uint32_t i : piece) {
+    bool near = false;
+    for (const Verdict& a : accepted) {
+      const Eigen::Matrix3d R = a.T_scene_model.topLeftCorner<3, 3>();
+      const Eigen::Vector3d q = R.transpose() * (c.point(i) - a.T_scene_model.topRightCorner<3, 1>());
+      if ((near = index[static_cast<std::size_t>(a.part)].tree.nearest(q.data(), reach * reach).found())) break;
+    }
+    if (!near && ++far >= s.table.min_cluster_size) return true;
+  }
+  return false;
+}
+
 PartDetection instanceDetection(const Verdict& v, const PartPoses& poses, const Cluster& c, int cluster_index) {
   PartDetection d;
   d.status = DetectionStatus::Found;
@@ -229,6 +251,7 @@ std::vector<PartDetection> round(const PartCatalogue& parts, Cluster& c, const s
   auto weight = [](const Verdict& v) { return static_cast<double>(v.claimed.size()) * v.score(); };
   std::stable_sort(verdicts.begin(), verdicts.end(), [&](const Verdict& a, const Verdict& b) { return weight(a) > weight(b); });
   std::vector<char> taken(c.free.size(), 0);
+  std::vector<std::uint32_t> removed;  // covered by an accepted instance: no other instance's
   std::vector<PartDetection> out;
   std::vector<std::size_t> mine;  // positions in `accepted` of this round's instances
   for (const Verdict& h : verdicts) {
@@ -273,6 +296,7 @@ std::vector<PartDetection> round(const PartCatalogue& parts, Cluster& c, const s
                     v.claimed.end());
     for (std::uint32_t i : v.claimed) taken[i] = 1;
     out.push_back(instanceDetection(v, poses, c, cluster_index));
+    for (std::uint32_t i : v.covered) removed.push_back(i);
     mine.push_back(accepted.size());
     accepted.push_back(std::move(v));
   }
@@ -288,6 +312,7 @@ std::vector<PartDetection> round(const PartCatalogue& parts, Cluster& c, const s
   }
   for (std::size_t i = 0; i < taken.size(); ++i)
     if (taken[i]) c.free[i] = 0;
+  for (std::uint32_t i : removed) c.free[i] = 0;
   return out;
 }
 
@@ -309,12 +334,14 @@ std::vector<PartDetection> findInstances(const PartCatalogue& parts, const Cloud
     Verdict v = verify(parts.models[static_cast<std::size_t>(whole.part)][static_cast<std::size_t>(whole.pose.view)],
                        index[static_cast<std::size_t>(whole.part)], whole.pose.T_scene_model, c, s);
     v.part = whole.part;
-    for (std::uint32_t i : v.claimed) c.free[i] = 0;
+    for (std::uint32_t i : v.covered) c.free[i] = 0;
     accepted.push_back(std::move(v));
   }
   std::vector<std::uint32_t> all(c.free.size());
   std::iota(all.begin(), all.end(), 0u);
-  std::vector<std::vector<std::uint32_t>> queue = freePieces(c, all, s);
+  std::vector<std::vector<std::uint32_t>> queue;
+  for (auto& piece : freePieces(c, all, s))
+    if (worthARound(c, piece, accepted, index, s)) queue.push_back(std::move(piece));
   const int cluster_index = whole.cluster;
   while (!queue.empty() && found_whole + out.size() < s.max_instances) {
     const std::vector<std::uint32_t> piece = std::move(queue.front());
@@ -323,7 +350,8 @@ std::vector<PartDetection> findInstances(const PartCatalogue& parts, const Cloud
                                              s.max_instances - found_whole - out.size(), aligner, progress);
     if (found.empty()) continue;
     for (PartDetection& d : found) out.push_back(std::move(d));
-    for (auto& rest : freePieces(c, piece, s)) queue.push_back(std::move(rest));
+    for (auto& rest : freePieces(c, piece, s))
+      if (worthARound(c, rest, accepted, index, s)) queue.push_back(std::move(rest));
   }
   if (found_whole && !out.empty()) {  // the part found first keeps only the points it explains
     whole.indices.clear();

@@ -44,16 +44,20 @@ class Heap:
 
 def drop_heap(meshes: Sequence[io.Mesh], count: int, *, scene: Optional[Scene] = None,
               center: Tuple[float, float] = (0.5, 0.0), radius: float = 0.05, max_tilt: float = 0.35,
-              gap: float = 0.002, seed: int = 0, colors: Optional[Sequence[Sequence[float]]] = None) -> Heap:
+              gap: float = 0.002, tries: int = 8, seed: int = 0,
+              colors: Optional[Sequence[Sequence[float]]] = None) -> Heap:
     """Drops ``count`` copies, each of a mesh drawn from ``meshes`` in turn, centred within ``radius`` metres (x, y)
     of ``center`` (base frame) on ``scene`` (default: a new 0.6 m table centred there). ``max_tilt`` (rad) bounds the
-    random tilt off a face-down attitude; ``gap`` (m) is the horizontal reach at which surface samples meet."""
+    random tilt off a face-down attitude; ``gap`` (m) is the horizontal reach at which surface samples meet. Of
+    ``tries`` random drops per copy the one whose centre rests lowest is kept: parts settle rather than tower."""
     if not meshes:
         raise ValueError("meshes: need at least one mesh")
     if count < 1:
         raise ValueError(f"count must be >= 1, got {count}")
     if not (radius >= 0 and max_tilt >= 0 and gap > 0):
         raise ValueError("radius and max_tilt must be >= 0 and gap > 0")
+    if tries < 1:
+        raise ValueError(f"tries must be >= 1, got {tries}")
     rng = np.random.default_rng(seed)
     scene = scene if scene is not None else Scene(table_size=(0.6, 0.6), table_center=center)
     heap = Heap(scene, first=len(scene.objects))
@@ -62,16 +66,10 @@ def drop_heap(meshes: Sequence[io.Mesh], count: int, *, scene: Optional[Scene] =
     placed: List[np.ndarray] = []  # the surface samples of the copies dropped, base frame
     for k in range(count):
         j = k % len(meshes)
-        R = _attitude(rng, max_tilt)
-        rotated = samples[j] @ R.T
-        xy = np.asarray(center, dtype=np.float64) + radius * math.sqrt(rng.uniform()) * _unit(rng.uniform(0, 2 * math.pi))
-        T = np.eye(4)
-        T[:3, :3] = R
-        T[:2, 3] = xy - (rotated[:, :2].min(axis=0) + rotated[:, :2].max(axis=0)) / 2
-        on_table = scene.table_height - rotated[:, 2].min()
-        on_copies = _rest_height(rotated + [T[0, 3], T[1, 3], 0.0], placed, gap)
-        T[2, 3] = max(on_table, on_copies)
-        placed.append(rotated + T[:3, 3])
+        # Gravity, roughly: of `tries` random drops the one whose centre comes to rest lowest.
+        T, on_table, on_copies = min((_drop(samples[j], placed, rng, center, radius, max_tilt, gap, scene.table_height)
+                                      for _ in range(tries)), key=lambda d: d[0][2, 3] + d[3])[:3]
+        placed.append(samples[j] @ T[:3, :3].T + T[:3, 3])
         color = colors[k % len(colors)] if colors else (0.75, 0.45, 0.20)
         scene.add_object(meshes[j], T, color=color, name=f"heap{k}")
         heap.T_base_part.append(T)
@@ -94,6 +92,22 @@ def visible_fractions(scene: Scene, T_base_camera: np.ndarray, intrinsics: objec
         full = int(np.count_nonzero(alone.face_object[a.face_id[a.face_id >= 0]] == 0))
         out.append(np.count_nonzero(seen == k) / full if full else 0.0)
     return np.asarray(out)
+
+
+def _drop(samples: np.ndarray, placed: List[np.ndarray], rng: np.random.Generator, center: Tuple[float, float],
+          radius: float, max_tilt: float, gap: float, table_height: float) -> Tuple[np.ndarray, float, float, float]:
+    """One random drop of a copy (its surface ``samples``, own frame): (T_base_part, its rest height on the table, on
+    the copies ``placed``, the z of its samples' centre in its own attitude)."""
+    R = _attitude(rng, max_tilt)
+    rotated = samples @ R.T
+    xy = np.asarray(center, dtype=np.float64) + radius * math.sqrt(rng.uniform()) * _unit(rng.uniform(0, 2 * math.pi))
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:2, 3] = xy - (rotated[:, :2].min(axis=0) + rotated[:, :2].max(axis=0)) / 2
+    on_table = table_height - rotated[:, 2].min()
+    on_copies = _rest_height(rotated + [T[0, 3], T[1, 3], 0.0], placed, gap)
+    T[2, 3] = max(on_table, on_copies)
+    return T, on_table, on_copies, float(rotated[:, 2].mean())
 
 
 def _attitude(rng: np.random.Generator, max_tilt: float) -> np.ndarray:
