@@ -20,7 +20,7 @@ from scanalign.synthetic.heap import drop_heap, visible_fractions
 
 NAMES = ("block", "bracket", "standoff")
 SYMS = [parts.BUILTIN_PARTS[n] for n in NAMES]
-KW = dict(up=(0, 0, 1), table_threshold=0.002, cluster_tolerance=0.01)
+KW = dict(up=(0, 0, 1), table_threshold=0.002, cluster_tolerance=0.01, max_instances=10)
 K = intrinsics_preset("sr300")
 
 
@@ -76,7 +76,7 @@ def test_three_different_parts_touching_are_three_instances_of_one_cluster():
     idx = np.concatenate([d.indices for d in found])
     assert len(np.unique(idx)) == len(idx) and len(idx) > 0.9 * len(out.table.objects[0])
     # One part per cluster: the merged cluster is no part.
-    one = pose.find_parts(models, cloud, symmetries=SYMS, max_instances=1, **KW)
+    one = pose.find_parts(models, cloud, symmetries=SYMS, **{**KW, "max_instances": 1})
     assert [d.status for d in one.detections] == [pose.DetectionStatus.not_found]
 
 
